@@ -1,0 +1,26 @@
+"""Physical constants of the paper's scene, in SI units, each with its source.
+
+The paper is ``shared/paper/earthshine_irt_paper.md`` (Sec. 2.1-2.3, Tables 1-2).
+"""
+
+#: Sun-Earth distance [m]; paper Sec. 2.1.2 (D_SE = 1.496e11 m).
+D_SE_M = 1.496e11
+#: Earth-Moon distance [m]; paper Sec. 2.1.2 (D_EM = 3.800e8 m).
+D_EM_M = 3.800e8
+#: Lunar radius [m]; paper Sec. 2.1.2 (R_Moon = 1.738e6 m).
+R_MOON_M = 1.738e6
+#: Earth radius [m]; paper Sec. 2.2 (R_Earth = 6.378e6 m, equatorial).
+R_EARTH_M = 6.378e6
+#: Solar radius [m]; not given in the paper. IAU 2015 Resolution B3 nominal solar radius.
+R_SUN_M = 6.957e8
+#: Solar radiant flux over 400-750 nm [W]; paper abstract and Sec. 2.1.2 (1.626e26 W).
+PHI_SUN_W = 1.626e26
+#: Earth Bond albedo of the Lambertian Earth; paper abstract (0.3).
+EARTH_ALBEDO = 0.3
+#: Albedo of the Lambertian Moon; paper Table 5 header "Lambertian(0.10)" (NOTES.md item 6).
+MOON_LAMBERT_ALBEDO = 0.10
+#: Monte Carlo rays per run and runs per phase; paper Sec. 3.2 (NOTES.md item 8).
+PAPER_RAYS = 50_000
+PAPER_RUNS = 10
+#: Phase grid of the paper's sweep [deg]; paper Sec. 3.2 (0..180 in 5 deg steps).
+PAPER_PHASES_DEG = tuple(range(0, 181, 5))

@@ -1,0 +1,132 @@
+"""Product Gauss rules over regions of the unit sphere bounded by circles (spherical caps).
+
+Every region that lunarviz integrates over is an intersection of caps ``{n : n·u > c}``:
+a body's surface seen from a point (``n·(P - O) > R``), the part lit by a point source
+(``n·(S - O) > R``), the part above a facet's horizon, and the band where an extended source of
+radius ρ is partly below the horizon (``R - ρ < n·(S - O) < R + ρ``, an exact plane condition).
+The integrands are smooth inside such pieces, so Gauss-Legendre in polar coordinates about an
+axis converges spectrally once the φ-range of every ring is cut at the cap boundaries and the
+t-range at the rings tangent to them. Derivation: ``scripts/derivations.md`` (cap splitting).
+
+All functions are vectorised over a batch B of independent rules.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def orthonormal_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (B, 3) completing ``axis`` (B, 3) to a right-handed basis."""
+    axis = np.asarray(axis, dtype=float)
+    helper = np.where(np.abs(axis[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(axis, e1)
+    return e1, e2
+
+
+def _gauss(n: int):
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int = 16,
+             n_phi: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and solid-angle weights over ``{n·axis ≥ cos_max} ∩ caps``, for a batch.
+
+    Parameters
+    ----------
+    axis : (B, 3) unit vectors, pole of the polar coordinates (t, φ).
+    cos_max : (B,) cosine of the region's polar radius.
+    caps_u : (B, k, 3) unit vectors; caps_c : (B, k) thresholds. A node counts only where
+        ``n·u > c`` for every cap that is not ``split_only``; split-only caps just cut the
+        rule where the integrand has a kink (e.g. a penumbra edge).
+    split_only : (B, k) bool or None.
+    n_t, n_phi : Gauss points per t-segment and per φ-interval.
+
+    Returns
+    -------
+    nodes : (B, M, 3) unit vectors; weights : (B, M) solid angle [sr] (0 outside the region).
+    """
+    axis = np.asarray(axis, dtype=float)
+    B = axis.shape[0]
+    cos_max = np.broadcast_to(np.asarray(cos_max, dtype=float), (B,))
+    if caps_u is None:
+        caps_u = np.zeros((B, 0, 3))
+        caps_c = np.zeros((B, 0))
+    caps_u = np.asarray(caps_u, dtype=float)
+    caps_c = np.asarray(caps_c, dtype=float)
+    k = caps_u.shape[1]
+    if split_only is None:
+        split_only = np.zeros((B, k), dtype=bool)
+    split_only = np.broadcast_to(np.asarray(split_only, dtype=bool), (B, k))
+    e1, e2 = orthonormal_basis(axis)
+    t_max = np.arccos(np.clip(cos_max, -1.0, 1.0))
+
+    # cap geometry in the polar frame
+    ua = np.einsum("bkj,bj->bk", caps_u, axis)
+    u1 = np.einsum("bkj,bj->bk", caps_u, e1)
+    u2 = np.einsum("bkj,bj->bk", caps_u, e2)
+    t_u = np.arctan2(np.hypot(u1, u2), ua)  # (B, k)
+    phi_u = np.arctan2(u2, u1)
+    a = np.arccos(np.clip(caps_c, -1.0, 1.0))
+
+    # t segments: split where a ring becomes tangent to a cap boundary
+    cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
+    cand = np.clip(cand, 0.0, t_max[:, None])
+    tb = np.sort(np.concatenate([np.zeros((B, 1)), cand, t_max[:, None]], axis=1), axis=1)
+    t_lo, t_hi = tb[:, :-1], tb[:, 1:]  # (B, S)
+    # The φ-half-width of a ring behaves like √(t - t*) next to a tangent ring t*, so the
+    # ring integral has square-root end-point singularities; the smoothstep substitution
+    # t = lo + (hi - lo)(3u² - 2u³) turns them into analytic functions of u.
+    gx, gw = _gauss(n_t)
+    gw = gw * 6.0 * gx * (1.0 - gx)
+    gx = gx * gx * (3.0 - 2.0 * gx)
+    t = t_lo[:, :, None] + (t_hi - t_lo)[:, :, None] * gx  # (B, S, n_t)
+    wt = (t_hi - t_lo)[:, :, None] * gw * np.sin(t)
+    t = t.reshape(B, -1)
+    wt = wt.reshape(B, -1)  # (B, R) rings
+    st, ct = np.sin(t), np.cos(t)
+
+    # φ breakpoints on every ring for every cap
+    stu, ctu = np.sin(t_u)[:, None, :], np.cos(t_u)[:, None, :]
+    den = st[:, :, None] * stu
+    num = caps_c[:, None, :] - ct[:, :, None] * ctu
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(np.abs(den) > 1e-300, num / den, np.where(num < 0, -np.inf, np.inf))
+    partial = (q > -1.0) & (q < 1.0)
+    hw = np.arccos(np.clip(q, -1.0, 1.0))
+    pu = phi_u[:, None, :]
+    b_lo = np.where(partial, np.mod(pu - hw, 2 * np.pi), 0.0)
+    b_hi = np.where(partial, np.mod(pu + hw, 2 * np.pi), 0.0)
+    R = t.shape[1]
+    pb = np.concatenate([np.zeros((B, R, 1)), b_lo, b_hi, np.full((B, R, 1), 2 * np.pi)], axis=2)
+    pb = np.sort(pb, axis=2)
+    p_lo, p_hi = pb[:, :, :-1], pb[:, :, 1:]  # (B, R, 2k+1)
+
+    # which φ-intervals lie inside every constraint cap: test the interval midpoints
+    pm = 0.5 * (p_lo + p_hi)
+    inside = np.ones(pm.shape, dtype=bool)
+    for j in range(k):
+        ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + \
+            st[:, :, None] * stu[:, :, j:j + 1] * np.cos(pm - pu[:, :, j:j + 1])
+        ok = ndotu > caps_c[:, None, j:j + 1]
+        inside &= ok | split_only[:, None, j:j + 1]
+
+    fx, fw = _gauss(n_phi)
+    phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
+    wphi = ((p_hi - p_lo) * inside)[..., None] * fw
+    w = wt[:, :, None, None] * wphi
+    sphi, cphi = np.sin(phi), np.cos(phi)
+    stt = st[:, :, None, None]
+    nodes = (ct[:, :, None, None, None] * axis[:, None, None, None, :]
+             + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
+                                 + sphi[..., None] * e2[:, None, None, None, :]))
+    return nodes.reshape(B, -1, 3), w.reshape(B, -1)
+
+
+def compact(nodes: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Drop zero-weight nodes of a single rule (nodes (M, 3), weights (M,))."""
+    keep = weights > 0.0
+    return nodes[keep], weights[keep]

@@ -1,0 +1,61 @@
+"""BRDF-independent transport: what reaches each lunar surface sample, and what the detector sees.
+
+Every method (analytic, exact reference, deterministic and Monte Carlo ray tracing) reduces a
+scene to a :class:`Transport`: for N lunar surface samples and K incident beams per sample,
+
+* ``e_beam`` (N, K) — irradiance carried by each beam, measured normal to the beam [W m⁻²]
+  (radiance × solid angle of the beam); zero for blocked or missing beams;
+* ``mu0`` (N, K), ``sin_hg``/``cos_hg`` (N, K) — cos incidence and the half phase angle;
+* ``mu`` (N,) — cos emission toward the detector;
+* ``geom`` (N,) — ``μ · cos(detector tilt) · dA / d²`` [sr m⁻²·m²], zero where the detector
+  cannot see the sample.
+
+Then the radiance toward the detector is ``L = Σ_k BRDF·μ0·e_beam`` (paper Eq. 10, summed over
+beams) and the detector irradiance ``E = Σ_n L · geom`` (paper Eq. 11). Shading three BRDFs
+costs three cheap evaluations of one transport (DESIGN.md, "data flows one way").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Transport:
+    mu0: np.ndarray
+    sin_hg: np.ndarray
+    cos_hg: np.ndarray
+    e_beam: np.ndarray
+    mu: np.ndarray
+    geom: np.ndarray
+
+    def radiance(self, brdf) -> np.ndarray:
+        """Radiance toward the detector at each sample [W m⁻² sr⁻¹], paper Eq. 10."""
+        mu = np.broadcast_to(self.mu[:, None], self.mu0.shape)
+        rf = brdf.radiance_factor(self.mu0, mu, self.sin_hg, self.cos_hg)
+        return np.sum(rf * self.e_beam, axis=1)
+
+    def irradiance_on_sample(self) -> np.ndarray:
+        """Irradiance on the surface at each sample [W m⁻²]: Σ_k μ0 e_beam."""
+        return np.sum(np.clip(self.mu0, 0.0, None) * self.e_beam, axis=1)
+
+    def detector_irradiance(self, brdf) -> float:
+        """Irradiance at the detector [W m⁻²], paper Eq. 11."""
+        return float(np.dot(self.radiance(brdf), self.geom))
+
+
+def detector_geometry(points, normals, areas, det, det_normal):
+    """``mu`` and ``geom`` for samples at ``points`` with ``normals`` and ``areas`` [m²].
+
+    ``geom = μ · cosδ · dA / d²`` where μ is the cosine of emission toward the detector and δ
+    the angle off the detector's normal; both clipped at 0 (back faces, detector's back side).
+    """
+    v = det[None, :] - points
+    d2 = np.einsum("ij,ij->i", v, v)
+    d = np.sqrt(d2)
+    mu = np.einsum("ij,ij->i", normals, v) / d
+    cos_det = -np.einsum("ij,j->i", v, det_normal) / d
+    geom = np.clip(mu, 0.0, None) * np.clip(cos_det, 0.0, None) * areas / d2
+    return np.clip(mu, 0.0, 1.0), geom, v / d[:, None]
