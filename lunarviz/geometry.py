@@ -38,10 +38,11 @@ def half_angle_sin_cos(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.nda
     ``|a - b| = 2 sin(g/2)`` and ``|a + b| = 2 cos(g/2)`` exactly, so neither is formed by a
     cancelling subtraction (NOTES.md, "Numerics of the Hapke model").
     """
-    s = 0.5 * np.linalg.norm(a - b, axis=-1)
-    c = 0.5 * np.linalg.norm(a + b, axis=-1)
-    norm = np.hypot(s, c)  # = 1 up to rounding; renormalise so s² + c² = 1
-    return s / norm, c / norm
+    d, p = a - b, a + b
+    s2 = np.einsum("...j,...j->...", d, d)
+    c2 = np.einsum("...j,...j->...", p, p)
+    norm = np.sqrt(s2 + c2)  # = 2 up to rounding; renormalise so s² + c² = 1
+    return np.sqrt(s2) / norm, np.sqrt(c2) / norm
 
 
 @dataclass(frozen=True)

@@ -74,17 +74,36 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
 
     # t segments: split where a ring becomes tangent to a cap boundary
     cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
-    cand = np.clip(cand, 0.0, t_max[:, None])
-    tb = np.sort(np.concatenate([np.zeros((B, 1)), cand, t_max[:, None]], axis=1), axis=1)
+    real = np.tile((caps_c > -1.0) & (caps_c < 1.0), 3)  # a cap with |c| >= 1 has no boundary
+    cand = np.where(real, np.clip(cand, 0.0, t_max[:, None]), 0.0)
+    pts = np.concatenate([np.zeros((B, 1)), cand, t_max[:, None]], axis=1)
+    is_tangent = np.concatenate([np.zeros((B, 1), bool), (cand > 0) & (cand < t_max[:, None]),
+                                 np.zeros((B, 1), bool)], axis=1)
+    srt = np.argsort(pts, axis=1, kind="stable")
+    tb = np.take_along_axis(pts, srt, 1)
+    sing = np.take_along_axis(is_tangent, srt, 1)
     t_lo, t_hi = tb[:, :-1], tb[:, 1:]  # (B, S)
-    # The φ-half-width of a ring behaves like √(t - t*) next to a tangent ring t*, so the
-    # ring integral has square-root end-point singularities; the smoothstep substitution
-    # t = lo + (hi - lo)(3u² - 2u³) turns them into analytic functions of u.
-    gx, gw = _gauss(n_t)
-    gw = gw * 6.0 * gx * (1.0 - gx)
-    gx = gx * gx * (3.0 - 2.0 * gx)
-    t = t_lo[:, :, None] + (t_hi - t_lo)[:, :, None] * gx  # (B, S, n_t)
-    wt = (t_hi - t_lo)[:, :, None] * gw * np.sin(t)
+    s_lo, s_hi = sing[:, :-1], sing[:, 1:]
+    # drop the segments that are empty in every row (most candidates coincide or are clipped)
+    nonempty = t_hi > t_lo
+    keep = max(int(nonempty.sum(1).max(initial=0)), 1)
+    sel = np.argsort(~nonempty, axis=1, kind="stable")[:, :keep]
+    t_lo, t_hi = np.take_along_axis(t_lo, sel, 1), np.take_along_axis(t_hi, sel, 1)
+    t_hi = np.where(np.take_along_axis(nonempty, sel, 1), t_hi, t_lo)
+    s_lo = np.take_along_axis(s_lo, sel, 1)[:, :, None]
+    s_hi = np.take_along_axis(s_hi, sel, 1)[:, :, None]
+    # Next to a tangent ring t* the φ-half-width of a ring behaves like √|t - t*|, so the ring
+    # integral has a square-root singularity there; the substitution t - t* ∝ u² at such ends
+    # (smoothstep 3u² - 2u³ when both ends are tangent) makes it analytic in u. Ends that are
+    # not tangent keep plain Gauss-Legendre (exact for polynomials of degree 2n - 1).
+    u, gw = _gauss(n_t)
+    f_both, j_both = u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u)
+    f_lo, j_lo = u * u, 2.0 * u
+    f_hi, j_hi = 1.0 - (1.0 - u) ** 2, 2.0 * (1.0 - u)
+    f = np.where(s_lo & s_hi, f_both, np.where(s_lo, f_lo, np.where(s_hi, f_hi, u)))
+    jac = np.where(s_lo & s_hi, j_both, np.where(s_lo, j_lo, np.where(s_hi, j_hi, 1.0)))
+    t = t_lo[:, :, None] + (t_hi - t_lo)[:, :, None] * f  # (B, S, n_t)
+    wt = (t_hi - t_lo)[:, :, None] * gw * jac * np.sin(t)
     t = t.reshape(B, -1)
     wt = wt.reshape(B, -1)  # (B, R) rings
     st, ct = np.sin(t), np.cos(t)
@@ -95,26 +114,39 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     num = caps_c[:, None, :] - ct[:, :, None] * ctu
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(np.abs(den) > 1e-300, num / den, np.where(num < 0, -np.inf, np.inf))
-    partial = (q > -1.0) & (q < 1.0)
-    hw = np.arccos(np.clip(q, -1.0, 1.0))
+    hw = np.arccos(np.clip(q, -1.0, 1.0))  # half-width of the arc inside each cap (π: whole ring)
     pu = phi_u[:, None, :]
-    b_lo = np.where(partial, np.mod(pu - hw, 2 * np.pi), 0.0)
-    b_hi = np.where(partial, np.mod(pu + hw, 2 * np.pi), 0.0)
     R = t.shape[1]
-    pb = np.concatenate([np.zeros((B, R, 1)), b_lo, b_hi, np.full((B, R, 1), 2 * np.pi)], axis=2)
-    pb = np.sort(pb, axis=2)
-    p_lo, p_hi = pb[:, :, :-1], pb[:, :, 1:]  # (B, R, 2k+1)
-
-    # which φ-intervals lie inside every constraint cap: test the interval midpoints
-    pm = 0.5 * (p_lo + p_hi)
-    inside = np.ones(pm.shape, dtype=bool)
-    for j in range(k):
-        ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + \
-            st[:, :, None] * stu[:, :, j:j + 1] * np.cos(pm - pu[:, :, j:j + 1])
-        ok = ndotu > caps_c[:, None, j:j + 1]
-        inside &= ok | split_only[:, None, j:j + 1]
-
     fx, fw = _gauss(n_phi)
+    if k <= 1 and not split_only.any():
+        # fast path: the region of a ring is one arc centred on the cap's azimuth
+        if k == 0:
+            p_lo, p_hi = np.zeros((B, R, 1)), np.full((B, R, 1), 2 * np.pi)
+        else:
+            p_lo, p_hi = pu - hw, pu + hw
+        inside = np.ones(p_lo.shape, dtype=bool)
+    else:
+        partial = (q > -1.0) & (q < 1.0)
+        b_lo = np.where(partial, np.mod(pu - hw, 2 * np.pi), 0.0)
+        b_hi = np.where(partial, np.mod(pu + hw, 2 * np.pi), 0.0)
+        pb = np.concatenate([np.zeros((B, R, 1)), b_lo, b_hi, np.full((B, R, 1), 2 * np.pi)], axis=2)
+        pb = np.sort(pb, axis=2)
+        p_lo, p_hi = pb[:, :, :-1], pb[:, :, 1:]  # (B, R, 2k+1)
+        # which φ-intervals lie inside every constraint cap: test the interval midpoints
+        pm = 0.5 * (p_lo + p_hi)
+        inside = np.ones(pm.shape, dtype=bool)
+        for j in range(k):
+            ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + \
+                st[:, :, None] * stu[:, :, j:j + 1] * np.cos(pm - pu[:, :, j:j + 1])
+            ok = ndotu > caps_c[:, None, j:j + 1]
+            inside &= ok | split_only[:, None, j:j + 1]
+        # keep only intervals that are inside somewhere (and non-empty)
+        inside &= p_hi > p_lo
+        keep = max(int(inside.sum(2).max(initial=0)), 1)
+        sel = np.argsort(~inside, axis=2, kind="stable")[:, :, :keep]
+        p_lo, p_hi = np.take_along_axis(p_lo, sel, 2), np.take_along_axis(p_hi, sel, 2)
+        inside = np.take_along_axis(inside, sel, 2)
+
     phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
     wphi = ((p_hi - p_lo) * inside)[..., None] * fw
     w = wt[:, :, None, None] * wphi
@@ -124,6 +156,32 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
              + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
                                  + sphi[..., None] * e2[:, None, None, None, :]))
     return nodes.reshape(B, -1, 3), w.reshape(B, -1)
+
+
+def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):
+    """Directions (B, n_psi·n_phi, 3) and solid angles (B, n_psi·n_phi) [sr] filling the cone
+    of half-angle ρ = asin(sin_rho) about ``axis`` (B, 3).
+
+    Gauss-Legendre in u = 1 - cos ψ (dΩ = du dφ, so the weights sum to the cone's solid
+    angle 2π(1 - cos ρ) exactly) and the midpoint rule in φ (spectral for periodic
+    integrands). For a small source fully above the horizon the integrand is nearly constant
+    across the cone, so a handful of directions is exact to ~1e-8.
+    """
+    axis = np.asarray(axis, dtype=float)
+    sin_rho = np.asarray(sin_rho, dtype=float)
+    u_max = sin_rho**2 / (1.0 + np.sqrt(1.0 - sin_rho**2))  # 1 - cos ρ without cancellation
+    gx, gw = _gauss(n_psi)
+    u = u_max[:, None] * gx  # (B, n_psi)
+    wu = u_max[:, None] * gw
+    cpsi = 1.0 - u
+    spsi = np.sqrt(np.clip(u * (2.0 - u), 0.0, None))
+    phi = (np.arange(n_phi) + 0.5) * (2 * np.pi / n_phi)
+    e1, e2 = orthonormal_basis(axis)
+    d = (cpsi[:, :, None, None] * axis[:, None, None, :]
+         + spsi[:, :, None, None] * (np.cos(phi)[None, None, :, None] * e1[:, None, None, :]
+                                      + np.sin(phi)[None, None, :, None] * e2[:, None, None, :]))
+    w = np.broadcast_to((wu * (2 * np.pi / n_phi))[:, :, None], (len(axis), n_psi, n_phi))
+    return d.reshape(len(axis), -1, 3), w.reshape(len(axis), -1)
 
 
 def compact(nodes: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

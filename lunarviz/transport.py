@@ -33,8 +33,7 @@ class Transport:
 
     def radiance(self, brdf) -> np.ndarray:
         """Radiance toward the detector at each sample [W m⁻² sr⁻¹], paper Eq. 10."""
-        mu = np.broadcast_to(self.mu[:, None], self.mu0.shape)
-        rf = brdf.radiance_factor(self.mu0, mu, self.sin_hg, self.cos_hg)
+        rf = brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg)
         return np.sum(rf * self.e_beam, axis=1)
 
     def irradiance_on_sample(self) -> np.ndarray:

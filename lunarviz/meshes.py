@@ -1,0 +1,118 @@
+"""Tessellated bodies: icospheres at a chosen subdivision level, packaged meshes, user meshes.
+
+Packaged default meshes live in the repository's ``meshes/`` folder with ``manifest.json``
+(body, level, facets, sha256); :func:`body_mesh` uses them when present and intact, otherwise
+builds the same icosphere with trimesh (identical vertices: trimesh's icosphere is
+deterministic). A user mesh (OBJ, PLY, STL, GLB ... through trimesh) is checked by
+:func:`validate_mesh`: watertight, outward normals, no degenerate faces.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+MESH_DIR = Path(__file__).resolve().parent.parent / "meshes"
+BODIES = ("sun", "earth", "moon")
+#: Default subdivision levels, chosen from the mesh-resolution study
+#: (benchmarks/mesh_study.json; README "Choosing the mesh levels").
+DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 6}
+MAX_LEVEL = 8
+
+
+class MeshError(ValueError):
+    """A mesh that cannot represent a body."""
+
+
+def unit_icosphere(level: int) -> trimesh.Trimesh:
+    """Unit-radius icosphere with 20·4^level faces (vertices exactly on the sphere)."""
+    if not (isinstance(level, (int, np.integer)) and 0 <= level <= MAX_LEVEL):
+        raise MeshError(f"mesh level {level!r} must be an integer in [0, {MAX_LEVEL}]")
+    return trimesh.creation.icosphere(subdivisions=int(level), radius=1.0)
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def packaged_mesh_path(body: str, level: int) -> Path | None:
+    """Path of the packaged unit mesh for ``body`` at ``level`` if listed and intact."""
+    manifest = MESH_DIR / "manifest.json"
+    if not manifest.is_file():
+        return None
+    for entry in json.loads(manifest.read_text())["meshes"]:
+        if entry["body"] == body and entry["level"] == level:
+            p = MESH_DIR / entry["file"]
+            if p.is_file() and _sha256(p) == entry["sha256"]:
+                return p
+    return None
+
+
+def body_mesh(body: str, level: int | None = None) -> trimesh.Trimesh:
+    """Unit-radius mesh of ``body`` (scaled and placed by the tracer)."""
+    if body not in BODIES:
+        raise MeshError(f"unknown body {body!r}: choose from {', '.join(BODIES)}")
+    level = DEFAULT_LEVELS[body] if level is None else level
+    p = packaged_mesh_path(body, level) if isinstance(level, (int, np.integer)) else None
+    if p is not None:
+        return trimesh.load(p, process=False, force="mesh")
+    return unit_icosphere(level)
+
+
+def validate_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> trimesh.Trimesh:
+    """Check that ``mesh`` can stand for a body; raise :class:`MeshError` naming the defect."""
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise MeshError(f"{name}: not a triangle mesh with faces")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise MeshError(f"{name}: vertices contain NaN or inf")
+    areas = mesh.area_faces
+    scale = float(np.max(np.ptp(mesh.vertices, axis=0)))
+    bad = np.flatnonzero(areas <= 1e-12 * scale**2)
+    if bad.size:
+        raise MeshError(f"{name}: {bad.size} degenerate (zero-area) faces, first is face {bad[0]}")
+    if not mesh.is_watertight:
+        raise MeshError(f"{name}: not watertight (has holes or open edges)")
+    if not mesh.is_winding_consistent:
+        raise MeshError(f"{name}: inconsistent face winding")
+    if mesh.volume <= 0:
+        raise MeshError(f"{name}: normals point inward (negative enclosed volume)")
+    return mesh
+
+
+def load_user_mesh(path, name: str | None = None) -> trimesh.Trimesh:
+    """Load a user mesh with trimesh, validate it and scale it to unit mean radius about its
+    centroid (the tracer scales it to the body's radius)."""
+    p = Path(path)
+    name = name or str(path)
+    if not p.is_file():
+        raise MeshError(f"{name}: file not found")
+    try:
+        mesh = trimesh.load(p, force="mesh")
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise MeshError(f"{name}: unreadable mesh ({type(exc).__name__}: {exc})") from None
+    validate_mesh(mesh, name)
+    mesh = mesh.copy()
+    mesh.apply_translation(-mesh.center_mass)
+    mesh.apply_scale(1.0 / float(np.mean(np.linalg.norm(mesh.vertices, axis=1))))
+    return mesh
+
+
+def write_packaged_meshes(levels: dict[str, list[int]]) -> Path:
+    """(Re)write the packaged meshes and their manifest (scripts/make_meshes.py)."""
+    MESH_DIR.mkdir(exist_ok=True)
+    entries = []
+    for body, lv in levels.items():
+        for level in lv:
+            m = unit_icosphere(level)
+            f = MESH_DIR / f"{body}_L{level}.ply"
+            f.write_bytes(trimesh.exchange.ply.export_ply(m, encoding="binary"))
+            entries.append({"body": body, "level": level, "facets": int(len(m.faces)),
+                            "radius": 1.0, "file": f.name, "sha256": _sha256(f)})
+    out = MESH_DIR / "manifest.json"
+    out.write_text(json.dumps({"units": "unit radius; scaled to the body radius at load",
+                               "meshes": entries}, indent=2) + "\n")
+    return out

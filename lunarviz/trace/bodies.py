@@ -1,0 +1,285 @@
+"""A body (mesh at real scale) traced by Embree in its own centred frame.
+
+Embree works in float32: one float32 step is 0.125 m at 1.7e6 m, 32 m at 3.8e8 m and 16 km at
+1.5e11 m (NOTES.md). So every body is a separate Embree scene with vertices relative to its
+own centre; a ray given in float64 world coordinates is translated into that frame in float64,
+and its origin is advanced (in float64) to just outside the body's bounding sphere before the
+float32 cast, so Embree only ever sees numbers of the body's size. Rays that miss the bounding
+sphere are answered without calling Embree. Hit points are recomputed in float64 from the
+primitive's plane.
+
+One ``EmbreeScene.run`` call is single-threaded but releases the GIL, so batches are split
+over a thread pool (``threads``).
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from embreex import rtcore_scene
+from embreex.mesh_construction import TriangleMesh
+
+#: Embree's coordinate type.
+EMBREE_DTYPE = np.float32
+#: Ray origins start this far (× body radius) outside the bounding sphere.
+ENTRY_MARGIN = 1e-3
+#: Batch size of one Embree call (bounds memory for any ray count).
+BATCH = 1 << 18
+
+
+def default_threads() -> int:
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+@dataclass
+class Hits:
+    """Result of :meth:`EmbreeBody.intersect` for n rays."""
+
+    hit: np.ndarray  # (n,) bool
+    prim: np.ndarray  # (n,) int, -1 where no hit
+    t: np.ndarray  # (n,) float64 distance along the ray [m], inf where no hit
+    point: np.ndarray  # (n, 3) float64 world hit point (NaN where no hit)
+
+
+class EmbreeBody:
+    """A mesh of unit mean radius scaled to ``radius`` [m] and centred at ``centre`` [m]."""
+
+    def __init__(self, unit_mesh: trimesh.Trimesh, radius: float, centre, threads: int | None = None):
+        self.centre = np.asarray(centre, dtype=float)
+        self.radius = float(radius)
+        self.vertices = np.asarray(unit_mesh.vertices, dtype=float) * self.radius  # body frame
+        self.faces = np.asarray(unit_mesh.faces, dtype=np.int64)
+        self.bound = float(np.max(np.linalg.norm(self.vertices, axis=1)))
+        tri = self.vertices[self.faces]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        self.areas = 0.5 * np.linalg.norm(cross, axis=1)
+        self.normals = cross / (2.0 * self.areas[:, None])
+        self.centroids_local = tri.mean(axis=1)
+        vn = np.asarray(unit_mesh.vertex_normals, dtype=float)
+        self.vertex_normals = vn / np.linalg.norm(vn, axis=1, keepdims=True)
+        cn = self.vertex_normals[self.faces].sum(axis=1)
+        #: shading normals at the centroids (interpolated vertex normals, Phong 1975)
+        self.centroid_normals = cn / np.linalg.norm(cn, axis=1, keepdims=True)
+        self.convex = bool(unit_mesh.is_convex)
+        rad = np.linalg.norm(self.vertices, axis=1)
+        #: the mesh tessellates a sphere (all vertices on it): shading can use the exact sphere
+        self.is_sphere = bool(np.max(np.abs(rad - self.radius)) <= 1e-9 * self.radius)
+        self.threads = threads or default_threads()
+        self._scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(scene=self._scene, vertices=self.vertices.astype(EMBREE_DTYPE),
+                     indices=self.faces.astype(np.int32))
+
+    def shading_normals(self, prim, points) -> np.ndarray:
+        """Interpolated vertex normals at world ``points`` on primitives ``prim`` (unit).
+
+        Barycentric interpolation (Phong shading): the mesh decides visibility, the smooth
+        surface it tessellates decides the local normal.
+        """
+        tri = self.vertices[self.faces[prim]]
+        p = np.asarray(points, dtype=float) - self.centre
+        v0, v1, v2 = tri[:, 0], tri[:, 1], tri[:, 2]
+        e1, e2, ep = v1 - v0, v2 - v0, p - v0
+        d11, d12, d22 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
+        dp1, dp2 = np.einsum("ij,ij->i", ep, e1), np.einsum("ij,ij->i", ep, e2)
+        den = d11 * d22 - d12 * d12
+        b1 = (d22 * dp1 - d12 * dp2) / den
+        b2 = (d11 * dp2 - d12 * dp1) / den
+        b0 = 1.0 - b1 - b2
+        vn = self.vertex_normals[self.faces[prim]]
+        n = b0[:, None] * vn[:, 0] + b1[:, None] * vn[:, 1] + b2[:, None] * vn[:, 2]
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+    def surface_samples(self, faces, shading: str, sub: int = 1):
+        """Quadrature samples on ``faces``: each face split into ``sub²`` equal sub-triangles,
+        one sample at each sub-triangle's centroid.
+
+        Returns world points (n, 3), unit normals (n, 3), areas (n,) [m²] and the owning face
+        (n,). ``shading="flat"``: flat points, face normals, flat areas. ``"smooth"``: on a
+        tessellated sphere, points and normals on the exact sphere and the area of each
+        sub-triangle's projection onto it (spherical excess, Van Oosterom & Strackee 1983, so
+        the areas sum to 4πR² exactly); on other meshes, interpolated vertex normals.
+        """
+        faces = np.asarray(faces, dtype=np.int64)
+        cen_b, tri_b = _sub_barycentric(sub)  # (s, 3), (s, 3, 3)
+        ns = len(cen_b)
+        tri = self.vertices[self.faces[faces]]  # (F, 3, 3) body frame
+        pts = np.einsum("sk,fkj->fsj", cen_b, tri).reshape(-1, 3)
+        owner = np.repeat(faces, ns)
+        if shading == "smooth" and self.is_sphere:
+            corners = np.einsum("svk,fkj->fsvj", tri_b, tri).reshape(-1, 3, 3)
+            corners /= np.linalg.norm(corners, axis=2, keepdims=True)
+            a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+            num = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
+            den = 1.0 + np.einsum("ij,ij->i", a, b) + np.einsum("ij,ij->i", b, c) + np.einsum("ij,ij->i", c, a)
+            area = 2.0 * np.arctan2(num, den) * self.radius**2
+            nrm = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+            return self.centre + self.radius * nrm, nrm, area, owner
+        area = np.repeat(self.areas[faces] / ns, ns)
+        if shading == "smooth":
+            nrm = self.shading_normals(owner, pts + self.centre)
+        else:
+            nrm = np.repeat(self.normals[faces], ns, axis=0)
+        return pts + self.centre, nrm, area, owner
+
+    def sphere_hits(self, origins, dirs, with_prim: bool = True) -> Hits:
+        """First hits on the exact sphere this mesh tessellates (float64, analytic), with the
+        facet under each hit point found by a radial Embree ray from outside the body.
+
+        ``with_prim=False`` skips the facet lookup (prim stays -1) when no caller needs it.
+        Seen from the Moon, rays to the outer ~0.5° of the Earth's sphere pass outside an
+        inscribed level-6 mesh; a crescent Earth's light lives exactly there, so smooth shading
+        takes hits from the sphere (NOTES.md: far sources; README: mesh study).
+        """
+        o = np.asarray(origins, dtype=float) - self.centre
+        d = np.asarray(dirs, dtype=float)
+        b = -np.einsum("ij,ij->i", o, d)
+        perp2 = np.einsum("ij,ij->i", o, o) - b * b
+        disc = self.radius**2 - perp2
+        t = b - np.sqrt(np.clip(disc, 0.0, None))
+        hit = (disc > 0) & (t > 0)
+        n = len(o)
+        prim = np.full(n, -1, dtype=np.int64)
+        point = np.full((n, 3), np.nan)
+        tt = np.full(n, np.inf)
+        h = np.flatnonzero(hit)
+        if h.size:
+            y = o[h] + t[h, None] * d[h]
+            if with_prim:
+                u = y / np.linalg.norm(y, axis=1, keepdims=True)
+                start = u * (self.bound * (1.0 + ENTRY_MARGIN))
+                prim[h] = self._run(start.astype(EMBREE_DTYPE), (-u).astype(EMBREE_DTYPE), "INTERSECT")
+            point[h] = y + self.centre
+            tt[h] = t[h]
+        return Hits(hit, prim, tt, point)
+
+    def shade_hits(self, hits: "Hits", origins, dirs, shading: str):
+        """Rows with a hit, their shading points and unit normals."""
+        h = np.flatnonzero(hits.hit)
+        p, y = hits.prim[h], hits.point[h]
+        if shading == "flat":
+            return h, y, self.normals[p]
+        if self.is_sphere:
+            return h, y, (y - self.centre) / self.radius
+        return h, y, self.shading_normals(p, y)
+
+    @property
+    def centroids(self) -> np.ndarray:
+        """Facet centroids in world coordinates [m] (float64)."""
+        return self.centroids_local + self.centre
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+    # ------------------------------------------------------------------------------------
+    def _prepare(self, origins, dirs, tmax):
+        """Body-frame float64 origins advanced to the bounding sphere; culled rays flagged."""
+        o = np.asarray(origins, dtype=float) - self.centre
+        d = np.asarray(dirs, dtype=float)
+        b = -np.einsum("ij,ij->i", o, d)  # distance to closest approach
+        perp2 = np.einsum("ij,ij->i", o, o) - b * b
+        R = self.bound * (1.0 + ENTRY_MARGIN)
+        disc = R * R - perp2
+        t_exit = b + np.sqrt(np.clip(disc, 0.0, None))
+        live = (disc > 0.0) & (t_exit > 0.0)
+        t0 = np.clip(b - np.sqrt(np.clip(disc, 0.0, None)), 0.0, None)
+        if tmax is not None:
+            live &= t0 < tmax
+        return o, d, t0, live
+
+    def _run(self, o32, d32, query, dists=None):
+        n = len(o32)
+        if n == 0:
+            return np.empty(0, np.int32)
+        chunks = [slice(a, min(n, a + BATCH)) for a in range(0, n, BATCH)]
+        if len(chunks) == 1 and n > 4096 and self.threads > 1:
+            step = -(-n // self.threads)
+            chunks = [slice(a, min(n, a + step)) for a in range(0, n, step)]
+
+        def one(sl):
+            kw = {} if dists is None else {"dists": dists[sl]}
+            return self._scene.run(o32[sl], d32[sl], query=query, **kw)
+
+        if len(chunks) == 1 or self.threads == 1:
+            parts = [one(s) for s in chunks]
+        else:
+            with ThreadPoolExecutor(self.threads) as ex:
+                parts = list(ex.map(one, chunks))
+        return np.concatenate(parts)
+
+    def intersect(self, origins, dirs, tmax=None) -> Hits:
+        """First hit of rays (float64 world origins (n,3), unit directions (n,3))."""
+        o, d, t0, live = self._prepare(origins, dirs, tmax)
+        n = len(o)
+        prim = np.full(n, -1, dtype=np.int64)
+        idx = np.flatnonzero(live)
+        if idx.size:
+            o_start = o[idx] + t0[idx, None] * d[idx]
+            res = self._run(o_start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "INTERSECT")
+            prim[idx] = res
+        hit = prim >= 0
+        t = np.full(n, np.inf)
+        point = np.full((n, 3), np.nan)
+        if hit.any():
+            h = np.flatnonzero(hit)
+            p = prim[h]
+            nrm = self.normals[p]
+            v0 = self.vertices[self.faces[p, 0]]
+            # float64 re-intersection with the hit primitive's plane
+            th = np.einsum("ij,ij->i", v0 - o[h], nrm) / np.einsum("ij,ij->i", d[h], nrm)
+            if tmax is not None:
+                keep = th < np.broadcast_to(tmax, (n,))[h]
+                hit[h[~keep]] = False
+                prim[h[~keep]] = -1
+                h, th = h[keep], th[keep]
+            t[h] = th
+            point[h] = o[h] + th[:, None] * d[h] + self.centre
+        return Hits(hit, prim, t, point)
+
+    def occluded(self, origins, dirs, tmax=None) -> np.ndarray:
+        """True where the segment [origin, origin + tmax·dir) hits the body (any hit)."""
+        o, d, t0, live = self._prepare(origins, dirs, tmax)
+        n = len(o)
+        out = np.zeros(n, dtype=bool)
+        idx = np.flatnonzero(live)
+        if idx.size:
+            o_start = o[idx] + t0[idx, None] * d[idx]
+            dists = None
+            if tmax is not None:
+                tm = np.broadcast_to(np.asarray(tmax, dtype=float), (n,))[idx] - t0[idx]
+                dists = np.clip(tm, 0.0, np.finfo(np.float32).max).astype(EMBREE_DTYPE)
+            res = self._run(o_start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "OCCLUDED", dists)
+            out[idx] = res != -1
+        return out
+
+
+def raw_embree_rate(body: EmbreeBody, origins32, dirs32) -> float:
+    """Seconds for a single-threaded raw ``run`` on pre-cast float32 rays (benchmark ceiling)."""
+    import time
+    t = time.perf_counter()
+    body._scene.run(origins32, dirs32)
+    return time.perf_counter() - t
+
+
+_SUB_CACHE: dict = {}
+
+
+def _sub_barycentric(k: int):
+    """Barycentric centroids (k², 3) and corners (k², 3, 3) of a triangle split k×k."""
+    if k in _SUB_CACHE:
+        return _SUB_CACHE[k]
+    cen, cor = [], []
+    for i in range(k):
+        for j in range(k - i):
+            up = [(i, j), (i + 1, j), (i, j + 1)]
+            cor.append(up)
+            if i + j <= k - 2:
+                cor.append([(i + 1, j), (i + 1, j + 1), (i, j + 1)])
+    corners = np.array([[[1 - (a + b) / k, a / k, b / k] for a, b in t] for t in cor])
+    cen = corners.mean(axis=1)
+    _SUB_CACHE[k] = (cen, corners)
+    return cen, corners

@@ -1,0 +1,456 @@
+"""Moonshine and earthshine by Embree ray tracing: deterministic and Monte Carlo estimators.
+
+Both estimators build the same BRDF-independent :class:`~lunarviz.transport.Transport` as the
+analytic method and the exact reference, so one trace per phase serves every BRDF.
+
+Paths (paper Table 1, Sec. 2.1): moonshine Sun → Moon → detector, earthshine
+Sun → Earth → Moon → detector. The detector is reached by next-event estimation (Eq. 2):
+from every lunar sample a beam toward the detector, weighted by μ cosδ dA / d².
+
+* Lunar samples. ``deterministic``: one sample per facet (centroid), and 16 per facet on the
+  facets that straddle the terminator, its penumbra or the detector's limb, where the
+  integrand has a kink (adaptive refinement: a thin crescent needs it). ``montecarlo``: N
+  uniform points on facets drawn with probability ∝ a proxy of each facet's contribution,
+  defensively mixed with 10 % ∝ area so the estimator stays unbiased.
+* Source beams, restricted to the source's solid angle (Table 1). ``deterministic``: for the
+  Sun, a Gauss rule over its 0.27° cone where the whole disc is above the horizon, and the
+  sphere-surface rule of :mod:`lunarviz.sphere_quadrature` cut at the horizon elsewhere; for
+  the Earth, the sphere-surface rule cut at the horizon and at the Earth's terminator.
+  ``montecarlo``: one direction uniform in the source's cone. Every beam is a ray traced
+  against the source's mesh. The Sun's radiance is uniform, Φ/(4π² R_S²); the Earth's is
+  Lambertian, (A/π) E_sun μ_s at the hit, times the fraction of the Sun that the hit facet sees
+  (the Moon's shadow, with occlusion on).
+* Shading (``shading``): ``smooth`` (default) takes points, normals and areas from the smooth
+  surface the mesh tessellates (the exact sphere for icospheres; interpolated vertex normals
+  for other meshes) while the mesh decides hits and shadows; ``flat`` uses the facets.
+* Occlusion (on by default; ``occlusion=False`` is the paper's assumption): the Earth blocks
+  Sun beams (lunar eclipse) and the lunar sample's view of the detector unless the detector
+  sits in the Earth; the Moon blocks the Sun for Earth facets; a non-convex Moon mesh shadows
+  itself (convex meshes skip those rays: the sample's own horizon decides exactly).
+
+Neglected physics: refraction and extinction in the Earth's atmosphere (the umbra is darker
+than a real eclipse's red Moon), solar limb darkening, polarisation, multiple Moon-Earth
+bounces, the Sun's extent when it lights the Earth (O(ρ²) ≈ 2e-5, see reference.py).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from ..geometry import Scene, half_angle_sin_cos, unit
+from ..meshes import DEFAULT_LEVELS, body_mesh
+from ..reference import sun_radiance
+from ..sphere_quadrature import cap_rule, cone_rule, orthonormal_basis
+from ..transport import Transport, detector_geometry
+from .bodies import EmbreeBody
+
+ESTIMATORS = ("deterministic", "montecarlo")
+#: ``smooth``: shade on the smooth surface the mesh tessellates; ``flat``: on the facets.
+SHADINGS = ("smooth", "flat")
+#: Shadow-ray origins are offset along the normal by this fraction of the body radius
+#: (0.17 m on the Moon: above float32's 0.125 m step at the lunar radius, far below any facet).
+NORMAL_OFFSET = 1e-7
+#: Share of Monte Carlo lunar samples drawn ∝ facet area (defensive mixture).
+UNIFORM_SHARE = 0.1
+#: Facets straddling a kink (terminator, penumbra edge, limb) are split REFINE² ways.
+REFINE = 4
+#: Samples wanted across the width of the lit-and-visible lune (see ``lunar_refinement``).
+LUNE_SAMPLES = 16
+#: Kink refinement is skipped when the lune is within this angle [rad] of a hemisphere.
+KINK_FREE_WIDTH = 0.05
+PATHS = {"moonshine": "sun", "earthshine": "earth"}
+
+
+@dataclass(frozen=True)
+class TraceSettings:
+    estimator: str = "deterministic"
+    moon_level: int = DEFAULT_LEVELS["moon"]
+    earth_level: int = DEFAULT_LEVELS["earth"]
+    sun_level: int = DEFAULT_LEVELS["sun"]
+    sun_order: int = 2
+    earth_order: int = 6
+    refine: bool = True
+    rays: int = 50_000
+    runs: int = 1
+    seed: int = 0
+    occlusion: bool = True
+    shading: str = "smooth"
+    earth_albedo: float = 0.3
+    threads: int | None = None
+    moon_mesh: str | None = None  # path of a user mesh for the Moon
+
+    def __post_init__(self):
+        if self.estimator not in ESTIMATORS:
+            raise ValueError(f"estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}")
+        if self.shading not in SHADINGS:
+            raise ValueError(f"shading {self.shading!r} is not one of {', '.join(SHADINGS)}")
+        for name in ("sun_order", "earth_order"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and 1 <= v <= 64):
+                raise ValueError(f"{name}={v!r} must be an integer in [1, 64]")
+        for name in ("rays", "runs"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and v >= 1):
+                raise ValueError(f"{name}={v!r} must be a positive integer")
+        if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
+            raise ValueError(f"seed={self.seed!r} must be a non-negative integer")
+        if not (0 <= self.earth_albedo <= 1):
+            raise ValueError(f"Earth albedo {self.earth_albedo!r} must be in [0, 1]")
+
+
+@lru_cache(maxsize=16)
+def _unit_mesh(body: str, level, path):
+    if path is not None:
+        from ..meshes import load_user_mesh
+        return load_user_mesh(path)
+    return body_mesh(body, level)
+
+
+class TraceScene:
+    """The three bodies of a :class:`~lunarviz.geometry.Scene` as Embree meshes."""
+
+    def __init__(self, scene: Scene, settings: TraceSettings = TraceSettings()):
+        self.scene = scene
+        self.settings = settings
+        r = scene.radii
+        th = settings.threads
+        self.moon = EmbreeBody(_unit_mesh("moon", settings.moon_level, settings.moon_mesh), r["moon"], scene.moon, th)
+        self.earth = EmbreeBody(_unit_mesh("earth", settings.earth_level, None), r["earth"], scene.earth, th)
+        self.sun = EmbreeBody(_unit_mesh("sun", settings.sun_level, None), r["sun"], scene.sun, th)
+        self.rays_cast = 0
+        self._sun_vis_earth = None
+
+    def _count(self, n):
+        self.rays_cast += int(n)
+
+    def _source(self, body):
+        sc = self.scene
+        return ({"sun": sc.sun, "earth": sc.earth}[body], sc.radii[body],
+                {"sun": self.sun, "earth": self.earth}[body])
+
+    # ---- lunar samples -----------------------------------------------------------------------
+    def candidates(self, body: str) -> np.ndarray:
+        """Lunar facets that the detector may see and the source may (partly) light.
+
+        Tested on the facet's corners as well as its centroid, so a facet that a kink crosses
+        is never dropped.
+        """
+        sc = self.scene
+        M = self.moon
+        c, R, _ = self._source(body)
+        x, n, _, _ = M.surface_samples(np.arange(M.n_faces), self.settings.shading)
+        lit, vis = self._kink_values(x, n, c, R)
+        tri = M.vertices[M.faces] + M.centre
+        vn = M.vertex_normals[M.faces] if self.settings.shading == "smooth" else \
+            np.repeat(M.normals[:, None, :], 3, axis=1)
+        lit_v, vis_v = self._kink_values(tri.reshape(-1, 3), vn.reshape(-1, 3), c, R)
+        lit_v, vis_v = lit_v.reshape(-1, 3), vis_v.reshape(-1, 3)
+        up = (lit > -1) | (lit_v > -1).any(1)
+        seen = (vis > 0) | (vis_v > 0).any(1)
+        self._kinks = (np.sign(lit_v + 1) != np.sign(lit_v[:, :1] + 1)).any(1) | \
+            (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
+            (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
+        return np.flatnonzero(up & seen)
+
+    def _kink_values(self, x, n, c, R):
+        """Source elevation in units of its angular radius (-1..1: penumbra), and μ to detector."""
+        v = c - x
+        d = np.linalg.norm(v, axis=1)
+        lit = np.einsum("ij,ij->i", n, v) / R  # n·(c - x) / R: > 1 fully lit, < -1 dark
+        w = self.scene.det - x
+        vis = np.einsum("ij,ij->i", n, w)
+        return lit, vis / np.linalg.norm(w, axis=1) + 0.0 * d
+
+    def lunar_refinement(self, body: str) -> int:
+        """Sub-division of every lit-and-visible facet so ≥ LUNE_SAMPLES samples span the lune.
+
+        The lit and visible region is a lune of width w = π - (source-Moon-detector angle);
+        at a thin crescent it is only a few facets wide and the facet-centroid rule errs by
+        ~(h/w)² (1 % at θ = 175° on level 6). Powers of two up to 16.
+        """
+        M = self.moon
+        w = self._lune_width(body)
+        h = np.sqrt(np.mean(M.areas)) / M.radius
+        need = LUNE_SAMPLES * h / max(w, 1e-9)
+        return int(min(16, 2 ** int(np.ceil(np.log2(max(need, 1.0))))))
+
+    def _lune_width(self, body: str) -> float:
+        sc = self.scene
+        c, _, _ = self._source(body)
+        return np.pi - float(np.arccos(np.clip(np.dot(unit(c - sc.moon), unit(sc.det - sc.moon)), -1, 1)))
+
+    def lunar_samples(self, body: str):
+        """Deterministic lunar samples: points, normals, areas, owning facets."""
+        M = self.moon
+        s = self.settings
+        cand = self.candidates(body)
+        if not s.refine:
+            return M.surface_samples(cand, s.shading)
+        sub = self.lunar_refinement(body)
+        kink = self._kinks[cand]
+        if self._lune_width(body) > np.pi - KINK_FREE_WIDTH:
+            # source ≈ detector seen from the Moon (earthshine with the detector on the Earth):
+            # the terminator and the limb coincide and the integrand vanishes quadratically
+            # there (μ0 ≈ μ), so there is no kink to resolve.
+            kink = np.zeros_like(kink)
+        a = M.surface_samples(cand[~kink], s.shading, sub=sub)
+        b = M.surface_samples(cand[kink], s.shading, sub=min(16, max(REFINE, 2 * sub)))
+        return tuple(np.concatenate([u, v]) for u, v in zip(a, b))
+
+    def detector_view(self, x, n, dA):
+        """mu, geom and unit directions to the detector, with the sight line's occlusion."""
+        sc = self.scene
+        mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
+        if self.settings.occlusion:
+            idx = np.flatnonzero(geom > 0)
+            xo = x[idx] + n[idx] * (NORMAL_OFFSET * self.moon.radius)
+            dist = np.linalg.norm(sc.det - xo, axis=1)
+            blocked = np.zeros(idx.size, dtype=bool)
+            if not sc.detector_inside("earth"):
+                blocked |= self.earth.occluded(xo, o[idx], dist)
+                self._count(idx.size)
+            if not self.moon.convex:
+                blocked |= self.moon.occluded(xo, o[idx], dist)
+                self._count(idx.size)
+            geom = geom.copy()
+            geom[idx[blocked]] = 0.0
+        return mu, geom, o
+
+    # ---- source beams ------------------------------------------------------------------------
+    def source_nodes(self, x, n, body: str, order: int):
+        """Deterministic beams from points x (B,3) with normals n: unit directions (B,K,3)
+        and solid angles (B,K) [sr]."""
+        sc = self.scene
+        c, R, _ = self._source(body)
+        xc = x - c
+        dxc = np.linalg.norm(xc, axis=1)
+        h_c = np.einsum("ij,ij->i", xc, n) / R
+        cut = -h_c < 1.0  # the horizon plane intersects the source sphere
+        parts = []
+        for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
+            if rows.size == 0:
+                continue
+            if body == "sun" and not with_horizon:
+                om, w = cone_rule(-xc[rows] / dxc[rows, None], R / dxc[rows], order, 2 * order)
+                parts.append((rows, om, w))
+                continue
+            caps_u, caps_c = [], []
+            if with_horizon:
+                caps_u.append(n[rows])
+                caps_c.append(h_c[rows])
+            if body == "earth":
+                caps_u.append(np.broadcast_to(unit(sc.sun - c), (rows.size, 3)))
+                caps_c.append(np.full(rows.size, R / np.linalg.norm(sc.sun - c)))
+            # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
+            # than its cone rule: order 8 is converged to ~1e-5 there (tests/test_trace.py).
+            o_s = max(order, 8) if body == "sun" else order
+            m, w = cap_rule(xc[rows] / dxc[rows, None], R / dxc[rows], np.stack(caps_u, 1),
+                            np.stack(caps_c, 1), n_t=o_s, n_phi=o_s)
+            nz = w > 0
+            kmax = max(int(nz.sum(1).max(initial=0)), 1)
+            sel = np.argsort(~nz, axis=1, kind="stable")[:, :kmax]
+            m = np.take_along_axis(m, sel[..., None], 1)
+            w = np.take_along_axis(w, sel, 1)
+            v = c + R * m - x[rows, None, :]
+            r = np.linalg.norm(v, axis=2)
+            om = v / r[..., None]
+            cos_y = np.clip(-np.einsum("bkj,bkj->bk", m, om), 0.0, None)
+            parts.append((rows, om, cos_y * R * R * w / r**2))
+        K = max(p[2].shape[1] for p in parts)
+        om = np.zeros((len(x), K, 3))
+        om[..., 2] = 1.0
+        w = np.zeros((len(x), K))
+        for rows, op, wp in parts:
+            om[rows, :op.shape[1]] = op
+            w[rows, :wp.shape[1]] = wp
+        return om, w
+
+    def sun_visibility_of_earth(self) -> np.ndarray:
+        """Fraction of the Sun each Earth facet sees past the Moon (1 without occlusion)."""
+        if self._sun_vis_earth is not None:
+            return self._sun_vis_earth
+        E = self.earth
+        vis = np.ones(E.n_faces)
+        if self.settings.occlusion:
+            x, n, _, _ = E.surface_samples(np.arange(E.n_faces), self.settings.shading)
+            c, R, _ = self._source("sun")
+            idx = np.flatnonzero(np.einsum("ij,ij->i", n, c - x) > -R)
+            xo = x[idx] + n[idx] * (NORMAL_OFFSET * E.radius)
+            dirs, w = self.source_nodes(xo, n[idx], "sun", 2)
+            B, K = w.shape
+            occ = self.moon.occluded(np.repeat(xo, K, 0), dirs.reshape(-1, 3)).reshape(B, K)
+            self._count(B * K)
+            tot = w.sum(1)
+            vis[idx] = np.where(tot > 0, (w * ~occ).sum(1) / np.where(tot > 0, tot, 1), 1.0)
+        self._sun_vis_earth = vis
+        return vis
+
+    def source_radiance(self, x, n, dirs, body: str):
+        """Radiance [W m⁻² sr⁻¹] reaching x (n,3) along dirs (n,3) from ``body``'s mesh,
+        zero where the ray misses it or is blocked."""
+        sc = self.scene
+        s = self.settings
+        xo = x + n * (NORMAL_OFFSET * self.moon.radius)
+        target = self.sun if body == "sun" else self.earth
+        if s.shading == "smooth" and target.is_sphere:
+            need_prim = body == "earth" and bool(np.any(self.sun_visibility_of_earth() < 1.0))
+            hits = target.sphere_hits(xo, dirs, with_prim=need_prim)
+            if need_prim:
+                self._count(int(hits.hit.sum()))
+        else:
+            hits = target.intersect(xo, dirs)
+        self._count(len(xo))
+        if body == "sun":
+            L = np.where(hits.hit, sun_radiance(sc), 0.0)
+            if s.occlusion:
+                live = np.flatnonzero(L > 0)
+                blocked = self.earth.occluded(xo[live], dirs[live], hits.t[live])
+                self._count(live.size)
+                L[live[blocked]] = 0.0
+        else:
+            L = np.zeros(len(xo))
+            h, y, nrm = self.earth.shade_hits(hits, xo, dirs, s.shading)
+            vs = sc.sun - y
+            ds = np.linalg.norm(vs, axis=1)
+            mu_s = np.clip(np.einsum("ij,ij->i", nrm, vs) / ds, 0.0, None)
+            vis = self.sun_visibility_of_earth()
+            shade = np.where(hits.prim[h] >= 0, vis[np.maximum(hits.prim[h], 0)], 1.0)
+            L[h] = s.earth_albedo / np.pi * sc.phi / (4 * np.pi * ds**2) * mu_s * shade
+        if s.occlusion and not self.moon.convex:
+            live = np.flatnonzero(L > 0)
+            blocked = self.moon.occluded(xo[live], dirs[live], hits.t[live])
+            self._count(live.size)
+            L[live[blocked]] = 0.0
+        return L
+
+    # ---- transports --------------------------------------------------------------------------
+    def deterministic_transport(self, body: str) -> tuple[Transport, np.ndarray]:
+        s = self.settings
+        x, n, dA, owner = self.lunar_samples(body)
+        mu, geom, o = self.detector_view(x, n, dA)
+        keep = geom > 0
+        x, n, owner, mu, geom, o = x[keep], n[keep], owner[keep], mu[keep], geom[keep], o[keep]
+        order = s.sun_order if body == "sun" else s.earth_order
+        dirs, omega = self.source_nodes(x, n, body, order)
+        mu0 = np.einsum("bkj,bj->bk", dirs, n)
+        live = (omega > 0) & (mu0 > 0)
+        L = np.zeros(omega.shape)
+        bi, ki = np.nonzero(live)
+        L[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
+        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
+        tr = Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega, mu=mu, geom=geom)
+        return tr, owner
+
+    def montecarlo_transport(self, body: str, rng: np.random.Generator) -> tuple[Transport, np.ndarray]:
+        sc = self.scene
+        s = self.settings
+        N = s.rays
+        M = self.moon
+        c, R, _ = self._source(body)
+        cand = self.candidates(body)
+        x, n, dA, _ = M.surface_samples(cand, s.shading)
+        _, g0, _ = detector_geometry(x, n, dA, sc.det, sc.det_normal)
+        v = c - x
+        d = np.linalg.norm(v, axis=1)
+        proxy = g0 * np.clip(np.einsum("ij,ij->i", n, v) / d + R / d, 0.0, None)
+        p = UNIFORM_SHARE * dA / dA.sum()
+        if proxy.sum() > 0:
+            p = p + (1 - UNIFORM_SHARE) * proxy / proxy.sum()
+        else:
+            p = p / UNIFORM_SHARE
+        pick = rng.choice(len(cand), size=N, p=p)
+        f = cand[pick]
+        # a uniform point in each picked flat triangle (then shaded per ``shading``)
+        r1, r2 = rng.random(N), rng.random(N)
+        s1 = np.sqrt(r1)
+        tri = M.vertices[M.faces[f]]
+        pts = (1 - s1)[:, None] * tri[:, 0] + (s1 * (1 - r2))[:, None] * tri[:, 1] + (s1 * r2)[:, None] * tri[:, 2]
+        if s.shading == "smooth" and M.is_sphere:
+            ns = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+            xs = M.centre + M.radius * ns
+        elif s.shading == "smooth":
+            xs = pts + M.centre
+            ns = M.shading_normals(f, xs)
+        else:
+            xs, ns = pts + M.centre, M.normals[f]
+        area_w = dA[pick] / (N * p[pick])
+        mu, geom, o = self.detector_view(xs, ns, area_w)
+        # one direction uniform in the source's cone
+        vc = c - xs
+        dc = np.linalg.norm(vc, axis=1)
+        axis = vc / dc[:, None]
+        sin_rho = R / dc
+        one_m_cos = sin_rho**2 / (1 + np.sqrt(1 - sin_rho**2))  # 1 - cos ρ without cancellation
+        um = rng.random(N) * one_m_cos
+        cpsi = 1 - um
+        spsi = np.sqrt(np.clip(um * (2 - um), 0, None))
+        phi = 2 * np.pi * rng.random(N)
+        e1, e2 = orthonormal_basis(axis)
+        dirs = cpsi[:, None] * axis + spsi[:, None] * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+        mu0 = np.einsum("ij,ij->i", dirs, ns)
+        li = np.flatnonzero((mu0 > 0) & (geom > 0))
+        L = np.zeros(N)
+        L[li] = self.source_radiance(xs[li], ns[li], dirs[li], body)
+        sh, ch = half_angle_sin_cos(dirs, o)
+        tr = Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],
+                       e_beam=(L * 2 * np.pi * one_m_cos)[:, None], mu=mu, geom=geom)
+        return tr, f
+
+
+@dataclass
+class PathResult:
+    """One path (moonshine or earthshine) at one phase, for every BRDF."""
+
+    mean: dict  # brdf -> detector irradiance [W m-2]
+    std: dict  # brdf -> standard deviation of one run [W m-2] (0 for deterministic)
+    run_values: dict  # brdf -> list of per-run values [W m-2]
+    within_std: dict  # brdf -> list of per-run standard deviations estimated inside each run
+    rays: int
+    seconds: float
+    facets: dict = field(default_factory=dict)  # per-facet arrays (last run)
+
+
+def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False) -> PathResult:
+    """Trace ``path`` once per run and shade every BRDF from the one transport."""
+    s = ts.settings
+    body = PATHS[path]
+    t0 = time.perf_counter()
+    r0 = ts.rays_cast
+    runs = 1 if s.estimator == "deterministic" else s.runs
+    vals = {k: [] for k in brdfs}
+    within = {k: [] for k in brdfs}
+    facets = {}
+    nf = ts.moon.n_faces
+    for run in range(runs):
+        if s.estimator == "deterministic":
+            tr, owner = ts.deterministic_transport(body)
+        else:
+            rng = np.random.default_rng([s.seed, run, 0 if path == "moonshine" else 1])
+            tr, owner = ts.montecarlo_transport(body, rng)
+        for k, b in brdfs.items():
+            contrib = tr.radiance(b) * tr.geom
+            vals[k].append(float(contrib.sum()))
+            within[k].append(float(np.sqrt(len(contrib) * np.var(contrib, ddof=1)))
+                             if s.estimator == "montecarlo" else 0.0)
+            if keep_facets and run == runs - 1:
+                facets[f"{path}_contribution_{k}"] = np.bincount(owner, contrib, nf)
+        if keep_facets and run == runs - 1:
+            w = np.bincount(owner, np.ones(len(owner)), nf)
+            facets[f"{path}_irradiance"] = np.bincount(owner, tr.irradiance_on_sample(), nf) / np.maximum(w, 1)
+            facets[f"{path}_rays"] = np.bincount(owner, (tr.e_beam > 0).sum(1), nf).astype(float)
+            facets[f"{path}_geom"] = np.bincount(owner, tr.geom, nf)
+    std = {}
+    for k in brdfs:
+        if s.estimator == "deterministic":
+            std[k] = 0.0
+        elif runs >= 2:
+            std[k] = float(np.std(vals[k], ddof=1))
+        else:
+            std[k] = within[k][0]
+    return PathResult(mean={k: float(np.mean(v)) for k, v in vals.items()}, std=std,
+                      run_values=vals, within_std=within, rays=ts.rays_cast - r0,
+                      seconds=time.perf_counter() - t0, facets=facets)
