@@ -44,8 +44,7 @@ def lunar_terms(scene: Scene, earthshine_cal: float, moonshine_cal: float,
     intensity = (2 / 3) * earth_albedo_cal * r_e**2 * scene.phi / (4 * np.pi * d_se**2) \
         * lambert_phase_function(beta)
     e_earth_m = intensity / d_em**2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pa = earthshine_cal * d_em**2 / (e_earth_m * r_m**2) if e_earth_m > 0 else np.nan
+    pa = earthshine_cal * d_em**2 / (e_earth_m * r_m**2) if e_earth_m > 0 else np.nan
     pb = moonshine_cal * d_em**2 / (e_sun_m * r_m**2)
     return LunarTerms(float(pa), float(pb))
 
@@ -54,9 +53,9 @@ def geometric_albedo_term(scene: Scene, earthshine: float, moonshine: float,
                           terms: LunarTerms) -> float:
     """p_E f_E(β), paper Eq. 15; NaN where it is 0/0 (no light on one path)."""
     d_em, d_sm, d_se, r_e = scene.d_em_actual, scene.d_sm, scene.d_se_actual, scene.radii["earth"]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        val = (terms.pb_fb / terms.pa_fa) * (earthshine / moonshine) \
-            * d_em**2 * d_se**2 / (r_e**2 * d_sm**2)
+    if not (moonshine > 0 and terms.pa_fa > 0 and np.isfinite(terms.pa_fa)):
+        return float("nan")
+    val = (terms.pb_fb / terms.pa_fa) * (earthshine / moonshine) * d_em**2 * d_se**2 / (r_e**2 * d_sm**2)
     return float(val) if np.isfinite(val) else float("nan")
 
 

@@ -162,13 +162,13 @@ def _chandrasekhar_nodes(w: float, n: int = 96):
 
     Solves ``1/H(x) = √(1-w) + (w/2) ∫₀¹ x' H(x')/(x + x') dx'`` (Chandrasekhar 1960,
     Eq. V.(43) rearranged; the form is contracting for w ≤ 1) by Newton iteration.
-    Nodes are clustered toward 0 with x' = u² so the near-singular kernel at small x is
-    resolved; tests compare with the independent integral representation to 1e-9.
+    Nodes are clustered toward 0 with x' = u³ so the near-singular kernel at small x is
+    resolved; tests compare with the independent integral representation to 1e-10.
     """
     u, wu = np.polynomial.legendre.leggauss(n)
     u = 0.5 * (u + 1.0)
-    xk = u * u
-    wk = wu * 0.5 * 2.0 * u  # dx = 2u du, du = dU/2
+    xk = u**3
+    wk = wu * 0.5 * 3.0 * u * u  # dx = 3u² du, du = dU/2
     g = np.sqrt(1.0 - w)
     H = h_hapke1981(xk, w)
     kern = 0.5 * w * xk[None, :] * wk[None, :] / (xk[:, None] + xk[None, :])

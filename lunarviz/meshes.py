@@ -20,7 +20,7 @@ MESH_DIR = Path(__file__).resolve().parent.parent / "meshes"
 BODIES = ("sun", "earth", "moon")
 #: Default subdivision levels, chosen from the mesh-resolution study
 #: (benchmarks/mesh_study.json; README "Choosing the mesh levels").
-DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 6}
+DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 5}
 MAX_LEVEL = 8
 
 
@@ -59,7 +59,10 @@ def body_mesh(body: str, level: int | None = None) -> trimesh.Trimesh:
     level = DEFAULT_LEVELS[body] if level is None else level
     p = packaged_mesh_path(body, level) if isinstance(level, (int, np.integer)) else None
     if p is not None:
-        return trimesh.load(p, process=False, force="mesh")
+        m = trimesh.load(p, process=False, force="mesh")
+        # PLY stores float32: put the icosphere's vertices back on the unit sphere in float64
+        v = np.asarray(m.vertices, dtype=float)
+        return trimesh.Trimesh(v / np.linalg.norm(v, axis=1, keepdims=True), m.faces, process=False)
     return unit_icosphere(level)
 
 

@@ -67,7 +67,7 @@ class EmbreeBody:
         self.convex = bool(unit_mesh.is_convex)
         rad = np.linalg.norm(self.vertices, axis=1)
         #: the mesh tessellates a sphere (all vertices on it): shading can use the exact sphere
-        self.is_sphere = bool(np.max(np.abs(rad - self.radius)) <= 1e-9 * self.radius)
+        self.is_sphere = bool(np.max(np.abs(rad - self.radius)) <= 1e-6 * self.radius)
         self.threads = threads or default_threads()
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(scene=self._scene, vertices=self.vertices.astype(EMBREE_DTYPE),

@@ -59,7 +59,9 @@ UNIFORM_SHARE = 0.1
 #: Facets straddling a kink (terminator, penumbra edge, limb) are split REFINE² ways.
 REFINE = 4
 #: Samples wanted across the width of the lit-and-visible lune (see ``lunar_refinement``).
-LUNE_SAMPLES = 16
+LUNE_SAMPLES = 64
+#: Order of the sphere rule for lunar samples that see the Sun partly below the horizon.
+PENUMBRA_ORDER = 6
 #: Kink refinement is skipped when the lune is within this angle [rad] of a hemisphere.
 KINK_FREE_WIDTH = 0.05
 PATHS = {"moonshine": "sun", "earthshine": "earth"}
@@ -198,7 +200,7 @@ class TraceScene:
             # there (μ0 ≈ μ), so there is no kink to resolve.
             kink = np.zeros_like(kink)
         a = M.surface_samples(cand[~kink], s.shading, sub=sub)
-        b = M.surface_samples(cand[kink], s.shading, sub=min(16, max(REFINE, 2 * sub)))
+        b = M.surface_samples(cand[kink], s.shading, sub=max(REFINE, sub))
         return tuple(np.concatenate([u, v]) for u, v in zip(a, b))
 
     def detector_view(self, x, n, dA):
@@ -246,8 +248,8 @@ class TraceScene:
                 caps_u.append(np.broadcast_to(unit(sc.sun - c), (rows.size, 3)))
                 caps_c.append(np.full(rows.size, R / np.linalg.norm(sc.sun - c)))
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
-            # than its cone rule: order 8 is converged to ~1e-5 there (tests/test_trace.py).
-            o_s = max(order, 8) if body == "sun" else order
+            # than its cone rule (tests/test_trace.py checks the moonshine against the reference).
+            o_s = max(order, PENUMBRA_ORDER) if body == "sun" else order
             m, w = cap_rule(xc[rows] / dxc[rows, None], R / dxc[rows], np.stack(caps_u, 1),
                             np.stack(caps_c, 1), n_t=o_s, n_phi=o_s)
             nz = w > 0
@@ -356,7 +358,12 @@ class TraceScene:
         _, g0, _ = detector_geometry(x, n, dA, sc.det, sc.det_normal)
         v = c - x
         d = np.linalg.norm(v, axis=1)
-        proxy = g0 * np.clip(np.einsum("ij,ij->i", n, v) / d + R / d, 0.0, None)
+        # importance proxy: the contribution's shape for a Lambert (∝ μ0 μ) and a Hapke
+        # (∝ μ0/(μ0+μ) μ) surface, mixed so neither has weights above ~2× its mean; μ0 is
+        # softened by the source's angular radius so penumbra facets keep a positive share
+        mu0 = np.clip(np.einsum("ij,ij->i", n, v) / d + R / d, 0.0, None)
+        mu_det = np.clip(np.einsum("ij,ij->i", n, unit(sc.det - x)), 1e-6, None)
+        proxy = g0 * (mu0 + mu0 / (mu0 + mu_det))
         p = UNIFORM_SHARE * dA / dA.sum()
         if proxy.sum() > 0:
             p = p + (1 - UNIFORM_SHARE) * proxy / proxy.sum()

@@ -1,0 +1,388 @@
+"""The ``lunarviz`` command (interface contract: shared/DESIGN.md).
+
+Every error in the user's input ends with one line ``lunarviz: error: …`` naming the bad value
+and exit status 2, never a traceback, and no output file is left behind (results are written
+atomically, after all work succeeded).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """Bad input from the user: printed as one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, no usage dump
+        raise UsageError(message)
+
+
+# ---- parsing helpers ---------------------------------------------------------------------
+def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | None = None) -> list[float]:
+    """``a,b,c`` and/or ``start:stop:step`` (stop inclusive) → floats, each checked in [lo, hi]."""
+    out: list[float] = []
+    if text is None or not str(text).strip():
+        raise UsageError(f"empty {name} list")
+    for part in str(text).split(","):
+        part = part.strip()
+        try:
+            if ":" in part:
+                bits = part.split(":")
+                if len(bits) != 3:
+                    raise ValueError
+                a, b, s = (float(x) for x in bits)
+                if not all(math.isfinite(v) for v in (a, b, s)) or s <= 0 or b < a:
+                    raise ValueError
+                n = int(math.floor((b - a) / s + 1e-9))
+                if n > 100_000:
+                    raise ValueError
+                out += [a + i * s for i in range(n + 1)]
+            else:
+                v = float(part)
+                if not math.isfinite(v):
+                    raise ValueError
+                out.append(v)
+        except ValueError:
+            raise UsageError(f"malformed {name} {part!r}: use a,b,c or start:stop:step with step > 0") from None
+    for v in out:
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            raise UsageError(f"{name} {v:g} is out of range [{lo:g}, {hi:g}]")
+    return out
+
+
+def parse_params(items, brdfs) -> dict:
+    """``--param NAME=VALUE`` or ``BRDF.NAME=VALUE`` → ``{brdf: {name: value}}``."""
+    from .brdf import make_brdf
+    out: dict = {b: {} for b in brdfs}
+    for item in items or []:
+        if "=" not in item:
+            raise UsageError(f"malformed --param {item!r}: use NAME=VALUE or BRDF.NAME=VALUE")
+        key, val = item.split("=", 1)
+        try:
+            value = float(val)
+        except ValueError:
+            raise UsageError(f"--param {item!r}: value {val!r} is not a number") from None
+        targets = brdfs
+        if "." in key:
+            b, key = key.split(".", 1)
+            if b not in brdfs:
+                raise UsageError(f"--param {item!r}: BRDF {b!r} is not in this run")
+            targets = [b]
+        took = False
+        for b in targets:
+            if key in make_brdf(b).params:
+                out[b][key] = value
+                took = True
+        if not took:
+            raise UsageError(f"--param {item!r}: no BRDF in this run has a parameter {key!r}")
+    return {b: p for b, p in out.items() if p}
+
+
+def _brdf_list(text) -> list[str]:
+    from .brdf import BRDF_NAMES
+    names = [t.strip().lower() for t in str(text).split(",") if t.strip()]
+    if not names:
+        raise UsageError("empty --brdf list")
+    for n in names:
+        if n not in BRDF_NAMES:
+            raise UsageError(f"unknown BRDF {n!r}: choose from {', '.join(BRDF_NAMES)}")
+    return list(dict.fromkeys(names))
+
+
+def _positive_int(name):
+    def conv(text):
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
+        if v < 1:
+            raise argparse.ArgumentTypeError(f"{name} {v} must be positive")
+        return v
+    return conv
+
+
+def _nonneg_int(name):
+    def conv(text):
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
+        if v < 0:
+            raise argparse.ArgumentTypeError(f"{name} {v} must be non-negative")
+        return v
+    return conv
+
+
+def _detector(text):
+    if text is None:
+        return None
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise UsageError(f"malformed --detector {text!r}: use x,y,z in metres") from None
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise UsageError(f"malformed --detector {text!r}: use x,y,z in metres")
+    return v
+
+
+def _check_out(path, suffixes):
+    from .io import check_output_path
+    try:
+        return check_output_path(path, suffixes)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
+# ---- sub-commands ------------------------------------------------------------------------
+def _add_physics_options(p):
+    p.add_argument("--dhg-convention", default="paper", choices=["paper", "hapke2012"])
+    p.add_argument("--h-function", default="hapke1981", choices=["hapke1981", "hapke2002", "exact"])
+    p.add_argument("--param", action="append", metavar="[BRDF.]NAME=VALUE",
+                   help="override a BRDF parameter (w, h, B0, xi, b, c, albedo)")
+
+
+def _add_trace_options(p):
+    p.add_argument("--estimator", default="deterministic", choices=["deterministic", "montecarlo"])
+    p.add_argument("--rays", type=_positive_int("--rays"), default=50_000, help="Monte Carlo rays per path and run")
+    p.add_argument("--runs", type=_positive_int("--runs"), default=1, help="Monte Carlo runs per phase")
+    p.add_argument("--seed", type=_nonneg_int("--seed"), default=0)
+    p.add_argument("--mesh-level", type=_nonneg_int("--mesh-level"), default=None, help="Moon icosphere level")
+    p.add_argument("--earth-level", type=_nonneg_int("--earth-level"), default=None)
+    p.add_argument("--sun-level", type=_nonneg_int("--sun-level"), default=None)
+    p.add_argument("--moon-mesh", default=None, help="a user mesh file for the Moon (OBJ, PLY, STL, GLB)")
+    p.add_argument("--no-occlusion", action="store_true", help="the paper's assumption: bodies never shade each other")
+    p.add_argument("--shading", default="smooth", choices=["smooth", "flat"])
+    p.add_argument("--earth-order", type=_positive_int("--earth-order"), default=6)
+    p.add_argument("--sun-order", type=_positive_int("--sun-order"), default=2)
+    p.add_argument("--detector", default=None, help="detector position x,y,z [m] (default: Earth's centre)")
+    p.add_argument("--earth-albedo", type=float, default=0.3)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = _Parser(prog="lunarviz", description="Real-scale ray-traced earthshine and moonshine.")
+    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("sweep", help="moonshine, earthshine and albedo over phases")
+    p.add_argument("--brdf", default="lambert,shg,dhg")
+    p.add_argument("--phases", default="0:180:5", help="θ list [deg]: a,b,c or start:stop:step")
+    p.add_argument("--method", default="analytic", help="analytic | raytrace | reference")
+    p.add_argument("--grid", default="converged", choices=["converged", "paper"], help="analytic surface grid")
+    p.add_argument("--order", type=_positive_int("--order"), default=24, help="analytic Gauss order")
+    p.add_argument("--earth-law", default="lambert", choices=["lambert", "paper_eq8"])
+    p.add_argument("--workers", type=_positive_int("--workers"), default=None)
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--out", required=True)
+    _add_physics_options(p)
+    _add_trace_options(p)
+
+    p = sub.add_parser("brdf", help="tabulate a lunar BRDF")
+    p.add_argument("--model", required=True, help="lambert | shg | dhg")
+    p.add_argument("--incidence", required=True, help="incidence angles [deg]")
+    p.add_argument("--emission", required=True, help="emission angles [deg]")
+    p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")
+    p.add_argument("--out", required=True)
+    _add_physics_options(p)
+
+    p = sub.add_parser("trace", help="ray trace one phase; write the lunar mesh with per-facet arrays")
+    p.add_argument("--phase", type=float, required=True, help="θ [deg]")
+    p.add_argument("--brdf", default="dhg")
+    p.add_argument("--out", required=True, help="output .vtp (or .vtk/.ply via trimesh-free VTK XML)")
+    _add_physics_options(p)
+    _add_trace_options(p)
+
+    for name, helptext in (("render", "offscreen picture of a phase"), ("view", "interactive desktop viewer")):
+        p = sub.add_parser(name, help=helptext)
+        p.add_argument("--phase", default="90", help="θ [deg]; render accepts a list for numbered frames")
+        p.add_argument("--brdf", default="dhg")
+        p.add_argument("--view", default="composite", help="composite | moon | rays | maps")
+        p.add_argument("--size", default="1600x900", help="WxH pixels")
+        if name == "render":
+            p.add_argument("--out", required=True, help="PNG path; with several phases, frames FILE_000.png …")
+            p.add_argument("--gif", default=None, help="also write an animated GIF of the frames")
+        p.add_argument("--quiet", action="store_true")
+        _add_physics_options(p)
+        _add_trace_options(p)
+
+    p = sub.add_parser("study", help="mesh-resolution study")
+    p.add_argument("kind", choices=["mesh"])
+    p.add_argument("--levels", default="2:6:1")
+    p.add_argument("--phases", default="30,90,150")
+    p.add_argument("--brdf", default="lambert,shg,dhg")
+    p.add_argument("--shading", default="smooth", choices=["smooth", "flat"])
+    p.add_argument("--out", required=True, help=".json or .csv (a .png plot is written beside it)")
+    p.add_argument("--quiet", action="store_true")
+
+    p = sub.add_parser("bench", help="run time against error for every method")
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--out", required=True, help=".json (a .csv table and a .png Pareto plot beside it)")
+    p.add_argument("--quiet", action="store_true")
+
+    p = sub.add_parser("paper", help="reproduce the paper end to end")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--quick", action="store_true", help="reduced run for CI and a first look")
+    p.add_argument("--quiet", action="store_true")
+    return ap
+
+
+def _sweep_settings(a, phases, method):
+    from .sweep import SweepSettings
+    brdfs = _brdf_list(a.brdf)
+    return SweepSettings(
+        brdfs=tuple(brdfs), phases_deg=tuple(phases), method=method,
+        dhg_convention=a.dhg_convention, h_function=a.h_function, params=parse_params(a.param, brdfs),
+        detector=_detector(a.detector), earth_albedo=a.earth_albedo,
+        earth_law=getattr(a, "earth_law", "lambert"), grid=getattr(a, "grid", "converged"),
+        order=getattr(a, "order", 24), estimator=a.estimator, rays=a.rays, runs=a.runs, seed=a.seed,
+        moon_level=a.mesh_level, earth_level=a.earth_level, sun_level=a.sun_level,
+        occlusion=not a.no_occlusion, shading=a.shading, earth_order=a.earth_order,
+        sun_order=a.sun_order, moon_mesh=a.moon_mesh)
+
+
+def cmd_sweep(a):
+    from .io import write_results
+    from .sweep import METHODS, run_sweep
+    if a.method not in METHODS:
+        raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
+    phases = parse_float_list(a.phases, "phase", 0.0, 180.0)
+    out = _check_out(a.out, (".json", ".csv"))
+    settings = _sweep_settings(a, phases, a.method)
+    res = run_sweep(settings, workers=a.workers, progress=not a.quiet)
+    write_results(out, res)
+    if not a.quiet:
+        for b, m in res["bond_albedo"].items():
+            for meth, v in m.items():
+                print(f"Bond albedo  {b:8s} {meth:10s} {v:.4f}")
+        print(f"wrote {out}")
+
+
+def cmd_brdf(a):
+    import numpy as np
+
+    from .brdf import brdf_from_angles, half_angle_from_angles, make_brdf
+    from .io import write_results
+    model_name = _brdf_list(a.model)
+    if len(model_name) != 1:
+        raise UsageError(f"--model takes one BRDF, got {a.model!r}")
+    inc = parse_float_list(a.incidence, "incidence", 0.0, 90.0)
+    emi = parse_float_list(a.emission, "emission", 0.0, 90.0)
+    azi = parse_float_list(a.azimuth, "azimuth", -360.0, 360.0)
+    out = _check_out(a.out, (".json", ".csv"))
+    params = parse_params(a.param, model_name).get(model_name[0], {})
+    model = make_brdf(model_name[0], dhg_convention=a.dhg_convention, h_function=a.h_function, params=params)
+    rows = []
+    for i in inc:
+        for e in emi:
+            for z in azi:
+                ir, er, zr = np.radians([i, e, z])
+                s, c = half_angle_from_angles(ir, er, zr)
+                f = float(brdf_from_angles(model, ir, er, zr))
+                rows.append({"incidence_deg": i, "emission_deg": e, "azimuth_deg": z,
+                             "phase_deg": float(np.degrees(2 * np.arctan2(s, c))),
+                             "brdf_per_sr": f, "reflectance_factor": np.pi * f})
+    settings = {"model": model_name[0], "dhg_convention": a.dhg_convention, "h_function": a.h_function,
+                "params": model.params}
+    write_results(out, {"settings": settings, "rows": rows})
+    if not getattr(a, "quiet", False):
+        print(f"wrote {out} ({len(rows)} rows)")
+
+
+def cmd_trace(a):
+    from .facets import trace_facets, write_facet_mesh
+    if not (0.0 <= a.phase <= 180.0) or not math.isfinite(a.phase):
+        raise UsageError(f"phase {a.phase:g} is out of range [0, 180]")
+    out = _check_out(a.out, (".vtp",))
+    settings = _sweep_settings(a, [a.phase], "raytrace")
+    res = trace_facets(settings, a.phase)
+    write_facet_mesh(out, res)
+    print(f"moonshine {res.totals['moonshine_W_m2']:.6e} W/m2, earthshine {res.totals['earthshine_W_m2']:.6e} W/m2")
+    print(f"wrote {out} ({res.n_faces} facets)")
+
+
+def cmd_render(a, interactive=False):
+    from .viz import views
+    phases = parse_float_list(a.phase, "phase", 0.0, 180.0)
+    try:
+        w, h = (int(x) for x in a.size.lower().split("x"))
+        if w < 64 or h < 64 or w > 8192 or h > 8192:
+            raise ValueError
+    except ValueError:
+        raise UsageError(f"malformed --size {a.size!r}: use WxH, each 64..8192") from None
+    if a.view not in views.VIEWS:
+        raise UsageError(f"unknown view {a.view!r}: choose from {', '.join(views.VIEWS)}")
+    settings = _sweep_settings(a, phases, "raytrace")
+    brdf = _brdf_list(a.brdf)
+    if len(brdf) != 1:
+        raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
+    if interactive:
+        views.run_viewer(settings, phases[0], brdf[0], size=(w, h))
+        return
+    out = _check_out(a.out, (".png",))
+    gif = _check_out(a.gif, (".gif",)) if a.gif else None
+    files = views.render_frames(settings, phases, brdf[0], out, view=a.view, size=(w, h),
+                                gif=gif, progress=not a.quiet)
+    for f in files:
+        print(f"wrote {f}")
+
+
+def cmd_study(a):
+    from .study import mesh_study
+    levels = [int(v) for v in parse_float_list(a.levels, "level", 0, 8)]
+    phases = parse_float_list(a.phases, "phase", 0.0, 180.0)
+    out = _check_out(a.out, (".json", ".csv"))
+    mesh_study(levels, phases, _brdf_list(a.brdf), out, shading=a.shading, progress=not a.quiet)
+    print(f"wrote {out}")
+
+
+def cmd_bench(a):
+    from .bench import run_bench
+    out = _check_out(a.out, (".json",))
+    run_bench(out, quick=a.quick, progress=not a.quiet)
+    print(f"wrote {out}")
+
+
+def cmd_paper(a):
+    from .paper import run_paper
+    out = Path(a.out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {a.out!r} exists and is not a directory")
+    parent = out.resolve().parent
+    if not parent.is_dir():
+        raise UsageError(f"--out {a.out!r}: parent directory does not exist")
+    run_paper(out, quick=a.quick, progress=not a.quiet)
+
+
+COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": cmd_render,
+            "view": lambda a: cmd_render(a, interactive=True), "study": cmd_study,
+            "bench": cmd_bench, "paper": cmd_paper}
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        COMMANDS[args.command](args)
+    except UsageError as exc:
+        print(f"lunarviz: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ValueError as exc:  # validation errors from the physics core (parameters, meshes)
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f"lunarviz: error: {msg}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        print(f"lunarviz: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("lunarviz: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

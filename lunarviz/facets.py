@@ -1,0 +1,144 @@
+"""Per-facet results on the lunar mesh (cell data) for one phase and one BRDF.
+
+Arrays (one value per lunar facet, zero where a facet is dark or unseen):
+
+* ``solar_irradiance_W_m2``, ``earth_irradiance_W_m2`` — irradiance on the facet;
+* ``moonshine_radiance_W_m2_sr``, ``earthshine_radiance_W_m2_sr`` — radiance toward the
+  detector;
+* ``moonshine_contribution_W_m2``, ``earthshine_contribution_W_m2`` — each facet's share of the
+  detector irradiance (they sum to the totals exactly);
+* ``incidence_deg``, ``emission_deg``, ``phase_deg`` — at the centroid, for the Sun's centre
+  and the detector; ``earth_incidence_deg``, ``earth_phase_deg`` for the Earth's centre;
+* ``brdf_per_sr``, ``reflectance_factor`` — the BRDF at those angles (sunlight), and
+  ``earth_brdf_per_sr`` (earthlight);
+* ``moonshine_rays``, ``earthshine_rays`` — beams traced per facet (rays that carried light).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import angle_between, half_angle_sin_cos, unit
+
+
+@dataclass
+class FacetResult:
+    vertices: np.ndarray  # (nv, 3) Moon-centred [m]
+    faces: np.ndarray  # (nf, 3)
+    cell_data: dict
+    totals: dict
+    info: dict
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+
+def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_scene=None) -> FacetResult:
+    """Ray trace one phase with ``settings`` (a :class:`~lunarviz.sweep.SweepSettings`)."""
+    from .trace.estimators import TraceScene, trace_path
+    brdf_name = brdf_name or settings.brdfs[0]
+    model = settings.brdf_models()[brdf_name]
+    sc = settings.scene(theta)
+    ts = trace_scene or TraceScene(sc, settings.trace_settings())
+    M = ts.moon
+    b = {brdf_name: model}
+    ms = trace_path(ts, "moonshine", b, keep_facets=True)
+    es = trace_path(ts, "earthshine", b, keep_facets=True)
+    cd = {}
+    f = {**ms.facets, **es.facets}
+    for path in ("moonshine", "earthshine"):
+        contrib = f[f"{path}_contribution_{brdf_name}"]
+        geom = f[f"{path}_geom"]
+        cd[f"{path}_contribution_W_m2"] = contrib
+        cd[f"{path}_radiance_W_m2_sr"] = np.where(geom > 0, contrib / np.where(geom > 0, geom, 1), 0.0)
+        cd[f"{path}_rays"] = f[f"{path}_rays"]
+    cd["solar_irradiance_W_m2"] = f["moonshine_irradiance"]
+    cd["earth_irradiance_W_m2"] = f["earthshine_irradiance"]
+    x = M.centroids
+    n = M.centroid_normals
+    s_dir, e_dir, o_dir = unit(sc.sun - x), unit(sc.earth - x), unit(sc.det - x)
+    cd["incidence_deg"] = np.degrees(angle_between(n, s_dir))
+    cd["emission_deg"] = np.degrees(angle_between(n, o_dir))
+    cd["phase_deg"] = np.degrees(angle_between(s_dir, o_dir))
+    cd["earth_incidence_deg"] = np.degrees(angle_between(n, e_dir))
+    cd["earth_phase_deg"] = np.degrees(angle_between(e_dir, o_dir))
+    mu0 = np.clip(np.einsum("ij,ij->i", n, s_dir), 0, 1)
+    mu = np.clip(np.einsum("ij,ij->i", n, o_dir), 0, 1)
+    sh, ch = half_angle_sin_cos(s_dir, o_dir)
+    cd["brdf_per_sr"] = np.where((mu0 > 0) & (mu > 0), model.brdf(mu0, mu, sh, ch), 0.0)
+    cd["reflectance_factor"] = np.pi * cd["brdf_per_sr"]
+    mu0e = np.clip(np.einsum("ij,ij->i", n, e_dir), 0, 1)
+    she, che = half_angle_sin_cos(e_dir, o_dir)
+    cd["earth_brdf_per_sr"] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che), 0.0)
+    totals = {"moonshine_W_m2": ms.mean[brdf_name], "earthshine_W_m2": es.mean[brdf_name],
+              "rays": ms.rays + es.rays, "seconds": ms.seconds + es.seconds}
+    info = {"theta_deg": float(theta), "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
+            "brdf": brdf_name, "moon_centre_m": sc.moon.tolist(), "detector_m": sc.det.tolist(),
+            "sun_m": sc.sun.tolist(), "estimator": ts.settings.estimator,
+            "occlusion": ts.settings.occlusion}
+    return FacetResult(M.vertices.copy(), M.faces.copy(), cd, totals, info)
+
+
+def write_facet_mesh(path, res: FacetResult) -> None:
+    """Write the lunar mesh with its cell data as VTK XML PolyData (.vtp), atomically."""
+    import json
+    import os
+    import tempfile
+
+    from .viz.meshio import facet_polydata
+    poly = facet_polydata(res)
+    poly.field_data["info_json"] = [json.dumps({**res.info, **res.totals})]
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=d, suffix=".vtp")
+    os.close(fd)
+    try:
+        poly.save(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict:
+    """A few representative light paths as polylines (world coordinates [m]).
+
+    ``moonshine``: Sun surface → lunar point → detector; ``earthshine``: Sun → Earth surface
+    → lunar point → detector. Lunar points are drawn among lit, visible facets ∝ area.
+    """
+    from .trace.estimators import TraceScene
+    rng = np.random.default_rng(seed)
+    sc = settings.scene(theta)
+    ts = TraceScene(sc, settings.trace_settings())
+    M = ts.moon
+    out = {}
+    for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
+        cand = ts.candidates(body)
+        c = {"sun": sc.sun, "earth": sc.earth}[body]
+        x = M.centroids[cand]
+        lit = np.einsum("ij,ij->i", M.centroid_normals[cand], unit(c - x)) > 0
+        cand = cand[lit]
+        if cand.size == 0:
+            out[path] = []
+            continue
+        pick = rng.choice(cand, size=min(n, cand.size), replace=False, p=M.areas[cand] / M.areas[cand].sum())
+        lines = []
+        for fidx in pick:
+            xm = M.centroids[fidx]
+            if body == "sun":
+                src = sc.sun + sc.radii["sun"] * unit(xm - sc.sun + rng.normal(size=3) * sc.radii["sun"] * 0.3)
+                lines.append(np.array([src, xm, sc.det]))
+            else:
+                # a point on the Earth's lit, visible side, then the Sun behind it
+                for _ in range(50):
+                    m = unit(xm - sc.earth + rng.normal(size=3) * sc.radii["earth"] * 1.5)
+                    y = sc.earth + sc.radii["earth"] * m
+                    if np.dot(m, unit(sc.sun - y)) > 0 and np.dot(m, unit(xm - y)) > 0:
+                        break
+                src = sc.sun + sc.radii["sun"] * unit(y - sc.sun)
+                lines.append(np.array([src, y, xm, sc.det]))
+        out[path] = lines
+    return out

@@ -1,0 +1,224 @@
+"""Phase sweeps: one independent, picklable task per phase, mapped through an executor.
+
+Every task computes the BRDF-independent transport once and shades every requested BRDF,
+so a sweep over three BRDFs costs one trace per phase. Tasks run in local worker processes
+(``workers``) so a distributed executor (e.g. Dask's ``Client.map``) can take the same
+:func:`run_phase` calls when a study outgrows one machine.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from . import albedo as alb
+from .analytic import AnalyticSettings, analytic_irradiance
+from .brdf import BRDF_NAMES, make_brdf
+from .geometry import Scene
+from .reference import ReferenceSettings, reference_irradiance
+
+METHODS = ("analytic", "raytrace", "reference")
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """Everything needed to rerun a sweep (written to the output's ``settings``)."""
+
+    brdfs: tuple = ("lambert", "shg", "dhg")
+    phases_deg: tuple = tuple(float(p) for p in range(0, 181, 5))
+    method: str = "analytic"
+    dhg_convention: str = "paper"
+    h_function: str = "hapke1981"
+    params: dict = field(default_factory=dict)  # {brdf: {name: value}}
+    detector: tuple | None = None
+    earth_albedo: float = 0.3
+    earth_law: str = "lambert"
+    grid: str = "converged"
+    order: int = 24
+    paper_step_deg: float = 1.0
+    estimator: str = "deterministic"
+    rays: int = 50_000
+    runs: int = 1
+    seed: int = 0
+    moon_level: int | None = None
+    earth_level: int | None = None
+    sun_level: int | None = None
+    occlusion: bool = True
+    shading: str = "smooth"
+    earth_order: int = 6
+    sun_order: int = 2
+    moon_mesh: str | None = None
+    reference_outer: int = 24
+    reference_inner: int = 8
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
+        if not self.brdfs:
+            raise ValueError("no BRDF given")
+        for b in self.brdfs:
+            if b not in BRDF_NAMES:
+                raise ValueError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
+        if not self.phases_deg:
+            raise ValueError("no phase given")
+        self.brdf_models()  # validates parameters early
+        self.trace_settings()
+        self.analytic_settings()
+
+    def brdf_models(self) -> dict:
+        return {b: make_brdf(b, dhg_convention=self.dhg_convention, h_function=self.h_function,
+                             params=self.params.get(b, {})) for b in self.brdfs}
+
+    def analytic_settings(self) -> AnalyticSettings:
+        return AnalyticSettings(grid=self.grid, order=self.order, paper_step_deg=self.paper_step_deg,
+                                earth_law=self.earth_law, earth_albedo=self.earth_albedo)
+
+    def trace_settings(self):
+        from .meshes import DEFAULT_LEVELS
+        from .trace.estimators import TraceSettings
+        return TraceSettings(
+            estimator=self.estimator,
+            moon_level=DEFAULT_LEVELS["moon"] if self.moon_level is None else self.moon_level,
+            earth_level=DEFAULT_LEVELS["earth"] if self.earth_level is None else self.earth_level,
+            sun_level=DEFAULT_LEVELS["sun"] if self.sun_level is None else self.sun_level,
+            sun_order=self.sun_order, earth_order=self.earth_order, rays=self.rays,
+            runs=self.runs, seed=self.seed, occlusion=self.occlusion, shading=self.shading,
+            earth_albedo=self.earth_albedo, threads=1, moon_mesh=self.moon_mesh)
+
+    def scene(self, theta: float) -> Scene:
+        return Scene(theta, detector=self.detector)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["brdfs"] = list(self.brdfs)
+        d["phases_deg"] = list(self.phases_deg)
+        return d
+
+
+def _terms(scene, es, ms, albedo):
+    return alb.lunar_terms(scene, es, ms, albedo)
+
+
+def run_phase(settings: SweepSettings, theta: float) -> list[dict]:
+    """All rows (one per BRDF) for one phase θ [deg]. Pure function of its arguments."""
+    sc = settings.scene(theta)
+    brdfs = settings.brdf_models()
+    base = {"theta_deg": float(theta), "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
+    t0 = time.perf_counter()
+    rows = []
+    # point-source calibration (lunar terms of Eq. 15, and the point-vs-extended comparison):
+    # converged grid, correct Lambert-sphere Earth law
+    cal_settings = replace(settings.analytic_settings(), grid="converged", earth_law="lambert")
+    point = analytic_irradiance(sc, brdfs, cal_settings)
+    if settings.method == "analytic":
+        res = point if settings.analytic_settings() == cal_settings else \
+            analytic_irradiance(sc, brdfs, settings.analytic_settings())
+        for k, v in res.items():
+            cal = point[k]
+            rows.append({**base, "brdf": k, "method": "analytic",
+                         "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
+                         "_terms": _terms(sc, cal.earthshine_W_m2, cal.moonshine_W_m2, settings.earth_albedo)})
+    elif settings.method == "reference":
+        res = reference_irradiance(sc, brdfs, ReferenceSettings(settings.reference_outer, settings.reference_inner,
+                                                                settings.earth_albedo))
+        for k, v in res.items():
+            rows.append({**base, "brdf": k, "method": "reference",
+                         "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
+                         "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
+                         "_terms": _terms(sc, v.earthshine_W_m2, v.moonshine_W_m2, settings.earth_albedo),
+                         "_terms_point": _terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
+                                                settings.earth_albedo)})
+    else:
+        from .trace.estimators import TraceScene, trace_path
+        ts_set = settings.trace_settings()
+        ts = TraceScene(sc, ts_set)
+        ms = trace_path(ts, "moonshine", brdfs)
+        es = trace_path(ts, "earthshine", brdfs)
+        if ts_set.estimator == "deterministic":
+            cal_ms, cal_es = ms.mean, es.mean
+        else:  # lunar terms from the deterministic transport of the same scene
+            dts = TraceScene(sc, replace(ts_set, estimator="deterministic"))
+            cal_ms = trace_path(dts, "moonshine", brdfs).mean
+            cal_es = trace_path(dts, "earthshine", brdfs).mean
+        for k in brdfs:
+            row = {**base, "brdf": k, "method": "raytrace", "estimator": ts_set.estimator,
+                   "moonshine_W_m2": ms.mean[k], "earthshine_W_m2": es.mean[k],
+                   "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
+                   "_terms": _terms(sc, cal_es[k], cal_ms[k], settings.earth_albedo),
+                   "_terms_point": _terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
+                                          settings.earth_albedo),
+                   "rays": ms.rays + es.rays}
+            if ts_set.estimator == "montecarlo":
+                row["moonshine_std_W_m2"] = ms.std[k]
+                row["earthshine_std_W_m2"] = es.std[k]
+                row["runs"] = ts_set.runs
+                row["rays_per_run"] = ts_set.rays
+            rows.append(row)
+    dt = time.perf_counter() - t0
+    for r in rows:
+        es_, ms_ = r["earthshine_W_m2"], r["moonshine_W_m2"]
+        r["ratio_earthshine_moonshine"] = es_ / ms_ if ms_ > 0 else float("nan")
+        pe = alb.geometric_albedo_term(sc, es_, ms_, r.pop("_terms"))
+        r["geometric_albedo_term"] = pe
+        r["apparent_albedo"] = alb.apparent_albedo(sc.beta_deg, pe)
+        if "_terms_point" in r:
+            pp = alb.geometric_albedo_term(sc, es_, ms_, r.pop("_terms_point"))
+            r["apparent_albedo_point_source_inversion"] = alb.apparent_albedo(sc.beta_deg, pp)
+            r["extended_over_point_earthshine"] = es_ / r["earthshine_point_source_W_m2"] \
+                if r["earthshine_point_source_W_m2"] > 0 else float("nan")
+        r["seconds"] = dt / len(rows)
+    return rows
+
+
+def _run_phase_star(args):
+    return run_phase(*args)
+
+
+def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
+    """``{brdf: {method: Bond albedo}}`` from rows' apparent albedo (corrected Eq. 17)."""
+    out: dict = {}
+    groups: dict = {}
+    for r in rows:
+        if key in r:
+            groups.setdefault((r["brdf"], r["method"]), []).append(r)
+    for (b, m), rs in groups.items():
+        beta = np.array([r["beta_deg"] for r in rs])
+        ps = np.array([np.nan if r[key] is None else r[key] for r in rs], dtype=float)
+        out.setdefault(b, {})[m] = alb.bond_albedo(beta, ps)
+    return out
+
+
+def run_sweep(settings: SweepSettings, workers: int | None = None, progress: bool = False) -> dict:
+    """Run every phase; returns ``{"settings", "rows", "bond_albedo", ...}``."""
+    phases = list(settings.phases_deg)
+    if workers is None:
+        workers = 1 if settings.method == "analytic" else min(len(phases), os.cpu_count() or 1)
+    t0 = time.perf_counter()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(phases), desc=f"{settings.method} sweep", unit="phase", leave=False)
+    results = []
+    if workers <= 1:
+        for th in phases:
+            results.append(run_phase(settings, th))
+            if bar:
+                bar.update()
+    else:
+        with ProcessPoolExecutor(workers) as ex:
+            for res in ex.map(_run_phase_star, [(settings, th) for th in phases]):
+                results.append(res)
+                if bar:
+                    bar.update()
+    if bar:
+        bar.close()
+    rows = [r for res in results for r in res]
+    out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
+           "wall_seconds": time.perf_counter() - t0}
+    if any("apparent_albedo_point_source_inversion" in r for r in rows):
+        out["bond_albedo_point_source_inversion"] = bond_table(rows, "apparent_albedo_point_source_inversion")
+    return out

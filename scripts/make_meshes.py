@@ -1,0 +1,9 @@
+"""Regenerate the packaged meshes in meshes/ and their manifest (sha256 checksums).
+
+    python scripts/make_meshes.py
+"""
+
+from lunarviz.meshes import write_packaged_meshes
+
+if __name__ == "__main__":
+    print(write_packaged_meshes({"sun": [5], "earth": [6], "moon": [5, 6]}))

@@ -1,0 +1,177 @@
+"""Embree ray tracing against the exact reference, and its statistics, scale and meshes."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from lunarviz.brdf import make_brdf
+from lunarviz.geometry import Scene, unit
+from lunarviz.meshes import MeshError, load_user_mesh, unit_icosphere, validate_mesh
+from lunarviz.reference import ReferenceSettings, reference_irradiance
+from lunarviz.trace.bodies import EmbreeBody
+from lunarviz.trace.estimators import TraceScene, TraceSettings, trace_path
+
+#: Issue 3 bar against the exact quadrature at default settings; we measure ≤ 1.2e-4
+#: (benchmarks/results) and hold the test to 0.1 % (issue 5's accuracy target).
+TRACE_REL = 1e-3
+
+
+def traced(theta, brdfs, **kw):
+    ts = TraceScene(Scene(theta), TraceSettings(**kw))
+    return trace_path(ts, "moonshine", brdfs), trace_path(ts, "earthshine", brdfs)
+
+
+@pytest.mark.parametrize("theta", [5.0, 60.0, 120.0, 175.0])
+def test_deterministic_matches_reference(theta, paper_brdfs):
+    ref = reference_irradiance(Scene(theta), paper_brdfs, ReferenceSettings(24, 8))
+    ms, es = traced(theta, paper_brdfs, occlusion=False)
+    for k in paper_brdfs:
+        assert ms.mean[k] == pytest.approx(ref[k].moonshine_W_m2, rel=TRACE_REL)
+        assert es.mean[k] == pytest.approx(ref[k].earthshine_W_m2, rel=TRACE_REL)
+
+
+def test_converges_with_mesh_level(paper_brdfs):
+    # flat shading: the error is the mesh's; it must fall as the mesh is refined
+    dhg = {"dhg": paper_brdfs["dhg"]}
+    ref = reference_irradiance(Scene(100.0), dhg, ReferenceSettings(24, 8))["dhg"].moonshine_W_m2
+    errs = [abs(traced(100.0, dhg, occlusion=False, shading="flat", moon_level=lv, refine=False)[0].mean["dhg"] / ref - 1)
+            for lv in (2, 3, 4, 5)]
+    assert all(b < a for a, b in zip(errs, errs[1:]))
+    assert errs[-1] < errs[0] / 20
+
+
+def test_lunar_eclipse_at_full_moon(paper_brdfs):
+    lam = {"lambert": paper_brdfs["lambert"]}
+    ms0 = traced(0.0, lam)[0].mean["lambert"]
+    ms5 = traced(5.0, lam)[0].mean["lambert"]
+    assert ms0 < 1e-3 * ms5  # θ = 0 is a total eclipse in exact geometry (NOTES.md item 7)
+    ms0_off = traced(0.0, lam, occlusion=False)[0].mean["lambert"]
+    assert ms0_off > 0.9 * ms5  # no eclipse when the paper's assumption is switched on
+
+
+def test_moon_shades_earth_at_new_moon(paper_brdfs):
+    lam = {"lambert": paper_brdfs["lambert"]}
+    on = traced(180.0, lam)[1].mean["lambert"]
+    off = traced(180.0, lam, occlusion=False)[1].mean["lambert"]
+    # The Moon intercepts (R_M/R_E)² = 7.4 % of the Earth's sunlight, and its shadow falls on
+    # the disk centre, 3/2 brighter than the disk average for a full Lambert sphere: ≈ 11 %.
+    loss = 1 - on / off
+    assert loss == pytest.approx(1.5 * (1.738 / 6.378) ** 2, rel=0.15)
+
+
+def test_montecarlo_statistics(paper_brdfs):
+    from scipy.stats import chi2
+    dhg = {"dhg": paper_brdfs["dhg"]}
+    det = traced(70.0, dhg, occlusion=False)
+    K = 30
+    # (K-1) s²/σ² ~ χ²(K-1): the spread s over K runs must lie in its 99.9 % band around
+    # the within-run estimate σ (which is itself precise to a few %, N samples per run)
+    lo, hi = np.sqrt(chi2.ppf([0.0005, 0.9995], K - 1) / (K - 1))
+    within = {}
+    for n in (2000, 8000):
+        ms, es = traced(70.0, dhg, occlusion=False, estimator="montecarlo", rays=n, runs=K, seed=3)
+        for path, res, ref in (("ms", ms, det[0].mean["dhg"]), ("es", es, det[1].mean["dhg"])):
+            sigma = np.mean(res.within_std["dhg"])
+            within[(path, n)] = sigma
+            assert lo * 0.9 < res.std["dhg"] / sigma < hi * 1.1
+            # the mean of K runs lies within 3.3 standard errors (+ the deterministic
+            # estimator's own 2e-4 error) of the deterministic value: unbiased
+            assert abs(res.mean["dhg"] - ref) < 3.3 * sigma / np.sqrt(K) + 2e-4 * ref
+    for path in ("ms", "es"):  # σ ∝ N^-1/2: four times the rays, half the spread
+        assert within[(path, 2000)] / within[(path, 8000)] == pytest.approx(2.0, rel=0.1)
+
+
+def test_seeds_reproduce(paper_brdfs):
+    lam = {"lambert": paper_brdfs["lambert"]}
+    a = traced(50.0, lam, estimator="montecarlo", rays=2000, seed=7)[0].mean["lambert"]
+    b = traced(50.0, lam, estimator="montecarlo", rays=2000, seed=7)[0].mean["lambert"]
+    c = traced(50.0, lam, estimator="montecarlo", rays=2000, seed=8)[0].mean["lambert"]
+    assert a == b and a != c
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_scale_invariance(scale, paper_brdfs):
+    # Every length × scale and Φ × scale² leaves every irradiance unchanged; float32 trouble
+    # would show here (trimesh's test idea, 1e-3 … 1e3 around the real 1.5e11 m scene)
+    dhg = {"dhg": paper_brdfs["dhg"]}
+    base = TraceScene(Scene(120.0), TraceSettings())
+    scaled = TraceScene(Scene(120.0, scale=scale), TraceSettings())
+    for path in ("moonshine", "earthshine"):
+        a = trace_path(base, path, dhg).mean["dhg"]
+        b = trace_path(scaled, path, dhg).mean["dhg"]
+        assert b == pytest.approx(a, rel=1e-9)
+
+
+def test_float32_hits_at_real_scale():
+    # A ray from the Moon's distance toward the Earth: Embree sees only Earth-sized numbers, so
+    # the float64 hit point is on the right facet and within a few cm of the exact one.
+    earth = EmbreeBody(unit_icosphere(6), 6.378e6, [0.0, 0.0, 0.0])
+    rng = np.random.default_rng(0)
+    origin = np.array([[0.0, 3.8e8, 0.0]] * 500)
+    targets = unit(rng.normal(size=(500, 3))) * 6.0e6
+    targets[:, 1] = np.abs(targets[:, 1])
+    d = unit(targets - origin)
+    hits = earth.intersect(origin, d)
+    assert hits.hit.all()
+    # exact: intersect the float64 plane of the facet that contains the hit
+    tri = earth.vertices[earth.faces[hits.prim]]
+    n = earth.normals[hits.prim]
+    t = np.einsum("ij,ij->i", tri[:, 0] - origin, n) / np.einsum("ij,ij->i", d, n)
+    assert np.max(np.abs(t - hits.t)) < 0.05
+    # and the hit lies inside its triangle (right facet)
+    p = hits.point
+    for k in range(3):
+        e = tri[:, (k + 1) % 3] - tri[:, k]
+        assert np.all(np.einsum("ij,ij->i", np.cross(e, p - tri[:, k]), n) > -1e-3 * np.linalg.norm(e, axis=1) ** 2)
+
+
+def test_facet_sums_equal_totals():
+    from lunarviz.facets import trace_facets
+    from lunarviz.sweep import SweepSettings
+    res = trace_facets(SweepSettings(brdfs=("shg",), method="raytrace"), 130.0)
+    for path in ("moonshine", "earthshine"):
+        assert res.cell_data[f"{path}_contribution_W_m2"].sum() == pytest.approx(res.totals[f"{path}_W_m2"], rel=1e-12)
+    assert res.cell_data["solar_irradiance_W_m2"].max() > 0
+    assert np.all(np.isfinite(np.stack(list(res.cell_data.values()))))
+
+
+# ---- meshes -------------------------------------------------------------------------------
+def test_rejected_meshes(tmp_path):
+    sphere = unit_icosphere(2)
+    open_mesh = trimesh.Trimesh(sphere.vertices, sphere.faces[:-3], process=False)
+    with pytest.raises(MeshError, match="not watertight"):
+        validate_mesh(open_mesh, "open")
+    inverted = trimesh.Trimesh(sphere.vertices, sphere.faces[:, ::-1], process=False)
+    with pytest.raises(MeshError, match="inward"):
+        validate_mesh(inverted, "inverted")
+    degen = trimesh.Trimesh(np.vstack([sphere.vertices, sphere.vertices[:1]]),
+                            np.vstack([sphere.faces, [[0, 1, len(sphere.vertices)]]]), process=False)
+    with pytest.raises(MeshError, match="degenerate"):
+        validate_mesh(degen, "degen")
+    bad = tmp_path / "garbage.ply"
+    bad.write_text("not a mesh at all")
+    with pytest.raises(MeshError, match="garbage.ply"):
+        load_user_mesh(bad)
+    with pytest.raises(MeshError, match="file not found"):
+        load_user_mesh(tmp_path / "missing.obj")
+
+
+def test_user_mesh_is_traced(tmp_path, paper_brdfs):
+    # a non-convex Moon (a sphere with a dent) exercises the self-shadowing path
+    m = unit_icosphere(4)
+    v = m.vertices.copy()
+    dent = v[:, 0] > 0.9
+    v[dent] *= 0.97
+    path = tmp_path / "moon.stl"
+    trimesh.Trimesh(v, m.faces).export(path)
+    ts = TraceScene(Scene(90.0), TraceSettings(moon_mesh=str(path)))
+    assert not ts.moon.convex
+    ms = trace_path(ts, "moonshine", {"lambert": paper_brdfs["lambert"]})
+    assert ms.mean["lambert"] > 0
+
+
+def test_settings_validation():
+    with pytest.raises(ValueError, match="rays=-1"):
+        TraceSettings(rays=-1)
+    with pytest.raises(ValueError, match="estimator 'x'"):
+        TraceSettings(estimator="x")
