@@ -1,0 +1,98 @@
+"""The desktop viewer: the composite view in a window, with the phase and the BRDF live.
+
+* a slider sets the phase θ (0-180°); keys ``Left``/``Right`` step it by 5°;
+* three buttons choose the BRDF (Lambert, SHG, DHG);
+* a click on the Moon (top-left panel) picks a facet and shows its per-facet values.
+
+Each change re-traces the phase (about a second) and rebuilds the panels in place.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .views import build_plotter, compute_view_data, populate
+
+BRDF_BUTTONS = ("lambert", "shg", "dhg")
+
+
+class Viewer:
+    def __init__(self, settings, theta: float, brdf: str, size=(1600, 900), off_screen=False):
+        self.settings = settings
+        self.theta = float(theta)
+        self.brdf = brdf
+        self.size = size
+        self.off_screen = off_screen
+        self.data = compute_view_data(settings, self.theta, brdf)
+        self.plotter = build_plotter(self.data, "composite", size, off_screen=off_screen)
+        self.picked: dict | None = None
+        self._add_controls()
+
+    # ---- state changes (also driven by tests) -----------------------------------------------
+    def set_phase(self, theta: float):
+        theta = float(np.clip(theta, 0.0, 180.0))
+        if abs(theta - self.theta) < 1e-9:
+            return
+        self.theta = theta
+        self._refresh()
+
+    def set_brdf(self, brdf: str):
+        if brdf not in BRDF_BUTTONS:
+            raise ValueError(f"unknown BRDF {brdf!r}")
+        if brdf != self.brdf:
+            self.brdf = brdf
+            self._refresh()
+
+    def pick_facet(self, cell_id: int) -> dict:
+        """Per-facet values of lunar facet ``cell_id`` (shown in the window)."""
+        cd = self.data.facets.cell_data
+        self.picked = {k: float(v[cell_id]) for k, v in cd.items()}
+        self.picked["facet"] = int(cell_id)
+        lines = [f"facet {cell_id}"] + [f"{k} = {v:.4g}" for k, v in self.picked.items() if k != "facet"]
+        self.plotter.subplot(0, 0)
+        self.plotter.add_text("\n".join(lines[:12]), position="lower_left", font_size=8, color="yellow",
+                              name="picked")
+        return self.picked
+
+    # ---- internals ---------------------------------------------------------------------------
+    def _refresh(self):
+        self.data = compute_view_data(self.settings, self.theta, self.brdf)
+        pl = self.plotter
+        for title in list(pl.scalar_bars.keys()):
+            pl.remove_scalar_bar(title, render=False)
+        for r in pl.renderers:
+            r.clear_actors()
+        populate(pl, self.data, "composite")
+        self._add_labels()  # cameras follow the new geometry (the Moon seen from the detector)
+        pl.render()
+
+    def _add_labels(self):
+        pl = self.plotter
+        pl.subplot(1, 0)
+        for k, name in enumerate(BRDF_BUTTONS):
+            pl.add_text(name, position=(52, 18 + 45 * k), font_size=10, color="white", name=f"label_{name}")
+        pl.subplot(0, 0)
+
+    def _add_controls(self):
+        pl = self.plotter
+        pl.subplot(1, 0)
+        pl.add_slider_widget(lambda v: self.set_phase(round(v)), [0.0, 180.0], value=self.theta,
+                             title="phase theta [deg]", pointa=(0.1, 0.08), pointb=(0.6, 0.08),
+                             style="modern", interaction_event="end", color="white")
+        for k, name in enumerate(BRDF_BUTTONS):
+            pl.add_checkbox_button_widget(lambda on, n=name: self.set_brdf(n), value=name == self.brdf,
+                                          position=(10, 10 + 45 * k), size=35, color_on="orange")
+        self._add_labels()
+        if not self.off_screen:
+            pl.enable_cell_picking(callback=self._on_pick, through=False, show=False, show_message=False,
+                                   start=False)
+        pl.add_key_event("Right", lambda: self.set_phase(self.theta + 5))
+        pl.add_key_event("Left", lambda: self.set_phase(self.theta - 5))
+
+    def _on_pick(self, cells):
+        if cells is None or cells.n_cells == 0 or "vtkOriginalCellIds" not in cells.cell_data:
+            return
+        self.pick_facet(int(cells.cell_data["vtkOriginalCellIds"][0]))
+
+    def show(self, **kw):
+        self.plotter.show(title="lunarviz", **kw)

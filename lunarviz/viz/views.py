@@ -1,0 +1,295 @@
+"""PyVista scene compositions: lit and earthshine-lit Moon, ray paths, BRDF maps, numbers.
+
+``build_plotter`` returns a :class:`pyvista.Plotter` (offscreen or not) for one of
+:data:`VIEWS`; the desktop viewer (:mod:`lunarviz.viz.viewer`) and the screenshots share it.
+
+Panels of the ``composite`` view:
+
+1. the Moon seen from the detector, coloured by its total radiance toward the detector on
+   one logarithmic grey scale: the sunlit crescent and the faint earthshine side as an eye
+   (or a camera) would see them, with the numbers beside it;
+2. the earthshine radiance alone, on its own logarithmic scale;
+3. light paths Sun → (Earth →) Moon → detector in a schematic layout (real distances are
+   compressed and the bodies enlarged: at real scale they would be invisible dots);
+4. the patch BRDF map: reflectance factor π·BRDF for sunlight at each facet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pyvista as pv
+
+from ..facets import FacetResult, sample_ray_paths, trace_facets
+from .meshio import facet_polydata
+
+VIEWS = ("composite", "moon", "rays", "maps")
+#: Dynamic range of the logarithmic colour scales (max / floor).
+LOG_RANGE = 1e7
+
+
+@dataclass
+class ViewData:
+    facets: FacetResult
+    rays: dict
+    numbers: dict
+
+
+def compute_view_data(settings, theta: float, brdf: str) -> ViewData:
+    """Trace one phase and collect everything a view shows."""
+    from dataclasses import replace
+
+    from .. import albedo as alb
+    from ..analytic import analytic_irradiance
+    settings = replace(settings, brdfs=(brdf,))
+    fr = trace_facets(settings, theta, brdf)
+    sc = settings.scene(theta)
+    ms, es = fr.totals["moonshine_W_m2"], fr.totals["earthshine_W_m2"]
+    model = settings.brdf_models()
+    pt = analytic_irradiance(sc, model)[brdf]
+    terms_pt = alb.lunar_terms(sc, pt.earthshine_W_m2, pt.moonshine_W_m2, settings.earth_albedo)
+    terms = alb.lunar_terms(sc, es, ms, settings.earth_albedo)
+    numbers = {
+        "theta_deg": theta, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg, "brdf": brdf,
+        "method": f"raytrace ({fr.info['estimator']}, occlusion {'on' if fr.info['occlusion'] else 'off'})",
+        "moonshine_W_m2": ms, "earthshine_W_m2": es,
+        "ratio": es / ms if ms > 0 else float("nan"),
+        "apparent_albedo": alb.apparent_albedo(sc.beta_deg, alb.geometric_albedo_term(sc, es, ms, terms)),
+        "apparent_albedo_point_inversion": alb.apparent_albedo(
+            sc.beta_deg, alb.geometric_albedo_term(sc, es, ms, terms_pt)),
+        "point_source_earthshine_W_m2": pt.earthshine_W_m2,
+        "rays": fr.totals["rays"],
+        "error_note": "deterministic: error <= 2e-4 vs exact reference (benchmarks/)"
+        if fr.info["estimator"] == "deterministic" else "Monte Carlo: see std in sweep",
+    }
+    return ViewData(fr, sample_ray_paths(settings, theta, n=10), numbers)
+
+
+def numbers_text(n: dict) -> str:
+    def f(v, fmt):
+        return "n/a" if v is None or not np.isfinite(v) else format(v, fmt)
+    return "\n".join([
+        f"phase theta = {n['theta_deg']:.1f} deg   alpha = {n['alpha_deg']:.2f} deg   beta = {n['beta_deg']:.2f} deg",
+        f"BRDF: {n['brdf']}    method: {n['method']}",
+        f"moonshine  E = {f(n['moonshine_W_m2'], '.4e')} W/m^2",
+        f"earthshine E = {f(n['earthshine_W_m2'], '.4e')} W/m^2  (point Earth {f(n['point_source_earthshine_W_m2'], '.4e')})",
+        f"earthshine / moonshine = {f(n['ratio'], '.4e')}",
+        f"apparent albedo p* = {f(n['apparent_albedo'], '.4f')}  (point-source inversion {f(n['apparent_albedo_point_inversion'], '.4f')})",
+        f"rays traced: {n['rays']:,}    {n['error_note']}",
+    ])
+
+
+def _log_field(values, floor=None):
+    """Values for a log colour scale: zeros (dark, unseen) become NaN; limits robust."""
+    v = np.asarray(values, dtype=float)
+    pos = v[v > 0]
+    if pos.size == 0:
+        return np.full_like(v, np.nan), (1e-30, 1.0)
+    vmax = float(pos.max())
+    lo = float(np.percentile(pos, 1.0)) if floor is None else floor
+    lo = max(lo, vmax / LOG_RANGE)
+    return np.where(v > 0, np.maximum(v, lo), np.nan), (lo, vmax)
+
+
+def _linear_field(values, mask):
+    v = np.where(mask, np.asarray(values, dtype=float), np.nan)
+    ok = v[np.isfinite(v)]
+    if ok.size == 0:
+        return v, (0.0, 1.0)
+    return v, (float(np.percentile(ok, 1.0)), float(np.percentile(ok, 99.0)))
+
+
+def _ashen_floor(poly):
+    """Lower colour limit that keeps the earthshine ('ashen light') side visible."""
+    es = np.asarray(poly.cell_data["earthshine_radiance_W_m2_sr"])
+    pos = es[es > 0]
+    return float(np.percentile(pos, 1.0)) * 0.1 if pos.size else None
+
+
+def _camera_from_detector(pl, fr: FacetResult, zoom=1.0):
+    """Look at the Moon from the detector (parallel projection), world z up."""
+    moon = np.array(fr.info["moon_centre_m"])
+    det = np.array(fr.info["detector_m"])
+    R = float(np.max(np.linalg.norm(fr.vertices, axis=1)))
+    view = (det - moon) / np.linalg.norm(det - moon)
+    up = np.array([0.0, 0.0, 1.0])
+    if abs(np.dot(up, view)) > 0.99:
+        up = np.array([0.0, 1.0, 0.0])
+    pl.camera_position = [tuple(view * 8 * R), (0.0, 0.0, 0.0), tuple(up)]
+    pl.enable_parallel_projection()
+    pl.camera.parallel_scale = 1.15 * R / zoom
+
+
+def _moon_panel(pl, poly, field, title, cmap, log=True, clim=None, bar_fmt="%.1e", mask=None, floor=None):
+    mesh = poly.copy()
+    if log:
+        vals, lim = _log_field(mesh.cell_data[field], floor)
+    else:
+        vals, lim = _linear_field(mesh.cell_data[field], np.ones(mesh.n_cells, bool) if mask is None else mask)
+    mesh.cell_data[field + "_shown"] = vals
+    bar = {"title": title, "fmt": bar_fmt, "n_labels": 4, "vertical": True, "color": "white",
+           "position_x": 0.84, "position_y": 0.1, "height": 0.8, "width": 0.05,
+           "title_font_size": 14, "label_font_size": 12}
+    pl.add_mesh(mesh, scalars=field + "_shown", cmap=cmap, log_scale=log, clim=clim or lim,
+                nan_color=(0.12, 0.12, 0.14), show_edges=False, lighting=False, scalar_bar_args=bar)
+    return mesh
+
+
+def _ray_panel(pl, data: ViewData):
+    fr = data.facets
+    moon = np.array(fr.info["moon_centre_m"])
+    sun = np.array(fr.info["sun_m"])
+    det = np.array(fr.info["detector_m"])
+    earth = np.zeros(3)
+    # schematic: keep directions as seen from the Earth, compress distances (log), enlarge bodies
+    def place(centre):
+        d = np.linalg.norm(centre)
+        return centre / d * (1.2 + np.log10(d / 3.8e8 + 1) * 6.0) if d > 0 else centre
+    C = {"sun": place(sun), "earth": earth, "moon": place(moon)}
+    Rs = {"sun": 0.45, "earth": 0.35, "moon": 0.16}
+    Rw = {"sun": 6.957e8, "earth": 6.378e6, "moon": 1.738e6}
+    Cw = {"sun": sun, "earth": earth, "moon": moon}
+    colors = {"sun": "gold", "earth": "royalblue", "moon": "lightgray"}
+    for b in C:
+        pl.add_mesh(pv.Sphere(radius=Rs[b], center=C[b], theta_resolution=32, phi_resolution=32),
+                    color=colors[b], smooth_shading=True)
+        pl.add_point_labels([C[b] + np.array([0, 0, Rs[b] * 1.6])], [b.capitalize()], font_size=12,
+                            text_color="white", shape=None, show_points=False)
+
+    def snap(p, body):
+        return C[body] + Rs[body] * (p - Cw[body]) / Rw[body]
+
+    bodies = {"moonshine": ["sun", "moon", "det"], "earthshine": ["sun", "earth", "moon", "det"]}
+    for path, color in (("moonshine", "orange"), ("earthshine", "deepskyblue")):
+        for line in data.rays.get(path, []):
+            pts = []
+            for p, b in zip(line, bodies[path]):
+                pts.append(snap(p, "earth") if b == "det" else snap(p, b))
+            pl.add_mesh(pv.lines_from_points(np.array(pts)), color=color, line_width=2)
+    pl.add_point_labels([snap(det, "earth")], ["detector"], font_size=10, text_color="white",
+                        point_color="red", point_size=8, shape=None)
+    pl.add_text("light paths (schematic: distances compressed, bodies enlarged)\n"
+                "orange: Sun -> Moon -> detector   blue: Sun -> Earth -> Moon -> detector",
+                font_size=9, position="upper_left", color="white")
+    pl.view_vector((1.0, 0.0, 0.0), viewup=(0.0, 0.0, 1.0))
+    pl.reset_camera()
+
+
+SHAPES = {"composite": (2, 2), "maps": (2, 2), "moon": (1, 1), "rays": (1, 1)}
+
+
+def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True) -> pv.Plotter:
+    """A plotter showing ``view`` of ``data``; call ``show()`` or ``screenshot()``."""
+    if view not in VIEWS:
+        raise ValueError(f"unknown view {view!r}: choose from {', '.join(VIEWS)}")
+    pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
+    populate(pl, data, view)
+    return pl
+
+
+def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plotter:
+    """Draw ``view`` of ``data`` into an existing plotter of shape ``SHAPES[view]``."""
+    fr = data.facets
+    poly = facet_polydata(fr)
+    cd = poly.cell_data
+    poly.cell_data["total_radiance"] = cd["moonshine_radiance_W_m2_sr"] + cd["earthshine_radiance_W_m2_sr"]
+    text = numbers_text(data.numbers)
+    if view == "moon":
+        pl.subplot(0, 0)
+        pl.set_background("black")
+        _moon_panel(pl, poly, "total_radiance", "radiance\n[W m^-2 sr^-1]", "gray", floor=_ashen_floor(poly))
+        pl.add_text(text, font_size=9, position="upper_left", color="white")
+        _camera_from_detector(pl, fr)
+        return pl
+    if view == "rays":
+        pl.subplot(0, 0)
+        pl.set_background("black")
+        _ray_panel(pl, data)
+        return pl
+    if view == "maps":
+        panels = [("incidence_deg", "incidence i [deg]", "twilight", (0, 90)),
+                  ("emission_deg", "emission e [deg]", "twilight", (0, 90)),
+                  ("phase_deg", "phase angle g [deg]", "magma", None),
+                  ("reflectance_factor", "reflectance factor pi*BRDF", "viridis", None)]
+        for k, (field, title, cmap, clim) in enumerate(panels):
+            pl.subplot(k // 2, k % 2)
+            pl.set_background("black")
+            seen = poly.cell_data["emission_deg"] < 90
+            lit = seen & (poly.cell_data["incidence_deg"] < 90)
+            _moon_panel(pl, poly, field, title, cmap, log=False, clim=clim, bar_fmt="%.3g",
+                        mask=seen if field == "emission_deg" else lit)
+            pl.add_text(title + " (sunlight, seen from the detector)", font_size=9, color="white")
+            _camera_from_detector(pl, fr)
+        return pl
+    pl.subplot(0, 0)
+    pl.set_background("black")
+    _moon_panel(pl, poly, "total_radiance", "radiance\n[W m^-2 sr^-1]", "gray", floor=_ashen_floor(poly))
+    pl.add_text("Moon seen from the detector: sunlit + earthshine (log scale)\n" + text,
+                font_size=8, position="upper_left", color="white")
+    _camera_from_detector(pl, fr)
+    pl.subplot(0, 1)
+    pl.set_background("black")
+    _moon_panel(pl, poly, "earthshine_radiance_W_m2_sr", "earthshine\n[W m^-2 sr^-1]", "cividis")
+    pl.add_text("earthshine-lit side (Sun -> Earth -> Moon -> detector), own log scale", font_size=9, color="white")
+    _camera_from_detector(pl, fr)
+    pl.subplot(1, 0)
+    pl.set_background("black")
+    _ray_panel(pl, data)
+    pl.subplot(1, 1)
+    pl.set_background("black")
+    lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
+    _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\n(sunlight)", "viridis", log=False,
+                bar_fmt="%.3f", mask=lit)
+    pl.add_text(f"patch BRDF map: reflectance factor ({data.numbers['brdf']})", font_size=9, color="white")
+    _camera_from_detector(pl, fr)
+    return pl
+
+
+def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900), gif=None,
+                  progress=False) -> list:
+    """Render one PNG per phase (``out`` itself for one phase, else ``out_000.png`` …)."""
+    from pathlib import Path
+
+    from ..io import write_bytes_atomic
+    out = Path(out)
+    files = []
+    it = phases
+    if progress and len(phases) > 1:
+        from tqdm import tqdm
+        it = tqdm(phases, desc="render", unit="frame", leave=False)
+    for k, th in enumerate(it):
+        data = compute_view_data(settings, th, brdf)
+        pl = build_plotter(data, view, size, off_screen=True)
+        pl.render()
+        img = pl.screenshot(return_img=True)
+        pl.close()
+        target = out if len(phases) == 1 else out.with_name(f"{out.stem}_{k:03d}{out.suffix}")
+        write_bytes_atomic(target, _png_bytes(img))
+        files.append(target)
+    if gif:
+        from PIL import Image
+        frames = []
+        for f in files:
+            with Image.open(f) as im:
+                frames.append(im.convert("P", palette=Image.Palette.ADAPTIVE))
+        import io
+        buf = io.BytesIO()
+        frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
+        write_bytes_atomic(gif, buf.getvalue())
+        files.append(Path(gif))
+    return files
+
+
+def _png_bytes(img) -> bytes:
+    import io
+
+    from PIL import Image
+    buf = io.BytesIO()
+    Image.fromarray(np.asarray(img)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def run_viewer(settings, theta, brdf, size=(1600, 900)):
+    from .viewer import Viewer
+    Viewer(settings, theta, brdf, size=size).show()
