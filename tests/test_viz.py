@@ -127,19 +127,33 @@ def xvfb():
     proc.wait(timeout=10)
 
 
+VIEWER_DRIVER = """
+import numpy as np
+from lunarviz.sweep import SweepSettings
+from lunarviz.viz.viewer import Viewer
+v = Viewer(SweepSettings(method="raytrace"), 90.0, "lambert", size=(1000, 700))
+assert type(v.plotter.render_window).__name__ != "vtkEGLRenderWindow"  # a real X window
+v.show(interactive_update=True, auto_close=False)
+before = v.data.numbers["moonshine_W_m2"]
+v.set_phase(150.0)
+v.plotter.update()
+assert v.theta == 150.0
+assert v.data.numbers["moonshine_W_m2"] < 0.2 * before  # a crescent is much fainter
+v.set_brdf("dhg")
+assert v.data.numbers["brdf"] == "dhg"
+picked = v.pick_facet(int(np.argmax(v.data.facets.cell_data["moonshine_contribution_W_m2"])))
+assert picked["moonshine_radiance_W_m2_sr"] > 0
+assert v.plotter.screenshot(return_img=True).std() > 10
+v.plotter.close()
+assert v.plotter.render_window is None
+print("VIEWER-OK")
+"""
+
+
 def test_viewer_opens_changes_phase_and_closes(xvfb):
-    from lunarviz.viz.viewer import Viewer
-    v = Viewer(SweepSettings(method="raytrace"), 90.0, "lambert", size=(1000, 700))
-    v.show(interactive_update=True, auto_close=False)
-    before = v.data.numbers["moonshine_W_m2"]
-    v.set_phase(150.0)
-    v.plotter.update()
-    assert v.theta == 150.0
-    assert v.data.numbers["moonshine_W_m2"] < 0.2 * before  # a crescent is much fainter
-    v.set_brdf("dhg")
-    picked = v.pick_facet(int(np.argmax(v.data.facets.cell_data["moonshine_contribution_W_m2"])))
-    assert picked["moonshine_radiance_W_m2_sr"] > 0
-    img = v.plotter.screenshot(return_img=True)
-    assert img.std() > 10
-    v.plotter.close()
-    assert v.plotter.render_window is None
+    # VTK chooses its window system once per process (EGL when there is no display), so the
+    # viewer runs in a fresh process that starts with DISPLAY pointing at the virtual screen
+    r = subprocess.run(["python", "-c", VIEWER_DRIVER], capture_output=True, text=True, timeout=300,
+                       env={**os.environ, "DISPLAY": xvfb})
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "VIEWER-OK" in r.stdout
