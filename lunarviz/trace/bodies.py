@@ -69,6 +69,8 @@ class EmbreeBody:
         #: the mesh tessellates a sphere (all vertices on it): shading can use the exact sphere
         self.is_sphere = bool(np.max(np.abs(rad - self.radius)) <= 1e-6 * self.radius)
         self.threads = threads or default_threads()
+        #: when a list, every float32 batch sent to Embree is appended (benchmarks only)
+        self.recorder: list | None = None
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(scene=self._scene, vertices=self.vertices.astype(EMBREE_DTYPE),
                      indices=self.faces.astype(np.int32))
@@ -125,35 +127,53 @@ class EmbreeBody:
             nrm = np.repeat(self.normals[faces], ns, axis=0)
         return pts + self.centre, nrm, area, owner
 
-    def sphere_hits(self, origins, dirs, with_prim: bool = True) -> Hits:
-        """First hits on the exact sphere this mesh tessellates (float64, analytic), with the
-        facet under each hit point found by a radial Embree ray from outside the body.
+    def _outer_scene(self):
+        """Embree scene of the mesh scaled to circumscribe its sphere (every facet plane at
+        distance ≥ R from the centre), so every ray that meets the sphere meets this mesh."""
+        if getattr(self, "_outer", None) is None:
+            plane_dist = np.einsum("ij,ij->i", self.normals, self.vertices[self.faces[:, 0]])
+            k = self.radius / float(plane_dist.min()) * (1.0 + 1e-9)
+            self._outer = rtcore_scene.EmbreeScene()
+            TriangleMesh(scene=self._outer, vertices=(self.vertices * k).astype(EMBREE_DTYPE),
+                         indices=self.faces.astype(np.int32))
+            self._outer_bound = self.bound * k
+        return self._outer
 
-        ``with_prim=False`` skips the facet lookup (prim stays -1) when no caller needs it.
-        Seen from the Moon, rays to the outer ~0.5° of the Earth's sphere pass outside an
-        inscribed level-6 mesh; a crescent Earth's light lives exactly there, so smooth shading
-        takes hits from the sphere (NOTES.md: far sources; README: mesh study).
+    def sphere_hits(self, origins, dirs) -> Hits:
+        """First hits on the exact sphere this mesh tessellates.
+
+        Embree traces every ray against the circumscribing copy of the mesh (which facet the
+        ray meets); the hit point is then refined in float64 onto the exact sphere. Seen from
+        the Moon, rays to the outer ~0.5° of the Earth's sphere pass *outside* an inscribed
+        level-6 mesh, and a crescent Earth's light lives exactly there: the circumscribed
+        copy keeps them (README, "Meshes").
         """
+        scene = self._outer_scene()
         o = np.asarray(origins, dtype=float) - self.centre
         d = np.asarray(dirs, dtype=float)
         b = -np.einsum("ij,ij->i", o, d)
         perp2 = np.einsum("ij,ij->i", o, o) - b * b
-        disc = self.radius**2 - perp2
-        t = b - np.sqrt(np.clip(disc, 0.0, None))
-        hit = (disc > 0) & (t > 0)
+        Rb = self._outer_bound * (1.0 + ENTRY_MARGIN)
+        disc_b = Rb * Rb - perp2
+        live = np.flatnonzero((disc_b > 0) & (b + np.sqrt(np.clip(disc_b, 0, None)) > 0))
         n = len(o)
         prim = np.full(n, -1, dtype=np.int64)
+        if live.size:
+            t0 = np.clip(b[live] - np.sqrt(disc_b[live]), 0.0, None)
+            start = o[live] + t0[:, None] * d[live]
+            saved, self._scene = self._scene, scene
+            try:
+                prim[live] = self._run(start.astype(EMBREE_DTYPE), d[live].astype(EMBREE_DTYPE), "INTERSECT")
+            finally:
+                self._scene = saved
+        disc = self.radius**2 - perp2
+        t = b - np.sqrt(np.clip(disc, 0.0, None))
+        hit = (prim >= 0) & (disc > 0) & (t > 0)
+        prim[~hit] = -1
         point = np.full((n, 3), np.nan)
         tt = np.full(n, np.inf)
-        h = np.flatnonzero(hit)
-        if h.size:
-            y = o[h] + t[h, None] * d[h]
-            if with_prim:
-                u = y / np.linalg.norm(y, axis=1, keepdims=True)
-                start = u * (self.bound * (1.0 + ENTRY_MARGIN))
-                prim[h] = self._run(start.astype(EMBREE_DTYPE), (-u).astype(EMBREE_DTYPE), "INTERSECT")
-            point[h] = y + self.centre
-            tt[h] = t[h]
+        point[hit] = o[hit] + t[hit, None] * d[hit] + self.centre
+        tt[hit] = t[hit]
         return Hits(hit, prim, tt, point)
 
     def shade_hits(self, hits: "Hits", origins, dirs, shading: str):
@@ -199,6 +219,9 @@ class EmbreeBody:
         if len(chunks) == 1 and n > 4096 and self.threads > 1:
             step = -(-n // self.threads)
             chunks = [slice(a, min(n, a + step)) for a in range(0, n, step)]
+
+        if self.recorder is not None:
+            self.recorder.append((query, o32, d32, dists))
 
         def one(sl):
             kw = {} if dists is None else {"dists": dists[sl]}
@@ -255,14 +278,6 @@ class EmbreeBody:
             res = self._run(o_start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "OCCLUDED", dists)
             out[idx] = res != -1
         return out
-
-
-def raw_embree_rate(body: EmbreeBody, origins32, dirs32) -> float:
-    """Seconds for a single-threaded raw ``run`` on pre-cast float32 rays (benchmark ceiling)."""
-    import time
-    t = time.perf_counter()
-    body._scene.run(origins32, dirs32)
-    return time.perf_counter() - t
 
 
 _SUB_CACHE: dict = {}

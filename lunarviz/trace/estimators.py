@@ -299,10 +299,7 @@ class TraceScene:
         xo = x + n * (NORMAL_OFFSET * self.moon.radius)
         target = self.sun if body == "sun" else self.earth
         if s.shading == "smooth" and target.is_sphere:
-            need_prim = body == "earth" and bool(np.any(self.sun_visibility_of_earth() < 1.0))
-            hits = target.sphere_hits(xo, dirs, with_prim=need_prim)
-            if need_prim:
-                self._count(int(hits.hit.sum()))
+            hits = target.sphere_hits(xo, dirs)
         else:
             hits = target.intersect(xo, dirs)
         self._count(len(xo))
