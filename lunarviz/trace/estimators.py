@@ -65,6 +65,8 @@ PENUMBRA_ORDER = 6
 #: Kink refinement is skipped when the lune is within this angle [rad] of a hemisphere.
 KINK_FREE_WIDTH = 0.05
 PATHS = {"moonshine": "sun", "earthshine": "earth"}
+#: Lunar samples per batch: bounds memory (≈ CHUNK × beams × 30 doubles) for any ray count.
+CHUNK = 1 << 14
 
 
 @dataclass(frozen=True)
@@ -125,6 +127,7 @@ class TraceScene:
         self.sun = EmbreeBody(_unit_mesh("sun", settings.sun_level, None), r["sun"], scene.sun, th)
         self.rays_cast = 0
         self._sun_vis_earth = None
+        self._cand_cache: dict = {}
 
     def _count(self, n):
         self.rays_cast += int(n)
@@ -139,8 +142,11 @@ class TraceScene:
         """Lunar facets that the detector may see and the source may (partly) light.
 
         Tested on the facet's corners as well as its centroid, so a facet that a kink crosses
-        is never dropped.
+        is never dropped. Memoised per body (``self._kinks`` follows the last body asked).
         """
+        if body in self._cand_cache:
+            cand, self._kinks = self._cand_cache[body]
+            return cand
         sc = self.scene
         M = self.moon
         c, R, _ = self._source(body)
@@ -156,7 +162,9 @@ class TraceScene:
         self._kinks = (np.sign(lit_v + 1) != np.sign(lit_v[:, :1] + 1)).any(1) | \
             (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
             (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
-        return np.flatnonzero(up & seen)
+        cand = np.flatnonzero(up & seen)
+        self._cand_cache[body] = (cand, self._kinks)
+        return cand
 
     def _kink_values(self, x, n, c, R):
         """Source elevation in units of its angular radius (-1..1: penumbra), and μ to detector."""
@@ -327,27 +335,42 @@ class TraceScene:
         return L
 
     # ---- transports --------------------------------------------------------------------------
-    def deterministic_transport(self, body: str) -> tuple[Transport, np.ndarray]:
+    def deterministic_transport(self, body: str):
+        """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK lunar samples."""
         s = self.settings
-        x, n, dA, owner = self.lunar_samples(body)
-        mu, geom, o = self.detector_view(x, n, dA)
-        keep = geom > 0
-        x, n, owner, mu, geom, o = x[keep], n[keep], owner[keep], mu[keep], geom[keep], o[keep]
-        order = s.sun_order if body == "sun" else s.earth_order
-        dirs, omega = self.source_nodes(x, n, body, order)
-        mu0 = np.einsum("bkj,bj->bk", dirs, n)
-        live = (omega > 0) & (mu0 > 0)
-        L = np.zeros(omega.shape)
-        bi, ki = np.nonzero(live)
-        L[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
-        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
-        tr = Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega, mu=mu, geom=geom)
-        return tr, owner
+        x_all, n_all, dA_all, owner_all = self.lunar_samples(body)
+        for a in range(0, len(x_all), CHUNK):
+            sl = slice(a, a + CHUNK)
+            x, n, dA, owner = x_all[sl], n_all[sl], dA_all[sl], owner_all[sl]
+            mu, geom, o = self.detector_view(x, n, dA)
+            keep = geom > 0
+            x, n, owner, mu, geom, o = x[keep], n[keep], owner[keep], mu[keep], geom[keep], o[keep]
+            if len(x) == 0:
+                continue
+            order = s.sun_order if body == "sun" else s.earth_order
+            dirs, omega = self.source_nodes(x, n, body, order)
+            mu0 = np.einsum("bkj,bj->bk", dirs, n)
+            live = (omega > 0) & (mu0 > 0)
+            L = np.zeros(omega.shape)
+            bi, ki = np.nonzero(live)
+            L[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
+            sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
+            yield Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega,
+                            mu=mu, geom=geom), owner
 
-    def montecarlo_transport(self, body: str, rng: np.random.Generator) -> tuple[Transport, np.ndarray]:
+    def montecarlo_transport(self, body: str, rng: np.random.Generator):
+        """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
+        samples; each sample's weight already carries the 1/N of the estimator."""
+        s = self.settings
+        done = 0
+        while done < s.rays:
+            n = min(CHUNK, s.rays - done)
+            yield self._montecarlo_chunk(body, rng, n, s.rays)
+            done += n
+
+    def _montecarlo_chunk(self, body: str, rng: np.random.Generator, N: int, N_total: int):
         sc = self.scene
         s = self.settings
-        N = s.rays
         M = self.moon
         c, R, _ = self._source(body)
         cand = self.candidates(body)
@@ -381,7 +404,7 @@ class TraceScene:
             ns = M.shading_normals(f, xs)
         else:
             xs, ns = pts + M.centre, M.normals[f]
-        area_w = dA[pick] / (N * p[pick])
+        area_w = dA[pick] / (N_total * p[pick])
         mu, geom, o = self.detector_view(xs, ns, area_w)
         # one direction uniform in the source's cone
         vc = c - xs
@@ -431,22 +454,46 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     nf = ts.moon.n_faces
     for run in range(runs):
         if s.estimator == "deterministic":
-            tr, owner = ts.deterministic_transport(body)
+            chunks = ts.deterministic_transport(body)
         else:
             rng = np.random.default_rng([s.seed, run, 0 if path == "moonshine" else 1])
-            tr, owner = ts.montecarlo_transport(body, rng)
-        for k, b in brdfs.items():
-            contrib = tr.radiance(b) * tr.geom
-            vals[k].append(float(contrib.sum()))
-            within[k].append(float(np.sqrt(len(contrib) * np.var(contrib, ddof=1)))
-                             if s.estimator == "montecarlo" else 0.0)
-            if keep_facets and run == runs - 1:
-                facets[f"{path}_contribution_{k}"] = np.bincount(owner, contrib, nf)
-        if keep_facets and run == runs - 1:
-            w = np.bincount(owner, np.ones(len(owner)), nf)
-            facets[f"{path}_irradiance"] = np.bincount(owner, tr.irradiance_on_sample(), nf) / np.maximum(w, 1)
-            facets[f"{path}_rays"] = np.bincount(owner, (tr.e_beam > 0).sum(1), nf).astype(float)
-            facets[f"{path}_geom"] = np.bincount(owner, tr.geom, nf)
+            chunks = ts.montecarlo_transport(body, rng)
+        tot = {k: 0.0 for k in brdfs}
+        sq = {k: 0.0 for k in brdfs}
+        count = 0
+        keep = keep_facets and run == runs - 1
+        fac = {}
+        for tr, owner in chunks:
+            count += len(owner)
+            for k, b in brdfs.items():
+                contrib = tr.radiance(b) * tr.geom
+                tot[k] += float(contrib.sum())
+                sq[k] += float(np.dot(contrib, contrib))
+                if keep:
+                    key = f"{path}_contribution_{k}"
+                    fac[key] = fac.get(key, 0.0) + np.bincount(owner, contrib, nf)
+            if keep:
+                for key, per_sample in ((f"{path}_irr_sum", tr.irradiance_on_sample()),
+                                        (f"{path}_count", np.ones(len(owner))),
+                                        (f"{path}_rays", (tr.e_beam > 0).sum(1).astype(float)),
+                                        (f"{path}_geom", tr.geom)):
+                    fac[key] = fac.get(key, 0.0) + np.bincount(owner, per_sample, nf)
+        for k in brdfs:
+            vals[k].append(tot[k])
+            if s.estimator == "montecarlo" and count > 1:
+                # contributions c_i = f_i / (N p_i): Var(Σ c) = N Var(c), Var(c) from the sums
+                var_c = (sq[k] - tot[k] ** 2 / count) / (count - 1)
+                within[k].append(float(np.sqrt(max(count * var_c, 0.0))))
+            else:
+                within[k].append(0.0)
+        if keep:
+            zero = np.zeros(nf)
+            for k in brdfs:
+                facets[f"{path}_contribution_{k}"] = np.asarray(fac.get(f"{path}_contribution_{k}", zero))
+            cnt = np.asarray(fac.get(f"{path}_count", zero))
+            facets[f"{path}_irradiance"] = np.asarray(fac.get(f"{path}_irr_sum", zero)) / np.maximum(cnt, 1)
+            facets[f"{path}_rays"] = np.asarray(fac.get(f"{path}_rays", zero))
+            facets[f"{path}_geom"] = np.asarray(fac.get(f"{path}_geom", zero))
     std = {}
     for k in brdfs:
         if s.estimator == "deterministic":
