@@ -166,13 +166,13 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     _, t_an = _timed(lambda: run_sweep(SweepSettings()), 3)
     targets["analytic_sweep_seconds"] = {"seconds": t_an, "target": "<= 1 s"}
     mc = {}
-    for path, n in (("moonshine", 50_000), ("earthshine", 50_000), ("earthshine", 350_000)):
+    for path, n in (("moonshine", 50_000), ("earthshine", 50_000), ("earthshine", 120_000)):
         ts = TraceScene(Scene(90.0), TraceSettings(estimator="montecarlo", rays=n, runs=1, occlusion=False, seed=5))
         r = trace_path(ts, path, models)
         mc[f"{path}_{n}_rays"] = {"seconds": r.seconds,
                                   "relative_std": max(r.std[b] / r.mean[b] for b in BRDFS)}
     mc["target"] = "0.2 % std in < 1 s per phase (moonshine + earthshine)"
-    mc["seconds_per_phase_at_0.2pct"] = mc["moonshine_50000_rays"]["seconds"] + mc["earthshine_350000_rays"]["seconds"]
+    mc["seconds_per_phase_at_0.2pct"] = mc["moonshine_50000_rays"]["seconds"] + mc["earthshine_120000_rays"]["seconds"]
     targets["montecarlo_one_phase_theta90"] = mc
 
     res = {"quick": quick, "phases_deg": list(phases), "rows": rows, "throughput": throughput,

@@ -406,7 +406,23 @@ class TraceScene:
             xs, ns = pts + M.centre, M.normals[f]
         area_w = dA[pick] / (N_total * p[pick])
         mu, geom, o = self.detector_view(xs, ns, area_w)
-        # one direction uniform in the source's cone
+        if body == "earth":
+            dirs, omega = self._earth_lit_directions(xs, rng)
+        else:
+            dirs, omega = self._cone_directions(xs, c, R, rng)
+        mu0 = np.einsum("ij,ij->i", dirs, ns)
+        li = np.flatnonzero((mu0 > 0) & (geom > 0))
+        L = np.zeros(N)
+        L[li] = self.source_radiance(xs[li], ns[li], dirs[li], body)
+        sh, ch = half_angle_sin_cos(dirs, o)
+        tr = Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],
+                       e_beam=(L * omega)[:, None], mu=mu, geom=geom)
+        return tr, f
+
+    @staticmethod
+    def _cone_directions(xs, c, R, rng):
+        """One direction uniform in solid angle within the source's cone; weight = Ω_cone."""
+        N = len(xs)
         vc = c - xs
         dc = np.linalg.norm(vc, axis=1)
         axis = vc / dc[:, None]
@@ -418,14 +434,65 @@ class TraceScene:
         phi = 2 * np.pi * rng.random(N)
         e1, e2 = orthonormal_basis(axis)
         dirs = cpsi[:, None] * axis + spsi[:, None] * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
-        mu0 = np.einsum("ij,ij->i", dirs, ns)
-        li = np.flatnonzero((mu0 > 0) & (geom > 0))
-        L = np.zeros(N)
-        L[li] = self.source_radiance(xs[li], ns[li], dirs[li], body)
-        sh, ch = half_angle_sin_cos(dirs, o)
-        tr = Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],
-                       e_beam=(L * 2 * np.pi * one_m_cos)[:, None], mu=mu, geom=geom)
-        return tr, f
+        return dirs, 2 * np.pi * one_m_cos
+
+    def _earth_lit_directions(self, xs, rng, n_tab: int = 24):
+        """One direction toward the Earth's lit, visible part per sample, and its weight [sr].
+
+        Polar coordinates (t, φ) on the Earth's sphere about the sub-sample point: t is drawn
+        from a tabulated pdf ∝ J(t)·2hw(t) (J = dΩ/dt dφ, exact; hw = half-width of the lit
+        arc of ring t, the terminator being a cap), φ uniformly within the lit arc. The weight
+        J·2hw/p(t) uses the pdf actually sampled (piecewise constant between table nodes,
+        floored so every lit ring keeps a positive density), so the estimator is unbiased.
+        Dark Earth is never sampled: at a crescent Earth this removes most of the variance.
+        """
+        sc = self.scene
+        N = len(xs)
+        R = sc.radii["earth"]
+        v = xs - sc.earth
+        d = np.linalg.norm(v, axis=1)
+        a = v / d[:, None]
+        e1, e2 = orthonormal_basis(a)
+        us = unit(sc.sun - sc.earth)
+        c_s = R / np.linalg.norm(sc.sun - sc.earth)
+        ctu = a @ us
+        stu = np.sqrt(np.clip(1 - ctu**2, 0, None))
+        phi_u = np.arctan2(e2 @ us, e1 @ us)
+        t_max = np.arccos(R / d)
+
+        def half_width(t):
+            den = np.sin(t) * stu[:, None]
+            num = c_s - np.cos(t) * ctu[:, None]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                q = np.where(np.abs(den) > 1e-300, num / den, np.where(num < 0, -np.inf, np.inf))
+            return np.arccos(np.clip(q, -1.0, 1.0))
+
+        def jac(t):
+            dd = d[:, None]
+            r2 = dd * dd + R * R - 2 * dd * R * np.cos(t)
+            return np.clip(dd * np.cos(t) - R, 0, None) * R * R * np.sin(t) / r2**1.5
+
+        tk = t_max[:, None] * np.linspace(0.0, 1.0, n_tab + 1)[None, :]
+        g = jac(tk) * 2 * half_width(tk)
+        cell = 0.5 * (g[:, 1:] + g[:, :-1])
+        cell = np.maximum(cell, 1e-3 * cell.mean(axis=1, keepdims=True) + 1e-300)
+        dt = t_max / n_tab
+        mass = cell * dt[:, None]
+        cdf = np.cumsum(mass, axis=1)
+        total = cdf[:, -1]
+        u = rng.random(N) * total
+        k = np.minimum((cdf < u[:, None]).sum(axis=1), n_tab - 1)
+        lo = np.where(k > 0, cdf[np.arange(N), k - 1], 0.0)
+        frac = (u - lo) / mass[np.arange(N), k]
+        t = (k + np.clip(frac, 0, 1)) * dt
+        pdf_t = cell[np.arange(N), k] / total
+        hw = half_width(t[:, None])[:, 0]
+        phi = phi_u + (2 * rng.random(N) - 1) * hw
+        m = np.cos(t)[:, None] * a + np.sin(t)[:, None] * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+        y = sc.earth + R * m
+        dirs = unit(y - xs)
+        weight = np.where(hw > 0, jac(t[:, None])[:, 0] * 2 * hw / pdf_t, 0.0)
+        return dirs, weight
 
 
 @dataclass
