@@ -124,8 +124,8 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     one = {"dhg": models["dhg"]}
     ts = TraceScene(Scene(90.0), TraceSettings(occlusion=False))
     t3 = trace_path(ts, "earthshine", models).seconds
-    t1 = sum(trace_path(TraceScene(Scene(90.0), TraceSettings(occlusion=False)), "earthshine", {b: models[b]}).seconds
-             for b in BRDFS)
+    t1 = sum(trace_path(TraceScene(Scene(90.0), TraceSettings(occlusion=False)), "earthshine",
+                        {b: models[b]}).seconds for b in BRDFS)
     skips["transport_reused_across_3_brdfs"] = {"seconds_one_trace": t3, "seconds_three_traces": t1,
                                                 "saving": 1 - t3 / t1}
     cand = ts.candidates("sun").size
@@ -142,7 +142,8 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
         "detector_inside_earth": True, "sight_line_rays_skipped": int(dets.candidates("sun").size)}
     rf_on = trace_path(TraceScene(Scene(170.0), TraceSettings(occlusion=False)), "moonshine", one)
     rf_off = trace_path(TraceScene(Scene(170.0), TraceSettings(occlusion=False, refine=False)), "moonshine", one)
-    ref170 = reference_irradiance(Scene(170.0), one, ReferenceSettings(32, 12), paths=("moonshine",))["dhg"].moonshine_W_m2
+    ref170 = reference_irradiance(Scene(170.0), one, ReferenceSettings(32, 12),
+                                  paths=("moonshine",))["dhg"].moonshine_W_m2
     skips["refinement_only_where_needed_theta170"] = {
         "rays_refined": rf_on.rays, "rays_unrefined": rf_off.rays,
         "error_refined": rf_on.mean["dhg"] / ref170 - 1, "error_unrefined": rf_off.mean["dhg"] / ref170 - 1}

@@ -26,7 +26,8 @@ class _Parser(argparse.ArgumentParser):
 
 # ---- parsing helpers ---------------------------------------------------------------------
 def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | None = None) -> list[float]:
-    """``a,b,c`` and/or ``start:stop:step`` (stop inclusive) → floats, each checked in [lo, hi]."""
+    """``a,b,c`` and/or ``start:stop[:step]`` (stop inclusive, step 1 by default) → floats,
+    each checked in [lo, hi]."""
     out: list[float] = []
     if text is None or not str(text).strip():
         raise UsageError(f"empty {name} list")
@@ -35,6 +36,8 @@ def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | 
         try:
             if ":" in part:
                 bits = part.split(":")
+                if len(bits) == 2:
+                    bits.append("1")
                 if len(bits) != 3:
                     raise ValueError
                 a, b, s = (float(x) for x in bits)
@@ -50,7 +53,7 @@ def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | 
                     raise ValueError
                 out.append(v)
         except ValueError:
-            raise UsageError(f"malformed {name} {part!r}: use a,b,c or start:stop:step with step > 0") from None
+            raise UsageError(f"malformed {name} {part!r}: use a,b,c or start:stop[:step] with step > 0") from None
     for v in out:
         if (lo is not None and v < lo) or (hi is not None and v > hi):
             raise UsageError(f"{name} {v:g} is out of range [{lo:g}, {hi:g}]")
@@ -96,28 +99,24 @@ def _brdf_list(text) -> list[str]:
     return list(dict.fromkeys(names))
 
 
-def _positive_int(name):
+def _int_at_least(name, lo):
     def conv(text):
         try:
             v = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
-        if v < 1:
-            raise argparse.ArgumentTypeError(f"{name} {v} must be positive")
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{name} {v} must be {'positive' if lo == 1 else 'non-negative'}")
         return v
     return conv
+
+
+def _positive_int(name):
+    return _int_at_least(name, 1)
 
 
 def _nonneg_int(name):
-    def conv(text):
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
-        if v < 0:
-            raise argparse.ArgumentTypeError(f"{name} {v} must be non-negative")
-        return v
-    return conv
+    return _int_at_least(name, 0)
 
 
 def _detector(text):

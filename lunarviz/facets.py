@@ -85,22 +85,13 @@ def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_sce
 def write_facet_mesh(path, res: FacetResult) -> None:
     """Write the lunar mesh with its cell data as VTK XML PolyData (.vtp), atomically."""
     import json
-    import os
-    import tempfile
 
+    from .io import atomic_path
     from .viz.meshio import facet_polydata
     poly = facet_polydata(res)
     poly.field_data["info_json"] = [json.dumps({**res.info, **res.totals})]
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=d, suffix=".vtp")
-    os.close(fd)
-    try:
+    with atomic_path(path) as tmp:
         poly.save(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict:

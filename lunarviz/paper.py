@@ -294,7 +294,7 @@ def run_paper(out, quick: bool = False, progress: bool = True) -> dict:
     write_bytes_atomic(out / "results.json", json.dumps(_clean(results), indent=1, allow_nan=False).encode())
     write_bytes_atomic(out / "report.md", make_report(results).encode())
     if progress:
-        print(f"Table 5 (Bond albedo; input 0.3): " + ", ".join(
+        print("Table 5 (Bond albedo; input 0.3): " + ", ".join(
             f"{b} analytic {table5[b]['analytic']:.4f} raytrace {table5[b]['raytrace']:.4f}" for b in BRDFS))
         print(f"wrote {out}/ (report.md, results.json, figures) in {time.perf_counter() - t_start:.0f} s")
     return results

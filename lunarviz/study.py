@@ -73,7 +73,8 @@ def plot_study(res: dict, path) -> None:
     for path_name, ax in zip(("moonshine", "earthshine"), axes):
         s = [r for r in res["summary"] if r["path"] == path_name]
         facets = sorted({r["facets"] for r in res["rows"]})
-        ax.loglog(facets, [max(r["max_abs_relative_error"], 1e-12) for r in s], "o-", label="max |error| over phases, BRDFs")
+        ax.loglog(facets, [max(r["max_abs_relative_error"], 1e-12) for r in s], "o-",
+                  label="max |error| over phases, BRDFs")
         for x, r in zip(facets, s):
             if r["observed_order"] is not None:
                 ax.annotate(f"p={r['observed_order']:.1f}", (x, r["max_abs_relative_error"]), fontsize=7,

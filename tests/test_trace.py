@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import trimesh
 
-from lunarviz.brdf import make_brdf
 from lunarviz.geometry import Scene, unit
 from lunarviz.meshes import MeshError, load_user_mesh, unit_icosphere, validate_mesh
 from lunarviz.reference import ReferenceSettings, reference_irradiance
@@ -34,8 +33,8 @@ def test_converges_with_mesh_level(paper_brdfs):
     # flat shading: the error is the mesh's; it must fall as the mesh is refined
     dhg = {"dhg": paper_brdfs["dhg"]}
     ref = reference_irradiance(Scene(100.0), dhg, ReferenceSettings(24, 8))["dhg"].moonshine_W_m2
-    errs = [abs(traced(100.0, dhg, occlusion=False, shading="flat", moon_level=lv, refine=False)[0].mean["dhg"] / ref - 1)
-            for lv in (2, 3, 4, 5)]
+    errs = [abs(traced(100.0, dhg, occlusion=False, shading="flat", moon_level=lv,
+                       refine=False)[0].mean["dhg"] / ref - 1) for lv in (2, 3, 4, 5)]
     assert all(b < a for a, b in zip(errs, errs[1:]))
     assert errs[-1] < errs[0] / 20
 

@@ -147,7 +147,6 @@ class TraceScene:
         if body in self._cand_cache:
             cand, self._kinks = self._cand_cache[body]
             return cand
-        sc = self.scene
         M = self.moon
         c, R, _ = self._source(body)
         x, n, _, _ = M.surface_samples(np.arange(M.n_faces), self.settings.shading)
