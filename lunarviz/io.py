@@ -51,6 +51,9 @@ def atomic_path(path):
     os.close(fd)
     try:
         yield tmp
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; results get the usual mode
         os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):
