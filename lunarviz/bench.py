@@ -193,7 +193,36 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     mc["seconds_per_phase_at_0.2pct"] = mc["moonshine_50000_rays"]["seconds"] + mc["earthshine_120000_rays"]["seconds"]
     targets["montecarlo_one_phase_theta90"] = mc
 
-    res = {"quick": quick, "phases_deg": list(phases), "rows": rows, "throughput": throughput,
+    # ---- pictures (issue 4): a frame once the data is computed, and a cold-start render -------
+    render = {}
+    try:
+        import subprocess
+        import sys
+        import tempfile
+
+        from .sweep import SweepSettings as _S
+        from .viz import views
+        data, t_data = _timed(lambda: views.compute_view_data(_S(method="raytrace"), 90.0, "dhg"))
+
+        def frame():
+            pl = views.build_plotter(data, "composite", (1024, 768))
+            pl.render()
+            img = pl.screenshot(return_img=True)
+            pl.close()
+            return img
+        frame()  # the first frame pays the OpenGL context set-up
+        _, t_frame = _timed(frame, 3)
+        with tempfile.TemporaryDirectory() as tmp:
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "lunarviz.cli", "render", "--phase", "90", "--size", "1024x768",
+                            "--out", os.path.join(tmp, "p.png"), "--quiet"], check=True, capture_output=True)
+            t_cold = time.perf_counter() - t
+        render = {"data_seconds": t_data, "frame_1024x768_seconds": t_frame, "cold_start_render_seconds": t_cold,
+                  "targets": "frame < 1 s once data is computed; cold start < 60 s"}
+    except ImportError as exc:  # pictures are optional extras
+        render = {"skipped": f"{exc}"}
+
+    res = {"quick": quick, "phases_deg": list(phases), "rows": rows, "throughput": throughput, "render": render,
            "skips": skips, "targets": targets, "seconds_total": time.perf_counter() - t_all,
            "machine": {"cpus": os.cpu_count()}}
     from .io import _clean, write_bytes_atomic, write_results

@@ -320,6 +320,9 @@ def cmd_render(a, interactive=False):
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
     if interactive:
+        import os
+        if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            raise UsageError("lunarviz view needs a display (DISPLAY is not set); use lunarviz render for pictures")
         views.run_viewer(settings, phases[0], brdf[0], size=(w, h))
         return
     out = _check_out(a.out, (".png",))

@@ -157,3 +157,11 @@ def test_viewer_opens_changes_phase_and_closes(xvfb):
                        env={**os.environ, "DISPLAY": xvfb})
     assert r.returncode == 0, r.stderr[-2000:]
     assert "VIEWER-OK" in r.stdout
+
+
+def test_view_without_display_is_one_line(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["view", "--phase", "90"]) == 2
+    err = capsys.readouterr().err
+    assert "needs a display" in err and err.count("\n") == 1
