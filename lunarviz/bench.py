@@ -225,8 +225,8 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     res = {"quick": quick, "phases_deg": list(phases), "rows": rows, "throughput": throughput, "render": render,
            "skips": skips, "targets": targets, "seconds_total": time.perf_counter() - t_all,
            "machine": {"cpus": os.cpu_count()}}
-    from .io import _clean, write_bytes_atomic, write_results
-    write_bytes_atomic(out, json.dumps(_clean(res), indent=1, allow_nan=False).encode())
+    from .io import json_safe, write_bytes_atomic, write_results
+    write_bytes_atomic(out, json.dumps(json_safe(res), indent=1, allow_nan=False).encode())
     write_results(out.with_suffix(".csv"), {"rows": rows})
     plot_pareto(res, out.with_suffix(".png"))
     return res

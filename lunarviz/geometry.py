@@ -10,7 +10,7 @@ measurement (a static scene).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -71,7 +71,6 @@ class Scene:
     r_moon: float = C.R_MOON_M
     phi_sun: float = C.PHI_SUN_W
     scale: float = 1.0
-    _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
         for name in ("d_se", "d_em", "r_sun", "r_earth", "r_moon", "phi_sun", "scale"):

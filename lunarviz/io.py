@@ -29,16 +29,16 @@ def check_output_path(path, suffixes=SUFFIXES) -> Path:
     return p
 
 
-def _clean(v):
+def json_safe(v):
     """JSON-safe values: NaN/inf become null."""
     if isinstance(v, float) and not math.isfinite(v):
         return None
     if isinstance(v, dict):
-        return {k: _clean(x) for k, x in v.items()}
+        return {k: json_safe(x) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
-        return [_clean(x) for x in v]
+        return [json_safe(x) for x in v]
     if hasattr(v, "item") and not isinstance(v, (str, bytes)):
-        return _clean(v.item())
+        return json_safe(v.item())
     return v
 
 
@@ -71,9 +71,9 @@ def write_results(path, payload: dict) -> None:
     """Write ``payload`` (with a ``rows`` list) as JSON, or its rows as CSV, atomically."""
     p = Path(path)
     if p.suffix.lower() == ".json":
-        data = json.dumps(_clean(payload), indent=2, allow_nan=False).encode()
+        data = json.dumps(json_safe(payload), indent=2, allow_nan=False).encode()
     else:
-        rows = [_clean(r) for r in payload.get("rows", [])]
+        rows = [json_safe(r) for r in payload.get("rows", [])]
         fields: list[str] = []
         for r in rows:
             fields += [k for k in r if k not in fields]

@@ -290,8 +290,8 @@ def run_paper(out, quick: bool = False, progress: bool = True) -> dict:
         "timings_s": {**timings, "total": time.perf_counter() - t_start},
         "screenshots": shots,
     }
-    from .io import _clean
-    write_bytes_atomic(out / "results.json", json.dumps(_clean(results), indent=1, allow_nan=False).encode())
+    from .io import json_safe
+    write_bytes_atomic(out / "results.json", json.dumps(json_safe(results), indent=1, allow_nan=False).encode())
     write_bytes_atomic(out / "report.md", make_report(results).encode())
     if progress:
         print("Table 5 (Bond albedo; input 0.3): " + ", ".join(

@@ -166,13 +166,11 @@ class TraceScene:
         return cand
 
     def _kink_values(self, x, n, c, R):
-        """Source elevation in units of its angular radius (-1..1: penumbra), and μ to detector."""
-        v = c - x
-        d = np.linalg.norm(v, axis=1)
-        lit = np.einsum("ij,ij->i", n, v) / R  # n·(c - x) / R: > 1 fully lit, < -1 dark
+        """``n·(c - x)/R`` (> 1 source wholly above the horizon, < -1 wholly below, between:
+        penumbra; scripts/derivations.md §1) and μ toward the detector."""
+        lit = np.einsum("ij,ij->i", n, c - x) / R
         w = self.scene.det - x
-        vis = np.einsum("ij,ij->i", n, w)
-        return lit, vis / np.linalg.norm(w, axis=1) + 0.0 * d
+        return lit, np.einsum("ij,ij->i", n, w) / np.linalg.norm(w, axis=1)
 
     def lunar_refinement(self, body: str) -> int:
         """Sub-division of every lit-and-visible facet so ≥ LUNE_SAMPLES samples span the lune.
