@@ -51,29 +51,21 @@ class EmbreeBody:
     def __init__(self, unit_mesh: trimesh.Trimesh, radius: float, centre, threads: int | None = None):
         self.centre = np.asarray(centre, dtype=float)
         self.radius = float(radius)
-        self.vertices = np.asarray(unit_mesh.vertices, dtype=float) * self.radius  # body frame
-        self.faces = np.asarray(unit_mesh.faces, dtype=np.int64)
-        self.bound = float(np.max(np.linalg.norm(self.vertices, axis=1)))
-        tri = self.vertices[self.faces]
-        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        self.areas = 0.5 * np.linalg.norm(cross, axis=1)
-        self.normals = cross / (2.0 * self.areas[:, None])
-        self.centroids_local = tri.mean(axis=1)
-        vn = np.asarray(unit_mesh.vertex_normals, dtype=float)
-        self.vertex_normals = vn / np.linalg.norm(vn, axis=1, keepdims=True)
-        cn = self.vertex_normals[self.faces].sum(axis=1)
+        geo = _body_geometry(unit_mesh, self.radius)
+        self._geo = geo
+        self.vertices, self.faces = geo["vertices"], geo["faces"]  # body frame [m]
+        self.bound, self.areas, self.normals = geo["bound"], geo["areas"], geo["normals"]
+        self.centroids_local = geo["centroids_local"]
+        self.vertex_normals = geo["vertex_normals"]
         #: shading normals at the centroids (interpolated vertex normals, Phong 1975)
-        self.centroid_normals = cn / np.linalg.norm(cn, axis=1, keepdims=True)
-        self.convex = bool(unit_mesh.is_convex)
-        rad = np.linalg.norm(self.vertices, axis=1)
+        self.centroid_normals = geo["centroid_normals"]
+        self.convex = geo["convex"]
         #: the mesh tessellates a sphere (all vertices on it): shading can use the exact sphere
-        self.is_sphere = bool(np.max(np.abs(rad - self.radius)) <= 1e-6 * self.radius)
+        self.is_sphere = geo["is_sphere"]
         self.threads = threads or default_threads()
         #: when a list, every float32 batch sent to Embree is appended (benchmarks only)
         self.recorder: list | None = None
-        self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(scene=self._scene, vertices=self.vertices.astype(EMBREE_DTYPE),
-                     indices=self.faces.astype(np.int32))
+        self._scene = geo["scene"]
 
     def shading_normals(self, prim, points) -> np.ndarray:
         """Interpolated vertex normals at world ``points`` on primitives ``prim`` (unit).
@@ -129,15 +121,18 @@ class EmbreeBody:
 
     def _outer_scene(self):
         """Embree scene of the mesh scaled to circumscribe its sphere (every facet plane at
-        distance ≥ R from the centre), so every ray that meets the sphere meets this mesh."""
-        if getattr(self, "_outer", None) is None:
+        distance ≥ R from the centre), so every ray that meets the sphere meets this mesh.
+        Built once per mesh and radius (cached with the body's geometry)."""
+        geo = self._geo
+        if geo.get("outer") is None:
             plane_dist = np.einsum("ij,ij->i", self.normals, self.vertices[self.faces[:, 0]])
             k = self.radius / float(plane_dist.min()) * (1.0 + 1e-9)
-            self._outer = rtcore_scene.EmbreeScene()
-            TriangleMesh(scene=self._outer, vertices=(self.vertices * k).astype(EMBREE_DTYPE),
+            outer = rtcore_scene.EmbreeScene()
+            TriangleMesh(scene=outer, vertices=(self.vertices * k).astype(EMBREE_DTYPE),
                          indices=self.faces.astype(np.int32))
-            self._outer_bound = self.bound * k
-        return self._outer
+            geo["outer"], geo["outer_bound"] = outer, self.bound * k
+        self._outer_bound = geo["outer_bound"]
+        return geo["outer"]
 
     def sphere_hits(self, origins, dirs) -> Hits:
         """First hits on the exact sphere this mesh tessellates.
@@ -278,6 +273,43 @@ class EmbreeBody:
             res = self._run(o_start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "OCCLUDED", dists)
             out[idx] = res != -1
         return out
+
+
+_GEOMETRY_CACHE: dict = {}
+
+
+def _body_geometry(unit_mesh: trimesh.Trimesh, radius: float) -> dict:
+    """Body-frame geometry and Embree scene of ``unit_mesh`` at ``radius``, cached.
+
+    Body-centred frames make them independent of where the body is, so a sweep builds each
+    scene once per process, not once per phase. Keyed by the mesh object (kept alive in the
+    entry) and the radius.
+    """
+    key = (id(unit_mesh), float(radius))
+    hit = _GEOMETRY_CACHE.get(key)
+    if hit is not None and hit["mesh"] is unit_mesh:
+        return hit
+    vertices = np.asarray(unit_mesh.vertices, dtype=float) * radius
+    faces = np.asarray(unit_mesh.faces, dtype=np.int64)
+    tri = vertices[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    areas = 0.5 * np.linalg.norm(cross, axis=1)
+    vn = np.asarray(unit_mesh.vertex_normals, dtype=float)
+    vn = vn / np.linalg.norm(vn, axis=1, keepdims=True)
+    cn = vn[faces].sum(axis=1)
+    rad = np.linalg.norm(vertices, axis=1)
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene=scene, vertices=vertices.astype(EMBREE_DTYPE), indices=faces.astype(np.int32))
+    geo = {"mesh": unit_mesh, "vertices": vertices, "faces": faces, "bound": float(rad.max()),
+           "areas": areas, "normals": cross / (2.0 * areas[:, None]), "centroids_local": tri.mean(axis=1),
+           "vertex_normals": vn, "centroid_normals": cn / np.linalg.norm(cn, axis=1, keepdims=True),
+           "convex": bool(unit_mesh.is_convex),
+           "is_sphere": bool(np.max(np.abs(rad - radius)) <= 1e-6 * radius),
+           "scene": scene, "outer": None}
+    if len(_GEOMETRY_CACHE) > 16:
+        _GEOMETRY_CACHE.clear()
+    _GEOMETRY_CACHE[key] = geo
+    return geo
 
 
 _SUB_CACHE: dict = {}
