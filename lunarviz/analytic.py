@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .earth import earth_intensity
-from .geometry import Scene, half_angle_sin_cos, unit
+from .geometry import Scene, angle_between, half_angle_sin_cos, unit
 from .sphere_quadrature import cap_rule, compact
 from .transport import Transport, detector_geometry
 
@@ -121,7 +121,7 @@ def earthshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSett
         x, n, dA = lunar_surface_rule(scene, scene.earth, 0.0, settings.order)
     E = scene.earth
     d2 = np.sum((x - E) ** 2, axis=1)
-    beta = np.arccos(np.clip(np.einsum("ij,j->i", unit(x - E), unit(scene.sun - E)), -1, 1))
+    beta = angle_between(x - E, np.broadcast_to(scene.sun - E, x.shape))  # Kahan: exact near π
     e_in = scene.phi / (4 * np.pi * scene.d_se_actual**2)  # Eq. 7
     intensity = earth_intensity(beta, settings.earth_albedo, scene.radii["earth"], e_in,
                                 settings.earth_law)

@@ -127,3 +127,13 @@ def test_invalid_settings():
         AnalyticSettings(grid="bogus")
     with pytest.raises(ValueError, match="order=1"):
         AnalyticSettings(order=1)
+
+
+def test_lambert_phase_function_near_new_earth():
+    # f_L(π - ε) = (sin ε - ε cos ε)/π cancels in its direct form; reference by mpmath-free
+    # high-order series to ε¹¹ (exact to rounding for ε ≤ 0.1)
+    for eps in (1e-6, 1e-3, 0.049, 0.051, 0.1):
+        e2 = eps * eps
+        want = eps * e2 * (1 / 3 - e2 / 30 + e2**2 / 840 - e2**3 / 45360 + e2**4 / 3991680) / np.pi
+        assert lambert_phase_function(np.pi - eps) == pytest.approx(want, rel=1e-12)
+    assert lambert_phase_function(0.0) == 1.0
