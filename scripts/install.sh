@@ -22,3 +22,5 @@ if [ ${#need[@]} -gt 0 ]; then
   fi
 fi
 python3 -m pip install -q --disable-pip-version-check -c constraints.txt -e ".[${extra}]"
+# pyenv installs console scripts behind shims: make `lunarviz` visible at once
+if command -v pyenv >/dev/null 2>&1; then pyenv rehash || true; fi

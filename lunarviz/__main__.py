@@ -1,0 +1,7 @@
+"""``python -m lunarviz`` is the ``lunarviz`` command."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())
