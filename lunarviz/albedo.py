@@ -49,11 +49,17 @@ def lunar_terms(scene: Scene, earthshine_cal: float, moonshine_cal: float,
     return LunarTerms(float(pa), float(pb))
 
 
+#: Below this disk-integrated lunar reflectance p_b f_b (≈ 1e-4 at θ = 175°, ≈ 1e-15 at new
+#: Moon) the Moon shows no measurable sunlit side and Eq. 15 is a ratio of round-off or noise.
+MIN_LUNAR_TERM = 1e-9
+
+
 def geometric_albedo_term(scene: Scene, earthshine: float, moonshine: float,
                           terms: LunarTerms) -> float:
-    """p_E f_E(β), paper Eq. 15; NaN where it is 0/0 (no light on one path)."""
+    """p_E f_E(β), paper Eq. 15; NaN where it is undefined: no moonshine (new Moon, eclipse) or
+    no earthlight on the Moon (full Moon)."""
     d_em, d_sm, d_se, r_e = scene.d_em_actual, scene.d_sm, scene.d_se_actual, scene.radii["earth"]
-    if not (moonshine > 0 and terms.pa_fa > 0 and np.isfinite(terms.pa_fa)):
+    if not (moonshine > 0 and terms.pb_fb > MIN_LUNAR_TERM and terms.pa_fa > 0 and np.isfinite(terms.pa_fa)):
         return float("nan")
     val = (terms.pb_fb / terms.pa_fa) * (earthshine / moonshine) * d_em**2 * d_se**2 / (r_e**2 * d_sm**2)
     return float(val) if np.isfinite(val) else float("nan")

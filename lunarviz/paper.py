@@ -150,8 +150,16 @@ def fig6_albedo(out: Path, sw: dict):
         ax.set_xlabel("orbital angle θ [deg]  (Earth phase β = 180° − θ)")
         ax.grid(alpha=0.3)
     axes[1].set_ylim(0.2, 0.35)
+    lines = ["Bond albedo (Table 5)   ours: analytic / ray traced   paper: analytic / IRT"]
+    for b in BRDFS:
+        ours_a = sw["analytic"]["bond_albedo"][b]["analytic"]
+        ours_r = sw["montecarlo"]["bond_albedo"][b]["raytrace"]
+        lines.append(f"{b:8s}  {ours_a:.4f} / {ours_r:.4f}      {PAPER_TABLE5[b]['analytic']:.4f} / "
+                     f"{PAPER_TABLE5[b]['raytrace']:.4f}")
+    axes[1].text(0.02, 0.03, "\n".join(lines), transform=axes[1].transAxes, fontsize=7, family="monospace",
+                 va="bottom", bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "0.7"})
     axes[0].legend(fontsize=7)
-    axes[1].legend(fontsize=6)
+    axes[1].legend(fontsize=6, loc="upper right", ncol=2)
     fig.suptitle("Fig. 6 — (a) geometric albedo term and (b) apparent albedo")
     fig.tight_layout()
     fig.savefig(out / "fig6_albedo.png", dpi=120)

@@ -55,3 +55,13 @@ def test_inversion_recovers_a_different_true_albedo():
 def test_printed_eq8_biases_the_inversion_by_three_halves():
     res = run_sweep(SweepSettings(earth_law="paper_eq8", brdfs=("lambert",)))
     assert res["bond_albedo"]["lambert"]["analytic"] == pytest.approx(0.45, abs=5e-4)
+
+
+def test_no_measurable_moonshine_gives_undefined_apparent_albedo():
+    # new Moon: the ray tracer's moonshine is round-off (~1e-18 W m⁻²); Eq. 15 must not turn
+    # that into a number (it would bias the Bond integral through its β ≈ 0 weight)
+    sc = Scene(180.0)
+    tiny = alb.LunarTerms(pa_fa=0.1, pb_fb=1e-15)
+    assert np.isnan(alb.geometric_albedo_term(sc, 1e-8, 1e-18, tiny))
+    ok = alb.LunarTerms(pa_fa=0.1, pb_fb=1e-4)
+    assert np.isfinite(alb.geometric_albedo_term(sc, 1e-8, 1e-7, ok))
