@@ -7,16 +7,18 @@ Paths (paper Table 1, Sec. 2.1): moonshine Sun → Moon → detector, earthshine
 Sun → Earth → Moon → detector. The detector is reached by next-event estimation (Eq. 2):
 from every lunar sample a beam toward the detector, weighted by μ cosδ dA / d².
 
-* Lunar samples. ``deterministic``: one sample per facet (centroid), and 16 per facet on the
-  facets that straddle the terminator, its penumbra or the detector's limb, where the
-  integrand has a kink (adaptive refinement: a thin crescent needs it). ``montecarlo``: N
+* Lunar samples. ``deterministic``: one sample per facet (centroid), 16 per facet on the
+  facets that straddle the terminator, its penumbra or the detector's limb (where the
+  integrand has a kink), and up to 256 per facet across a thin crescent so that ≥ 64 samples
+  span the lit and visible lune (adaptive refinement, ``lunar_refinement``). ``montecarlo``: N
   uniform points on facets drawn with probability ∝ a proxy of each facet's contribution,
   defensively mixed with 10 % ∝ area so the estimator stays unbiased.
 * Source beams, restricted to the source's solid angle (Table 1). ``deterministic``: for the
   Sun, a Gauss rule over its 0.27° cone where the whole disc is above the horizon, and the
   sphere-surface rule of :mod:`lunarviz.sphere_quadrature` cut at the horizon elsewhere; for
   the Earth, the sphere-surface rule cut at the horizon and at the Earth's terminator.
-  ``montecarlo``: one direction uniform in the source's cone. Every beam is a ray traced
+  ``montecarlo``: one direction per sample, uniform in the Sun's cone, or drawn over the
+  Earth's lit, visible part (scripts/derivations.md §4). Every beam is a ray traced
   against the source's mesh. The Sun's radiance is uniform, Φ/(4π² R_S²); the Earth's is
   Lambertian, (A/π) E_sun μ_s at the hit, times the fraction of the Sun that the hit facet sees
   (the Moon's shadow, with occlusion on).
