@@ -363,8 +363,9 @@ def make_report(r: dict) -> str:
         f"* **Monte Carlo noise.** With {r['settings']['mc_rays']:,} rays per run (the paper: 50,000), one run's relative "
         f"standard deviation is {100 * acc['montecarlo_relative_std_one_run']['moonshine_median']:.3f} % "
         f"(moonshine, median over phases) and {100 * acc['montecarlo_relative_std_one_run']['earthshine_median']:.3f} % "
-        "(earthshine); the paper quotes about 0.2 %. Our importance sampling of lunar facets is the "
-        "difference.",
+        "(earthshine); the paper quotes about 0.2 %. Importance sampling of the lunar facets and, for "
+        "earthshine, drawing directions only over the Earth's lit part make the difference "
+        "(`lunarviz bench`: 0.2 % per phase for both paths in under a second).",
         "",
         "## Accuracy against the exact reference (extended Sun and Earth, converged quadrature)",
         "",
