@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .analytic import DetectorIrradiance, lunar_surface_rule
-from .geometry import Scene, half_angle_sin_cos, unit
-from .sphere_quadrature import cap_rule
+from .geometry import Scene, half_angle_sin_cos
+from .sources import earth_radiance, source_beams, source_sphere_rule, sun_radiance  # noqa: F401 (re-export)
 from .transport import Transport, detector_geometry
 
 
@@ -36,11 +36,6 @@ class ReferenceSettings:
     chunk: int = 256
 
 
-def sun_radiance(scene: Scene) -> float:
-    """Radiance of the Sun's surface [W m⁻² sr⁻¹]: exitance Φ/(4πR²) = πL."""
-    return scene.phi / (4 * np.pi**2 * scene.radii["sun"] ** 2)
-
-
 def reference_transports(scene: Scene, path: str, settings: ReferenceSettings = ReferenceSettings()):
     """Yield :class:`Transport` chunks for ``path`` in {"moonshine", "earthshine"}."""
     body = {"moonshine": "sun", "earthshine": "earth"}[path]
@@ -50,33 +45,12 @@ def reference_transports(scene: Scene, path: str, settings: ReferenceSettings = 
     for a in range(0, len(x), settings.chunk):
         sl = slice(a, a + settings.chunk)
         xs, ns = x[sl], n[sl]
-        c = src
-        R = scene.radii[body]
-        xc = xs - c
-        dxc = np.linalg.norm(xc, axis=1)
-        caps_u = [ns]
-        caps_c = [np.einsum("ij,ij->i", xc, ns) / R]
-        if body == "earth":
-            caps_u.append(np.broadcast_to(unit(scene.sun - c), ns.shape))
-            caps_c.append(np.full(len(ns), R / np.linalg.norm(scene.sun - c)))
-        m, w = cap_rule(xc / dxc[:, None], R / dxc, np.stack(caps_u, 1), np.stack(caps_c, 1),
-                        n_t=settings.inner_order, n_phi=settings.inner_order)
-        y = c + R * m
-        v = y - xs[:, None, :]
-        r = np.linalg.norm(v, axis=2)
-        om = v / r[..., None]
-        cos_y = np.clip(-np.einsum("bmj,bmj->bm", m, om), 0.0, None)
-        if body == "sun":
-            L = sun_radiance(scene)
-        else:
-            vs = scene.sun - y
-            ds = np.linalg.norm(vs, axis=2)
-            mu_s = np.clip(np.einsum("bmj,bmj->bm", m, vs) / ds, 0.0, None)
-            L = settings.earth_albedo / np.pi * scene.phi / (4 * np.pi * ds**2) * mu_s
-        e_beam = L * cos_y * R * R * w / r**2
+        m, w = source_sphere_rule(scene, xs, ns, body, settings.inner_order)
+        y, om, omega = source_beams(scene, xs, body, m, w)
+        L = sun_radiance(scene) if body == "sun" else earth_radiance(scene, y, m, settings.earth_albedo)
         mu0 = np.clip(np.einsum("bmj,bj->bm", om, ns), 0.0, 1.0)
         sh, ch = half_angle_sin_cos(om, o[sl][:, None, :])
-        yield Transport(mu0=mu0, sin_hg=sh, cos_hg=ch, e_beam=e_beam, mu=mu[sl], geom=geom[sl])
+        yield Transport(mu0=mu0, sin_hg=sh, cos_hg=ch, e_beam=L * omega, mu=mu[sl], geom=geom[sl])
 
 
 def reference_irradiance(scene: Scene, brdfs: dict, settings: ReferenceSettings = ReferenceSettings(),

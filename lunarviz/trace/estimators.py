@@ -45,8 +45,8 @@ import numpy as np
 
 from ..geometry import Scene, half_angle_sin_cos, unit
 from ..meshes import DEFAULT_LEVELS, body_mesh
-from ..reference import sun_radiance
-from ..sphere_quadrature import cap_rule, cone_rule, orthonormal_basis
+from ..sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
+from ..sphere_quadrature import cone_rule, orthonormal_basis
 from ..transport import Transport, detector_geometry
 from .bodies import EmbreeBody
 
@@ -232,43 +232,27 @@ class TraceScene:
     # ---- source beams ------------------------------------------------------------------------
     def source_nodes(self, x, n, body: str, order: int):
         """Deterministic beams from points x (B,3) with normals n: unit directions (B,K,3)
-        and solid angles (B,K) [sr]."""
+        and solid angles (B,K) [sr]. Where the horizon does not cut the source (most points),
+        the Sun gets a Gauss rule over its cone and the Earth a rule without the horizon cap."""
         sc = self.scene
         c, R, _ = self._source(body)
-        xc = x - c
-        dxc = np.linalg.norm(xc, axis=1)
-        h_c = np.einsum("ij,ij->i", xc, n) / R
-        cut = -h_c < 1.0  # the horizon plane intersects the source sphere
+        cut = horizon_cuts_source(sc, x, n, body)
         parts = []
         for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
             if rows.size == 0:
                 continue
             if body == "sun" and not with_horizon:
-                om, w = cone_rule(-xc[rows] / dxc[rows, None], R / dxc[rows], order, 2 * order)
+                xc = x[rows] - c
+                dxc = np.linalg.norm(xc, axis=1)
+                om, w = cone_rule(-xc / dxc[:, None], R / dxc, order, 2 * order)
                 parts.append((rows, om, w))
                 continue
-            caps_u, caps_c = [], []
-            if with_horizon:
-                caps_u.append(n[rows])
-                caps_c.append(h_c[rows])
-            if body == "earth":
-                caps_u.append(np.broadcast_to(unit(sc.sun - c), (rows.size, 3)))
-                caps_c.append(np.full(rows.size, R / np.linalg.norm(sc.sun - c)))
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
             # than its cone rule (tests/test_trace.py checks the moonshine against the reference).
             o_s = max(order, PENUMBRA_ORDER) if body == "sun" else order
-            m, w = cap_rule(xc[rows] / dxc[rows, None], R / dxc[rows], np.stack(caps_u, 1),
-                            np.stack(caps_c, 1), n_t=o_s, n_phi=o_s)
-            nz = w > 0
-            kmax = max(int(nz.sum(1).max(initial=0)), 1)
-            sel = np.argsort(~nz, axis=1, kind="stable")[:, :kmax]
-            m = np.take_along_axis(m, sel[..., None], 1)
-            w = np.take_along_axis(w, sel, 1)
-            v = c + R * m - x[rows, None, :]
-            r = np.linalg.norm(v, axis=2)
-            om = v / r[..., None]
-            cos_y = np.clip(-np.einsum("bkj,bkj->bk", m, om), 0.0, None)
-            parts.append((rows, om, cos_y * R * R * w / r**2))
+            m, w = source_sphere_rule(sc, x[rows], n[rows], body, o_s, horizon=with_horizon)
+            _, om, omega = source_beams(sc, x[rows], body, m, w)
+            parts.append((rows, om, omega))
         K = max(p[2].shape[1] for p in parts)
         om = np.zeros((len(x), K, 3))
         om[..., 2] = 1.0
@@ -320,12 +304,9 @@ class TraceScene:
         else:
             L = np.zeros(len(xo))
             h, y, nrm = self.earth.shade_hits(hits, xo, dirs, s.shading)
-            vs = sc.sun - y
-            ds = np.linalg.norm(vs, axis=1)
-            mu_s = np.clip(np.einsum("ij,ij->i", nrm, vs) / ds, 0.0, None)
             vis = self.sun_visibility_of_earth()
             shade = np.where(hits.prim[h] >= 0, vis[np.maximum(hits.prim[h], 0)], 1.0)
-            L[h] = s.earth_albedo / np.pi * sc.phi / (4 * np.pi * ds**2) * mu_s * shade
+            L[h] = earth_radiance(sc, y, nrm, s.earth_albedo) * shade
         if s.occlusion and not self.moon.convex:
             live = np.flatnonzero(L > 0)
             blocked = self.moon.occluded(xo[live], dirs[live], hits.t[live])
