@@ -99,9 +99,9 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
 
     def replay(threads):
         t = time.perf_counter()
-        for b, (query, o, d, dists) in batches:
+        for b, (scene, query, o, d, dists) in batches:
             b.threads = threads
-            b._run(o, d, query, dists)
+            b._run(o, d, query, dists, scene=scene)
         return time.perf_counter() - t
 
     raw1 = min(replay(1) for _ in range(3))

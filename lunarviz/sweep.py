@@ -99,10 +99,6 @@ class SweepSettings:
         return d
 
 
-def _terms(scene, es, ms, albedo):
-    return alb.lunar_terms(scene, es, ms, albedo)
-
-
 def run_phase(settings: SweepSettings, theta: float) -> list[dict]:
     """All rows (one per BRDF) for one phase θ [deg]. Pure function of its arguments."""
     sc = settings.scene(theta)
@@ -121,7 +117,7 @@ def run_phase(settings: SweepSettings, theta: float) -> list[dict]:
             cal = point[k]
             rows.append({**base, "brdf": k, "method": "analytic",
                          "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
-                         "_terms": _terms(sc, cal.earthshine_W_m2, cal.moonshine_W_m2, settings.earth_albedo)})
+                         "_terms": alb.lunar_terms(sc, cal.earthshine_W_m2, cal.moonshine_W_m2, settings.earth_albedo)})
     elif settings.method == "reference":
         res = reference_irradiance(sc, brdfs, ReferenceSettings(settings.reference_outer, settings.reference_inner,
                                                                 settings.earth_albedo))
@@ -129,8 +125,8 @@ def run_phase(settings: SweepSettings, theta: float) -> list[dict]:
             rows.append({**base, "brdf": k, "method": "reference",
                          "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
                          "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
-                         "_terms": _terms(sc, v.earthshine_W_m2, v.moonshine_W_m2, settings.earth_albedo),
-                         "_terms_point": _terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
+                         "_terms": alb.lunar_terms(sc, v.earthshine_W_m2, v.moonshine_W_m2, settings.earth_albedo),
+                         "_terms_point": alb.lunar_terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
                                                 settings.earth_albedo)})
     else:
         from .trace.estimators import TraceScene, trace_path
@@ -148,8 +144,8 @@ def run_phase(settings: SweepSettings, theta: float) -> list[dict]:
             row = {**base, "brdf": k, "method": "raytrace", "estimator": ts_set.estimator,
                    "moonshine_W_m2": ms.mean[k], "earthshine_W_m2": es.mean[k],
                    "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
-                   "_terms": _terms(sc, cal_es[k], cal_ms[k], settings.earth_albedo),
-                   "_terms_point": _terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
+                   "_terms": alb.lunar_terms(sc, cal_es[k], cal_ms[k], settings.earth_albedo),
+                   "_terms_point": alb.lunar_terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
                                           settings.earth_albedo),
                    "rays": ms.rays + es.rays}
             if ts_set.estimator == "montecarlo":

@@ -144,23 +144,15 @@ class EmbreeBody:
         copy keeps them (README, "Meshes").
         """
         scene = self._outer_scene()
-        o = np.asarray(origins, dtype=float) - self.centre
-        d = np.asarray(dirs, dtype=float)
-        b = -np.einsum("ij,ij->i", o, d)
-        perp2 = np.einsum("ij,ij->i", o, o) - b * b
-        Rb = self._outer_bound * (1.0 + ENTRY_MARGIN)
-        disc_b = Rb * Rb - perp2
-        live = np.flatnonzero((disc_b > 0) & (b + np.sqrt(np.clip(disc_b, 0, None)) > 0))
+        o, d, t0, live = self._prepare(origins, dirs, None, bound=self._outer_bound)
         n = len(o)
         prim = np.full(n, -1, dtype=np.int64)
-        if live.size:
-            t0 = np.clip(b[live] - np.sqrt(disc_b[live]), 0.0, None)
-            start = o[live] + t0[:, None] * d[live]
-            saved, self._scene = self._scene, scene
-            try:
-                prim[live] = self._run(start.astype(EMBREE_DTYPE), d[live].astype(EMBREE_DTYPE), "INTERSECT")
-            finally:
-                self._scene = saved
+        idx = np.flatnonzero(live)
+        if idx.size:
+            start = o[idx] + t0[idx, None] * d[idx]
+            prim[idx] = self._run(start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "INTERSECT", scene=scene)
+        b = -np.einsum("ij,ij->i", o, d)
+        perp2 = np.einsum("ij,ij->i", o, o) - b * b
         disc = self.radius**2 - perp2
         t = b - np.sqrt(np.clip(disc, 0.0, None))
         hit = (prim >= 0) & (disc > 0) & (t > 0)
@@ -171,7 +163,7 @@ class EmbreeBody:
         tt[hit] = t[hit]
         return Hits(hit, prim, tt, point)
 
-    def shade_hits(self, hits: "Hits", origins, dirs, shading: str):
+    def shade_hits(self, hits: "Hits", shading: str):
         """Rows with a hit, their shading points and unit normals."""
         h = np.flatnonzero(hits.hit)
         p, y = hits.prim[h], hits.point[h]
@@ -191,13 +183,14 @@ class EmbreeBody:
         return len(self.faces)
 
     # ------------------------------------------------------------------------------------
-    def _prepare(self, origins, dirs, tmax):
-        """Body-frame float64 origins advanced to the bounding sphere; culled rays flagged."""
+    def _prepare(self, origins, dirs, tmax, bound=None):
+        """Body-frame float64 origins advanced to the bounding sphere (radius ``bound``, the
+        mesh's by default); culled rays flagged."""
         o = np.asarray(origins, dtype=float) - self.centre
         d = np.asarray(dirs, dtype=float)
         b = -np.einsum("ij,ij->i", o, d)  # distance to closest approach
         perp2 = np.einsum("ij,ij->i", o, o) - b * b
-        R = self.bound * (1.0 + ENTRY_MARGIN)
+        R = (self.bound if bound is None else bound) * (1.0 + ENTRY_MARGIN)
         disc = R * R - perp2
         t_exit = b + np.sqrt(np.clip(disc, 0.0, None))
         live = (disc > 0.0) & (t_exit > 0.0)
@@ -206,7 +199,10 @@ class EmbreeBody:
             live &= t0 < tmax
         return o, d, t0, live
 
-    def _run(self, o32, d32, query, dists=None):
+    def _run(self, o32, d32, query, dists=None, scene=None):
+        """Embree ``run`` on float32 rays against ``scene`` (the body's mesh by default),
+        batched and split over the thread pool."""
+        scene = self._scene if scene is None else scene
         n = len(o32)
         if n == 0:
             return np.empty(0, np.int32)
@@ -216,11 +212,11 @@ class EmbreeBody:
             chunks = [slice(a, min(n, a + step)) for a in range(0, n, step)]
 
         if self.recorder is not None:
-            self.recorder.append((query, o32, d32, dists))
+            self.recorder.append((scene, query, o32, d32, dists))
 
         def one(sl):
             kw = {} if dists is None else {"dists": dists[sl]}
-            return self._scene.run(o32[sl], d32[sl], query=query, **kw)
+            return scene.run(o32[sl], d32[sl], query=query, **kw)
 
         if len(chunks) == 1 or self.threads == 1:
             parts = [one(s) for s in chunks]

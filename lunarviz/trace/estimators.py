@@ -303,7 +303,7 @@ class TraceScene:
                 L[live[blocked]] = 0.0
         else:
             L = np.zeros(len(xo))
-            h, y, nrm = self.earth.shade_hits(hits, xo, dirs, s.shading)
+            h, y, nrm = self.earth.shade_hits(hits, s.shading)
             vis = self.sun_visibility_of_earth()
             shade = np.where(hits.prim[h] >= 0, vis[np.maximum(hits.prim[h], 0)], 1.0)
             L[h] = earth_radiance(sc, y, nrm, s.earth_albedo) * shade
