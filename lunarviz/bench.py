@@ -95,7 +95,7 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     batches = [(b, rec) for b in (ts.moon, ts.earth, ts.sun) for rec in b.recorder]
     for b in (ts.moon, ts.earth, ts.sun):
         b.recorder = None
-    n_raw = sum(len(rec[1]) for _, rec in batches)
+    n_raw = sum(len(rec[2]) for _, rec in batches)  # rec = (scene, query, o32, d32, dists)
 
     def replay(threads):
         t = time.perf_counter()
