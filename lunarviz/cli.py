@@ -155,9 +155,18 @@ def _add_trace_options(p):
     p.add_argument("--mesh-level", type=_nonneg_int("--mesh-level"), default=None, help="Moon icosphere level")
     p.add_argument("--earth-level", type=_nonneg_int("--earth-level"), default=None)
     p.add_argument("--sun-level", type=_nonneg_int("--sun-level"), default=None)
-    p.add_argument("--moon-mesh", default=None, help="a user mesh file for the Moon (OBJ, PLY, STL, GLB)")
+    for body in ("moon", "earth", "sun"):
+        p.add_argument(f"--{body}-mesh", default=None,
+                       help=f"a closed mesh for the {body.capitalize()} (PLY, OBJ, STL, OFF, GLB/GLTF): body-fixed "
+                            "frame, centred on its centre, in --mesh-units; never rescaled")
+    p.add_argument("--mesh-units", default="m", choices=["m", "km", "radius"],
+                   help="units of --*-mesh vertices (radius: multiples of the body's nominal radius)")
     p.add_argument("--no-occlusion", action="store_true", help="the paper's assumption: bodies never shade each other")
-    p.add_argument("--shading", default="smooth", choices=["smooth", "flat"])
+    p.add_argument("--no-self-shadow", action="store_true",
+                   help="a non-convex body does not shadow itself (independent of --no-occlusion)")
+    p.add_argument("--shading", default="auto", choices=["auto", "smooth", "flat"],
+                   help="auto: exact sphere for the packaged icospheres, facet normals for user meshes; smooth: "
+                        "crease-limited interpolated normals on user meshes; flat: facets everywhere")
     p.add_argument("--earth-order", type=_positive_int("--earth-order"), default=6)
     p.add_argument("--sun-order", type=_positive_int("--sun-order"), default=2)
     p.add_argument("--detector", default=None, help="detector position x,y,z [m] (default: Earth's centre)")
@@ -218,6 +227,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help=".json or .csv (a .png plot is written beside it)")
     p.add_argument("--quiet", action="store_true")
 
+    p = sub.add_parser("mesh", help="make a body mesh (ellipsoid, DEM, craters, patch) for --moon-mesh etc.")
+    p.add_argument("action", choices=["make"])
+    p.add_argument("shape", choices=["sphere", "ellipsoid", "dem", "craters", "patch"])
+    p.add_argument("--body", default="moon", choices=["moon", "earth", "sun"],
+                   help="sets the nominal radius (R) the other options scale with")
+    p.add_argument("--level", type=_nonneg_int("--level"), default=6, help="icosphere subdivision level (20·4^L facets)")
+    p.add_argument("--axes", default="1.15,1.0,0.85", help="ellipsoid semi-axes a,b,c in units of R")
+    p.add_argument("--dem", default=None, help="DEM map (.npy/.png/.tif, equirectangular, row 0 = +90°)")
+    p.add_argument("--height-scale", type=float, default=1.0, help="metres per DEM map unit")
+    p.add_argument("--count", type=_nonneg_int("--count"), default=40, help="number of craters")
+    p.add_argument("--diameters-km", default="60:300", help="crater diameter range min:max [km]")
+    p.add_argument("--region", default=None, help="craters only in the cap LAT,LON,RADIUS_DEG")
+    p.add_argument("--seed", type=_nonneg_int("--seed"), default=0)
+    p.add_argument("--patch", default=None, help="refine toward LAT,LON by a conformal zoom factor K: LAT,LON,K")
+    p.add_argument("--out", required=True, help=".ply (float64), .obj, .stl, .off or .glb; vertices in metres")
+
     p = sub.add_parser("bench", help="run time against error for every method")
     p.add_argument("--quick", action="store_true")
     p.add_argument("--out", required=True, help=".json (a .csv table and a .png Pareto plot beside it)")
@@ -240,8 +265,9 @@ def _sweep_settings(a, phases, method):
         earth_law=getattr(a, "earth_law", "lambert"), grid=getattr(a, "grid", "converged"),
         order=getattr(a, "order", 24), estimator=a.estimator, rays=a.rays, runs=a.runs, seed=a.seed,
         moon_level=a.mesh_level, earth_level=a.earth_level, sun_level=a.sun_level,
-        occlusion=not a.no_occlusion, shading=a.shading, earth_order=a.earth_order,
-        sun_order=a.sun_order, moon_mesh=a.moon_mesh)
+        occlusion=not a.no_occlusion, self_shadow=not a.no_self_shadow, shading=a.shading,
+        earth_order=a.earth_order, sun_order=a.sun_order, moon_mesh=a.moon_mesh, earth_mesh=a.earth_mesh,
+        sun_mesh=a.sun_mesh, mesh_units=a.mesh_units)
 
 
 def cmd_sweep(a):
@@ -342,6 +368,53 @@ def cmd_study(a):
     print(f"wrote {out}")
 
 
+def _floats(text, name, n):
+    try:
+        v = [float(x) for x in str(text).replace(":", ",").split(",")]
+    except ValueError:
+        raise UsageError(f"malformed {name} {text!r}: expected {n} numbers") from None
+    if len(v) != n or not all(math.isfinite(x) for x in v):
+        raise UsageError(f"malformed {name} {text!r}: expected {n} numbers")
+    return v
+
+
+def cmd_mesh(a):
+    from . import constants as C
+    from . import shapes
+    R = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[a.body]
+    if a.level > 9:
+        raise UsageError(f"--level {a.level} is too fine (at most 9: 5.2 M facets)")
+    out = _check_out(a.out, (".ply", ".obj", ".stl", ".off", ".glb"))
+    patch = None
+    if a.patch:
+        lat, lon, k = _floats(a.patch, "--patch", 3)
+        if not (-90 <= lat <= 90) or k < 1:
+            raise UsageError(f"--patch {a.patch!r}: latitude must be in [-90, 90] and K ≥ 1")
+        patch = (lat, lon, k)
+    if a.shape == "sphere":
+        m = shapes.base_sphere(a.level, patch)
+        m.vertices = m.vertices * R
+    elif a.shape == "ellipsoid":
+        ax = _floats(a.axes, "--axes", 3)
+        m = shapes.ellipsoid(*(x * R for x in ax), level=a.level, patch=patch)
+    elif a.shape == "dem":
+        if not a.dem:
+            raise UsageError("mesh make dem needs --dem FILE")
+        m = shapes.dem(a.dem, R, a.height_scale, a.level, patch)
+    elif a.shape == "craters":
+        d0, d1 = _floats(a.diameters_km, "--diameters-km", 2)
+        region = tuple(_floats(a.region, "--region", 3)) if a.region else None
+        m = shapes.craters(R, a.level, a.count, d0 * 1e3, d1 * 1e3, a.seed, region, patch)
+    else:
+        if patch is None:
+            raise UsageError("mesh make patch needs --patch LAT,LON,K")
+        m = shapes.patch(R, a.level, *patch)
+    from .meshes import validate_mesh
+    validate_mesh(m, f"{a.shape} mesh")
+    shapes.write_mesh(m, out)
+    print(f"wrote {out} ({len(m.faces)} facets, vertices in metres, {a.body} frame)")
+
+
 def cmd_bench(a):
     from .bench import run_bench
     out = _check_out(a.out, (".json",))
@@ -362,7 +435,7 @@ def cmd_paper(a):
 
 COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": cmd_render,
             "view": lambda a: cmd_render(a, interactive=True), "study": cmd_study,
-            "bench": cmd_bench, "paper": cmd_paper}
+            "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh}
 
 
 def main(argv=None) -> int:

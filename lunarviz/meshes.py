@@ -3,8 +3,9 @@
 Packaged default meshes live in the repository's ``meshes/`` folder with ``manifest.json``
 (body, level, facets, sha256); :func:`body_mesh` uses them when present and intact, otherwise
 builds the same icosphere with trimesh (identical vertices: trimesh's icosphere is
-deterministic). A user mesh (OBJ, PLY, STL, GLB ... through trimesh) is checked by
-:func:`validate_mesh`: watertight, outward normals, no degenerate faces.
+deterministic). A user mesh (OBJ, PLY, STL, OFF, GLB ... through trimesh) is read in metres
+(or ``--mesh-units``), never rescaled, and checked by :func:`validate_mesh` (watertight,
+outward normals, no degenerate faces) and for a plausible size.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ MESH_DIR = Path(__file__).resolve().parent.parent / "meshes"
 BODIES = ("sun", "earth", "moon")
 #: Default subdivision levels, chosen from the mesh-resolution study
 #: (benchmarks/mesh_study.json; README "Choosing the mesh levels").
-DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 5}
+DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}
 MAX_LEVEL = 8
 
 
@@ -86,22 +87,76 @@ def validate_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> trimesh.Trimesh:
     return mesh
 
 
-def load_user_mesh(path, name: str | None = None) -> trimesh.Trimesh:
-    """Load a user mesh with trimesh, validate it and scale it to unit mean radius about its
-    centroid (the tracer scales it to the body's radius)."""
+#: ``--mesh-units``: what one unit of a user mesh's coordinates is.
+MESH_UNITS = ("m", "km", "radius")
+#: A mesh's mean vertex distance from the body's centre must lie within this factor range of
+#: the body's nominal radius (the 2 R cube reaches √3 R; a cratered or triaxial body ~1 R).
+PLAUSIBLE_SIZE = (0.3, 3.0)
+
+
+def units_factor(units: str, nominal_radius: float) -> float:
+    """Metres per mesh unit for ``--mesh-units`` (``radius``: the body's nominal radius)."""
+    if units not in MESH_UNITS:
+        raise MeshError(f"unknown mesh units {units!r}: choose from {', '.join(MESH_UNITS)}")
+    return {"m": 1.0, "km": 1e3, "radius": float(nominal_radius)}[units]
+
+
+def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: float | None = None,
+                   name: str | None = None) -> trimesh.Trimesh:
+    """Load a closed user mesh for ``body`` with trimesh and return it in metres.
+
+    Vertices are taken as given: body-fixed frame, centred on the body's centre, in ``units``
+    (``m``, ``km`` or ``radius`` = multiples of the body's nominal radius). Nothing is moved
+    or rescaled beyond that unit conversion. A mesh whose size is implausible for the body
+    (kilometres read as metres, say) or whose centre is far from the origin is refused with
+    one line that names the likely unit. Any format trimesh reads: PLY, OBJ, STL, OFF, GLB/GLTF.
+    """
+    from . import constants as C
     p = Path(path)
-    name = name or str(path)
+    name = name or f"{body} mesh {path}"
+    if nominal_radius is None:
+        nominal_radius = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body]
+    factor = units_factor(units, nominal_radius)
     if not p.is_file():
         raise MeshError(f"{name}: file not found")
     try:
-        mesh = trimesh.load(p, force="mesh")
+        mesh = trimesh.load(p, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise MeshError(f"{name}: unreadable mesh ({type(exc).__name__}: {exc})") from None
+    if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
+        # merge duplicated vertices (STL stores three per face) so watertightness can be judged;
+        # positions are not changed
+        mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True, validate=False)
     validate_mesh(mesh, name)
-    mesh = mesh.copy()
-    mesh.apply_translation(-mesh.center_mass)
-    mesh.apply_scale(1.0 / float(np.mean(np.linalg.norm(mesh.vertices, axis=1))))
-    return mesh
+    v = np.asarray(mesh.vertices, dtype=float) * factor
+    size = float(np.mean(np.linalg.norm(v, axis=1)))
+    lo, hi = PLAUSIBLE_SIZE
+    if not (lo * nominal_radius <= size <= hi * nominal_radius):
+        guess = [u for u in MESH_UNITS
+                 if lo * nominal_radius <= size / factor * units_factor(u, nominal_radius) <= hi * nominal_radius]
+        hint = f"; the vertices look like {'kilometres' if guess[0] == 'km' else 'metres' if guess[0] == 'm' else 'body radii'}: pass --mesh-units {guess[0]}" if guess else ""
+        raise MeshError(f"{name}: mean vertex radius {size:.4g} m (as --mesh-units {units}) is implausible for the "
+                        f"{body} (nominal radius {nominal_radius:.4g} m){hint}")
+    off = float(np.linalg.norm(mesh.center_mass)) * factor
+    if off > 0.25 * size:
+        raise MeshError(f"{name}: centre of mass {off:.4g} m from the origin; vertices must be centred on the "
+                        f"{body}'s centre (body-fixed frame)")
+    out = trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
+    out.metadata["lunarviz_source"] = str(path)
+    return out
+
+
+def analytic_sphere(body: str, level: int, radius: float) -> trimesh.Trimesh:
+    """The packaged icosphere of ``body`` at ``level`` in metres, tagged as an analytic sphere.
+
+    The tag (``metadata["lunarviz_analytic"]``) is what allows the exact-sphere fast path
+    (shading on the exact sphere); it is set only here, for meshes generated as spheres,
+    and never inferred from a user's vertices.
+    """
+    m = body_mesh(body, level)
+    out = trimesh.Trimesh(np.asarray(m.vertices) * radius, m.faces, process=False)
+    out.metadata["lunarviz_analytic"] = {"shape": "sphere", "radius": float(radius)}
+    return out
 
 
 def write_packaged_meshes(levels: dict[str, list[int]]) -> Path:

@@ -48,10 +48,14 @@ class SweepSettings:
     earth_level: int | None = None
     sun_level: int | None = None
     occlusion: bool = True
-    shading: str = "smooth"
+    self_shadow: bool = True
+    shading: str = "auto"
     earth_order: int = 6
     sun_order: int = 2
     moon_mesh: str | None = None
+    earth_mesh: str | None = None
+    sun_mesh: str | None = None
+    mesh_units: str = "m"
     reference_outer: int = 24
     reference_inner: int = 8
 
@@ -65,8 +69,22 @@ class SweepSettings:
                 raise ValueError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
         if not self.phases_deg:
             raise ValueError("no phase given")
+        if self.method != "raytrace":
+            for body in ("moon", "earth", "sun"):
+                if getattr(self, f"{body}_mesh") is not None:
+                    raise ValueError(f"--{body}-mesh cannot be used with --method {self.method}, which assumes "
+                                     f"exact spheres; use --method raytrace")
         self.brdf_models()  # validates parameters early
-        self.trace_settings()
+        ts = self.trace_settings()
+        if self.method == "raytrace":  # read and check user meshes once, before any work
+            from .trace.estimators import body_mesh_m
+            from .geometry import Scene
+            sc = Scene(90.0)
+            radii = {"moon": sc.r_moon, "earth": sc.r_earth, "sun": sc.r_sun}
+            for body in ("moon", "earth", "sun"):
+                path = getattr(self, f"{body}_mesh")
+                if path is not None:
+                    body_mesh_m(body, getattr(ts, f"{body}_level"), path, self.mesh_units, radii[body])
         self.analytic_settings()
 
     def brdf_models(self) -> dict:
@@ -86,8 +104,9 @@ class SweepSettings:
             earth_level=DEFAULT_LEVELS["earth"] if self.earth_level is None else self.earth_level,
             sun_level=DEFAULT_LEVELS["sun"] if self.sun_level is None else self.sun_level,
             sun_order=self.sun_order, earth_order=self.earth_order, rays=self.rays,
-            runs=self.runs, seed=self.seed, occlusion=self.occlusion, shading=self.shading,
-            earth_albedo=self.earth_albedo, threads=1, moon_mesh=self.moon_mesh)
+            runs=self.runs, seed=self.seed, occlusion=self.occlusion, self_shadow=self.self_shadow,
+            shading=self.shading, earth_albedo=self.earth_albedo, threads=1, moon_mesh=self.moon_mesh,
+            earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units)
 
     def scene(self, theta: float) -> Scene:
         return Scene(theta, detector=self.detector)

@@ -30,6 +30,8 @@ class Transport:
     e_beam: np.ndarray
     mu: np.ndarray
     geom: np.ndarray
+    #: ``e_beam`` before shadowing by other bodies and by the Moon itself (ray tracing only)
+    e_beam_free: np.ndarray | None = None
 
     def radiance(self, brdf) -> np.ndarray:
         """Radiance toward the detector at each sample [W m⁻² sr⁻¹], paper Eq. 10."""
@@ -39,6 +41,13 @@ class Transport:
     def irradiance_on_sample(self) -> np.ndarray:
         """Irradiance on the surface at each sample [W m⁻²]: Σ_k μ0 e_beam."""
         return np.sum(np.clip(self.mu0, 0.0, None) * self.e_beam, axis=1)
+
+    def lit_fraction_parts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per sample: irradiance with shadows and without (Σ_k μ0 e_beam, same unshadowed);
+        their ratio is the lit (unshadowed) fraction."""
+        free = self.e_beam if self.e_beam_free is None else self.e_beam_free
+        mu0 = np.clip(self.mu0, 0.0, None)
+        return np.sum(mu0 * self.e_beam, axis=1), np.sum(mu0 * free, axis=1)
 
     def detector_irradiance(self, brdf) -> float:
         """Irradiance at the detector [W m⁻²], paper Eq. 11."""

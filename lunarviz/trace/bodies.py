@@ -45,33 +45,81 @@ class Hits:
     point: np.ndarray  # (n, 3) float64 world hit point (NaN where no hit)
 
 
-class EmbreeBody:
-    """A mesh of unit mean radius scaled to ``radius`` [m] and centred at ``centre`` [m]."""
+#: Interpolated shading normals never cross an edge whose dihedral angle exceeds this [deg]:
+#: across a sharper edge the facets keep their own normals (a cube stays a cube). 30° passes
+#: the ~1° facet-to-facet turn of any usable body mesh and stops at crater rims and box edges.
+CREASE_DEG = 30.0
+#: Shading modes a body resolves ``TraceSettings.shading`` to (see :meth:`EmbreeBody.mode`).
+MODES = ("exact", "flat", "interp")
 
-    def __init__(self, unit_mesh: trimesh.Trimesh, radius: float, centre, threads: int | None = None):
+
+class EmbreeBody:
+    """A closed mesh (vertices in metres about the body's centre, times ``scale``) placed at
+    ``centre`` [m].
+
+    ``mesh.metadata["lunarviz_analytic"]`` (set only by :func:`lunarviz.meshes.analytic_sphere`)
+    marks a mesh generated as a sphere: only such a body may be shaded on the exact sphere
+    (the documented fast path). Every other mesh is shaded on its facets.
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh, centre, threads: int | None = None, scale: float = 1.0):
         self.centre = np.asarray(centre, dtype=float)
-        self.radius = float(radius)
-        geo = _body_geometry(unit_mesh, self.radius)
+        geo = _body_geometry(mesh, float(scale))
         self._geo = geo
         self.vertices, self.faces = geo["vertices"], geo["faces"]  # body frame [m]
         self.bound, self.areas, self.normals = geo["bound"], geo["areas"], geo["normals"]
         self.centroids_local = geo["centroids_local"]
-        self.vertex_normals = geo["vertex_normals"]
-        #: shading normals at the centroids (interpolated vertex normals, Phong 1975)
-        self.centroid_normals = geo["centroid_normals"]
         self.convex = geo["convex"]
-        #: the mesh tessellates a sphere (all vertices on it): shading can use the exact sphere
-        self.is_sphere = geo["is_sphere"]
+        #: generated as an analytic sphere (explicit tag, never a tolerance test)
+        self.is_sphere = geo["sphere_radius"] is not None
+        #: the exact sphere's radius for analytic spheres, else the mean vertex distance [m]
+        self.radius = geo["sphere_radius"] if self.is_sphere else geo["mean_radius"]
         self.threads = threads or default_threads()
         #: when a list, every float32 batch sent to Embree is appended (benchmarks only)
         self.recorder: list | None = None
         self._scene = geo["scene"]
 
+    def mode(self, shading: str) -> str:
+        """Resolve ``auto|flat|smooth`` for this body to ``exact|flat|interp``.
+
+        ``auto`` (default): the exact sphere for analytic spheres, the facets otherwise.
+        ``smooth``: the exact sphere for analytic spheres, crease-limited interpolated normals
+        (:data:`CREASE_DEG`) otherwise. ``flat``: the facets.
+        """
+        if shading == "flat":
+            return "flat"
+        if self.is_sphere:
+            return "exact"
+        return "interp" if shading == "smooth" else "flat"
+
+    @property
+    def corner_normals(self) -> np.ndarray:
+        """(F, 3, 3) unit shading normals at each face's corners, crease-limited."""
+        geo = self._geo
+        if geo.get("corner_normals") is None:
+            geo["corner_normals"] = _crease_corner_normals(self.faces, self.normals, self.areas, len(self.vertices))
+        return geo["corner_normals"]
+
+    @property
+    def centroid_normals(self) -> np.ndarray:
+        """Unit interpolated normals at the centroids (crease-limited)."""
+        cn = self.corner_normals.sum(axis=1)
+        return cn / np.linalg.norm(cn, axis=1, keepdims=True)
+
+    def normals_for(self, shading: str) -> np.ndarray:
+        """Per-facet normals at the centroids for ``shading`` (flat or interpolated/exact)."""
+        m = self.mode(shading)
+        if m == "flat":
+            return self.normals
+        if m == "exact":
+            return self.centroids_local / np.linalg.norm(self.centroids_local, axis=1, keepdims=True)
+        return self.centroid_normals
+
     def shading_normals(self, prim, points) -> np.ndarray:
         """Interpolated vertex normals at world ``points`` on primitives ``prim`` (unit).
 
-        Barycentric interpolation (Phong shading): the mesh decides visibility, the smooth
-        surface it tessellates decides the local normal.
+        Barycentric interpolation of the crease-limited corner normals (Phong shading): the
+        mesh decides visibility, the smooth surface it tessellates decides the local normal.
         """
         tri = self.vertices[self.faces[prim]]
         p = np.asarray(points, dtype=float) - self.centre
@@ -83,40 +131,60 @@ class EmbreeBody:
         b1 = (d22 * dp1 - d12 * dp2) / den
         b2 = (d11 * dp2 - d12 * dp1) / den
         b0 = 1.0 - b1 - b2
-        vn = self.vertex_normals[self.faces[prim]]
+        vn = self.corner_normals[prim]
         n = b0[:, None] * vn[:, 0] + b1[:, None] * vn[:, 1] + b2[:, None] * vn[:, 2]
         return n / np.linalg.norm(n, axis=1, keepdims=True)
 
     def surface_samples(self, faces, shading: str, sub: int = 1):
-        """Quadrature samples on ``faces``: each face split into ``sub²`` equal sub-triangles,
-        one sample at each sub-triangle's centroid.
+        """Quadrature samples on ``faces``; each face split into ``sub²`` equal sub-triangles.
 
         Returns world points (n, 3), unit normals (n, 3), areas (n,) [m²] and the owning face
-        (n,). ``shading="flat"``: flat points, face normals, flat areas. ``"smooth"``: on a
-        tessellated sphere, points and normals on the exact sphere and the area of each
-        sub-triangle's projection onto it (spherical excess, Van Oosterom & Strackee 1983, so
-        the areas sum to 4πR² exactly); on other meshes, interpolated vertex normals.
+        (n,). By :meth:`mode`:
+
+        * ``flat``: one sample at each sub-triangle's centroid, the facet normal, flat areas.
+          On a flat facet the integrand varies only with the distance and direction to the
+          source and detector (relative change ~R/D ≈ 5e-3 across the body), so the centroid
+          is exact to second order in that.
+        * ``exact`` (analytic spheres): Strang & Fix's 3-point degree-2 rule in each
+          sub-triangle, its points projected on the exact sphere, weighted by the projection's
+          Jacobian and normalised to the spherical triangle's area (spherical excess, Van
+          Oosterom & Strackee 1983, so the areas sum to 4πR² exactly). A centroid rule here
+          has an O(h²) bias of the opposite sign to the terminator's, and refinement then
+          exposes it (issue: refinement must never make a result worse).
+        * ``interp``: the same 3-point rule on the flat facets with interpolated normals.
         """
         faces = np.asarray(faces, dtype=np.int64)
-        cen_b, tri_b = _sub_barycentric(sub)  # (s, 3), (s, 3, 3)
-        ns = len(cen_b)
+        mode = self.mode(shading)
         tri = self.vertices[self.faces[faces]]  # (F, 3, 3) body frame
-        pts = np.einsum("sk,fkj->fsj", cen_b, tri).reshape(-1, 3)
-        owner = np.repeat(faces, ns)
-        if shading == "smooth" and self.is_sphere:
+        if mode == "flat":
+            cen_b, _ = _sub_barycentric(sub)
+            ns = len(cen_b)
+            pts = np.einsum("sk,fkj->fsj", cen_b, tri).reshape(-1, 3)
+            owner = np.repeat(faces, ns)
+            area = np.repeat(self.areas[faces] / ns, ns)
+            return pts + self.centre, np.repeat(self.normals[faces], ns, axis=0), area, owner
+        _, tri_b = _sub_barycentric(sub)
+        nsub = len(tri_b)
+        pts_b = np.einsum("pv,svk->spk", _STRANG_FIX3, tri_b).reshape(-1, 3)  # (nsub·3, 3)
+        owner = np.repeat(faces, 3 * nsub)
+        pts = np.einsum("sk,fkj->fsj", pts_b, tri).reshape(-1, 3)
+        if mode == "exact":
             corners = np.einsum("svk,fkj->fsvj", tri_b, tri).reshape(-1, 3, 3)
             corners /= np.linalg.norm(corners, axis=2, keepdims=True)
             a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
             num = np.abs(np.einsum("ij,ij->i", a, np.cross(b, c)))
             den = 1.0 + np.einsum("ij,ij->i", a, b) + np.einsum("ij,ij->i", b, c) + np.einsum("ij,ij->i", c, a)
-            area = 2.0 * np.arctan2(num, den) * self.radius**2
-            nrm = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+            sph_area = 2.0 * np.arctan2(num, den) * self.radius**2  # (F·nsub,)
+            # Jacobian of the radial projection flat → sphere at each point: (n_f·x)/|x|³
+            nf = np.repeat(self.normals[faces], 3 * nsub, axis=0)
+            r = np.linalg.norm(pts, axis=1)
+            jac = np.abs(np.einsum("ij,ij->i", nf, pts)) / r**3
+            jac = jac.reshape(-1, 3)
+            area = (sph_area[:, None] * jac / jac.sum(axis=1, keepdims=True)).reshape(-1)
+            nrm = pts / r[:, None]
             return self.centre + self.radius * nrm, nrm, area, owner
-        area = np.repeat(self.areas[faces] / ns, ns)
-        if shading == "smooth":
-            nrm = self.shading_normals(owner, pts + self.centre)
-        else:
-            nrm = np.repeat(self.normals[faces], ns, axis=0)
+        area = np.repeat(self.areas[faces] / (3 * nsub), 3 * nsub)
+        nrm = self.shading_normals(owner, pts + self.centre)
         return pts + self.centre, nrm, area, owner
 
     def _outer_scene(self):
@@ -167,9 +235,10 @@ class EmbreeBody:
         """Rows with a hit, their shading points and unit normals."""
         h = np.flatnonzero(hits.hit)
         p, y = hits.prim[h], hits.point[h]
-        if shading == "flat":
+        mode = self.mode(shading)
+        if mode == "flat":
             return h, y, self.normals[p]
-        if self.is_sphere:
+        if mode == "exact":
             return h, y, (y - self.centre) / self.radius
         return h, y, self.shading_normals(p, y)
 
@@ -274,38 +343,64 @@ class EmbreeBody:
 _GEOMETRY_CACHE: dict = {}
 
 
-def _body_geometry(unit_mesh: trimesh.Trimesh, radius: float) -> dict:
-    """Body-frame geometry and Embree scene of ``unit_mesh`` at ``radius``, cached.
+def _body_geometry(mesh: trimesh.Trimesh, scale: float) -> dict:
+    """Body-frame geometry and Embree scene of ``mesh`` (vertices × ``scale`` [m]), cached.
 
     Body-centred frames make them independent of where the body is, so a sweep builds each
     scene once per process, not once per phase. Keyed by the mesh object (kept alive in the
-    entry) and the radius.
+    entry) and the scale.
     """
-    key = (id(unit_mesh), float(radius))
+    key = (id(mesh), float(scale))
     hit = _GEOMETRY_CACHE.get(key)
-    if hit is not None and hit["mesh"] is unit_mesh:
+    if hit is not None and hit["mesh"] is mesh:
         return hit
-    vertices = np.asarray(unit_mesh.vertices, dtype=float) * radius
-    faces = np.asarray(unit_mesh.faces, dtype=np.int64)
+    vertices = np.asarray(mesh.vertices, dtype=float) * scale
+    faces = np.asarray(mesh.faces, dtype=np.int64)
     tri = vertices[faces]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     areas = 0.5 * np.linalg.norm(cross, axis=1)
-    vn = np.asarray(unit_mesh.vertex_normals, dtype=float)
-    vn = vn / np.linalg.norm(vn, axis=1, keepdims=True)
-    cn = vn[faces].sum(axis=1)
     rad = np.linalg.norm(vertices, axis=1)
+    tag = mesh.metadata.get("lunarviz_analytic") if mesh.metadata else None
+    sphere_radius = float(tag["radius"]) * scale if tag and tag.get("shape") == "sphere" else None
     scene = rtcore_scene.EmbreeScene()
     TriangleMesh(scene=scene, vertices=vertices.astype(EMBREE_DTYPE), indices=faces.astype(np.int32))
-    geo = {"mesh": unit_mesh, "vertices": vertices, "faces": faces, "bound": float(rad.max()),
+    geo = {"mesh": mesh, "vertices": vertices, "faces": faces, "bound": float(rad.max()),
            "areas": areas, "normals": cross / (2.0 * areas[:, None]), "centroids_local": tri.mean(axis=1),
-           "vertex_normals": vn, "centroid_normals": cn / np.linalg.norm(cn, axis=1, keepdims=True),
-           "convex": bool(unit_mesh.is_convex),
-           "is_sphere": bool(np.max(np.abs(rad - radius)) <= 1e-6 * radius),
-           "scene": scene, "outer": None}
+           "convex": bool(tag is not None or mesh.is_convex), "mean_radius": float(rad.mean()),
+           "sphere_radius": sphere_radius, "scene": scene, "outer": None, "corner_normals": None}
     if len(_GEOMETRY_CACHE) > 16:
         _GEOMETRY_CACHE.clear()
     _GEOMETRY_CACHE[key] = geo
     return geo
+
+
+def _crease_corner_normals(faces, normals, areas, n_vertices, crease_deg: float = CREASE_DEG) -> np.ndarray:
+    """Shading normal at every face corner: the area-weighted mean of the normals of the faces
+    around that vertex whose normal is within ``crease_deg`` of the face's own (so smoothing
+    never crosses a sharp edge). Returns (F, 3, 3)."""
+    F = len(faces)
+    cos_c = np.cos(np.radians(crease_deg))
+    vf = faces.reshape(-1)  # corner -> vertex
+    order = np.argsort(vf, kind="stable")
+    counts = np.bincount(vf, minlength=n_vertices)
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    kmax = int(counts.max())
+    out = np.zeros((F * 3, 3))
+    corner_face = np.repeat(np.arange(F), 3)
+    own = normals[corner_face]
+    for k in range(kmax):  # k-th face around each corner's vertex
+        has = counts[vf] > k
+        idx = np.flatnonzero(has)
+        nb = corner_face[order[start[vf[idx]] + k]]
+        ok = np.einsum("ij,ij->i", normals[nb], own[idx]) >= cos_c
+        out[idx[ok]] += normals[nb[ok]] * areas[nb[ok], None]
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    return out.reshape(F, 3, 3)
+
+
+#: Strang & Fix (1973) 3-point rule, degree 2: barycentrics (2/3, 1/6, 1/6) and permutations,
+#: equal weights.
+_STRANG_FIX3 = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
 
 
 _SUB_CACHE: dict = {}

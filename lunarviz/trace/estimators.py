@@ -44,15 +44,17 @@ from functools import lru_cache
 import numpy as np
 
 from ..geometry import Scene, half_angle_sin_cos, unit
-from ..meshes import DEFAULT_LEVELS, body_mesh
+from ..meshes import DEFAULT_LEVELS
 from ..sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
 from ..sphere_quadrature import cone_rule, orthonormal_basis
 from ..transport import Transport, detector_geometry
 from .bodies import EmbreeBody
 
 ESTIMATORS = ("deterministic", "montecarlo")
-#: ``smooth``: shade on the smooth surface the mesh tessellates; ``flat``: on the facets.
-SHADINGS = ("smooth", "flat")
+#: ``auto`` (default): the exact sphere for analytic spheres (the packaged icospheres, a
+#: documented fast path), the facets for every other mesh; ``smooth``: exact sphere, or
+#: crease-limited interpolated normals on other meshes; ``flat``: the facets everywhere.
+SHADINGS = ("auto", "smooth", "flat")
 #: Shadow-ray origins are offset along the normal by this fraction of the body radius
 #: (0.17 m on the Moon: above float32's 0.125 m step at the lunar radius, far below any facet).
 NORMAL_OFFSET = 1e-7
@@ -61,12 +63,15 @@ UNIFORM_SHARE = 0.1
 #: Facets straddling a kink (terminator, penumbra edge, limb) are split REFINE² ways.
 REFINE = 4
 #: Samples wanted across the width of the lit-and-visible lune (see ``lunar_refinement``).
-LUNE_SAMPLES = 64
+LUNE_SAMPLES = 16
 #: Order of the sphere rule for lunar samples that see the Sun partly below the horizon.
 PENUMBRA_ORDER = 6
 #: Kink refinement is skipped when the lune is within this angle [rad] of a hemisphere.
 KINK_FREE_WIDTH = 0.05
 PATHS = {"moonshine": "sun", "earthshine": "earth"}
+#: Gauss order (radial; twice that in azimuth) of the beams over the bounding cone of a source
+#: that is a user mesh (not an analytic sphere): its silhouette is resolved by the beams.
+MESH_SOURCE_ORDER = 8
 #: Lunar samples per batch: bounds memory (≈ CHUNK × beams × 30 doubles) for any ray count.
 CHUNK = 1 << 14
 
@@ -84,10 +89,14 @@ class TraceSettings:
     runs: int = 1
     seed: int = 0
     occlusion: bool = True
-    shading: str = "smooth"
+    self_shadow: bool = True  # a non-convex body shadows itself (independent of ``occlusion``)
+    shading: str = "auto"
     earth_albedo: float = 0.3
     threads: int | None = None
-    moon_mesh: str | None = None  # path of a user mesh for the Moon
+    moon_mesh: str | None = None  # paths of user meshes (body frame, ``mesh_units``)
+    earth_mesh: str | None = None
+    sun_mesh: str | None = None
+    mesh_units: str = "m"
 
     def __post_init__(self):
         if self.estimator not in ESTIMATORS:
@@ -109,11 +118,15 @@ class TraceSettings:
 
 
 @lru_cache(maxsize=16)
-def _unit_mesh(body: str, level, path):
+def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None = None):
+    """The mesh of ``body`` in metres, body frame: a user mesh (``path``, read in ``units``)
+    or the packaged icosphere at ``level`` tagged as an analytic sphere of ``radius``."""
+    from .. import constants as C
+    from ..meshes import analytic_sphere, load_user_mesh
+    nominal = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body] if radius is None else radius
     if path is not None:
-        from ..meshes import load_user_mesh
-        return load_user_mesh(path)
-    return body_mesh(body, level)
+        return load_user_mesh(path, body=body, units=units, nominal_radius=nominal)
+    return analytic_sphere(body, level, nominal)
 
 
 class TraceScene:
@@ -122,11 +135,18 @@ class TraceScene:
     def __init__(self, scene: Scene, settings: TraceSettings = TraceSettings()):
         self.scene = scene
         self.settings = settings
-        r = scene.radii
         th = settings.threads
-        self.moon = EmbreeBody(_unit_mesh("moon", settings.moon_level, settings.moon_mesh), r["moon"], scene.moon, th)
-        self.earth = EmbreeBody(_unit_mesh("earth", settings.earth_level, None), r["earth"], scene.earth, th)
-        self.sun = EmbreeBody(_unit_mesh("sun", settings.sun_level, None), r["sun"], scene.sun, th)
+        k = scene.scale
+        s = settings
+        nominal = {"moon": scene.r_moon, "earth": scene.r_earth, "sun": scene.r_sun}
+        self.moon = EmbreeBody(body_mesh_m("moon", s.moon_level, s.moon_mesh, s.mesh_units, nominal["moon"]),
+                               scene.moon, th, k)
+        self.earth = EmbreeBody(body_mesh_m("earth", s.earth_level, s.earth_mesh, s.mesh_units, nominal["earth"]),
+                                scene.earth, th, k)
+        self.sun = EmbreeBody(body_mesh_m("sun", s.sun_level, s.sun_mesh, s.mesh_units, nominal["sun"]),
+                              scene.sun, th, k)
+        #: beams that hit each source facet (per body), accumulated over the trace
+        self.source_hits = {"sun": np.zeros(self.sun.n_faces), "earth": np.zeros(self.earth.n_faces)}
         self.rays_cast = 0
         self._sun_vis_earth = None
         self._cand_cache: dict = {}
@@ -135,11 +155,29 @@ class TraceScene:
         self.rays_cast += int(n)
 
     def _source(self, body):
+        """Centre [m], radius of the sphere the source's beams cover [m], and its Embree body.
+
+        Analytic spheres: the sphere itself. Other meshes: the bounding sphere (beams that
+        miss the mesh inside it carry nothing)."""
         sc = self.scene
-        return ({"sun": sc.sun, "earth": sc.earth}[body], sc.radii[body],
-                {"sun": self.sun, "earth": self.earth}[body])
+        B = {"sun": self.sun, "earth": self.earth}[body]
+        R = sc.radii[body] if B.is_sphere else B.bound
+        return {"sun": sc.sun, "earth": sc.earth}[body], R, B
+
+    def _self_shadows(self) -> bool:
+        """The Moon can shadow itself (non-convex mesh) and self-shadowing is on."""
+        return self.settings.self_shadow and not self.moon.convex
 
     # ---- lunar samples -----------------------------------------------------------------------
+    def _corner_normals(self, M) -> np.ndarray:
+        mode = M.mode(self.settings.shading)
+        if mode == "flat":
+            return np.repeat(M.normals[:, None, :], 3, axis=1)
+        if mode == "exact":
+            v = M.vertices[M.faces]
+            return v / np.linalg.norm(v, axis=2, keepdims=True)
+        return M.corner_normals
+
     def candidates(self, body: str) -> np.ndarray:
         """Lunar facets that the detector may see and the source may (partly) light.
 
@@ -151,11 +189,13 @@ class TraceScene:
             return cand
         M = self.moon
         c, R, _ = self._source(body)
-        x, n, _, _ = M.surface_samples(np.arange(M.n_faces), self.settings.shading)
+        n = M.normals_for(self.settings.shading)
+        x = M.centroids
+        if M.mode(self.settings.shading) == "exact":
+            x = M.centre + M.radius * n
         lit, vis = self._kink_values(x, n, c, R)
         tri = M.vertices[M.faces] + M.centre
-        vn = M.vertex_normals[M.faces] if self.settings.shading == "smooth" else \
-            np.repeat(M.normals[:, None, :], 3, axis=1)
+        vn = self._corner_normals(M)
         lit_v, vis_v = self._kink_values(tri.reshape(-1, 3), vn.reshape(-1, 3), c, R)
         lit_v, vis_v = lit_v.reshape(-1, 3), vis_v.reshape(-1, 3)
         up = (lit > -1) | (lit_v > -1).any(1)
@@ -164,8 +204,45 @@ class TraceScene:
             (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
             (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
         cand = np.flatnonzero(up & seen)
+        if self._self_shadows() or (self.settings.occlusion and body == "sun"):
+            self._kinks = self._kinks | self._shadow_edges(cand, c)
         self._cand_cache[body] = (cand, self._kinks)
         return cand
+
+    def _shadow_edges(self, cand: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Facets that a cast-shadow or hidden-view boundary crosses, found by ray tracing.
+
+        From each candidate facet's centroid and corners (offset along the facet normal) one
+        ray to the source's centre and one to the detector are traced against the Moon (when it
+        shadows itself) and the Earth (when occlusion is on). A facet whose five points
+        disagree is a kink facet and gets refined like a terminator facet. Returns a mask
+        over all facets.
+        """
+        M = self.moon
+        s = self.settings
+        out = np.zeros(M.n_faces, dtype=bool)
+        if cand.size == 0:
+            return out
+        tri = M.vertices[M.faces[cand]] + M.centre
+        pts = np.concatenate([M.centroids[cand][:, None, :], tri], axis=1)  # (F, 4, 3)
+        off = M.normals[cand][:, None, :] * (NORMAL_OFFSET * M.radius)
+        p = (pts + off).reshape(-1, 3)
+        mixed = np.zeros(len(cand), dtype=bool)
+        for target in (c, self.scene.det):
+            v = target - p
+            dist = np.linalg.norm(v, axis=1)
+            d = v / dist[:, None]
+            blocked = np.zeros(len(p), dtype=bool)
+            if self._self_shadows():
+                blocked |= self.moon.occluded(p, d, dist)
+                self._count(len(p))
+            if s.occlusion and not (target is self.scene.det and self.scene.detector_inside("earth")):
+                blocked |= self.earth.occluded(p, d, dist)
+                self._count(len(p))
+            b = blocked.reshape(-1, 4)
+            mixed |= b.any(1) & ~b.all(1)
+        out[cand[mixed]] = True
+        return out
 
     def _kink_values(self, x, n, c, R):
         """``n·(c - x)/R`` (> 1 source wholly above the horizon, < -1 wholly below, between:
@@ -178,10 +255,13 @@ class TraceScene:
         """Sub-division of every lit-and-visible facet so ≥ LUNE_SAMPLES samples span the lune.
 
         The lit and visible region is a lune of width w = π - (source-Moon-detector angle);
-        at a thin crescent it is only a few facets wide and the facet-centroid rule errs by
-        ~(h/w)² (1 % at θ = 175° on level 6). Powers of two up to 16.
+        at a thin crescent it is only a few facets wide and the facet rule errs by
+        ~(h/w)² (1 % at θ = 175° on level 6). Powers of two up to 16. Flat facets carry no
+        kink inside (constant normal), so they are never split for this.
         """
         M = self.moon
+        if M.mode(self.settings.shading) == "flat":
+            return 1
         w = self._lune_width(body)
         h = np.sqrt(np.mean(M.areas)) / M.radius
         need = LUNE_SAMPLES * h / max(w, 1e-9)
@@ -201,28 +281,30 @@ class TraceScene:
             return M.surface_samples(cand, s.shading)
         sub = self.lunar_refinement(body)
         kink = self._kinks[cand]
-        if self._lune_width(body) > np.pi - KINK_FREE_WIDTH:
+        if self._lune_width(body) > np.pi - KINK_FREE_WIDTH and M.mode(s.shading) == "exact":
             # source ≈ detector seen from the Moon (earthshine with the detector on the Earth):
             # the terminator and the limb coincide and the integrand vanishes quadratically
-            # there (μ0 ≈ μ), so there is no kink to resolve.
+            # there (μ0 ≈ μ), so there is no kink to resolve on the smooth sphere.
             kink = np.zeros_like(kink)
         a = M.surface_samples(cand[~kink], s.shading, sub=sub)
         b = M.surface_samples(cand[kink], s.shading, sub=max(REFINE, sub))
         return tuple(np.concatenate([u, v]) for u, v in zip(a, b))
 
     def detector_view(self, x, n, dA):
-        """mu, geom and unit directions to the detector, with the sight line's occlusion."""
+        """mu, geom and unit directions to the detector, with the sight line's occlusion (the
+        Earth, with ``occlusion``; the Moon itself, with ``self_shadow`` on a non-convex Moon)."""
         sc = self.scene
         mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
-        if self.settings.occlusion:
+        earth_blocks = self.settings.occlusion and not sc.detector_inside("earth")
+        if earth_blocks or self._self_shadows():
             idx = np.flatnonzero(geom > 0)
             xo = x[idx] + n[idx] * (NORMAL_OFFSET * self.moon.radius)
             dist = np.linalg.norm(sc.det - xo, axis=1)
             blocked = np.zeros(idx.size, dtype=bool)
-            if not sc.detector_inside("earth"):
+            if earth_blocks:
                 blocked |= self.earth.occluded(xo, o[idx], dist)
                 self._count(idx.size)
-            if not self.moon.convex:
+            if self._self_shadows():
                 blocked |= self.moon.occluded(xo, o[idx], dist)
                 self._count(idx.size)
             geom = geom.copy()
@@ -233,9 +315,17 @@ class TraceScene:
     def source_nodes(self, x, n, body: str, order: int):
         """Deterministic beams from points x (B,3) with normals n: unit directions (B,K,3)
         and solid angles (B,K) [sr]. Where the horizon does not cut the source (most points),
-        the Sun gets a Gauss rule over its cone and the Earth a rule without the horizon cap."""
+        the Sun gets a Gauss rule over its cone and the Earth a rule without the horizon cap.
+        A source that is not an analytic sphere gets a Gauss rule over its bounding sphere's
+        cone (order ≥ MESH_SOURCE_ORDER); Embree then decides which beams meet the mesh."""
         sc = self.scene
-        c, R, _ = self._source(body)
+        c, R, B = self._source(body)
+        if not B.is_sphere:
+            xc = x - c
+            dxc = np.linalg.norm(xc, axis=1)
+            o = max(order, MESH_SOURCE_ORDER)
+            om, w = cone_rule(-xc / dxc[:, None], np.clip(R / dxc, 0, 1 - 1e-12), o, 2 * o)
+            return om, w
         cut = horizon_cuts_source(sc, x, n, body)
         parts = []
         for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
@@ -263,39 +353,52 @@ class TraceScene:
         return om, w
 
     def sun_visibility_of_earth(self) -> np.ndarray:
-        """Fraction of the Sun each Earth facet sees past the Moon (1 without occlusion)."""
+        """Fraction of the Sun each Earth facet sees past the Moon (with occlusion) and past
+        the Earth itself (a non-convex Earth mesh, with self-shadowing); 1 otherwise."""
         if self._sun_vis_earth is not None:
             return self._sun_vis_earth
         E = self.earth
         vis = np.ones(E.n_faces)
-        if self.settings.occlusion:
-            x, n, _, _ = E.surface_samples(np.arange(E.n_faces), self.settings.shading)
+        earth_self = self.settings.self_shadow and not E.convex
+        if self.settings.occlusion or earth_self:
+            n = E.normals_for(self.settings.shading)
+            x = E.centroids
             c, R, _ = self._source("sun")
             idx = np.flatnonzero(np.einsum("ij,ij->i", n, c - x) > -R)
             xo = x[idx] + n[idx] * (NORMAL_OFFSET * E.radius)
             dirs, w = self.source_nodes(xo, n[idx], "sun", 2)
             B, K = w.shape
-            occ = self.moon.occluded(np.repeat(xo, K, 0), dirs.reshape(-1, 3)).reshape(B, K)
-            self._count(B * K)
+            occ = np.zeros(B * K, dtype=bool)
+            rep_o, rep_d = np.repeat(xo, K, 0), dirs.reshape(-1, 3)
+            if self.settings.occlusion:
+                occ |= self.moon.occluded(rep_o, rep_d)
+                self._count(B * K)
+            if earth_self:
+                occ |= E.occluded(rep_o, rep_d)
+                self._count(B * K)
+            occ = occ.reshape(B, K)
             tot = w.sum(1)
             vis[idx] = np.where(tot > 0, (w * ~occ).sum(1) / np.where(tot > 0, tot, 1), 1.0)
         self._sun_vis_earth = vis
         return vis
 
     def source_radiance(self, x, n, dirs, body: str):
-        """Radiance [W m⁻² sr⁻¹] reaching x (n,3) along dirs (n,3) from ``body``'s mesh,
-        zero where the ray misses it or is blocked."""
+        """Radiance [W m⁻² sr⁻¹] reaching x (n,3) along dirs (n,3) from ``body``'s mesh:
+        ``(L, L_free)``, zero where the ray misses the source; ``L`` is also zero where another
+        body (``occlusion``) or the Moon itself (``self_shadow``) blocks it, ``L_free`` is not."""
         sc = self.scene
         s = self.settings
         xo = x + n * (NORMAL_OFFSET * self.moon.radius)
         target = self.sun if body == "sun" else self.earth
-        if s.shading == "smooth" and target.is_sphere:
+        if target.mode(s.shading) == "exact":
             hits = target.sphere_hits(xo, dirs)
         else:
             hits = target.intersect(xo, dirs)
         self._count(len(xo))
+        self.source_hits[body] += np.bincount(hits.prim[hits.hit], minlength=target.n_faces)
         if body == "sun":
             L = np.where(hits.hit, sun_radiance(sc), 0.0)
+            L_free = L.copy()
             if s.occlusion:
                 live = np.flatnonzero(L > 0)
                 blocked = self.earth.occluded(xo[live], dirs[live], hits.t[live])
@@ -307,12 +410,13 @@ class TraceScene:
             vis = self.sun_visibility_of_earth()
             shade = np.where(hits.prim[h] >= 0, vis[np.maximum(hits.prim[h], 0)], 1.0)
             L[h] = earth_radiance(sc, y, nrm, s.earth_albedo) * shade
-        if s.occlusion and not self.moon.convex:
+            L_free = L.copy()
+        if self._self_shadows():
             live = np.flatnonzero(L > 0)
             blocked = self.moon.occluded(xo[live], dirs[live], hits.t[live])
             self._count(live.size)
             L[live[blocked]] = 0.0
-        return L
+        return L, L_free
 
     # ---- transports --------------------------------------------------------------------------
     def deterministic_transport(self, body: str):
@@ -332,11 +436,12 @@ class TraceScene:
             mu0 = np.einsum("bkj,bj->bk", dirs, n)
             live = (omega > 0) & (mu0 > 0)
             L = np.zeros(omega.shape)
+            L_free = np.zeros(omega.shape)
             bi, ki = np.nonzero(live)
-            L[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
+            L[bi, ki], L_free[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
             sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
             yield Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega,
-                            mu=mu, geom=geom), owner
+                            mu=mu, geom=geom, e_beam_free=L_free * omega), owner
 
     def montecarlo_transport(self, body: str, rng: np.random.Generator):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
@@ -352,9 +457,12 @@ class TraceScene:
         sc = self.scene
         s = self.settings
         M = self.moon
-        c, R, _ = self._source(body)
+        c, R, src = self._source(body)
         cand = self.candidates(body)
-        x, n, dA, _ = M.surface_samples(cand, s.shading)
+        mode = M.mode(s.shading)
+        n = M.normals_for(s.shading)[cand]
+        x = M.centroids[cand] if mode != "exact" else M.centre + M.radius * n
+        dA = M.areas[cand]
         _, g0, _ = detector_geometry(x, n, dA, sc.det, sc.det_normal)
         v = c - x
         d = np.linalg.norm(v, axis=1)
@@ -376,24 +484,28 @@ class TraceScene:
         s1 = np.sqrt(r1)
         tri = M.vertices[M.faces[f]]
         pts = (1 - s1)[:, None] * tri[:, 0] + (s1 * (1 - r2))[:, None] * tri[:, 1] + (s1 * r2)[:, None] * tri[:, 2]
-        if s.shading == "smooth" and M.is_sphere:
-            ns = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+        area_w = dA[pick] / (N_total * p[pick])
+        if mode == "exact":
+            # uniform on the flat facet, projected on the sphere: weight by the projection's
+            # Jacobian dA_sphere/dA_flat = R² (n_f·x)/|x|³, so the estimator stays unbiased
+            r = np.linalg.norm(pts, axis=1)
+            ns = pts / r[:, None]
             xs = M.centre + M.radius * ns
-        elif s.shading == "smooth":
+            area_w = area_w * M.radius**2 * np.abs(np.einsum("ij,ij->i", M.normals[f], pts)) / r**3
+        elif mode == "interp":
             xs = pts + M.centre
             ns = M.shading_normals(f, xs)
         else:
             xs, ns = pts + M.centre, M.normals[f]
-        area_w = dA[pick] / (N_total * p[pick])
         mu, geom, o = self.detector_view(xs, ns, area_w)
-        if body == "earth":
+        if body == "earth" and src.is_sphere:
             dirs, omega = self._earth_lit_directions(xs, rng)
         else:
             dirs, omega = self._cone_directions(xs, c, R, rng)
         mu0 = np.einsum("ij,ij->i", dirs, ns)
         li = np.flatnonzero((mu0 > 0) & (geom > 0))
         L = np.zeros(N)
-        L[li] = self.source_radiance(xs[li], ns[li], dirs[li], body)
+        L[li] = self.source_radiance(xs[li], ns[li], dirs[li], body)[0]
         sh, ch = half_angle_sin_cos(dirs, o)
         tr = Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],
                        e_beam=(L * omega)[:, None], mu=mu, geom=geom)
