@@ -113,7 +113,7 @@ def trace_beam(settings: BrdfTestSettings):
     from .trace.bodies import EmbreeBody
     i = np.radians(INCIDENCE_DEG)
     d_in = _geometry(0.0, 0.0)[0]
-    target = EmbreeBody(_disk_mesh(TARGET_RADIUS_M), 1.0, [0.0, 0.0, 0.0], threads=1)
+    target = EmbreeBody(_disk_mesh(TARGET_RADIUS_M), [0.0, 0.0, 0.0], threads=1)
     # square grid of ray origins over the source disk (the paper's "grid source")
     g = (np.arange(settings.grid) + 0.5) / settings.grid * 2 - 1
     X, Y = np.meshgrid(g, g)

@@ -73,9 +73,15 @@ def zoom_toward(unit_vertices: np.ndarray, centre: np.ndarray, k: float) -> np.n
         K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
         Rm = np.eye(3) + s * K + (1 - cz) * K @ K
     v = unit_vertices @ Rm.T
-    w = v[:, :2] / (1.0 + v[:, 2:3]) / k  # stereographic from the south pole, scaled
-    w2 = np.sum(w * w, axis=1, keepdims=True)
-    v2 = np.concatenate([2 * w, 1 - w2], axis=1) / (1 + w2)
+    # polar angle ψ from the patch centre: tan(ψ'/2) = tan(ψ/2)/k (stereographic scaling),
+    # azimuth kept; written with atan2 so the antipode (ψ = π) stays put
+    rho = np.hypot(v[:, 0], v[:, 1])
+    psi = np.arctan2(rho, v[:, 2])
+    psi2 = 2.0 * np.arctan2(np.sin(psi / 2), k * np.cos(psi / 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cx = np.where(rho > 0, v[:, 0] / rho, 1.0)
+        cy = np.where(rho > 0, v[:, 1] / rho, 0.0)
+    v2 = np.stack([np.sin(psi2) * cx, np.sin(psi2) * cy, np.cos(psi2)], axis=1)
     return v2 @ Rm
 
 

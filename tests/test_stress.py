@@ -84,7 +84,7 @@ def test_float32_trap_naive_geocentric_would_fail():
     from lunarviz.meshes import unit_icosphere
     from lunarviz.trace.bodies import EmbreeBody
     sc = Scene(60.0)
-    moon = EmbreeBody(unit_icosphere(6), sc.r_moon, sc.moon)
+    moon = EmbreeBody(unit_icosphere(6), sc.moon, scale=sc.r_moon)
     rng = np.random.default_rng(1)
     facing = np.flatnonzero(np.einsum("ij,ij->i", moon.normals, sc.sun - moon.centroids) > 0)
     targets = moon.centroids[rng.choice(facing, 2000)]

@@ -71,7 +71,7 @@ KINK_FREE_WIDTH = 0.05
 PATHS = {"moonshine": "sun", "earthshine": "earth"}
 #: Gauss order (radial; twice that in azimuth) of the beams over the bounding cone of a source
 #: that is a user mesh (not an analytic sphere): its silhouette is resolved by the beams.
-MESH_SOURCE_ORDER = 8
+MESH_SOURCE_ORDER = 16
 #: Lunar samples per batch: bounds memory (≈ CHUNK × beams × 30 doubles) for any ray count.
 CHUNK = 1 << 14
 

@@ -1,0 +1,221 @@
+"""Independent references for non-spherical Moons, written apart from the tracer.
+
+Shares no code with lunarviz beyond the BRDF formulas (``model.brdf``, checked against a
+textbook implementation in tests/test_brdf.py) and the paper's constants. Everything else is
+numpy: analytic surfaces (a triaxial ellipsoid by parametric Gauss quadrature, a cube by
+Gauss quadrature over each face), a point Sun at the Sun's centre (exact for a flat face that
+sees the whole solar disc; the extended Sun changes a curved body's moonshine by O(ρ²) ≈ 2e-5
+with ρ = 0.27°, plus penumbra terms of the same order), and an *extended* Lambertian Earth
+integrated over its visible cap from every lunar point (polar Gauss rule about the sub-point;
+the Earth's terminator and the lunar horizon are kinks the rule resolves at second order).
+
+Scene (paper Eq. 3): Earth at the origin, Sun at (0, 0, −D_SE), Moon at
+(0, D_EM sin θ, D_EM cos θ); detector at the Earth's centre, facing the Moon's centre; no
+occlusion at the phases used (30°–150°). Detector irradiance = Σ L·μ·cosδ·dA/d² (paper Eq. 11).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz import constants as C
+
+EARTH_ALBEDO = 0.3
+
+
+def scene(theta_deg: float):
+    t = np.radians(theta_deg)
+    sun = np.array([0.0, 0.0, -C.D_SE_M])
+    moon = np.array([0.0, C.D_EM_M * np.sin(t), C.D_EM_M * np.cos(t)])
+    return sun, np.zeros(3), moon
+
+
+def ellipsoid_surface(a, b, c, n=160):
+    """Points, outward unit normals and area weights [m²] on the ellipsoid x²/a²+y²/b²+z²/c²=1
+    (body frame): Gauss–Legendre in the polar angle u (n nodes), uniform in the longitude v
+    (2n nodes, spectrally exact for periodic integrands)."""
+    xu, wu = np.polynomial.legendre.leggauss(n)
+    u = 0.5 * np.pi * (xu + 1)
+    wu = 0.5 * np.pi * wu
+    v = (np.arange(2 * n) + 0.5) * np.pi / n
+    U, V = np.meshgrid(u, v, indexing="ij")
+    su, cu, sv, cv = np.sin(U), np.cos(U), np.sin(V), np.cos(V)
+    X = np.stack([a * su * cv, b * su * sv, c * cu], -1)
+    Xu = np.stack([a * cu * cv, b * cu * sv, -c * su], -1)
+    Xv = np.stack([-a * su * sv, b * su * cv, np.zeros_like(U)], -1)
+    cr = np.cross(Xu, Xv)
+    dA = np.linalg.norm(cr, axis=-1) * wu[:, None] * (np.pi / n)
+    g = X / np.array([a * a, b * b, c * c])
+    nrm = g / np.linalg.norm(g, axis=-1, keepdims=True)
+    return X.reshape(-1, 3), nrm.reshape(-1, 3), dA.reshape(-1)
+
+
+def box_surface(half: float, rotation: np.ndarray, n=24):
+    """Points, normals and weights on the cube [−half, half]³ rotated by ``rotation``
+    (v' = R v): an n×n Gauss product rule on each face."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    P, Q = np.meshgrid(x * half, x * half, indexing="ij")
+    W = np.outer(w, w) * half * half
+    pts, nrms, wts = [], [], []
+    for axis in range(3):
+        for sgn in (-1.0, 1.0):
+            p = np.zeros(P.shape + (3,))
+            others = [k for k in range(3) if k != axis]
+            p[..., axis] = sgn * half
+            p[..., others[0]] = P
+            p[..., others[1]] = Q
+            nn = np.zeros(3)
+            nn[axis] = sgn
+            pts.append(p.reshape(-1, 3))
+            nrms.append(np.broadcast_to(nn, (P.size, 3)))
+            wts.append(W.reshape(-1))
+    pts, nrms = np.concatenate(pts) @ rotation.T, np.concatenate(nrms) @ rotation.T
+    return pts, nrms, np.concatenate(wts)
+
+
+def _half_angle(a, b):
+    d, p = a - b, a + b
+    s, c = np.linalg.norm(d, axis=-1), np.linalg.norm(p, axis=-1)
+    nn = np.sqrt(s * s + c * c)
+    return s / nn, c / nn
+
+
+def detector_irradiance(theta_deg, surface, models, earth_order=12, chunk=2048, earthshine=True, lit=None):
+    """``{brdf: (moonshine, earthshine)}`` [W m⁻²] for a Moon surface (x, n, dA) given in the
+    body frame (centred on the Moon's centre, paper axes). ``lit(x_body, s, o)``, if given,
+    returns a mask of points that the Sun (direction s) lights and the detector (direction o)
+    sees past the body's own relief (an analytic shadow condition)."""
+    sun, earth, moon = scene(theta_deg)
+    x_b, n_all, dA_all = surface
+    x_all = x_b + moon
+    det = earth
+    det_n = (moon - det) / np.linalg.norm(moon - det)
+    out = {k: [0.0, 0.0] for k in models}
+    for a in range(0, len(x_all), chunk):
+        x, n, dA = x_all[a:a + chunk], n_all[a:a + chunk], dA_all[a:a + chunk]
+        v = det - x
+        d = np.linalg.norm(v, axis=1)
+        o = v / d[:, None]
+        mu = np.clip(np.einsum("ij,ij->i", n, o), 0, None)
+        geom = mu * np.clip(-np.einsum("ij,j->i", v, det_n) / d, 0, None) * dA / d**2
+        live = geom > 0
+        x, n, o, mu, geom = x[live], n[live], o[live], mu[live], geom[live]
+        seen_lit = np.ones(len(x), dtype=bool)
+        if lit is not None:
+            s_dir = (sun - x) / np.linalg.norm(sun - x, axis=1, keepdims=True)
+            seen_lit = lit(x - moon, s_dir, o)
+        if len(x) == 0:
+            continue
+        # moonshine: point Sun
+        vs = sun - x
+        ds = np.linalg.norm(vs, axis=1)
+        s = vs / ds[:, None]
+        E_sun = C.PHI_SUN_W / (4 * np.pi * ds**2)
+        mu0 = np.clip(np.einsum("ij,ij->i", n, s), 0, None) * seen_lit
+        sh, ch = _half_angle(s, o)
+        if not earthshine:
+            for k, model in models.items():
+                f_s = np.where(mu0 > 0, model.brdf(mu0, mu, sh, ch), 0.0)
+                out[k][0] += float(np.sum(f_s * mu0 * E_sun * geom))
+            continue
+        # earthshine: extended Lambert Earth over its lit, visible part from each point, in
+        # polar coordinates (t, φ) about the sub-point: each ring's lit arc φu ± hw(t) gets
+        # its own Gauss rule (the terminator is then an integration limit, not a kink), and
+        # t is split where the arc closes or becomes a full ring.
+        om, dOmega, L_e = _earth_beams(x, sun, earth, earth_order)
+        mu0e = np.clip(np.einsum("btj,bj->bt", om, n), 0, None)
+        she, che = _half_angle(om, o[:, None, :])
+        for k, model in models.items():
+            f_s = np.where(mu0 > 0, model.brdf(mu0, mu, sh, ch), 0.0)
+            out[k][0] += float(np.sum(f_s * mu0 * E_sun * geom))
+            mu_b = np.broadcast_to(mu[:, None], mu0e.shape)
+            f_e = np.where(mu0e > 0, model.brdf(mu0e, mu_b, she, che), 0.0)
+            L = np.sum(f_e * mu0e * L_e * dOmega, axis=1)
+            out[k][1] += float(np.sum(L * geom))
+    return {k: tuple(v) for k, v in out.items()}
+
+
+def _earth_beams(x, sun, earth, order):
+    """Directions (B, K, 3) from lunar points x to Earth nodes, their solid angles dΩ (B, K)
+    and the Earth's radiance there (B, K) [W m⁻² sr⁻¹]; point Sun lights the Earth."""
+    R = C.R_EARTH_M
+    xg, wg = np.polynomial.legendre.leggauss(order)
+    ve = x - earth
+    de = np.linalg.norm(ve, axis=1)
+    ax = ve / de[:, None]
+    helper = np.where(np.abs(ax[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+    e1 = np.cross(ax, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(ax, e1)
+    us = (sun - earth) / np.linalg.norm(sun - earth)
+    c_s = R / np.linalg.norm(sun - earth)  # lit: m·us > c_s (point Sun at finite distance)
+    ctu = ax @ us
+    tau = np.arccos(np.clip(ctu, -1, 1))
+    stu = np.sin(tau)
+    phi_u = np.arctan2(e2 @ us, e1 @ us)
+    tmax = np.arccos(R / de)
+    a_s = np.arccos(c_s)
+    # t-breakpoints where the lit arc closes (hw = 0) or fills the ring (hw = π)
+    cuts = np.stack([np.abs(tau - a_s), tau + a_s, 2 * np.pi - tau - a_s], 1)
+    edges = np.sort(np.concatenate([np.zeros((len(x), 1)), np.minimum(cuts, tmax[:, None]), tmax[:, None]], 1), 1)
+    ts, wts = [], []
+    for k in range(edges.shape[1] - 1):
+        lo, hi = edges[:, k:k + 1], edges[:, k + 1:k + 2]
+        ts.append(lo + 0.5 * (hi - lo) * (xg + 1))
+        wts.append(0.5 * (hi - lo) * wg)
+    t, wt = np.concatenate(ts, 1), np.concatenate(wts, 1)  # (B, T)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = (c_s - np.cos(t) * ctu[:, None]) / (np.sin(t) * stu[:, None])
+    q = np.where(np.isfinite(q), q, np.where(np.cos(t) * ctu[:, None] > c_s, -1.0, 1.0))
+    hw = np.arccos(np.clip(q, -1, 1))  # (B, T)
+    phi = phi_u[:, None, None] + hw[..., None] * xg[None, None, :]  # (B, T, P)
+    wphi = hw[..., None] * wg[None, None, :]
+    m = (np.cos(t)[..., None, None] * ax[:, None, None, :]
+         + np.sin(t)[..., None, None] * (np.cos(phi)[..., None] * e1[:, None, None, :]
+                                        + np.sin(phi)[..., None] * e2[:, None, None, :]))
+    y = earth + R * m
+    vy = x[:, None, None, :] - y
+    r = np.linalg.norm(vy, axis=-1)
+    cos_y = np.clip(np.einsum("btpj,btpj->btp", m, vy) / r, 0, None)
+    dA_y = R * R * np.sin(t)[..., None] * wt[..., None] * wphi
+    vsy = sun - y
+    dsy = np.linalg.norm(vsy, axis=-1)
+    mu_s = np.clip(np.einsum("btpj,btpj->btp", m, vsy) / dsy, 0, None)
+    L_e = EARTH_ALBEDO / np.pi * C.PHI_SUN_W / (4 * np.pi * dsy**2) * mu_s
+    B = len(x)
+    return ((-vy / r[..., None]).reshape(B, -1, 3), (cos_y * dA_y / r**2).reshape(B, -1), L_e.reshape(B, -1))
+
+
+def rotation_zyx(z_deg, y_deg, x_deg) -> np.ndarray:
+    """R = Rz(z)·Ry(y)·Rx(x)."""
+    a, b, c = np.radians([z_deg, y_deg, x_deg])
+    Rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    Ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    Rx = np.array([[1, 0, 0], [0, np.cos(c), -np.sin(c)], [0, np.sin(c), np.cos(c)]])
+    return Rz @ Ry @ Rx
+
+
+def cap_intersection_area(t1, t2, t12):
+    """Area of the intersection of two caps of angular radii t1, t2 whose centres are t12 apart
+    on the unit sphere (Tovchigrechko & Vakser 2001, Protein Sci. 10, 1572, Eq. A1)."""
+    if t12 >= t1 + t2:
+        return 0.0
+    if t12 <= abs(t1 - t2):
+        return 2 * np.pi * (1 - np.cos(min(t1, t2)))
+    c1, c2, c12 = np.cos(t1), np.cos(t2), np.cos(t12)
+    s1, s2, s12 = np.sin(t1), np.sin(t2), np.sin(t12)
+    a0 = np.arccos(np.clip((c12 - c1 * c2) / (s1 * s2), -1, 1))
+    a1 = np.arccos(np.clip((c2 - c1 * c12) / (s1 * s12), -1, 1))
+    a2 = np.arccos(np.clip((c1 - c2 * c12) / (s2 * s12), -1, 1))
+    return 2 * (np.pi - a0 - a1 * c1 - a2 * c2)
+
+
+def bowl_shadow_fraction(depth_over_radius: float, elevation_deg: float) -> float:
+    """Shadowed fraction of a spherical bowl crater's surface, Sun at ``elevation_deg`` above
+    the rim plane (Buhl, Welch & Rea 1968 geometry; derivation in tests/test_meshes.py)."""
+    # bowl: sphere of radius S whose centre is c above the rim plane, rim radius r0 = 1
+    h = depth_over_radius
+    S = (1 + h * h) / (2 * h)
+    a = np.arccos((S - h) / S)  # the bowl is the cap of angular radius a about −ẑ
+    e = np.radians(elevation_deg)
+    return cap_intersection_area(a, a, 2 * e) / (2 * np.pi * (1 - np.cos(a)))
