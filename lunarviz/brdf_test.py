@@ -130,17 +130,42 @@ def trace_beam(settings: BrdfTestSettings):
 
 
 def expected_brdf(model, e_deg, az_deg, order=24):
-    """Eq. 12 averaged over the lit footprint and the detector aperture (no ray tracing)."""
+    """Eq. 12 averaged over the lit footprint and the detector aperture, without ray tracing.
+
+    Written apart from the tracer's path (:func:`_detector_power`): a product Gauss rule over
+    the footprint ellipse and over the detector disk, each pair's incidence, emission and
+    relative azimuth computed as angles and the BRDF evaluated by :func:`brdf_from_angles`
+    (Eq. 12 in its angle form). Shared with the recovered value: only the BRDF formula itself,
+    which tests/test_brdf.py checks against a textbook implementation.
+    """
     i = np.radians(INCIDENCE_DEG)
-    d_in, det_dir = _geometry(e_deg, az_deg)
-    pts, w = _disk_rule(order)
-    # footprint: the beam's disk projected along the beam onto z = 0 (an ellipse)
-    xb, yb = pts[:, 0] * SOURCE_RADIUS_M, pts[:, 1] * SOURCE_RADIUS_M
-    fx = xb / np.cos(i)
-    foot = np.c_[fx, yb, np.zeros_like(fx)]
-    fw = w / np.pi  # beam power fractions (uniform beam)
-    p = _detector_power(model, foot, fw, d_in, det_dir, order)
-    return p / (np.cos(np.radians(e_deg)) * _omega_det())
+    e0, a0 = np.radians(e_deg), np.radians(az_deg)
+    det_c = DETECTOR_DISTANCE_M * np.array([np.sin(e0) * np.cos(a0), np.sin(e0) * np.sin(a0), np.cos(e0)])
+    # detector disk: centre det_c, normal toward the target's centre, radius DETECTOR_RADIUS_M
+    x, w = np.polynomial.legendre.leggauss(order)
+    rr = np.sqrt(0.5 * (x + 1))  # Gauss in r² (area)
+    ang = (np.arange(2 * order) + 0.5) * np.pi / order
+    RR, AA = np.meshgrid(rr, ang, indexing="ij")
+    WW = np.repeat(0.5 * w[:, None], 2 * order, axis=1) * (np.pi / order) * 0.5
+    up = np.array([0.0, 0.0, 1.0]) if abs(np.cos(e0)) < 0.99 else np.array([1.0, 0.0, 0.0])
+    f1 = np.cross(det_c, up)
+    f1 /= np.linalg.norm(f1)
+    f2 = np.cross(det_c / DETECTOR_DISTANCE_M, f1)
+    P = det_c + DETECTOR_RADIUS_M * ((RR * np.cos(AA)).reshape(-1, 1) * f1 + (RR * np.sin(AA)).reshape(-1, 1) * f2)
+    dA = (WW * DETECTOR_RADIUS_M**2).reshape(-1)
+    # footprint of the uniform circular beam on z = 0: (x / cos i, y), equal power per area
+    Fx = (RR * np.cos(AA)).reshape(-1) * SOURCE_RADIUS_M / np.cos(i)
+    Fy = (RR * np.sin(AA)).reshape(-1) * SOURCE_RADIUS_M
+    fw = (WW.reshape(-1) / np.pi)  # fraction of the beam power
+    v = P[None, :, :] - np.stack([Fx, Fy, np.zeros_like(Fx)], axis=1)[:, None, :]  # (foot, det, 3)
+    r = np.linalg.norm(v, axis=2)
+    cos_e = v[..., 2] / r
+    emission = np.arccos(np.clip(cos_e, -1, 1))
+    azimuth = np.arctan2(v[..., 1], v[..., 0])  # source on +x: azimuth 0 is the source's side
+    f = brdf_from_angles(model, np.full(r.shape, i), emission, azimuth)
+    cos_det = np.einsum("fdj,j->fd", v, det_c) / (r * DETECTOR_DISTANCE_M)
+    power = float(np.sum(fw[:, None] * f * cos_e * cos_det * dA[None, :] / r**2))
+    return power / (np.cos(e0) * _omega_det())
 
 
 def run_brdf_test(models: dict, settings: BrdfTestSettings = BrdfTestSettings()) -> dict:

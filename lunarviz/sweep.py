@@ -153,10 +153,13 @@ def run_phase(settings: SweepSettings, theta: float) -> list[dict]:
         ts = TraceScene(sc, ts_set)
         ms = trace_path(ts, "moonshine", brdfs)
         es = trace_path(ts, "earthshine", brdfs)
-        if ts_set.estimator == "deterministic":
+        if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
             cal_ms, cal_es = ms.mean, es.mean
-        else:  # lunar terms from the deterministic transport of the same scene
-            dts = TraceScene(sc, replace(ts_set, estimator="deterministic"))
+        else:
+            # lunar terms from a deterministic transport of the same scene with the *model*
+            # Earth (the nominal Lambert sphere): the Earth is what the inversion measures, so a
+            # user's Earth mesh must not calibrate its own inversion (that is an identity)
+            dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None))
             cal_ms = trace_path(dts, "moonshine", brdfs).mean
             cal_es = trace_path(dts, "earthshine", brdfs).mean
         for k in brdfs:

@@ -31,7 +31,9 @@ def test_bond_of_linear_apparent_albedo():
 
 
 def test_analytic_sweep_recovers_bond_albedo():
-    # Issue 2 bar: 0.3000 ± 0.0003 for the Lambert, SHG and DHG Moons
+    # Consistency check, not physics: the lunar terms are calibrated with the same transport
+    # that made the fluxes, so any fluxes give back the input 0.3 (an algebraic identity up to
+    # the Bond quadrature). Issue 2 bar: 0.3000 ± 0.0003 for the Lambert, SHG and DHG Moons.
     res = run_sweep(SweepSettings())
     for b in ("lambert", "shg", "dhg"):
         assert res["bond_albedo"][b]["analytic"] == pytest.approx(0.3, abs=3e-4)
@@ -40,8 +42,8 @@ def test_analytic_sweep_recovers_bond_albedo():
 
 
 def test_inversion_recovers_a_different_true_albedo():
-    # Fluxes from an Earth of albedo 0.22, lunar terms from the model's 0.3 Earth: the
-    # inversion must return 0.22 (earthshine is linear in the Earth's albedo)
+    # Consistency check: fluxes from an Earth of albedo 0.22, lunar terms from the model's 0.3
+    # Earth: the inversion must return 0.22 (earthshine is linear in the Earth's albedo)
     for theta in (40.0, 100.0, 160.0):
         sc = Scene(theta)
         lam = {"dhg": __import__("lunarviz.brdf", fromlist=["x"]).make_brdf("dhg")}
@@ -50,6 +52,34 @@ def test_inversion_recovers_a_different_true_albedo():
         terms = alb.lunar_terms(sc, cal.earthshine_W_m2, cal.moonshine_W_m2, 0.3)
         pe = alb.geometric_albedo_term(sc, true.earthshine_W_m2, true.moonshine_W_m2, terms)
         assert alb.apparent_albedo(sc.beta_deg, pe) == pytest.approx(0.22, rel=1e-10)
+
+
+def test_inversion_measures_a_non_spherical_earth():
+    # Physics, not algebra: the earthshine of a ray-traced *oblate* Earth mesh (flattening 0.2
+    # along x, ⟂ to the Sun and the Moon at θ = 90°), inverted with lunar terms calibrated on
+    # the model sphere, must give p* = 0.3 × (the oblate Earth's Lambert phase integral over
+    # the sphere's), 0.7615 by independent parametric quadrature (tests/test_meshes.py).
+    # Budget 1.5 %: the beams over the mesh's bounding cone (order 24) and the far-field ratio.
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    import independent as ind
+    from lunarviz import constants as C
+    from lunarviz import shapes
+    from lunarviz.sweep import run_phase
+    import tempfile
+    x, n, w = ind.ellipsoid_surface(0.8, 1.0, 1.0, n=300)
+    xs, ns, ws = ind.ellipsoid_surface(1.0, 1.0, 1.0, n=300)
+    far = lambda n, w: np.sum(np.clip(n @ [0, 0, -1.0], 0, None) * np.clip(n @ [0, 1.0, 0], 0, None) * w)
+    ratio = far(n, w) / far(ns, ws)
+    with tempfile.TemporaryDirectory() as d:
+        Re = C.R_EARTH_M
+        path = str(Path(d) / "oblate_earth.ply")
+        shapes.write_mesh(shapes.ellipsoid(0.8 * Re, Re, Re, level=5), path)
+        s = SweepSettings(brdfs=("lambert",), phases_deg=(90.0,), method="raytrace", earth_mesh=path,
+                          earth_order=24, moon_level=3, occlusion=False)
+        row = run_phase(s, 90.0)[0]
+    assert row["apparent_albedo"] == pytest.approx(0.3 * ratio, rel=1.5e-2)
 
 
 def test_printed_eq8_biases_the_inversion_by_three_halves():

@@ -89,39 +89,60 @@ def test_seeds_reproduce(paper_brdfs):
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
-def test_scale_invariance(scale, paper_brdfs):
+def test_scale_invariance(scale, paper_brdfs, tmp_path):
     # Every length × scale and Φ × scale² leaves every irradiance unchanged; float32 trouble
-    # would show here (trimesh's test idea, 1e-3 … 1e3 around the real 1.5e11 m scene)
+    # would show here (trimesh's test idea, 1e-3 … 1e3 around the real 1.5e11 m scene). A
+    # triaxial ellipsoid on its facets: Embree decides every hit (an analytic sphere would be
+    # shaded on the exact sphere and pass without the tracer).
+    from lunarviz import shapes
+    path = tmp_path / "ell.ply"
+    shapes.write_mesh(shapes.ellipsoid(1.15 * 1.738e6, 1.738e6, 0.85 * 1.738e6, level=4), path)
     dhg = {"dhg": paper_brdfs["dhg"]}
-    base = TraceScene(Scene(120.0), TraceSettings())
-    scaled = TraceScene(Scene(120.0, scale=scale), TraceSettings())
-    for path in ("moonshine", "earthshine"):
-        a = trace_path(base, path, dhg).mean["dhg"]
-        b = trace_path(scaled, path, dhg).mean["dhg"]
+    base = TraceScene(Scene(120.0), TraceSettings(moon_mesh=str(path)))
+    scaled = TraceScene(Scene(120.0, scale=scale), TraceSettings(moon_mesh=str(path)))
+    assert base.moon.mode(base.settings.shading) == "flat"
+    for path_name in ("moonshine", "earthshine"):
+        a = trace_path(base, path_name, dhg).mean["dhg"]
+        b = trace_path(scaled, path_name, dhg).mean["dhg"]
         assert b == pytest.approx(a, rel=1e-9)
+
+
+def _moller_trumbore(o, d, tri):
+    """First hit (facet, t) of rays o + t d on triangles tri (F, 3, 3), float64 brute force:
+    an independent answer to compare Embree's with."""
+    v0, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    prim = np.full(len(o), -1)
+    best = np.full(len(o), np.inf)
+    for i in range(len(o)):
+        p = np.cross(d[i], e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        tv = o[i] - v0
+        u = np.einsum("ij,ij->i", tv, p) / det
+        q = np.cross(tv, e1)
+        v = (q @ d[i]) / det
+        t = np.einsum("ij,ij->i", e2, q) / det
+        ok = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+        if ok.any():
+            k = np.flatnonzero(ok)[np.argmin(t[ok])]
+            prim[i], best[i] = k, t[k]
+    return prim, best
 
 
 def test_float32_hits_at_real_scale():
     # A ray from the Moon's distance toward the Earth: Embree sees only Earth-sized numbers, so
-    # the float64 hit point is on the right facet and within a few cm of the exact one.
-    earth = EmbreeBody(unit_icosphere(6), 6.378e6, [0.0, 0.0, 0.0])
+    # it reports the same facet as a float64 brute-force intersection (independent code), and
+    # the float64 hit distance agrees to a few cm.
+    earth = EmbreeBody(unit_icosphere(5), [0.0, 0.0, 0.0], scale=6.378e6)
     rng = np.random.default_rng(0)
-    origin = np.array([[0.0, 3.8e8, 0.0]] * 500)
-    targets = unit(rng.normal(size=(500, 3))) * 6.0e6
+    origin = np.array([[0.0, 3.8e8, 0.0]] * 200)
+    targets = unit(rng.normal(size=(200, 3))) * 6.0e6
     targets[:, 1] = np.abs(targets[:, 1])
     d = unit(targets - origin)
     hits = earth.intersect(origin, d)
-    assert hits.hit.all()
-    # exact: intersect the float64 plane of the facet that contains the hit
-    tri = earth.vertices[earth.faces[hits.prim]]
-    n = earth.normals[hits.prim]
-    t = np.einsum("ij,ij->i", tri[:, 0] - origin, n) / np.einsum("ij,ij->i", d, n)
+    prim, t = _moller_trumbore(origin, d, earth.vertices[earth.faces])
+    assert hits.hit.all() and (prim >= 0).all()
+    assert np.mean(hits.prim == prim) > 0.99  # a ray within float32 of an edge may pick its neighbour
     assert np.max(np.abs(t - hits.t)) < 0.05
-    # and the hit lies inside its triangle (right facet)
-    p = hits.point
-    for k in range(3):
-        e = tri[:, (k + 1) % 3] - tri[:, k]
-        assert np.all(np.einsum("ij,ij->i", np.cross(e, p - tri[:, k]), n) > -1e-3 * np.linalg.norm(e, axis=1) ** 2)
 
 
 def test_facet_sums_equal_totals():
@@ -162,7 +183,7 @@ def test_user_mesh_is_traced(tmp_path, paper_brdfs):
     dent = v[:, 0] > 0.9
     v[dent] *= 0.97
     path = tmp_path / "moon.stl"
-    trimesh.Trimesh(v, m.faces).export(path)
+    trimesh.Trimesh(v * 1.738e6, m.faces).export(path)  # metres, body frame
     ts = TraceScene(Scene(90.0), TraceSettings(moon_mesh=str(path)))
     assert not ts.moon.convex
     ms = trace_path(ts, "moonshine", {"lambert": paper_brdfs["lambert"]})
