@@ -200,8 +200,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("trace", help="ray trace one phase; write the lunar mesh with per-facet arrays")
     p.add_argument("--phase", type=float, required=True, help="θ [deg]")
-    p.add_argument("--brdf", default="dhg")
-    p.add_argument("--out", required=True, help="output .vtp (or .vtk/.ply via trimesh-free VTK XML)")
+    p.add_argument("--brdf", default="dhg", help="BRDFs (the first is the unsuffixed arrays)")
+    p.add_argument("--out", required=True,
+                   help="the Moon with per-facet arrays (.vtp, .vtk, .ply), or every body (.vtm multiblock: "
+                        "moon, earth, sun in scene coordinates [m])")
     _add_physics_options(p)
     _add_trace_options(p)
 
@@ -322,7 +324,7 @@ def cmd_trace(a):
     from .facets import trace_facets, write_facet_mesh
     if not (0.0 <= a.phase <= 180.0) or not math.isfinite(a.phase):
         raise UsageError(f"phase {a.phase:g} is out of range [0, 180]")
-    out = _check_out(a.out, (".vtp",))
+    out = _check_out(a.out, (".vtp", ".vtk", ".ply", ".vtm"))
     settings = _sweep_settings(a, [a.phase], "raytrace")
     res = trace_facets(settings, a.phase)
     write_facet_mesh(out, res)

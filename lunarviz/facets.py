@@ -16,7 +16,7 @@ Arrays (one value per lunar facet, zero where a facet is dark or unseen):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,6 +30,9 @@ class FacetResult:
     cell_data: dict
     totals: dict
     info: dict
+    #: the other bodies: ``{"earth": (vertices, faces, cell_data), "sun": ...}``, vertices
+    #: centred on each body [m]; centres in ``info["<body>_m"]``
+    bodies: dict = field(default_factory=dict)
 
     @property
     def n_faces(self) -> int:
@@ -37,34 +40,49 @@ class FacetResult:
 
 
 def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_scene=None) -> FacetResult:
-    """Ray trace one phase with ``settings`` (a :class:`~lunarviz.sweep.SweepSettings`)."""
+    """Ray trace one phase with ``settings`` (a :class:`~lunarviz.sweep.SweepSettings`).
+
+    The unsuffixed radiance/contribution arrays are for ``brdf_name`` (default: the first
+    BRDF); ``<path>_radiance_W_m2_sr_<brdf>`` holds every BRDF of ``settings``. Moon facets
+    also carry ``solar_lit_fraction`` and ``earth_lit_fraction``: the share of the incident
+    irradiance that survives shadowing by the Moon itself and by the other bodies (1 on a
+    facet no shadow touches; 0 where the facet is not lit at all). Earth facets carry
+    ``radiance_toward_moon_W_m2_sr`` (Lambertian: the same in every direction),
+    ``sun_visibility`` (the Moon's shadow) and ``earthshine_beam_hits``; Sun facets
+    ``moonshine_beam_hits``.
+    """
     from .trace.estimators import TraceScene, trace_path
     brdf_name = brdf_name or settings.brdfs[0]
-    model = settings.brdf_models()[brdf_name]
+    models = settings.brdf_models()
     sc = settings.scene(theta)
     ts = trace_scene or TraceScene(sc, settings.trace_settings())
     M = ts.moon
-    b = {brdf_name: model}
-    ms = trace_path(ts, "moonshine", b, keep_facets=True)
-    es = trace_path(ts, "earthshine", b, keep_facets=True)
+    ms = trace_path(ts, "moonshine", models, keep_facets=True)
+    es = trace_path(ts, "earthshine", models, keep_facets=True)
     cd = {}
     f = {**ms.facets, **es.facets}
     for path in ("moonshine", "earthshine"):
-        contrib = f[f"{path}_contribution_{brdf_name}"]
         geom = f[f"{path}_geom"]
-        cd[f"{path}_contribution_W_m2"] = contrib
-        cd[f"{path}_radiance_W_m2_sr"] = np.where(geom > 0, contrib / np.where(geom > 0, geom, 1), 0.0)
+        for k in models:
+            contrib = f[f"{path}_contribution_{k}"]
+            cd[f"{path}_radiance_W_m2_sr_{k}"] = np.where(geom > 0, contrib / np.where(geom > 0, geom, 1), 0.0)
+        cd[f"{path}_contribution_W_m2"] = f[f"{path}_contribution_{brdf_name}"]
+        cd[f"{path}_radiance_W_m2_sr"] = cd[f"{path}_radiance_W_m2_sr_{brdf_name}"]
         cd[f"{path}_rays"] = f[f"{path}_rays"]
     cd["solar_irradiance_W_m2"] = f["moonshine_irradiance"]
     cd["earth_irradiance_W_m2"] = f["earthshine_irradiance"]
+    for path, name in (("moonshine", "solar_lit_fraction"), ("earthshine", "earth_lit_fraction")):
+        lit, free = f[f"{path}_lit_sum"], f[f"{path}_free_sum"]
+        cd[name] = np.where(free > 0, lit / np.where(free > 0, free, 1), 0.0)
     x = M.centroids
-    n = M.centroid_normals
+    n = M.normals_for(ts.settings.shading)
     s_dir, e_dir, o_dir = unit(sc.sun - x), unit(sc.earth - x), unit(sc.det - x)
     cd["incidence_deg"] = np.degrees(angle_between(n, s_dir))
     cd["emission_deg"] = np.degrees(angle_between(n, o_dir))
     cd["phase_deg"] = np.degrees(angle_between(s_dir, o_dir))
     cd["earth_incidence_deg"] = np.degrees(angle_between(n, e_dir))
     cd["earth_phase_deg"] = np.degrees(angle_between(e_dir, o_dir))
+    model = models[brdf_name]
     mu0 = np.clip(np.einsum("ij,ij->i", n, s_dir), 0, 1)
     mu = np.clip(np.einsum("ij,ij->i", n, o_dir), 0, 1)
     sh, ch = half_angle_sin_cos(s_dir, o_dir)
@@ -75,21 +93,68 @@ def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_sce
     cd["earth_brdf_per_sr"] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che), 0.0)
     totals = {"moonshine_W_m2": ms.mean[brdf_name], "earthshine_W_m2": es.mean[brdf_name],
               "rays": ms.rays + es.rays, "seconds": ms.seconds + es.seconds}
+    for k in models:
+        totals[f"moonshine_W_m2_{k}"] = ms.mean[k]
+        totals[f"earthshine_W_m2_{k}"] = es.mean[k]
     info = {"theta_deg": float(theta), "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
-            "brdf": brdf_name, "moon_centre_m": sc.moon.tolist(), "detector_m": sc.det.tolist(),
-            "sun_m": sc.sun.tolist(), "estimator": ts.settings.estimator,
-            "occlusion": ts.settings.occlusion}
-    return FacetResult(M.vertices.copy(), M.faces.copy(), cd, totals, info)
+            "brdf": brdf_name, "brdfs": list(models), "moon_centre_m": sc.moon.tolist(),
+            "detector_m": sc.det.tolist(), "sun_m": sc.sun.tolist(), "earth_m": sc.earth.tolist(),
+            "estimator": ts.settings.estimator, "occlusion": ts.settings.occlusion,
+            "self_shadow": ts.settings.self_shadow, "shading": ts.settings.shading,
+            "moon_shading_mode": M.mode(ts.settings.shading)}
+    E, S = ts.earth, ts.sun
+    from .sources import earth_radiance, sun_radiance
+    ne = E.normals_for(ts.settings.shading)
+    xe = E.centroids if E.mode(ts.settings.shading) != "exact" else E.centre + E.radius * ne
+    vis = ts.sun_visibility_of_earth()
+    earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, ts.settings.earth_albedo) * vis,
+                "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}
+    sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, sun_radiance(sc)),
+              "moonshine_beam_hits": ts.source_hits["sun"].copy()}
+    bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd), "sun": (S.vertices.copy(), S.faces.copy(), sun_cd)}
+    return FacetResult(M.vertices.copy(), M.faces.copy(), cd, totals, info, bodies)
 
 
 def write_facet_mesh(path, res: FacetResult) -> None:
-    """Write the lunar mesh with its cell data as VTK XML PolyData (.vtp), atomically."""
+    """Write the lunar mesh with its cell data (.vtp, .vtk or .ply), or every body as a
+    multiblock (.vtm: blocks ``moon``, ``earth``, ``sun`` in scene coordinates [m]), atomically."""
     import json
+    from pathlib import Path
 
     from .io import atomic_path
-    from .viz.meshio import facet_polydata
+    from .viz.meshio import body_polydata, facet_polydata
+    meta = json.dumps({**res.info, **res.totals})
+    if Path(path).suffix.lower() == ".vtm":
+        import shutil
+
+        import pyvista as pv
+        mb = pv.MultiBlock()
+        moon = facet_polydata(res)
+        moon.points += np.asarray(res.info["moon_centre_m"])
+        mb["moon"] = moon
+        for name, (v, fcs, cd) in res.bodies.items():
+            mb[name] = body_polydata(v + np.asarray(res.info[f"{name}_m"]), fcs, cd)
+        mb.field_data["info_json"] = [meta]
+        # a .vtm is an index plus a folder of blocks: write both beside a temporary name, then
+        # move them into place (the folder first), so nothing half-written is left on error
+        p = Path(path)
+        tmpdir = p.parent / f".{p.stem}.tmp"
+        if tmpdir.exists():
+            shutil.rmtree(tmpdir)
+        tmpdir.mkdir()
+        try:
+            mb.save(tmpdir / p.name)
+            final_dir = p.parent / p.stem
+            if final_dir.exists():
+                shutil.rmtree(final_dir)
+            (tmpdir / p.stem).rename(final_dir)
+            (tmpdir / p.name).replace(p)
+        finally:
+            shutil.rmtree(tmpdir, ignore_errors=True)
+        return
     poly = facet_polydata(res)
-    poly.field_data["info_json"] = [json.dumps({**res.info, **res.totals})]
+    if Path(path).suffix.lower() != ".ply":
+        poly.field_data["info_json"] = [meta]
     with atomic_path(path) as tmp:
         poly.save(tmp)
 
@@ -110,7 +175,7 @@ def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict
         cand = ts.candidates(body)
         c = {"sun": sc.sun, "earth": sc.earth}[body]
         x = M.centroids[cand]
-        lit = np.einsum("ij,ij->i", M.centroid_normals[cand], unit(c - x)) > 0
+        lit = np.einsum("ij,ij->i", M.normals_for(settings.shading)[cand], unit(c - x)) > 0
         cand = cand[lit]
         if cand.size == 0:
             out[path] = []

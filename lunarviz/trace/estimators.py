@@ -632,7 +632,10 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
                     key = f"{path}_contribution_{k}"
                     fac[key] = fac.get(key, 0.0) + np.bincount(owner, contrib, nf)
             if keep:
+                lit_s, free_s = tr.lit_fraction_parts()
                 for key, per_sample in ((f"{path}_irr_sum", tr.irradiance_on_sample()),
+                                        (f"{path}_lit_sum", lit_s),
+                                        (f"{path}_free_sum", free_s),
                                         (f"{path}_count", np.ones(len(owner))),
                                         (f"{path}_rays", (tr.e_beam > 0).sum(1).astype(float)),
                                         (f"{path}_geom", tr.geom)):
@@ -653,6 +656,8 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
             facets[f"{path}_irradiance"] = np.asarray(fac.get(f"{path}_irr_sum", zero)) / np.maximum(cnt, 1)
             facets[f"{path}_rays"] = np.asarray(fac.get(f"{path}_rays", zero))
             facets[f"{path}_geom"] = np.asarray(fac.get(f"{path}_geom", zero))
+            facets[f"{path}_lit_sum"] = np.asarray(fac.get(f"{path}_lit_sum", zero))
+            facets[f"{path}_free_sum"] = np.asarray(fac.get(f"{path}_free_sum", zero))
     std = {}
     for k in brdfs:
         if s.estimator == "deterministic":

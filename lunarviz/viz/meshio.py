@@ -13,3 +13,12 @@ def facet_polydata(res) -> pv.PolyData:
     for k, v in res.cell_data.items():
         poly.cell_data[k] = np.asarray(v, dtype=float)
     return poly
+
+
+def body_polydata(vertices, faces, cell_data) -> pv.PolyData:
+    """Any body's mesh [m] with its per-facet cell data."""
+    f = np.hstack([np.full((len(faces), 1), 3), faces]).astype(np.int64).ravel()
+    poly = pv.PolyData(np.asarray(vertices, dtype=float), f)
+    for k, v in cell_data.items():
+        poly.cell_data[k] = np.asarray(v, dtype=float)
+    return poly
