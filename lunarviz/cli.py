@@ -222,10 +222,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("study", help="mesh-resolution study")
     p.add_argument("kind", choices=["mesh"])
-    p.add_argument("--levels", default="2:6:1")
+    p.add_argument("--levels", default="2:6:1", help="icosphere levels (integers)")
     p.add_argument("--phases", default="30,90,150")
     p.add_argument("--brdf", default="lambert,shg,dhg")
-    p.add_argument("--shading", default="smooth", choices=["smooth", "flat"])
+    p.add_argument("--body", default="moon", choices=["moon", "earth", "sun"], help="the body whose mesh varies")
+    p.add_argument("--shape", default="sphere", choices=["sphere", "ellipsoid", "craters"])
+    p.add_argument("--axes", default="1.15,1.0,0.85", help="ellipsoid semi-axes in body radii")
+    p.add_argument("--meshes", default=None, help="user meshes F1,F2,... coarse to fine (replaces --levels)")
+    p.add_argument("--mesh-units", default="m", choices=["m", "km", "radius"])
+    p.add_argument("--shading", default="auto", choices=["auto", "smooth", "flat"])
     p.add_argument("--out", required=True, help=".json or .csv (a .png plot is written beside it)")
     p.add_argument("--quiet", action="store_true")
 
@@ -363,10 +368,23 @@ def cmd_render(a, interactive=False):
 
 def cmd_study(a):
     from .study import mesh_study
-    levels = [int(v) for v in parse_float_list(a.levels, "level", 0, 8)]
+    levels = parse_float_list(a.levels, "level", 0, 8)
+    bad = [v for v in levels if v != int(v)]
+    if bad:
+        raise UsageError(f"--levels {bad[0]:g} is not an integer")
+    levels = [int(v) for v in levels]
     phases = parse_float_list(a.phases, "phase", 0.0, 180.0)
     out = _check_out(a.out, (".json", ".csv"))
-    mesh_study(levels, phases, _brdf_list(a.brdf), out, shading=a.shading, progress=not a.quiet)
+    meshes = [m.strip() for m in a.meshes.split(",") if m.strip()] if a.meshes else None
+    if meshes is not None:
+        from .meshes import load_user_mesh
+        if len(meshes) < 2:
+            raise UsageError("--meshes needs at least two meshes, coarse to fine")
+        for m in meshes:
+            load_user_mesh(m, a.body, units=a.mesh_units)
+    mesh_study(levels, phases, _brdf_list(a.brdf), out, shading=a.shading, progress=not a.quiet,
+               body=a.body, shape=a.shape, axes=tuple(_floats(a.axes, "--axes", 3)), meshes=meshes,
+               mesh_units=a.mesh_units)
     print(f"wrote {out}")
 
 

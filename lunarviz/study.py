@@ -1,14 +1,26 @@
-"""Mesh-resolution studies: facets, run time, error against the exact reference, observed order.
+"""Mesh-resolution studies: facets, run time, error, observed order of convergence.
 
-``mesh_study([2, 3, 4, 5, 6], phases, brdfs, out)`` traces every phase at every Moon level
-(deterministic estimator, no occlusion, so the exact reference applies) and writes a table
-(.json or .csv) and a log-log plot beside it. The observed order of convergence between two
-levels is ``p = log2(e_{L-1} / e_L)`` (the facet size halves per level).
+``mesh_study(levels, phases, brdfs, out, body="moon")`` traces every phase with ``body`` at
+every level (deterministic estimator, no occlusion) and writes a table (.json or .csv) and a
+log-log plot beside it. The body's mesh at each level is
+
+* ``shape="sphere"``: the packaged icosphere (the exact-sphere fast path with ``auto`` or
+  ``smooth`` shading, the facets with ``flat``); error against the exact reference;
+* ``shape="ellipsoid"`` (semi-axes ``axes`` in body radii) or ``"craters"`` (a seeded cratered
+  body, :mod:`lunarviz.shapes`): generated at each level and traced on its facets;
+* ``meshes=[f1, f2, ...]``: the user's meshes, coarse to fine (``levels`` is then their index).
+
+Without an exact reference (every shape but the sphere) the error is measured against the
+finest mesh of the study and the observed order from successive differences,
+``p = log2(|v_{L-1} - v_{L-2}| / |v_L - v_{L-1}|)``; the table says which. With the exact
+reference, ``p = log2(e_{L-1} / e_L)`` (the facet size halves per level).
 """
 
 from __future__ import annotations
 
+import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,45 +29,104 @@ from .brdf import make_brdf
 from .geometry import Scene
 from .reference import ReferenceSettings, reference_irradiance
 
+STUDY_SHAPES = ("sphere", "ellipsoid", "craters")
 
-def mesh_study(levels, phases, brdfs, out=None, shading: str = "smooth", refine: bool = True,
-               progress: bool = False) -> dict:
+
+def _study_meshes(body, shape, levels, axes, meshes, tmp):
+    """Mesh path (or None for the packaged sphere) per level."""
+    from . import constants as C
+    from . import shapes
+    if meshes:
+        return {i: str(m) for i, m in enumerate(meshes)}
+    if shape == "sphere":
+        return {lv: None for lv in levels}
+    R = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body]
+    out = {}
+    for lv in levels:
+        if shape == "ellipsoid":
+            m = shapes.ellipsoid(*(a * R for a in axes), level=int(lv))
+        else:  # same craters at every level (seeded), so only the resolution changes
+            m = shapes.craters(R, int(lv), 20, 0.06 * R, 0.2 * R, seed=0)
+        p = Path(tmp) / f"{body}_{shape}_L{lv}.ply"
+        shapes.write_mesh(m, p)
+        out[lv] = str(p)
+    return out
+
+
+def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: bool = True,
+               progress: bool = False, body: str = "moon", shape: str = "sphere",
+               axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m") -> dict:
     from .trace.estimators import TraceScene, TraceSettings, trace_path
+    if body not in ("moon", "earth", "sun"):
+        raise ValueError(f"unknown body {body!r}: choose from moon, earth, sun")
+    if shape not in STUDY_SHAPES:
+        raise ValueError(f"unknown study shape {shape!r}: choose from {', '.join(STUDY_SHAPES)}")
+    if meshes:
+        levels = list(range(len(meshes)))
     models = {b: make_brdf(b) for b in brdfs}
-    refs = {th: reference_irradiance(Scene(th), models, ReferenceSettings(32, 12)) for th in phases}
+    exact = shape == "sphere" and not meshes
+    refs = {th: reference_irradiance(Scene(th), models, ReferenceSettings(32, 12)) for th in phases} if exact else {}
     rows = []
-    it = [(lv, th) for lv in levels for th in phases]
-    if progress:
-        from tqdm import tqdm
-        it = tqdm(it, desc="mesh study", unit="run", leave=False)
-    for lv, th in it:
-        t0 = time.perf_counter()
-        ts = TraceScene(Scene(th), TraceSettings(moon_level=int(lv), occlusion=False, shading=shading,
-                                                  refine=refine))
-        ms = trace_path(ts, "moonshine", models)
-        es = trace_path(ts, "earthshine", models)
-        dt = time.perf_counter() - t0
-        for b in brdfs:
-            for path, res in (("moonshine", ms), ("earthshine", es)):
-                ref = getattr(refs[th][b], f"{path}_W_m2")
-                rows.append({"level": int(lv), "facets": int(ts.moon.n_faces), "theta_deg": float(th),
-                             "brdf": b, "path": path, "value_W_m2": res.mean[b], "reference_W_m2": ref,
-                             "relative_error": res.mean[b] / ref - 1, "seconds": dt,
-                             "rays": ms.rays + es.rays, "shading": shading, "refine": refine})
-    # observed order between successive levels, on the worst case over phases and BRDFs
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = _study_meshes(body, shape, levels, axes, meshes, tmp)
+        it = [(lv, th) for lv in levels for th in phases]
+        if progress:
+            from tqdm import tqdm
+            it = tqdm(it, desc="mesh study", unit="run", leave=False)
+        for lv, th in it:
+            t0 = time.perf_counter()
+            # ``shading`` applies to the studied body only; the others keep their defaults
+            base = TraceSettings(occlusion=False, refine=refine, body_shading=((body, shading),),
+                                 mesh_units=mesh_units if meshes else "m")
+            st = replace(base, **{f"{body}_mesh": paths[lv]}) if paths[lv] else \
+                replace(base, **{f"{body}_level": int(lv)})
+            ts = TraceScene(Scene(th), st)
+            ms = trace_path(ts, "moonshine", models)
+            es = trace_path(ts, "earthshine", models)
+            dt = time.perf_counter() - t0
+            facets = int(getattr(ts, body).n_faces)
+            for b in brdfs:
+                for path, res in (("moonshine", ms), ("earthshine", es)):
+                    ref = getattr(refs[th][b], f"{path}_W_m2") if exact else None
+                    rows.append({"level": int(lv), "facets": facets, "theta_deg": float(th),
+                                 "brdf": b, "path": path, "value_W_m2": res.mean[b], "reference_W_m2": ref,
+                                 "relative_error": res.mean[b] / ref - 1 if exact else None, "seconds": dt,
+                                 "rays": ms.rays + es.rays, "shading": shading, "refine": refine})
+    if not exact:  # error against the finest mesh; order from successive differences
+        finest = max(levels)
+        for r in rows:
+            ref = next(q["value_W_m2"] for q in rows if q["level"] == finest and q["theta_deg"] == r["theta_deg"]
+                       and q["brdf"] == r["brdf"] and q["path"] == r["path"])
+            r["reference_W_m2"] = ref
+            r["relative_error"] = r["value_W_m2"] / ref - 1
     summary = []
     for path in ("moonshine", "earthshine"):
         prev = None
+        vals = []
         for lv in levels:
-            errs = [abs(r["relative_error"]) for r in rows if r["level"] == lv and r["path"] == path]
+            sel = [r for r in rows if r["level"] == lv and r["path"] == path]
             secs = np.mean([r["seconds"] for r in rows if r["level"] == lv])
-            e = float(max(errs))
-            order = float(np.log2(prev / e)) if prev and e > 0 else None
-            summary.append({"path": path, "level": int(lv), "max_abs_relative_error": e,
-                            "observed_order": order, "mean_seconds_per_phase": float(secs)})
+            e = float(max(abs(r["relative_error"]) for r in sel))
+            v = np.array([r["value_W_m2"] for r in sel])
+            if exact:
+                order = float(np.log2(prev / e)) if prev and e > 0 else None
+            else:
+                order = None
+                if len(vals) >= 2:
+                    d1 = np.max(np.abs(vals[-1] / vals[-2] - 1))
+                    d2 = np.max(np.abs(v / vals[-1] - 1))
+                    order = float(np.log2(d1 / d2)) if d1 > 0 and d2 > 0 else None
+            vals.append(v)
+            summary.append({"path": path, "level": int(lv), "facets": sel[0]["facets"],
+                            "max_abs_relative_error": e, "observed_order": order,
+                            "mean_seconds_per_phase": float(secs)})
             prev = e
     res = {"settings": {"levels": list(levels), "phases_deg": list(phases), "brdfs": list(brdfs),
-                        "shading": shading, "refine": refine, "reference": "ReferenceSettings(32, 12)"},
+                        "body": body, "shape": shape if not meshes else "user meshes",
+                        "meshes": [str(m) for m in meshes] if meshes else None,
+                        "shading": shading, "refine": refine,
+                        "reference": "exact reference ReferenceSettings(32, 12)" if exact else
+                        "finest mesh of the study; order from successive differences"},
            "rows": rows, "summary": summary}
     if out is not None:
         from .io import write_results
@@ -72,7 +143,7 @@ def plot_study(res: dict, path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for path_name, ax in zip(("moonshine", "earthshine"), axes):
         s = [r for r in res["summary"] if r["path"] == path_name]
-        facets = sorted({r["facets"] for r in res["rows"]})
+        facets = [r["facets"] for r in s]
         ax.loglog(facets, [max(r["max_abs_relative_error"], 1e-12) for r in s], "o-",
                   label="max |error| over phases, BRDFs")
         for x, r in zip(facets, s):
@@ -80,9 +151,11 @@ def plot_study(res: dict, path) -> None:
                 ax.annotate(f"p={r['observed_order']:.1f}", (x, r["max_abs_relative_error"]), fontsize=7,
                             textcoords="offset points", xytext=(4, 4))
         ax.axhline(1e-3, color="k", ls="--", lw=0.8, label="0.1 % target")
-        ax.set_xlabel("lunar facets")
-        ax.set_ylabel("relative error vs exact reference")
-        ax.set_title(f"{path_name} ({res['settings']['shading']} shading)")
+        ax.set_xlabel(f"{res['settings'].get('body', 'moon')} facets")
+        ax.set_ylabel("relative error vs " + ("exact reference" if "exact" in res["settings"]["reference"]
+                                              else "finest mesh"))
+        ax.set_title(f"{path_name}: {res['settings'].get('body', 'moon')} {res['settings'].get('shape', 'sphere')}, "
+                     f"{res['settings']['shading']} shading")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7)
     fig.tight_layout()

@@ -75,6 +75,8 @@ class EmbreeBody:
         #: the exact sphere's radius for analytic spheres, else the mean vertex distance [m]
         self.radius = geo["sphere_radius"] if self.is_sphere else geo["mean_radius"]
         self.threads = threads or default_threads()
+        #: shading for this body regardless of the scene-wide setting (``TraceSettings.body_shading``)
+        self.shading_override: str | None = None
         #: when a list, every float32 batch sent to Embree is appended (benchmarks only)
         self.recorder: list | None = None
         self._scene = geo["scene"]
@@ -86,6 +88,7 @@ class EmbreeBody:
         ``smooth``: the exact sphere for analytic spheres, crease-limited interpolated normals
         (:data:`CREASE_DEG`) otherwise. ``flat``: the facets.
         """
+        shading = self.shading_override or shading
         if shading == "flat":
             return "flat"
         if self.is_sphere:

@@ -97,12 +97,17 @@ class TraceSettings:
     earth_mesh: str | None = None
     sun_mesh: str | None = None
     mesh_units: str = "m"
+    #: per-body shading overriding ``shading``, e.g. ``(("earth", "flat"),)`` (mesh studies)
+    body_shading: tuple = ()
 
     def __post_init__(self):
         if self.estimator not in ESTIMATORS:
             raise ValueError(f"estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}")
         if self.shading not in SHADINGS:
             raise ValueError(f"shading {self.shading!r} is not one of {', '.join(SHADINGS)}")
+        for body, mode in self.body_shading:
+            if body not in ("moon", "earth", "sun") or mode not in SHADINGS:
+                raise ValueError(f"body shading {body}={mode} is not valid")
         for name in ("sun_order", "earth_order"):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and 1 <= v <= 64):
@@ -145,6 +150,8 @@ class TraceScene:
                                 scene.earth, th, k)
         self.sun = EmbreeBody(body_mesh_m("sun", s.sun_level, s.sun_mesh, s.mesh_units, nominal["sun"]),
                               scene.sun, th, k)
+        for body, mode in s.body_shading:
+            getattr(self, body).shading_override = mode
         #: beams that hit each source facet (per body), accumulated over the trace
         self.source_hits = {"sun": np.zeros(self.sun.n_faces), "earth": np.zeros(self.earth.n_faces)}
         self.rays_cast = 0
@@ -161,7 +168,7 @@ class TraceScene:
         miss the mesh inside it carry nothing)."""
         sc = self.scene
         B = {"sun": self.sun, "earth": self.earth}[body]
-        R = sc.radii[body] if B.is_sphere else B.bound
+        R = sc.radii[body] if B.mode(self.settings.shading) == "exact" else B.bound
         return {"sun": sc.sun, "earth": sc.earth}[body], R, B
 
     def _self_shadows(self) -> bool:
@@ -316,11 +323,12 @@ class TraceScene:
         """Deterministic beams from points x (B,3) with normals n: unit directions (B,K,3)
         and solid angles (B,K) [sr]. Where the horizon does not cut the source (most points),
         the Sun gets a Gauss rule over its cone and the Earth a rule without the horizon cap.
-        A source that is not an analytic sphere gets a Gauss rule over its bounding sphere's
-        cone (order ≥ MESH_SOURCE_ORDER); Embree then decides which beams meet the mesh."""
+        A source shaded on its facets (a user mesh, or ``flat`` shading) gets a Gauss rule over
+        its bounding sphere's cone (order ≥ MESH_SOURCE_ORDER); Embree then decides which
+        beams meet the mesh and which facet each meets."""
         sc = self.scene
         c, R, B = self._source(body)
-        if not B.is_sphere:
+        if B.mode(self.settings.shading) != "exact":
             xc = x - c
             dxc = np.linalg.norm(xc, axis=1)
             o = max(order, MESH_SOURCE_ORDER)
@@ -498,7 +506,7 @@ class TraceScene:
         else:
             xs, ns = pts + M.centre, M.normals[f]
         mu, geom, o = self.detector_view(xs, ns, area_w)
-        if body == "earth" and src.is_sphere:
+        if body == "earth" and src.mode(s.shading) == "exact":
             dirs, omega = self._earth_lit_directions(xs, rng)
         else:
             dirs, omega = self._cone_directions(xs, c, R, rng)

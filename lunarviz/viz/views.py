@@ -12,6 +12,9 @@ Panels of the ``composite`` view:
 3. light paths Sun → (Earth →) Moon → detector in a schematic layout (real distances are
    compressed and the bodies enlarged: at real scale they would be invisible dots);
 4. the patch BRDF map: reflectance factor π·BRDF for sunlight at each facet.
+
+The ``maps`` view adds the sunlit fraction of every facet: the shadows that a non-convex
+Moon (craters, topography) casts on itself, and the Earth's shadow in an eclipse.
 """
 
 from __future__ import annotations
@@ -210,7 +213,7 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
     if view == "maps":
         panels = [("incidence_deg", "incidence i [deg]", "twilight", (0, 90)),
                   ("emission_deg", "emission e [deg]", "twilight", (0, 90)),
-                  ("phase_deg", "phase angle g [deg]", "magma", None),
+                  ("solar_lit_fraction", "sunlit fraction (shadows)", "gray", (0, 1)),
                   ("reflectance_factor", "reflectance factor pi*BRDF", "viridis", None)]
         for k, (field, title, cmap, clim) in enumerate(panels):
             pl.subplot(k // 2, k % 2)
