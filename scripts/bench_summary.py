@@ -17,7 +17,7 @@ def main():
          "2-core machine), then `python scripts/bench_summary.py` for this page. Timings are on a shared",
          "machine: compare ratios measured in one run, not absolute seconds across runs.", "",
          "Files: `bench.json` (everything), `bench.csv` (Pareto rows), `bench.png` (error against run",
-         "time), `mesh_study_smooth.*`, `mesh_study_flat.*` (mesh-resolution studies).", "",
+         "time), `mesh_study_{auto,flat,ellipsoid,craters}.*` (mesh-resolution studies).", "",
          "## Targets (issue 5)", "",
          "| target | measured | met |", "| --- | --- | --- |"]
     if "paper_sweep_raytrace" in tg:
@@ -78,17 +78,21 @@ def main():
     L += ["", "(analytic: error against its own converged limit; its physics — point Sun, point Earth — differs",
           "from the reference's by up to tens of percent for Hapke earthshine, which is the point of the",
           "extended-source model.)", ""]
-    for shading in ("smooth", "flat"):
-        f = B / f"mesh_study_{shading}.json"
+    for name in ("auto", "flat", "ellipsoid", "craters"):
+        f = B / f"mesh_study_{name}.json"
         if not f.exists():
             continue
         m = json.loads(f.read_text())
-        L += [f"## Mesh-resolution study, {shading} shading (mesh_study_{shading}.png)", "",
-              f"Phases {m['settings']['phases_deg']}, BRDFs {m['settings']['brdfs']}, deterministic, no occlusion.", "",
-              "| path | Moon level | max error | observed order | s/phase |", "| --- | --- | --- | --- | --- |"]
+        st = m["settings"]
+        L += [f"## Mesh-resolution study: {st.get('body', 'moon')} {st.get('shape', 'sphere')}, {st['shading']} shading "
+              f"(mesh_study_{name}.png)", "",
+              f"Phases {st['phases_deg']}, BRDFs {st['brdfs']}, deterministic, no occlusion; error against the "
+              f"{st['reference']}.", "",
+              "| path | level | facets | max error | observed order | s/phase |", "| --- | --- | --- | --- | --- | --- |"]
         for r in m["summary"]:
             o = "" if r["observed_order"] is None else f"{r['observed_order']:.1f}"
-            L.append(f"| {r['path']} | {r['level']} | {r['max_abs_relative_error']:.1e} | {o} | {r['mean_seconds_per_phase']:.2f} |")
+            L.append(f"| {r['path']} | {r['level']} | {r.get('facets', '')} | {r['max_abs_relative_error']:.1e} | {o} | "
+                     f"{r['mean_seconds_per_phase']:.2f} |")
         L.append("")
     (B / "README.md").write_text("\n".join(L) + "\n")
     print(B / "README.md")

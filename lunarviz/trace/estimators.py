@@ -150,6 +150,12 @@ class TraceScene:
                                 scene.earth, th, k)
         self.sun = EmbreeBody(body_mesh_m("sun", s.sun_level, s.sun_mesh, s.mesh_units, nominal["sun"]),
                               scene.sun, th, k)
+        # ``shading`` is for the Moon and for user meshes; the packaged Sun and Earth spheres
+        # keep the exact-sphere path unless ``body_shading`` names them (mesh studies)
+        named = dict(s.body_shading)
+        for name in ("earth", "sun"):
+            if getattr(self, name).is_sphere and name not in named:
+                getattr(self, name).shading_override = "auto"
         for body, mode in s.body_shading:
             getattr(self, body).shading_override = mode
         #: beams that hit each source facet (per body), accumulated over the trace
@@ -235,7 +241,8 @@ class TraceScene:
         off = M.normals[cand][:, None, :] * (NORMAL_OFFSET * M.radius)
         p = (pts + off).reshape(-1, 3)
         mixed = np.zeros(len(cand), dtype=bool)
-        for target in (c, self.scene.det):
+        det = self.scene.det
+        for to_det, target in ((False, c), (True, det)):
             v = target - p
             dist = np.linalg.norm(v, axis=1)
             d = v / dist[:, None]
@@ -243,7 +250,7 @@ class TraceScene:
             if self._self_shadows():
                 blocked |= self.moon.occluded(p, d, dist)
                 self._count(len(p))
-            if s.occlusion and not (target is self.scene.det and self.scene.detector_inside("earth")):
+            if s.occlusion and not (to_det and self.scene.detector_inside("earth")):
                 blocked |= self.earth.occluded(p, d, dist)
                 self._count(len(p))
             b = blocked.reshape(-1, 4)
