@@ -330,6 +330,9 @@ def cmd_trace(a):
     if not (0.0 <= a.phase <= 180.0) or not math.isfinite(a.phase):
         raise UsageError(f"phase {a.phase:g} is out of range [0, 180]")
     out = _check_out(a.out, (".vtp", ".vtk", ".ply", ".vtm"))
+    if str(out).lower().endswith(".vtm"):
+        from .facets import check_vtm_target
+        check_vtm_target(out)
     settings = _sweep_settings(a, [a.phase], "raytrace")
     res = trace_facets(settings, a.phase)
     write_facet_mesh(out, res)
@@ -382,8 +385,12 @@ def cmd_study(a):
             raise UsageError("--meshes needs at least two meshes, coarse to fine")
         for m in meshes:
             load_user_mesh(m, a.body, units=a.mesh_units)
+    if meshes is None and any(b <= a_ for a_, b in zip(levels, levels[1:])):
+        raise UsageError(f"--levels {a.levels!r} must increase (coarse to fine)")
+    if meshes is not None and len(set(meshes)) != len(meshes):
+        raise UsageError("--meshes lists a mesh twice")
     mesh_study(levels, phases, _brdf_list(a.brdf), out, shading=a.shading, progress=not a.quiet,
-               body=a.body, shape=a.shape, axes=tuple(_floats(a.axes, "--axes", 3)), meshes=meshes,
+               body=a.body, shape=a.shape, axes=tuple(_check_axes(a.axes)), meshes=meshes,
                mesh_units=a.mesh_units)
     print(f"wrote {out}")
 
@@ -398,24 +405,31 @@ def _floats(text, name, n):
     return v
 
 
+def _check_axes(text):
+    ax = _floats(str(text).replace(":", "x"), "--axes", 3) if ":" in str(text) else _floats(text, "--axes", 3)
+    if not all(0.3 <= x <= 3.0 for x in ax):
+        raise UsageError(f"--axes {text!r}: each semi-axis must be 0.3–3 body radii (a body mesh must stay plausible)")
+    return ax
+
+
 def cmd_mesh(a):
     from . import constants as C
     from . import shapes
     R = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[a.body]
-    if a.level > 9:
-        raise UsageError(f"--level {a.level} is too fine (at most 9: 5.2 M facets)")
+    if a.level > 8:
+        raise UsageError(f"--level {a.level} is too fine (at most 8: 1.3 M facets; use --patch for more where it matters)")
     out = _check_out(a.out, (".ply", ".obj", ".stl", ".off", ".glb"))
     patch = None
     if a.patch:
         lat, lon, k = _floats(a.patch, "--patch", 3)
-        if not (-90 <= lat <= 90) or k < 1:
-            raise UsageError(f"--patch {a.patch!r}: latitude must be in [-90, 90] and K ≥ 1")
+        if not (-90 <= lat <= 90) or not (-360 <= lon <= 360) or k < 1:
+            raise UsageError(f"--patch {a.patch!r}: latitude must be in [-90, 90], longitude in [-360, 360], K ≥ 1")
         patch = (lat, lon, k)
     if a.shape == "sphere":
         m = shapes.base_sphere(a.level, patch)
         m.vertices = m.vertices * R
     elif a.shape == "ellipsoid":
-        ax = _floats(a.axes, "--axes", 3)
+        ax = _check_axes(a.axes)
         m = shapes.ellipsoid(*(x * R for x in ax), level=a.level, patch=patch)
     elif a.shape == "dem":
         if not a.dem:
@@ -423,7 +437,12 @@ def cmd_mesh(a):
         m = shapes.dem(a.dem, R, a.height_scale, a.level, patch)
     elif a.shape == "craters":
         d0, d1 = _floats(a.diameters_km, "--diameters-km", 2)
+        if not (0 < d0 <= d1 <= 0.5 * R / 1e3):
+            raise UsageError(f"--diameters-km {a.diameters_km!r}: need 0 < min ≤ max ≤ {0.5 * R / 1e3:g} km "
+                             f"(half the {a.body}'s radius)")
         region = tuple(_floats(a.region, "--region", 3)) if a.region else None
+        if region and not (-90 <= region[0] <= 90 and -360 <= region[1] <= 360 and 0 < region[2] <= 180):
+            raise UsageError(f"--region {a.region!r}: need LAT in [-90, 90], LON in [-360, 360], 0 < RADIUS_DEG ≤ 180")
         m = shapes.craters(R, a.level, a.count, d0 * 1e3, d1 * 1e3, a.seed, region, patch)
     else:
         if patch is None:

@@ -103,16 +103,32 @@ def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_sce
             "self_shadow": ts.settings.self_shadow, "shading": ts.settings.shading,
             "moon_shading_mode": M.mode(ts.settings.shading)}
     E, S = ts.earth, ts.sun
-    from .sources import earth_radiance, sun_radiance
+    from .sources import earth_radiance
     ne = E.normals_for(ts.settings.shading)
     xe = E.centroids if E.mode(ts.settings.shading) != "exact" else E.centre + E.radius * ne
     vis = ts.sun_visibility_of_earth()
     earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, ts.settings.earth_albedo) * vis,
                 "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}
-    sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, sun_radiance(sc)),
+    sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, ts.sun_surface_radiance()),
               "moonshine_beam_hits": ts.source_hits["sun"].copy()}
     bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd), "sun": (S.vertices.copy(), S.faces.copy(), sun_cd)}
     return FacetResult(M.vertices.copy(), M.faces.copy(), cd, totals, info, bodies)
+
+
+def check_vtm_target(path) -> None:
+    """A .vtm is an index plus a folder of blocks beside it: refuse to replace a folder that
+    holds anything but an earlier multiblock's block files (or a file of that name)."""
+    import re
+    from pathlib import Path
+    p = Path(path)
+    d = p.parent / p.stem
+    if d.exists():
+        if not d.is_dir():
+            raise ValueError(f"--out {path}: {d} exists and is not a directory (a .vtm needs it for its blocks)")
+        pat = re.compile(rf"{re.escape(p.stem)}_\d+\.vt[pu]$")
+        other = [q.name for q in d.iterdir() if not pat.match(q.name)]
+        if other:
+            raise ValueError(f"--out {path}: folder {d} holds other files ({other[0]}); choose another name")
 
 
 def write_facet_mesh(path, res: FacetResult) -> None:
@@ -138,6 +154,7 @@ def write_facet_mesh(path, res: FacetResult) -> None:
         # a .vtm is an index plus a folder of blocks: write both beside a temporary name, then
         # move them into place (the folder first), so nothing half-written is left on error
         p = Path(path)
+        check_vtm_target(p)
         tmpdir = p.parent / f".{p.stem}.tmp"
         if tmpdir.exists():
             shutil.rmtree(tmpdir)

@@ -92,6 +92,9 @@ MESH_UNITS = ("m", "km", "radius")
 #: A mesh's mean vertex distance from the body's centre must lie within this factor range of
 #: the body's nominal radius (the 2 R cube reaches √3 R; a cratered or triaxial body ~1 R).
 PLAUSIBLE_SIZE = (0.3, 3.0)
+#: A mesh's centre of mass may sit this fraction of its mean radius from the origin (the real
+#: Moon's centre of figure is ~2 km, 1e-3 R, from its centre of mass; 2 % is 35 km on the Moon).
+CENTRE_TOLERANCE = 0.02
 
 
 def units_factor(units: str, nominal_radius: float) -> float:
@@ -124,11 +127,22 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise MeshError(f"{name}: unreadable mesh ({type(exc).__name__}: {exc})") from None
     if isinstance(mesh, trimesh.Trimesh) and len(mesh.faces):
+        if not np.all(np.isfinite(mesh.vertices)):
+            raise MeshError(f"{name}: vertices contain NaN or inf")
         # merge duplicated vertices (STL stores three per face) so watertightness can be judged;
         # positions are not changed
         mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True, validate=False)
+        mesh.remove_unreferenced_vertices()
     validate_mesh(mesh, name)
+    parts = int(mesh.body_count)
+    if parts != 1:
+        raise MeshError(f"{name}: {parts} disconnected parts; a body must be one closed surface")
     v = np.asarray(mesh.vertices, dtype=float) * factor
+    size = float(np.mean(np.linalg.norm(v - np.asarray(mesh.center_mass) * factor, axis=1)))
+    off = float(np.linalg.norm(mesh.center_mass)) * factor
+    if off > CENTRE_TOLERANCE * size:
+        raise MeshError(f"{name}: centre of mass {off:.4g} m from the origin (> {CENTRE_TOLERANCE:.0%} of its "
+                        f"{size:.4g} m radius); vertices must be centred on the {body}'s centre (body-fixed frame)")
     size = float(np.mean(np.linalg.norm(v, axis=1)))
     lo, hi = PLAUSIBLE_SIZE
     if not (lo * nominal_radius <= size <= hi * nominal_radius):
@@ -137,10 +151,6 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
         hint = f"; the vertices look like {'kilometres' if guess[0] == 'km' else 'metres' if guess[0] == 'm' else 'body radii'}: pass --mesh-units {guess[0]}" if guess else ""
         raise MeshError(f"{name}: mean vertex radius {size:.4g} m (as --mesh-units {units}) is implausible for the "
                         f"{body} (nominal radius {nominal_radius:.4g} m){hint}")
-    off = float(np.linalg.norm(mesh.center_mass)) * factor
-    if off > 0.25 * size:
-        raise MeshError(f"{name}: centre of mass {off:.4g} m from the origin; vertices must be centred on the "
-                        f"{body}'s centre (body-fixed frame)")
     out = trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
     out.metadata["lunarviz_source"] = str(path)
     return out

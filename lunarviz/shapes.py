@@ -127,6 +127,8 @@ def read_map(path) -> np.ndarray:
         raise
     except Exception as exc:
         raise MeshError(f"map {path}: unreadable ({type(exc).__name__}: {exc})") from None
+    if np.iscomplexobj(arr) or not np.issubdtype(np.asarray(arr).dtype, np.number):
+        raise MeshError(f"map {path}: values of type {np.asarray(arr).dtype} are not real numbers")
     arr = np.asarray(arr, dtype=float)
     if arr.ndim != 2 or min(arr.shape) < 2:
         raise MeshError(f"map {path}: shape {arr.shape} is not a 2-D grid (rows = latitude, columns = longitude)")

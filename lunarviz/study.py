@@ -64,6 +64,10 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
         raise ValueError(f"unknown study shape {shape!r}: choose from {', '.join(STUDY_SHAPES)}")
     if meshes:
         levels = list(range(len(meshes)))
+    if body != "moon" and shape == "sphere" and not meshes and shading == "auto":
+        # the packaged Earth and Sun are shaded on the exact sphere, where their level only picks
+        # the facet a beam meets: a resolution study of them is a study of their facets
+        shading = "flat"
     models = {b: make_brdf(b) for b in brdfs}
     exact = shape == "sphere" and not meshes
     refs = {th: reference_irradiance(Scene(th), models, ReferenceSettings(32, 12)) for th in phases} if exact else {}

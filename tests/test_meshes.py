@@ -248,6 +248,34 @@ def test_embree_stub_changes_non_spherical_results(tmp_path, cube_path, lam_dhg,
         assert abs(es1["lambert"] / es0["lambert"] - 1) > 0.01, p
 
 
+def test_moon_only_stub_changes_a_cratered_moon(tmp_path):
+    # Stubbing only the Moon's Embree queries (the Sun and Earth still traced) must change a
+    # non-convex Moon: its self-shadowing and self-hiding are Embree's answers. (A convex Moon
+    # mesh sends no rays to its own scene, by design: its horizon decides exactly.)
+    from lunarviz.brdf import make_brdf
+    lam = {"lambert": make_brdf("lambert")}
+    p = _write(shapes.craters(R, 5, 25, 80e3, 250e3, seed=3, region=(0.0, -90.0, 25.0)), tmp_path / "c.ply")
+    ts = TraceScene(Scene(120.0), TraceSettings(moon_mesh=p))
+    a = trace_path(ts, "moonshine", lam).mean["lambert"]
+    ts2 = TraceScene(Scene(120.0), TraceSettings(moon_mesh=p))
+    ts2.moon._run = lambda o32, d32, query, dists=None, scene=None: np.full(len(o32), -1, dtype=np.int32)
+    b = trace_path(ts2, "moonshine", lam).mean["lambert"]
+    assert b > a * 1.01  # no shadows at all: brighter by the craters' shadowed share
+
+
+def test_sun_mesh_conserves_power(tmp_path):
+    # The Sun is a Lambertian emitter of power Φ: a Sun mesh twice the size has a quarter of
+    # the radiance and four times the solid angle, so the moonshine is unchanged (to the level-3
+    # mesh's ~1e-3 beam/facet error) and the earthshine (point Sun of power Φ) is identical.
+    from lunarviz.brdf import make_brdf
+    lam = {"lambert": make_brdf("lambert")}
+    sun2 = _write(shapes.base_sphere(3).apply_scale(2 * C.R_SUN_M), tmp_path / "sun2.ply")
+    base = TraceScene(Scene(60.0), TraceSettings(moon_level=3))
+    big = TraceScene(Scene(60.0), TraceSettings(moon_level=3, sun_mesh=sun2))
+    assert trace_path(big, "moonshine", lam).mean["lambert"] == pytest.approx(
+        trace_path(base, "moonshine", lam).mean["lambert"], rel=3e-3)
+
+
 # ---- formats, units, refusals ------------------------------------------------------------
 def test_same_numbers_from_ply_obj_stl(tmp_path, lam_dhg):
     m = shapes.craters(R, 3, 6, 200e3, 500e3, seed=2)
@@ -271,9 +299,13 @@ def test_units_and_implausible_sizes(tmp_path):
     unit = trimesh.Trimesh(np.asarray(m.vertices) / R, m.faces, process=False)
     p2 = _write(unit, tmp_path / "moon_r.ply")
     assert np.allclose(load_user_mesh(p2, "moon", units="radius").vertices, m.vertices, rtol=1e-12)
-    off = trimesh.Trimesh(np.asarray(m.vertices) + [0.5 * R, 0, 0], m.faces, process=False)
-    with pytest.raises(MeshError, match="centre"):
+    off = trimesh.Trimesh(np.asarray(m.vertices) + [0.05 * R, 0, 0], m.faces, process=False)
+    with pytest.raises(MeshError, match="centre of mass"):  # 87 km off: more than 2 %
         load_user_mesh(_write(off, tmp_path / "off.ply"), "moon")
+    two = trimesh.util.concatenate([trimesh.Trimesh(np.asarray(m.vertices) * 0.4 + [d * R, 0, 0], m.faces)
+                                    for d in (-0.5, 0.5)])
+    with pytest.raises(MeshError, match="2 disconnected parts"):
+        load_user_mesh(_write(two, tmp_path / "two.ply"), "moon")
 
 
 def test_cli_refuses_meshes_it_cannot_use(tmp_path, capsys):
@@ -281,11 +313,17 @@ def test_cli_refuses_meshes_it_cannot_use(tmp_path, capsys):
     p = _write(m, tmp_path / "ell.ply")
     km = _write(trimesh.Trimesh(np.asarray(m.vertices) / 1e3, m.faces, process=False), tmp_path / "km.ply")
     for argv in (["sweep", "--method", "analytic", "--moon-mesh", p],
+                 ["sweep", "--method", "analytic", "--mesh-units", "km"],
+                 ["trace", "--phase", "60", "--mesh-level", "2", "--out", str(tmp_path / "keep.vtm")],
                  ["sweep", "--method", "reference", "--earth-mesh", p],
                  ["sweep", "--method", "raytrace", "--moon-mesh", km],
                  ["sweep", "--method", "raytrace", "--moon-mesh", str(tmp_path / "missing.ply")]):
         out = tmp_path / "s.json"
-        assert main([*argv, "--phases", "60", "--out", str(out), "--quiet"]) == 2
+        (tmp_path / "keep").mkdir(exist_ok=True)
+        (tmp_path / "keep" / "notes.txt").write_text("a user's file beside the .vtm name")
+        extra = [] if argv[0] == "trace" else ["--phases", "60", "--out", str(out), "--quiet"]
+        assert main([*argv, *extra]) == 2
+        assert (tmp_path / "keep" / "notes.txt").exists()
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("lunarviz: error:")
         assert not out.exists()

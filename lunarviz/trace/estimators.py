@@ -397,6 +397,15 @@ class TraceScene:
         self._sun_vis_earth = vis
         return vis
 
+    def sun_surface_radiance(self) -> float:
+        """Radiance of the Sun's surface [W m⁻² sr⁻¹]: a Lambertian emitter of total power Φ
+        over its surface A, L = Φ/(πA); Φ/(4π²R²) on the exact sphere. A Sun mesh of another
+        size or shape therefore still emits Φ (the Earth is lit by a point Sun of power Φ)."""
+        S = self.sun
+        if S.mode(self.settings.shading) == "exact":
+            return sun_radiance(self.scene)
+        return self.scene.phi / (np.pi * float(S.areas.sum()))
+
     def source_radiance(self, x, n, dirs, body: str):
         """Radiance [W m⁻² sr⁻¹] reaching x (n,3) along dirs (n,3) from ``body``'s mesh:
         ``(L, L_free)``, zero where the ray misses the source; ``L`` is also zero where another
@@ -412,7 +421,7 @@ class TraceScene:
         self._count(len(xo))
         self.source_hits[body] += np.bincount(hits.prim[hits.hit], minlength=target.n_faces)
         if body == "sun":
-            L = np.where(hits.hit, sun_radiance(sc), 0.0)
+            L = np.where(hits.hit, self.sun_surface_radiance(), 0.0)
             L_free = L.copy()
             if s.occlusion:
                 live = np.flatnonzero(L > 0)
