@@ -239,7 +239,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("shape", choices=["sphere", "ellipsoid", "dem", "craters", "patch"])
     p.add_argument("--body", default="moon", choices=["moon", "earth", "sun"],
                    help="sets the nominal radius (R) the other options scale with")
-    p.add_argument("--level", type=_nonneg_int("--level"), default=6, help="icosphere subdivision level (20·4^L facets)")
+    p.add_argument("--level", type=_nonneg_int("--level"), default=6,
+                   help="icosphere subdivision level (20·4^L facets)")
     p.add_argument("--axes", default="1.15,1.0,0.85", help="ellipsoid semi-axes a,b,c in units of R")
     p.add_argument("--dem", default=None, help="DEM map (.npy/.png/.tif, equirectangular, row 0 = +90°)")
     p.add_argument("--height-scale", type=float, default=1.0, help="metres per DEM map unit")
@@ -417,7 +418,7 @@ def cmd_mesh(a):
     from . import shapes
     R = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[a.body]
     if a.level > 8:
-        raise UsageError(f"--level {a.level} is too fine (at most 8: 1.3 M facets; use --patch for more where it matters)")
+        raise UsageError(f"--level {a.level} is too fine (at most 8: 1.3 M facets; --patch refines where it matters)")
     out = _check_out(a.out, (".ply", ".obj", ".stl", ".off", ".glb"))
     patch = None
     if a.patch:

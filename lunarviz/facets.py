@@ -109,9 +109,11 @@ def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_sce
     vis = ts.sun_visibility_of_earth()
     earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, ts.settings.earth_albedo) * vis,
                 "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}
-    sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, ts.sun_surface_radiance()),
+    L_sun = ts.sun_surface_radiance()
+    sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, L_sun),
               "moonshine_beam_hits": ts.source_hits["sun"].copy()}
-    bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd), "sun": (S.vertices.copy(), S.faces.copy(), sun_cd)}
+    bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd),
+              "sun": (S.vertices.copy(), S.faces.copy(), sun_cd)}
     return FacetResult(M.vertices.copy(), M.faces.copy(), cd, totals, info, bodies)
 
 
@@ -138,36 +140,12 @@ def write_facet_mesh(path, res: FacetResult) -> None:
     from pathlib import Path
 
     from .io import atomic_path
-    from .viz.meshio import body_polydata, facet_polydata
+    from .viz.meshio import facet_polydata
     meta = json.dumps({**res.info, **res.totals})
     if Path(path).suffix.lower() == ".vtm":
-        import shutil
-
-        import pyvista as pv
-        mb = pv.MultiBlock()
-        moon = facet_polydata(res)
-        moon.points += np.asarray(res.info["moon_centre_m"])
-        mb["moon"] = moon
-        for name, (v, fcs, cd) in res.bodies.items():
-            mb[name] = body_polydata(v + np.asarray(res.info[f"{name}_m"]), fcs, cd)
-        mb.field_data["info_json"] = [meta]
-        # a .vtm is an index plus a folder of blocks: write both beside a temporary name, then
-        # move them into place (the folder first), so nothing half-written is left on error
-        p = Path(path)
-        check_vtm_target(p)
-        tmpdir = p.parent / f".{p.stem}.tmp"
-        if tmpdir.exists():
-            shutil.rmtree(tmpdir)
-        tmpdir.mkdir()
-        try:
-            mb.save(tmpdir / p.name)
-            final_dir = p.parent / p.stem
-            if final_dir.exists():
-                shutil.rmtree(final_dir)
-            (tmpdir / p.stem).rename(final_dir)
-            (tmpdir / p.name).replace(p)
-        finally:
-            shutil.rmtree(tmpdir, ignore_errors=True)
+        from .viz.meshio import write_multiblock
+        check_vtm_target(path)
+        write_multiblock(path, res, meta)
         return
     poly = facet_polydata(res)
     if Path(path).suffix.lower() != ".ply":

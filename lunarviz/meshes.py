@@ -148,7 +148,8 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     if not (lo * nominal_radius <= size <= hi * nominal_radius):
         guess = [u for u in MESH_UNITS
                  if lo * nominal_radius <= size / factor * units_factor(u, nominal_radius) <= hi * nominal_radius]
-        hint = f"; the vertices look like {'kilometres' if guess[0] == 'km' else 'metres' if guess[0] == 'm' else 'body radii'}: pass --mesh-units {guess[0]}" if guess else ""
+        words = {"km": "kilometres", "m": "metres", "radius": "body radii"}
+        hint = f"; the vertices look like {words[guess[0]]}: pass --mesh-units {guess[0]}" if guess else ""
         raise MeshError(f"{name}: mean vertex radius {size:.4g} m (as --mesh-units {units}) is implausible for the "
                         f"{body} (nominal radius {nominal_radius:.4g} m){hint}")
     out = trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)

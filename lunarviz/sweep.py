@@ -70,10 +70,10 @@ class SweepSettings:
         if not self.phases_deg:
             raise ValueError("no phase given")
         if self.method != "raytrace":
-            for name, value, default, flag in (
-                    ("mesh_units", self.mesh_units, "m", "--mesh-units"), ("moon_level", self.moon_level, None, "--mesh-level"),
-                    ("earth_level", self.earth_level, None, "--earth-level"), ("sun_level", self.sun_level, None, "--sun-level"),
-                    ("shading", self.shading, "auto", "--shading"), ("self_shadow", self.self_shadow, True, "--no-self-shadow")):
+            for value, default, flag in (
+                    (self.mesh_units, "m", "--mesh-units"), (self.moon_level, None, "--mesh-level"),
+                    (self.earth_level, None, "--earth-level"), (self.sun_level, None, "--sun-level"),
+                    (self.shading, "auto", "--shading"), (self.self_shadow, True, "--no-self-shadow")):
                 if value != default:
                     raise ValueError(f"{flag} cannot be used with --method {self.method}, which has no meshes; "
                                      f"use --method raytrace")

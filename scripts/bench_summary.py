@@ -13,7 +13,7 @@ def main():
     b = json.loads((B / "bench.json").read_text())
     t, tg, sk, rd = b["throughput"], b["targets"], b["skips"], b.get("render", {})
     L = ["# Benchmarks (kept results)", "",
-         "Regenerate everything with `bash scripts/run_benchmarks.sh` (about 10 minutes on this",
+         "Regenerate everything with `bash scripts/run_benchmarks.sh` (about 20 minutes on this",
          "2-core machine), then `python scripts/bench_summary.py` for this page. Timings are on a shared",
          "machine: compare ratios measured in one run, not absolute seconds across runs.", "",
          "Files: `bench.json` (everything), `bench.csv` (Pareto rows), `bench.png` (error against run",

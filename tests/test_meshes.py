@@ -165,7 +165,8 @@ def test_bowl_shadow_fraction_closed_form(elevation):
     e1 = np.cross(axis, [0.0, 0.0, 1.0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(axis, e1)
-    u = (-CT[..., None] * axis + ST[..., None] * (np.cos(PH)[..., None] * e1 + np.sin(PH)[..., None] * e2)).reshape(-1, 3)
+    rim = np.cos(PH)[..., None] * e1 + np.sin(PH)[..., None] * e2
+    u = (-CT[..., None] * axis + ST[..., None] * rim).reshape(-1, 3)
     # each point moved onto the mesh along the ball's radius (a chord of the concave bowl lies
     # up to ~20 m above it), and shaded as the tracer shades flat facets: facet normal, origin
     # 1 m above the facet

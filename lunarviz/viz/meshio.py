@@ -22,3 +22,33 @@ def body_polydata(vertices, faces, cell_data) -> pv.PolyData:
     for k, v in cell_data.items():
         poly.cell_data[k] = np.asarray(v, dtype=float)
     return poly
+
+
+def write_multiblock(path, res, meta: str) -> None:
+    """Every body of ``res`` as a .vtm multiblock (blocks ``moon``, ``earth``, ``sun`` in scene
+    coordinates [m]). A .vtm is an index plus a folder of blocks: both are written beside a
+    temporary name and moved into place (the folder first), so nothing half-written is left;
+    the caller has checked that the folder holds nothing but an earlier multiblock's blocks."""
+    import shutil
+    from pathlib import Path
+    mb = pv.MultiBlock()
+    moon = facet_polydata(res)
+    moon.points += np.asarray(res.info["moon_centre_m"])
+    mb["moon"] = moon
+    for name, (v, fcs, cd) in res.bodies.items():
+        mb[name] = body_polydata(v + np.asarray(res.info[f"{name}_m"]), fcs, cd)
+    mb.field_data["info_json"] = [meta]
+    p = Path(path)
+    tmpdir = p.parent / f".{p.stem}.tmp"
+    if tmpdir.exists():
+        shutil.rmtree(tmpdir)
+    tmpdir.mkdir()
+    try:
+        mb.save(tmpdir / p.name)
+        final_dir = p.parent / p.stem
+        if final_dir.exists():
+            shutil.rmtree(final_dir)
+        (tmpdir / p.stem).rename(final_dir)
+        (tmpdir / p.name).replace(p)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
