@@ -5,6 +5,6 @@ cd "$(dirname "$0")/.."
 lunarviz study mesh --levels 2:6 --phases 30,90,150,170 --shading auto --out benchmarks/mesh_study_auto.json --quiet
 lunarviz study mesh --levels 2:6 --phases 30,90,150,170 --shading flat --out benchmarks/mesh_study_flat.json --quiet
 lunarviz study mesh --shape ellipsoid --levels 3:7 --phases 30,90,150 --brdf lambert,dhg --out benchmarks/mesh_study_ellipsoid.json --quiet
-lunarviz study mesh --shape craters --levels 4:6 --phases 60,120 --brdf lambert,dhg --out benchmarks/mesh_study_craters.json --quiet
+lunarviz study mesh --shape craters --levels 4:7 --phases 60,120 --brdf lambert,dhg --out benchmarks/mesh_study_craters.json --quiet
 lunarviz bench --out benchmarks/bench.json --quiet
 python3 scripts/bench_summary.py
