@@ -396,9 +396,11 @@ def cmd_study(a):
     print(f"wrote {out}")
 
 
-def _floats(text, name, n):
+def _floats(text, name, n, colon=True):
+    """``n`` finite numbers separated by commas (or colons, where ``colon``)."""
+    text = str(text).replace(":", ",") if colon else str(text)
     try:
-        v = [float(x) for x in str(text).replace(":", ",").split(",")]
+        v = [float(x) for x in text.split(",")]
     except ValueError:
         raise UsageError(f"malformed {name} {text!r}: expected {n} numbers") from None
     if len(v) != n or not all(math.isfinite(x) for x in v):
@@ -407,16 +409,16 @@ def _floats(text, name, n):
 
 
 def _check_axes(text):
-    ax = _floats(str(text).replace(":", "x"), "--axes", 3) if ":" in str(text) else _floats(text, "--axes", 3)
+    ax = _floats(text, "--axes", 3, colon=False)
     if not all(0.3 <= x <= 3.0 for x in ax):
         raise UsageError(f"--axes {text!r}: each semi-axis must be 0.3–3 body radii (a body mesh must stay plausible)")
     return ax
 
 
 def cmd_mesh(a):
-    from . import constants as C
     from . import shapes
-    R = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[a.body]
+    from .meshes import NOMINAL_RADII
+    R = NOMINAL_RADII[a.body]
     if a.level > 8:
         raise UsageError(f"--level {a.level} is too fine (at most 8: 1.3 M facets; --patch refines where it matters)")
     out = _check_out(a.out, (".ply", ".obj", ".stl", ".off", ".glb"))

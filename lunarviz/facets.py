@@ -104,8 +104,7 @@ def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_sce
             "moon_shading_mode": M.mode(ts.settings.shading)}
     E, S = ts.earth, ts.sun
     from .sources import earth_radiance
-    ne = E.normals_for(ts.settings.shading)
-    xe = E.centroids if E.mode(ts.settings.shading) != "exact" else E.centre + E.radius * ne
+    xe, ne = E.facet_points(ts.settings.shading)
     vis = ts.sun_visibility_of_earth()
     earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, ts.settings.earth_albedo) * vis,
                 "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}

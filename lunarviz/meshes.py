@@ -25,6 +25,16 @@ DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}
 MAX_LEVEL = 8
 
 
+def _nominal_radii() -> dict:
+    from . import constants as C
+    return {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}
+
+
+#: The paper's body radii [m] (lunarviz.constants): what ``--mesh-units radius`` and the size
+#: checks of user meshes refer to.
+NOMINAL_RADII = _nominal_radii()
+
+
 class MeshError(ValueError):
     """A mesh that cannot represent a body."""
 
@@ -114,11 +124,10 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     (kilometres read as metres, say) or whose centre is far from the origin is refused with
     one line that names the likely unit. Any format trimesh reads: PLY, OBJ, STL, OFF, GLB/GLTF.
     """
-    from . import constants as C
     p = Path(path)
     name = name or f"{body} mesh {path}"
     if nominal_radius is None:
-        nominal_radius = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body]
+        nominal_radius = NOMINAL_RADII[body]
     factor = units_factor(units, nominal_radius)
     if not p.is_file():
         raise MeshError(f"{name}: file not found")
@@ -138,12 +147,13 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     if parts != 1:
         raise MeshError(f"{name}: {parts} disconnected parts; a body must be one closed surface")
     v = np.asarray(mesh.vertices, dtype=float) * factor
-    size = float(np.mean(np.linalg.norm(v - np.asarray(mesh.center_mass) * factor, axis=1)))
+    radius_about_com = float(np.mean(np.linalg.norm(v - np.asarray(mesh.center_mass) * factor, axis=1)))
     off = float(np.linalg.norm(mesh.center_mass)) * factor
-    if off > CENTRE_TOLERANCE * size:
+    if off > CENTRE_TOLERANCE * radius_about_com:
         raise MeshError(f"{name}: centre of mass {off:.4g} m from the origin (> {CENTRE_TOLERANCE:.0%} of its "
-                        f"{size:.4g} m radius); vertices must be centred on the {body}'s centre (body-fixed frame)")
-    size = float(np.mean(np.linalg.norm(v, axis=1)))
+                        f"{radius_about_com:.4g} m radius); vertices must be centred on the {body}'s centre "
+                        f"(body-fixed frame)")
+    size = float(np.mean(np.linalg.norm(v, axis=1)))  # about the origin, as the tracer will place it
     lo, hi = PLAUSIBLE_SIZE
     if not (lo * nominal_radius <= size <= hi * nominal_radius):
         guess = [u for u in MESH_UNITS

@@ -35,13 +35,13 @@ STUDY_SHAPES = ("sphere", "ellipsoid", "craters")
 
 def _study_meshes(body, shape, levels, axes, meshes, tmp):
     """Mesh path (or None for the packaged sphere) per level."""
-    from . import constants as C
     from . import shapes
+    from .meshes import NOMINAL_RADII
     if meshes:
         return {i: str(m) for i, m in enumerate(meshes)}
     if shape == "sphere":
         return {lv: None for lv in levels}
-    R = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body]
+    R = NOMINAL_RADII[body]
     out = {}
     for lv in levels:
         if shape == "ellipsoid":

@@ -84,14 +84,12 @@ class SweepSettings:
         self.brdf_models()  # validates parameters early
         ts = self.trace_settings()
         if self.method == "raytrace":  # read and check user meshes once, before any work
+            from .meshes import NOMINAL_RADII
             from .trace.estimators import body_mesh_m
-            from .geometry import Scene
-            sc = Scene(90.0)
-            radii = {"moon": sc.r_moon, "earth": sc.r_earth, "sun": sc.r_sun}
             for body in ("moon", "earth", "sun"):
                 path = getattr(self, f"{body}_mesh")
-                if path is not None:
-                    body_mesh_m(body, getattr(ts, f"{body}_level"), path, self.mesh_units, radii[body])
+                if path is not None:  # same arguments as TraceScene's call: the cached mesh is reused
+                    body_mesh_m(body, getattr(ts, f"{body}_level"), path, self.mesh_units, NOMINAL_RADII[body])
         self.analytic_settings()
 
     def brdf_models(self) -> dict:

@@ -133,6 +133,17 @@ def _bowl_moon(level, axis, rim_deg, depth_ratio, zoom=4.0):
     return trimesh.Trimesh(u * rad[:, None], m.faces, process=False), (B, S, r0, H)
 
 
+def _about_axis(axis, ct, phi, sign=1.0):
+    """Unit vectors at polar cosines ``ct`` (about ``sign``·axis) and azimuths ``phi`` (grid
+    ct × phi, flattened): the polar quadrature grids of the bowl tests."""
+    CT, PH = np.meshgrid(ct, phi, indexing="ij")
+    e1 = np.cross(axis, [0.0, 0.0, 1.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    ring = np.cos(PH)[..., None] * e1 + np.sin(PH)[..., None] * e2
+    return (sign * CT[..., None] * axis + np.sqrt(1 - CT**2)[..., None] * ring).reshape(-1, 3)
+
+
 def _bowl_axis_for(theta, elevation_deg):
     """A crater axis on the Moon whose rim plane sees the Sun at ``elevation_deg`` and faces
     the detector (at the Earth's centre) as much as that allows."""
@@ -160,13 +171,7 @@ def test_bowl_shadow_fraction_closed_form(elevation):
     n = 200
     ct = 1 - (1 - np.cos(a)) * (np.arange(n) + 0.5) / n
     phi = (np.arange(2 * n) + 0.5) * np.pi / n
-    CT, PH = np.meshgrid(ct, phi, indexing="ij")
-    ST = np.sqrt(1 - CT**2)
-    e1 = np.cross(axis, [0.0, 0.0, 1.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(axis, e1)
-    rim = np.cos(PH)[..., None] * e1 + np.sin(PH)[..., None] * e2
-    u = (-CT[..., None] * axis + ST[..., None] * rim).reshape(-1, 3)
+    u = _about_axis(axis, ct, phi, sign=-1.0)
     # each point moved onto the mesh along the ball's radius (a chord of the concave bowl lies
     # up to ~20 m above it), and shaded as the tracer shades flat facets: facet normal, origin
     # 1 m above the facet
@@ -208,14 +213,8 @@ def test_bowl_crater_moonshine_and_self_shadow(tmp_path, lam_dhg):
         ct = 0.5 * (np.cos(t0) + np.cos(t1)) + 0.5 * (np.cos(t1) - np.cos(t0)) * xg
         w = 0.5 * abs(np.cos(t1) - np.cos(t0)) * wg
         ph = (np.arange(2 * n) + 0.5) * np.pi / n
-        CT, PH = np.meshgrid(ct, ph, indexing="ij")
-        st = np.sqrt(1 - CT**2)
-        e1 = np.cross(axis, [0.0, 0.0, 1.0])
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(axis, e1)
-        u = sign * CT[..., None] * axis + st[..., None] * (np.cos(PH)[..., None] * e1 + np.sin(PH)[..., None] * e2)
-        return (centre + radius * u).reshape(-1, 3), u.reshape(-1, 3), \
-            (np.broadcast_to(w[:, None], CT.shape) * (np.pi / n) * radius**2).reshape(-1)
+        u = _about_axis(axis, ct, ph, sign)
+        return centre + radius * u, u, np.repeat(w, len(ph)) * (np.pi / n) * radius**2
 
     x1, n1, w1 = polar(np.radians(12.0), np.pi, 600, np.zeros(3), R, 1.0)
     x2, u2, w2 = polar(0.0, a, 400, B, S, -1.0)

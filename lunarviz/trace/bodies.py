@@ -109,6 +109,14 @@ class EmbreeBody:
         cn = self.corner_normals.sum(axis=1)
         return cn / np.linalg.norm(cn, axis=1, keepdims=True)
 
+    def facet_points(self, shading: str) -> tuple[np.ndarray, np.ndarray]:
+        """One world point and unit normal per facet for ``shading``: the centroid, or its
+        projection on the exact sphere for the exact-sphere path."""
+        n = self.normals_for(shading)
+        if self.mode(shading) == "exact":
+            return self.centre + self.radius * n, n
+        return self.centroids, n
+
     def normals_for(self, shading: str) -> np.ndarray:
         """Per-facet normals at the centroids for ``shading`` (flat or interpolated/exact)."""
         m = self.mode(shading)

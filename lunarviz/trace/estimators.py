@@ -126,9 +126,8 @@ class TraceSettings:
 def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None = None):
     """The mesh of ``body`` in metres, body frame: a user mesh (``path``, read in ``units``)
     or the packaged icosphere at ``level`` tagged as an analytic sphere of ``radius``."""
-    from .. import constants as C
-    from ..meshes import analytic_sphere, load_user_mesh
-    nominal = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body] if radius is None else radius
+    from ..meshes import NOMINAL_RADII, analytic_sphere, load_user_mesh
+    nominal = NOMINAL_RADII[body] if radius is None else radius
     if path is not None:
         return load_user_mesh(path, body=body, units=units, nominal_radius=nominal)
     return analytic_sphere(body, level, nominal)
@@ -202,10 +201,7 @@ class TraceScene:
             return cand
         M = self.moon
         c, R, _ = self._source(body)
-        n = M.normals_for(self.settings.shading)
-        x = M.centroids
-        if M.mode(self.settings.shading) == "exact":
-            x = M.centre + M.radius * n
+        x, n = M.facet_points(self.settings.shading)
         lit, vis = self._kink_values(x, n, c, R)
         tri = M.vertices[M.faces] + M.centre
         vn = self._corner_normals(M)
@@ -227,7 +223,7 @@ class TraceScene:
 
         From each candidate facet's centroid and corners (offset along the facet normal) one
         ray to the source's centre and one to the detector are traced against the Moon (when it
-        shadows itself) and the Earth (when occlusion is on). A facet whose five points
+        shadows itself) and the Earth (when occlusion is on). A facet whose four points
         disagree is a kink facet and gets refined like a terminator facet. Returns a mask
         over all facets.
         """
@@ -484,8 +480,7 @@ class TraceScene:
         c, R, src = self._source(body)
         cand = self.candidates(body)
         mode = M.mode(s.shading)
-        n = M.normals_for(s.shading)[cand]
-        x = M.centroids[cand] if mode != "exact" else M.centre + M.radius * n
+        x, n = (a[cand] for a in M.facet_points(s.shading))
         dA = M.areas[cand]
         _, g0, _ = detector_geometry(x, n, dA, sc.det, sc.det_normal)
         v = c - x
