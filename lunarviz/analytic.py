@@ -88,7 +88,16 @@ def paper_grid(scene: Scene, step_deg: float = 1.0):
     ang = np.radians(np.arange(-85.0, 85.0 + 1e-9, step_deg))
     phi, delta = np.meshgrid(ang, ang, indexing="ij")
     phi, delta = phi.ravel(), delta.ravel()
-    n = -np.stack([np.sin(phi), np.cos(phi) * np.sin(th + delta), np.cos(phi) * np.cos(th + delta)], axis=1)
+    if scene.general:
+        # the same grid about the sub-Earth point: φ across and δ along the Sun-Earth-Moon plane
+        u = unit(scene.moon - scene.earth)
+        x = np.cross(scene.sun - scene.earth, u)
+        x = unit(x) if np.linalg.norm(x) > 0 else unit(np.cross(u, [0.0, 0.0, 1.0]))
+        v = np.cross(u, x)
+        c = np.cos(phi)[:, None]
+        n = -(np.sin(phi)[:, None] * x + c * (np.cos(delta)[:, None] * u + np.sin(delta)[:, None] * v))
+    else:
+        n = -np.stack([np.sin(phi), np.cos(phi) * np.sin(th + delta), np.cos(phi) * np.cos(th + delta)], axis=1)
     dA = R * R * np.cos(phi) * np.radians(step_deg) ** 2
     return scene.moon + R * n, n, dA
 
@@ -98,6 +107,7 @@ def _point_source_transport(scene, x, n, dA, source, e_normal) -> Transport:
     s = unit(v)
     mu0 = np.einsum("ij,ij->i", n, s)
     mu, geom, o = detector_geometry(x, n, dA, scene.det, scene.det_normal)
+    geom = np.where(scene.sight_lines_clear(x), geom, 0.0)  # the Earth occulting the Moon (real sky)
     sh, ch = half_angle_sin_cos(s, o)
     lit = mu0 > 0
     return Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],

@@ -147,6 +147,24 @@ def _add_physics_options(p):
                    help="override a BRDF parameter (w, h, B0, xi, b, c, albedo)")
 
 
+def _add_sky_options(p):
+    p.add_argument("--time", default=None, metavar="ISO[,ISO...]",
+                   help="UTC times (ISO 8601, e.g. 2025-03-14T06:58Z): the real sky from DE421, replacing θ")
+    p.add_argument("--time-range", default=None, metavar="START,STOP,STEP",
+                   help="UTC times from START to STOP by STEP (30s, 10min, 1h, 1d)")
+    p.add_argument("--observer", default="geocentre",
+                   help="with --time: geocentre | site:LAT,LON[,HEIGHT_M] (WGS84) | tle:FILE | "
+                        "orbit:ALT_KM,INC_DEG,RAAN_DEG,ARGLAT_DEG[,EPOCH]")
+
+
+def _times(a):
+    """UTC labels from --time/--time-range, or None for the θ scene."""
+    if getattr(a, "time", None) is None and getattr(a, "time_range", None) is None:
+        return None
+    from .ephemeris import time_list
+    return time_list(a.time, a.time_range)
+
+
 def _add_trace_options(p):
     p.add_argument("--estimator", default="deterministic", choices=["deterministic", "montecarlo"])
     p.add_argument("--rays", type=_positive_int("--rays"), default=50_000, help="Monte Carlo rays per path and run")
@@ -189,6 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True)
     _add_physics_options(p)
     _add_trace_options(p)
+    _add_sky_options(p)
 
     p = sub.add_parser("brdf", help="tabulate a lunar BRDF")
     p.add_argument("--model", required=True, help="lambert | shg | dhg")
@@ -199,13 +218,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_physics_options(p)
 
     p = sub.add_parser("trace", help="ray trace one phase; write the lunar mesh with per-facet arrays")
-    p.add_argument("--phase", type=float, required=True, help="θ [deg]")
+    p.add_argument("--phase", type=float, default=None, help="θ [deg] (or give --time)")
     p.add_argument("--brdf", default="dhg", help="BRDFs (the first is the unsuffixed arrays)")
     p.add_argument("--out", required=True,
                    help="the Moon with per-facet arrays (.vtp, .vtk, .ply), or every body (.vtm multiblock: "
                         "moon, earth, sun in scene coordinates [m])")
     _add_physics_options(p)
     _add_trace_options(p)
+    _add_sky_options(p)
 
     for name, helptext in (("render", "offscreen picture of a phase"), ("view", "interactive desktop viewer")):
         p = sub.add_parser(name, help=helptext)
@@ -219,6 +239,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--quiet", action="store_true")
         _add_physics_options(p)
         _add_trace_options(p)
+        _add_sky_options(p)
 
     p = sub.add_parser("study", help="mesh-resolution study")
     p.add_argument("kind", choices=["mesh"])
@@ -263,10 +284,11 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _sweep_settings(a, phases, method):
+def _sweep_settings(a, phases, method, times=None):
     from .sweep import SweepSettings
     brdfs = _brdf_list(a.brdf)
     return SweepSettings(
+        times=times, observer=getattr(a, "observer", "geocentre"),
         brdfs=tuple(brdfs), phases_deg=tuple(phases), method=method,
         dhg_convention=a.dhg_convention, h_function=a.h_function, params=parse_params(a.param, brdfs),
         detector=_detector(a.detector), earth_albedo=a.earth_albedo,
@@ -283,9 +305,10 @@ def cmd_sweep(a):
     from .sweep import METHODS, run_sweep
     if a.method not in METHODS:
         raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
+    times = _times(a)
     phases = parse_float_list(a.phases, "phase", 0.0, 180.0)
     out = _check_out(a.out, (".json", ".csv"))
-    settings = _sweep_settings(a, phases, a.method)
+    settings = _sweep_settings(a, phases, a.method, times)
     res = run_sweep(settings, workers=a.workers, progress=not a.quiet)
     write_results(out, res)
     if not a.quiet:
@@ -328,14 +351,25 @@ def cmd_brdf(a):
 
 def cmd_trace(a):
     from .facets import trace_facets, write_facet_mesh
-    if not (0.0 <= a.phase <= 180.0) or not math.isfinite(a.phase):
-        raise UsageError(f"phase {a.phase:g} is out of range [0, 180]")
+    times = _times(a)
+    if times is not None:
+        if a.phase is not None:
+            raise UsageError("give --phase or --time, not both")
+        if len(times) != 1:
+            raise UsageError(f"trace takes one time, got {len(times)}")
+        key = times[0]
+    else:
+        if a.phase is None:
+            raise UsageError("trace needs --phase θ or --time")
+        if not (0.0 <= a.phase <= 180.0) or not math.isfinite(a.phase):
+            raise UsageError(f"phase {a.phase:g} is out of range [0, 180]")
+        key = a.phase
     out = _check_out(a.out, (".vtp", ".vtk", ".ply", ".vtm"))
     if str(out).lower().endswith(".vtm"):
         from .facets import check_vtm_target
         check_vtm_target(out)
-    settings = _sweep_settings(a, [a.phase], "raytrace")
-    res = trace_facets(settings, a.phase)
+    settings = _sweep_settings(a, [a.phase if a.phase is not None else 0.0], "raytrace", times)
+    res = trace_facets(settings, key)
     write_facet_mesh(out, res)
     print(f"moonshine {res.totals['moonshine_W_m2']:.6e} W/m2, earthshine {res.totals['earthshine_W_m2']:.6e} W/m2")
     print(f"wrote {out} ({res.n_faces} facets)")
@@ -352,7 +386,9 @@ def cmd_render(a, interactive=False):
         raise UsageError(f"malformed --size {a.size!r}: use WxH, each 64..8192") from None
     if a.view not in views.VIEWS:
         raise UsageError(f"unknown view {a.view!r}: choose from {', '.join(views.VIEWS)}")
-    settings = _sweep_settings(a, phases, "raytrace")
+    times = _times(a)
+    settings = _sweep_settings(a, phases, "raytrace", times)
+    keys = list(times) if times is not None else phases
     brdf = _brdf_list(a.brdf)
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
@@ -360,11 +396,11 @@ def cmd_render(a, interactive=False):
         import os
         if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
             raise UsageError("lunarviz view needs a display (DISPLAY is not set); use lunarviz render for pictures")
-        views.run_viewer(settings, phases[0], brdf[0], size=(w, h))
+        views.run_viewer(settings, keys[0], brdf[0], size=(w, h))
         return
     out = _check_out(a.out, (".png",))
     gif = _check_out(a.gif, (".gif",)) if a.gif else None
-    files = views.render_frames(settings, phases, brdf[0], out, view=a.view, size=(w, h),
+    files = views.render_frames(settings, keys, brdf[0], out, view=a.view, size=(w, h),
                                 gif=gif, progress=not a.quiet)
     for f in files:
         print(f"wrote {f}")

@@ -39,8 +39,9 @@ class FacetResult:
         return len(self.faces)
 
 
-def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_scene=None) -> FacetResult:
-    """Ray trace one phase with ``settings`` (a :class:`~lunarviz.sweep.SweepSettings`).
+def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None) -> FacetResult:
+    """Ray trace one phase θ [deg] (or UTC time, with ``settings.times``) with ``settings``
+    (a :class:`~lunarviz.sweep.SweepSettings`).
 
     The unsuffixed radiance/contribution arrays are for ``brdf_name`` (default: the first
     BRDF); ``<path>_radiance_W_m2_sr_<brdf>`` holds every BRDF of ``settings``. Moon facets
@@ -54,7 +55,7 @@ def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_sce
     from .trace.estimators import TraceScene, trace_path
     brdf_name = brdf_name or settings.brdfs[0]
     models = settings.brdf_models()
-    sc = settings.scene(theta)
+    sc, fields = settings.scene_and_fields(theta)
     ts = trace_scene or TraceScene(sc, settings.trace_settings())
     M = ts.moon
     ms = trace_path(ts, "moonshine", models, keep_facets=True)
@@ -96,7 +97,7 @@ def trace_facets(settings, theta: float, brdf_name: str | None = None, trace_sce
     for k in models:
         totals[f"moonshine_W_m2_{k}"] = ms.mean[k]
         totals[f"earthshine_W_m2_{k}"] = es.mean[k]
-    info = {"theta_deg": float(theta), "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
+    info = {**fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
             "brdf": brdf_name, "brdfs": list(models), "moon_centre_m": sc.moon.tolist(),
             "detector_m": sc.det.tolist(), "sun_m": sc.sun.tolist(), "earth_m": sc.earth.tolist(),
             "estimator": ts.settings.estimator, "occlusion": ts.settings.occlusion,

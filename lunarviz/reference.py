@@ -42,6 +42,7 @@ def reference_transports(scene: Scene, path: str, settings: ReferenceSettings = 
     src = {"sun": scene.sun, "earth": scene.earth}[body]
     x, n, dA = lunar_surface_rule(scene, src, scene.radii[body], settings.outer_order)
     mu, geom, o = detector_geometry(x, n, dA, scene.det, scene.det_normal)
+    geom = np.where(scene.sight_lines_clear(x), geom, 0.0)  # the Earth occulting the Moon (real sky)
     for a in range(0, len(x), settings.chunk):
         sl = slice(a, a + settings.chunk)
         xs, ns = x[sl], n[sl]

@@ -58,6 +58,10 @@ class SweepSettings:
     mesh_units: str = "m"
     reference_outer: int = 24
     reference_inner: int = 8
+    #: UTC times (ISO 8601): when given, one task per time on the real sky, not per phase θ
+    times: tuple | None = None
+    #: ``--observer``: geocentre, site:LAT,LON[,H], tle:FILE, orbit:ALT,INC,RAAN,ARGLAT[,EPOCH]
+    observer: str = "geocentre"
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -69,6 +73,16 @@ class SweepSettings:
                 raise ValueError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
         if not self.phases_deg:
             raise ValueError("no phase given")
+        if self.times is not None:
+            from .ephemeris import time_list
+            if not self.times:
+                raise ValueError("no time given")
+            object.__setattr__(self, "times", time_list(",".join(self.times)))  # canonical labels, checked
+            if self.detector is not None:
+                raise ValueError("--detector places a detector in the θ scene; with --time use --observer")
+        obs = self.observer_model()  # validates (reads a TLE file) before any work
+        if obs.kind != "geocentre" and self.times is None:
+            raise ValueError(f"--observer {self.observer} needs a date: give --time or --time-range")
         if self.method != "raytrace":
             for value, default, flag in (
                     (self.mesh_units, "m", "--mesh-units"), (self.moon_level, None, "--mesh-level"),
@@ -113,21 +127,43 @@ class SweepSettings:
             shading=self.shading, earth_albedo=self.earth_albedo, threads=1, moon_mesh=self.moon_mesh,
             earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units)
 
-    def scene(self, theta: float) -> Scene:
-        return Scene(theta, detector=self.detector)
+    def observer_model(self):
+        """The parsed observer (an orbit's epoch defaults to the first time)."""
+        from .observers import parse_observer
+        obs = parse_observer(self.observer)
+        return obs.with_epoch(self.times[0]) if self.times else obs
+
+    def tasks(self) -> list:
+        """One key per independent task: UTC labels with ``times``, else the phases θ [deg]."""
+        return list(self.times) if self.times is not None else [float(p) for p in self.phases_deg]
+
+    def scene(self, key) -> Scene:
+        return self.scene_and_fields(key)[0]
+
+    def scene_and_fields(self, key) -> tuple[Scene, dict]:
+        """The scene of one task and the geometry fields its rows start with."""
+        if self.times is not None:
+            from .sky import sky_scene
+            return sky_scene(str(key), self.observer_model())
+        sc = Scene(float(key), detector=self.detector)
+        return sc, {"theta_deg": float(key)}
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d["brdfs"] = list(self.brdfs)
         d["phases_deg"] = list(self.phases_deg)
+        if self.times is not None:
+            d["times"] = list(self.times)
+            d.pop("phases_deg")
         return d
 
 
-def run_phase(settings: SweepSettings, theta: float) -> list[dict]:
-    """All rows (one per BRDF) for one phase θ [deg]. Pure function of its arguments."""
-    sc = settings.scene(theta)
+def run_phase(settings: SweepSettings, key) -> list[dict]:
+    """All rows (one per BRDF) for one task: a phase θ [deg], or a UTC time with ``times``.
+    Pure function of its arguments."""
+    sc, fields = settings.scene_and_fields(key)
     brdfs = settings.brdf_models()
-    base = {"theta_deg": float(theta), "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
+    base = {**fields, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
     t0 = time.perf_counter()
     rows = []
     # point-source calibration (lunar terms of Eq. 15, and the point-vs-extended comparison):
@@ -217,14 +253,15 @@ def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
 
 def run_sweep(settings: SweepSettings, workers: int | None = None, progress: bool = False) -> dict:
     """Run every phase; returns ``{"settings", "rows", "bond_albedo", ...}``."""
-    phases = list(settings.phases_deg)
+    phases = settings.tasks()
     if workers is None:
         workers = 1 if settings.method == "analytic" else min(len(phases), os.cpu_count() or 1)
     t0 = time.perf_counter()
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(phases), desc=f"{settings.method} sweep", unit="phase", leave=False)
+        bar = tqdm(total=len(phases), desc=f"{settings.method} sweep", unit="time" if settings.times else "phase",
+                   leave=False)
     results = []
     if workers <= 1:
         for th in phases:

@@ -80,15 +80,21 @@ def _half_angle(a, b):
     return s / nn, c / nn
 
 
-def detector_irradiance(theta_deg, surface, models, earth_order=12, chunk=2048, earthshine=True, lit=None):
+def detector_irradiance(theta_deg, surface, models, earth_order=12, chunk=2048, earthshine=True, lit=None,
+                        positions=None):
     """``{brdf: (moonshine, earthshine)}`` [W m⁻²] for a Moon surface (x, n, dA) given in the
     body frame (centred on the Moon's centre, paper axes). ``lit(x_body, s, o)``, if given,
     returns a mask of points that the Sun (direction s) lights and the detector (direction o)
-    sees past the body's own relief (an analytic shadow condition)."""
-    sun, earth, moon = scene(theta_deg)
+    sees past the body's own relief (an analytic shadow condition). ``positions`` = (Sun,
+    Moon, detector) [m] relative to the Earth's centre replaces the θ scene (real-sky tests)."""
+    if positions is None:
+        sun, earth, moon = scene(theta_deg)
+        det = earth
+    else:
+        sun, moon, det = (np.asarray(v, dtype=float) for v in positions)
+        earth = np.zeros(3)
     x_b, n_all, dA_all = surface
     x_all = x_b + moon
-    det = earth
     det_n = (moon - det) / np.linalg.norm(moon - det)
     out = {k: [0.0, 0.0] for k in models}
     for a in range(0, len(x_all), chunk):

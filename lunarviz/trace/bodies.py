@@ -62,9 +62,12 @@ class EmbreeBody:
     (the documented fast path). Every other mesh is shaded on its facets.
     """
 
-    def __init__(self, mesh: trimesh.Trimesh, centre, threads: int | None = None, scale: float = 1.0):
+    def __init__(self, mesh: trimesh.Trimesh, centre, threads: int | None = None, scale: float = 1.0,
+                 rotation: np.ndarray | None = None):
         self.centre = np.asarray(centre, dtype=float)
-        geo = _body_geometry(mesh, float(scale))
+        #: body-to-scene rotation (``None``: mesh axes are scene axes); vertices below are turned
+        self.rotation = None if rotation is None else np.asarray(rotation, dtype=float)
+        geo = _body_geometry(mesh, float(scale), self.rotation)
         self._geo = geo
         self.vertices, self.faces = geo["vertices"], geo["faces"]  # body frame [m]
         self.bound, self.areas, self.normals = geo["bound"], geo["areas"], geo["normals"]
@@ -354,18 +357,21 @@ class EmbreeBody:
 _GEOMETRY_CACHE: dict = {}
 
 
-def _body_geometry(mesh: trimesh.Trimesh, scale: float) -> dict:
-    """Body-frame geometry and Embree scene of ``mesh`` (vertices × ``scale`` [m]), cached.
+def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | None = None) -> dict:
+    """Body-centred geometry and Embree scene of ``mesh`` (vertices × ``scale`` [m], turned by
+    ``rotation`` into scene axes), cached.
 
-    Body-centred frames make them independent of where the body is, so a sweep builds each
-    scene once per process, not once per phase. Keyed by the mesh object (kept alive in the
-    entry) and the scale.
+    Body-centred frames make them independent of where the body is, so a θ sweep builds each
+    scene once per process, not once per phase (a dated sweep turns the Moon, so once per
+    time). Keyed by the mesh object (kept alive in the entry), the scale and the rotation.
     """
-    key = (id(mesh), float(scale))
+    key = (id(mesh), float(scale), None if rotation is None else rotation.tobytes())
     hit = _GEOMETRY_CACHE.get(key)
     if hit is not None and hit["mesh"] is mesh:
         return hit
     vertices = np.asarray(mesh.vertices, dtype=float) * scale
+    if rotation is not None:
+        vertices = vertices @ rotation.T
     faces = np.asarray(mesh.faces, dtype=np.int64)
     tri = vertices[faces]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])

@@ -144,9 +144,9 @@ class TraceScene:
         s = settings
         nominal = {"moon": scene.r_moon, "earth": scene.r_earth, "sun": scene.r_sun}
         self.moon = EmbreeBody(body_mesh_m("moon", s.moon_level, s.moon_mesh, s.mesh_units, nominal["moon"]),
-                               scene.moon, th, k)
+                               scene.moon, th, k, scene.rotation("moon"))
         self.earth = EmbreeBody(body_mesh_m("earth", s.earth_level, s.earth_mesh, s.mesh_units, nominal["earth"]),
-                                scene.earth, th, k)
+                                scene.earth, th, k, scene.rotation("earth"))
         self.sun = EmbreeBody(body_mesh_m("sun", s.sun_level, s.sun_mesh, s.mesh_units, nominal["sun"]),
                               scene.sun, th, k)
         # ``shading`` is for the Moon and for user meshes; the packaged Sun and Earth spheres
@@ -246,7 +246,9 @@ class TraceScene:
             if self._self_shadows():
                 blocked |= self.moon.occluded(p, d, dist)
                 self._count(len(p))
-            if s.occlusion and not (to_det and self.scene.detector_inside("earth")):
+            if to_det and s.occlusion and self.scene.horizon_normal is not None:
+                blocked |= ~self.scene.sight_lines_clear(p)
+            elif s.occlusion and not (to_det and self.scene.detector_inside("earth")):
                 blocked |= self.earth.occluded(p, d, dist)
                 self._count(len(p))
             b = blocked.reshape(-1, 4)
@@ -305,7 +307,10 @@ class TraceScene:
         Earth, with ``occlusion``; the Moon itself, with ``self_shadow`` on a non-convex Moon)."""
         sc = self.scene
         mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
-        earth_blocks = self.settings.occlusion and not sc.detector_inside("earth")
+        horizon = self.settings.occlusion and sc.horizon_normal is not None
+        earth_blocks = self.settings.occlusion and not sc.detector_inside("earth") and not horizon
+        if horizon:  # a site on the WGS84 Earth: its horizon plane, not the model sphere
+            geom = np.where(sc.sight_lines_clear(x), geom, 0.0)
         if earth_blocks or self._self_shadows():
             idx = np.flatnonzero(geom > 0)
             xo = x[idx] + n[idx] * (NORMAL_OFFSET * self.moon.radius)

@@ -19,7 +19,8 @@ BRDF_BUTTONS = ("lambert", "shg", "dhg")
 class Viewer:
     def __init__(self, settings, theta: float, brdf: str, size=(1600, 900), off_screen=False):
         self.settings = settings
-        self.theta = float(theta)
+        #: the task key: θ [deg], or a UTC time label when ``settings.times`` is set
+        self.theta = theta if settings.times else float(theta)
         self.brdf = brdf
         self.size = size
         self.off_screen = off_screen
@@ -35,6 +36,14 @@ class Viewer:
             return
         self.theta = theta
         self._refresh()
+
+    def set_time_index(self, index: int):
+        """Show the ``index``-th of the settings' UTC times (real-sky viewer)."""
+        times = self.settings.times
+        key = times[int(np.clip(index, 0, len(times) - 1))]
+        if key != self.theta:
+            self.theta = key
+            self._refresh()
 
     def set_brdf(self, brdf: str):
         if brdf not in BRDF_BUTTONS:
@@ -76,9 +85,16 @@ class Viewer:
     def _add_controls(self):
         pl = self.plotter
         pl.subplot(1, 0)
-        pl.add_slider_widget(lambda v: self.set_phase(round(v)), [0.0, 180.0], value=self.theta,
-                             title="phase theta [deg]", pointa=(0.1, 0.08), pointb=(0.6, 0.08),
-                             style="modern", interaction_event="end", color="white")
+        if self.settings.times:
+            n = len(self.settings.times)
+            pl.add_slider_widget(lambda v: self.set_time_index(round(v)), [0.0, max(n - 1, 1e-9)],
+                                 value=self.settings.times.index(self.theta), title="time index",
+                                 pointa=(0.1, 0.08), pointb=(0.6, 0.08), style="modern",
+                                 interaction_event="end", color="white")
+        else:
+            pl.add_slider_widget(lambda v: self.set_phase(round(v)), [0.0, 180.0], value=self.theta,
+                                 title="phase theta [deg]", pointa=(0.1, 0.08), pointb=(0.6, 0.08),
+                                 style="modern", interaction_event="end", color="white")
         for k, name in enumerate(BRDF_BUTTONS):
             pl.add_checkbox_button_widget(lambda on, n=name: self.set_brdf(n), value=name == self.brdf,
                                           position=(10, 10 + 45 * k), size=35, color_on="orange")
@@ -86,8 +102,13 @@ class Viewer:
         if not self.off_screen:
             pl.enable_cell_picking(callback=self._on_pick, through=False, show=False, show_message=False,
                                    start=False)
-        pl.add_key_event("Right", lambda: self.set_phase(self.theta + 5))
-        pl.add_key_event("Left", lambda: self.set_phase(self.theta - 5))
+        if self.settings.times:
+            times = self.settings.times
+            pl.add_key_event("Right", lambda: self.set_time_index(times.index(self.theta) + 1))
+            pl.add_key_event("Left", lambda: self.set_time_index(times.index(self.theta) - 1))
+        else:
+            pl.add_key_event("Right", lambda: self.set_phase(self.theta + 5))
+            pl.add_key_event("Left", lambda: self.set_phase(self.theta - 5))
 
     def _on_pick(self, cells):
         if cells is None or cells.n_cells == 0 or "vtkOriginalCellIds" not in cells.cell_data:

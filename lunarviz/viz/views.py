@@ -47,14 +47,14 @@ def compute_view_data(settings, theta: float, brdf: str) -> ViewData:
     from ..analytic import analytic_irradiance
     settings = replace(settings, brdfs=(brdf,))
     fr = trace_facets(settings, theta, brdf)
-    sc = settings.scene(theta)
+    sc, fields = settings.scene_and_fields(theta)
     ms, es = fr.totals["moonshine_W_m2"], fr.totals["earthshine_W_m2"]
     model = settings.brdf_models()
     pt = analytic_irradiance(sc, model)[brdf]
     terms_pt = alb.lunar_terms(sc, pt.earthshine_W_m2, pt.moonshine_W_m2, settings.earth_albedo)
     terms = alb.lunar_terms(sc, es, ms, settings.earth_albedo)
     numbers = {
-        "theta_deg": theta, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg, "brdf": brdf,
+        **fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg, "brdf": brdf,
         "method": f"raytrace ({fr.info['estimator']}, occlusion {'on' if fr.info['occlusion'] else 'off'})",
         "moonshine_W_m2": ms, "earthshine_W_m2": es,
         "ratio": es / ms if ms > 0 else float("nan"),
@@ -72,7 +72,8 @@ def compute_view_data(settings, theta: float, brdf: str) -> ViewData:
 def numbers_text(n: dict) -> str:
     def f(v, fmt):
         return "n/a" if v is None or not np.isfinite(v) else format(v, fmt)
-    return "\n".join([
+    head = [f"{n['time_utc']}   observer {n['observer']}"] if "time_utc" in n else []
+    return "\n".join(head + [
         f"phase theta = {n['theta_deg']:.1f} deg   alpha = {n['alpha_deg']:.2f} deg   beta = {n['beta_deg']:.2f} deg",
         f"BRDF: {n['brdf']}    method: {n['method']}",
         f"moonshine  E = {f(n['moonshine_W_m2'], '.4e')} W/m^2",

@@ -1,0 +1,8 @@
+"""lunarviz's own error type: bad input that the command line reports in one line (exit 2)."""
+
+
+class LunarvizError(ValueError):
+    """A user's input is invalid (a value, a file, a date). The message names the bad value.
+
+    It subclasses ValueError so that callers catching ValueError keep working.
+    """
