@@ -38,9 +38,6 @@ def _hours(rows, t0):
 
 
 def lunation(out: Path, quick: bool):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     times = time_list(time_range="2026-06-01,2026-06-13,4d" if quick else "2026-06-01,2026-06-30,6h")
     method = "analytic" if quick else "raytrace"
     rows, payload = [], {"observers": OBSERVERS, "runs": []}
@@ -51,29 +48,49 @@ def lunation(out: Path, quick: bool):
         rows += res["rows"]
         payload["runs"].append({"observer": spec, "settings": res["settings"], "wall_seconds": res["wall_seconds"]})
     payload["rows"] = rows
+    payload["method"] = method
     write_results(out / "lunation.json", payload)
     write_results(out / "lunation.csv", {"rows": rows})
+    plot_lunation(out, payload)
+
+
+def plot_lunation(out: Path, payload: dict):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rows, method = payload["rows"], payload.get("method", "raytrace")
+    t0 = rows[0]["time_utc"]
     fig, ax = plt.subplots(3, 1, figsize=(10, 10), sharex=True)
     for label in OBSERVERS:
         rs = [r for r in rows if r["observer_label"] == label]
-        d = _hours(rs, times[0]) / 24
+        d = _hours(rs, t0) / 24
         occ = np.array([r["moon_occulted"] for r in rs])
         ms = np.array([r["moonshine_W_m2"] for r in rs])
         es = np.array([r["earthshine_W_m2"] for r in rs])
-        p = np.array([np.nan if r["apparent_albedo"] is None else r["apparent_albedo"] for r in rs], dtype=float)
+
+        def val(r, k):
+            return np.nan if r.get(k) is None else r[k]
+        p = np.array([val(r, "apparent_albedo") for r in rs], dtype=float)
+        pp = np.array([val(r, "apparent_albedo_point_source_inversion") for r in rs], dtype=float)
         line, = ax[0].semilogy(d[~occ], ms[~occ], ".-", ms=3, lw=0.6, label=label)
         ax[0].plot(d[occ], np.full(occ.sum(), ms[~occ].min() if (~occ).any() else 1e-8), "x",
                    color=line.get_color(), ms=4)
         ax[1].semilogy(d[~occ], es[~occ], ".-", ms=3, lw=0.6, color=line.get_color())
-        ax[2].plot(d[~occ], p[~occ], ".", ms=3, color=line.get_color())
+        if np.isfinite(pp).any():
+            ax[2].plot(d[~occ], pp[~occ], ".", ms=3, color=line.get_color())
+        else:
+            ax[2].plot(d[~occ], p[~occ], ".", ms=3, color=line.get_color())
     ax[0].set_ylabel("moonshine [W m$^{-2}$]")
-    ax[0].set_title(f"One lunation, {times[0][:10]} to {times[-1][:10]}, ray traced ({method}), DHG Moon; "
-                    "× = Moon occulted by the Earth", fontsize=10)
+    ax[0].set_title(f"One lunation, {rows[0]['time_utc'][:10]} to {rows[-1]['time_utc'][:10]}, {method}, "
+                    "DHG Moon; × = Moon occulted by the Earth (irradiance 0)", fontsize=10)
     ax[0].legend(fontsize=8)
     ax[1].set_ylabel("earthshine [W m$^{-2}$]")
     ax[2].set_ylabel("apparent albedo p*(β)")
     ax[2].axhline(0.3, color="k", lw=0.5, ls=":")
-    ax[2].set_xlabel(f"days since {times[0]}")
+    ax[2].ticklabel_format(useOffset=False)
+    ax[2].set_title("the paper's point-source inversion of the traced fluxes\n(the consistent inversion returns "
+                    "the input 0.3 to 1e-13 for this uniform Lambert Earth)", fontsize=9)
+    ax[2].set_xlabel(f"days since {t0}")
     fig.tight_layout()
     fig.savefig(out / "lunation.png", dpi=110)
     plt.close(fig)
@@ -115,9 +132,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="benchmarks/real_sky")
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--plot-only", action="store_true", help="redraw lunation.png from lunation.json")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    if a.plot_only:
+        import json
+        plot_lunation(out, json.loads((out / "lunation.json").read_text()))
+        return 0
     eclipse(out, a.quick)
     lunation(out, a.quick)
     print(f"wrote {out}/lunation.* and {out}/eclipse_2025-03-14.*")
