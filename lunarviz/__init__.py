@@ -1,4 +1,29 @@
-"""lunarviz: real-scale ray-traced earthshine and moonshine (see README.md)."""
+"""lunarviz: real-scale ray-traced earthshine and moonshine (Sun, Earth and Moon meshes, Embree).
+
+The Python API (see :mod:`lunarviz.api` and README.md, "Python"):
+
+* :class:`Scene` — the paper's θ scene or dates and an observer, bodies, meshes, BRDFs;
+* :func:`sweep` — an ``xarray.Dataset`` of moonshine, earthshine and albedo (brdf × phase|time);
+* :func:`trace` — per-facet results with ``.to_pyvista()``;
+* :func:`render`, :func:`view` — pictures and the interactive viewer (``web=True``: trame);
+* :func:`lunarviz.study.mesh` — mesh-resolution studies.
+
+Attributes are imported on first use, so ``import lunarviz`` stays light.
+"""
 
 __version__ = "0.1.0"
 
+__all__ = ["Scene", "sweep", "run", "trace", "render", "view", "study", "LunarvizError", "__version__"]
+
+
+def __getattr__(name):
+    if name in ("Scene", "sweep", "run", "trace", "render", "view"):
+        from . import api
+        return getattr(api, name)
+    if name == "study":
+        import importlib
+        return importlib.import_module(".study", __name__)
+    if name == "LunarvizError":
+        from .errors import LunarvizError
+        return LunarvizError
+    raise AttributeError(f"module 'lunarviz' has no attribute {name!r}")

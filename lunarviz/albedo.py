@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .earth import lambert_phase_function
+from .errors import LunarvizError
 from .geometry import Scene
 
 
@@ -56,10 +57,14 @@ MIN_LUNAR_TERM = 1e-9
 
 def geometric_albedo_term(scene: Scene, earthshine: float, moonshine: float,
                           terms: LunarTerms) -> float:
-    """p_E f_E(β), paper Eq. 15; NaN where it is undefined: no moonshine (new Moon, eclipse) or
-    no earthlight on the Moon (full Moon)."""
+    """p_E f_E(β), paper Eq. 15; NaN where it is undefined: no moonshine (new Moon, eclipse,
+    occultation), no earthlight on the Moon (full Moon), or no earthlit Moon in the detector's
+    view (a detector behind the Moon)."""
     d_em, d_sm, d_se, r_e = scene.d_em_actual, scene.d_sm, scene.d_se_actual, scene.radii["earth"]
-    if not (moonshine > 0 and terms.pb_fb > MIN_LUNAR_TERM and terms.pa_fa > 0 and np.isfinite(terms.pa_fa)):
+    # undefined without a measurable sunlit Moon (p_b f_b) or without a measurable earthlit
+    # Moon seen from the detector (p_a f_a: e.g. a detector behind the Moon sees ~1e-16 W m-2)
+    if not (moonshine > 0 and terms.pb_fb > MIN_LUNAR_TERM and terms.pa_fa > MIN_LUNAR_TERM
+            and np.isfinite(terms.pa_fa)):
         return float("nan")
     val = (terms.pb_fb / terms.pa_fa) * (earthshine / moonshine) * d_em**2 * d_se**2 / (r_e**2 * d_sm**2)
     return float(val) if np.isfinite(val) else float("nan")
@@ -85,7 +90,7 @@ def bond_weights(beta_deg: np.ndarray) -> np.ndarray:
     order = np.argsort(b)
     bs = b[order]
     if np.any(np.diff(bs) <= 0):
-        raise ValueError("Bond albedo needs distinct phase angles")
+        raise LunarvizError("Bond albedo needs distinct phase angles")
     x, wx = np.polynomial.legendre.leggauss(20)
 
     def kernel_integral(lo, hi, f):

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .earth import earth_intensity
+from .errors import LunarvizError
 from .geometry import Scene, angle_between, half_angle_sin_cos, unit
 from .sphere_quadrature import cap_rule, compact
 from .transport import Transport, detector_geometry
@@ -42,13 +43,13 @@ class AnalyticSettings:
 
     def __post_init__(self):
         if self.grid not in GRIDS:
-            raise ValueError(f"analytic grid {self.grid!r} is not one of {', '.join(GRIDS)}")
+            raise LunarvizError(f"analytic grid {self.grid!r} is not one of {', '.join(GRIDS)}")
         if not (isinstance(self.order, (int, np.integer)) and 2 <= self.order <= 512):
-            raise ValueError(f"analytic order={self.order!r} must be an integer in [2, 512]")
+            raise LunarvizError(f"analytic order={self.order!r} must be an integer in [2, 512]")
         if not (0 < self.paper_step_deg <= 85):
-            raise ValueError(f"paper grid step {self.paper_step_deg!r} deg must be in (0, 85]")
+            raise LunarvizError(f"paper grid step {self.paper_step_deg!r} deg must be in (0, 85]")
         if not (0 <= self.earth_albedo <= 1):
-            raise ValueError(f"Earth albedo {self.earth_albedo!r} must be in [0, 1]")
+            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be in [0, 1]")
 
 
 def lunar_surface_rule(scene: Scene, source: np.ndarray, source_radius: float = 0.0,
@@ -63,7 +64,7 @@ def lunar_surface_rule(scene: Scene, source: np.ndarray, source_radius: float = 
     to_det = scene.det - M
     d_det = np.linalg.norm(to_det)
     if d_det <= R:
-        raise ValueError("the detector is inside the Moon")
+        raise LunarvizError("the detector is inside the Moon")
     to_src = source - M
     d_src = np.linalg.norm(to_src)
     u = to_src / d_src

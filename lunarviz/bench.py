@@ -42,7 +42,7 @@ def _err(values: dict, ref: dict, path: str) -> float:
 
 
 def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
-    from .trace.estimators import TraceScene, TraceSettings, trace_path
+    from .tracer.estimators import TraceScene, TraceSettings, trace_path
     out = Path(out)
     models = {b: make_brdf(b) for b in BRDFS}
     phases = (60.0, 150.0) if quick else (30.0, 90.0, 150.0)
@@ -130,7 +130,7 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
                 "reach Embree; the rest of the time is numpy shading (3 BRDFs), quadrature rules and "
                 "geometry. Sweeps parallelise over phases in processes instead (see sweep_speedup).",
     }
-    from .sweep import SweepSettings, run_sweep
+    from .sweeps import SweepSettings, run_sweep
     six = SweepSettings(method="raytrace", phases_deg=(20.0, 50.0, 80.0, 110.0, 140.0, 170.0))
     _, t_w1 = _timed(lambda: run_sweep(six, workers=1))
     _, t_w2 = _timed(lambda: run_sweep(six, workers=2))
@@ -200,7 +200,7 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
         import sys
         import tempfile
 
-        from .sweep import SweepSettings as _S
+        from .sweeps import SweepSettings as _S
         from .viz import views
         data, t_data = _timed(lambda: views.compute_view_data(_S(method="raytrace"), 90.0, "dhg"))
 

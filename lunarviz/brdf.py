@@ -29,6 +29,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import constants as C
+from .errors import LunarvizError
 
 H_FUNCTIONS = ("hapke1981", "hapke2002", "exact")
 DHG_CONVENTIONS = ("paper", "hapke2012")
@@ -45,7 +46,7 @@ def _check(name: str, value: float, lo: float, hi: float, lo_open=False, hi_open
         value < hi if hi_open else value <= hi)
     if not ok:
         lb, rb = ("(" if lo_open else "["), (")" if hi_open else "]")
-        raise ValueError(f"BRDF parameter {name}={value!r} is outside its allowed range {lb}{lo}, {hi}{rb}")
+        raise LunarvizError(f"BRDF parameter {name}={value!r} is outside its allowed range {lb}{lo}, {hi}{rb}")
     return value
 
 
@@ -119,7 +120,7 @@ class DoubleHG:
         _check("b", self.b, 0.0, 1.0, hi_open=True)
         _check("c", self.c, -1.0, 1.0)
         if self.convention not in DHG_CONVENTIONS:
-            raise ValueError(f"DHG convention {self.convention!r} is not one of {', '.join(DHG_CONVENTIONS)}")
+            raise LunarvizError(f"DHG convention {self.convention!r} is not one of {', '.join(DHG_CONVENTIONS)}")
 
     def __call__(self, sin_hg, cos_hg):
         fwd = _hg_lobe(self.b, sin_hg, cos_hg, backward=False)
@@ -265,7 +266,7 @@ class Hapke:
         _check("h", self.h, 0.0, np.inf, hi_open=True)
         _check("B0", self.B0, 0.0, np.inf, hi_open=True)
         if self.h_function not in H_FUNCTIONS:
-            raise ValueError(f"H-function {self.h_function!r} is not one of {', '.join(H_FUNCTIONS)}")
+            raise LunarvizError(f"H-function {self.h_function!r} is not one of {', '.join(H_FUNCTIONS)}")
 
     def H(self, x):
         return _H_IMPL[self.h_function](np.clip(x, 0.0, 1.0), self.w)
@@ -331,10 +332,10 @@ def make_brdf(name: str, *, dhg_convention: str = "paper", h_function: str = "ha
         allowed = {"w", "h", "B0", "b", "c"}
         model = Hapke(phase=DoubleHG(0.308, 0.425, dhg_convention), h_function=h_function, name="dhg")
     else:
-        raise ValueError(f"unknown BRDF {name!r}: choose from {', '.join(BRDF_NAMES)}")
+        raise LunarvizError(f"unknown BRDF {name!r}: choose from {', '.join(BRDF_NAMES)}")
     bad = sorted(set(params) - allowed)
     if bad:
-        raise ValueError(f"unknown parameter {bad[0]!r} for BRDF {key!r}: allowed {', '.join(sorted(allowed))}")
+        raise LunarvizError(f"unknown parameter {bad[0]!r} for BRDF {key!r}: allowed {', '.join(sorted(allowed))}")
     return model.with_params(**params) if params else model
 
 

@@ -110,7 +110,7 @@ def _omega_det():
 
 def trace_beam(settings: BrdfTestSettings):
     """Trace the grid source against the target with Embree; hit points and beam weights."""
-    from .trace.bodies import EmbreeBody
+    from .tracer.bodies import EmbreeBody
     i = np.radians(INCIDENCE_DEG)
     d_in = _geometry(0.0, 0.0)[0]
     target = EmbreeBody(_disk_mesh(TARGET_RADIUS_M), [0.0, 0.0, 0.0], threads=1)

@@ -12,11 +12,14 @@ import math
 import sys
 from pathlib import Path
 
+from .errors import LunarvizError
+from .parsing import parse_float_list
+
 EXIT_USAGE = 2
 
 
-class UsageError(Exception):
-    """Bad input from the user: printed as one line."""
+class UsageError(LunarvizError):
+    """Bad input from the user on the command line: printed as one line."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -25,41 +28,6 @@ class _Parser(argparse.ArgumentParser):
 
 
 # ---- parsing helpers ---------------------------------------------------------------------
-def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | None = None) -> list[float]:
-    """``a,b,c`` and/or ``start:stop[:step]`` (stop inclusive, step 1 by default) → floats,
-    each checked in [lo, hi]."""
-    out: list[float] = []
-    if text is None or not str(text).strip():
-        raise UsageError(f"empty {name} list")
-    for part in str(text).split(","):
-        part = part.strip()
-        try:
-            if ":" in part:
-                bits = part.split(":")
-                if len(bits) == 2:
-                    bits.append("1")
-                if len(bits) != 3:
-                    raise ValueError
-                a, b, s = (float(x) for x in bits)
-                if not all(math.isfinite(v) for v in (a, b, s)) or s <= 0 or b < a:
-                    raise ValueError
-                n = int(math.floor((b - a) / s + 1e-9))
-                if n > 100_000:
-                    raise ValueError
-                out += [a + i * s for i in range(n + 1)]
-            else:
-                v = float(part)
-                if not math.isfinite(v):
-                    raise ValueError
-                out.append(v)
-        except ValueError:
-            raise UsageError(f"malformed {name} {part!r}: use a,b,c or start:stop[:step] with step > 0") from None
-    for v in out:
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
-            raise UsageError(f"{name} {v:g} is out of range [{lo:g}, {hi:g}]")
-    return out
-
-
 def parse_params(items, brdfs) -> dict:
     """``--param NAME=VALUE`` or ``BRDF.NAME=VALUE`` → ``{brdf: {name: value}}``."""
     from .brdf import make_brdf
@@ -204,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--earth-law", default="lambert", choices=["lambert", "paper_eq8"])
     p.add_argument("--workers", type=_positive_int("--workers"), default=None)
     p.add_argument("--quiet", action="store_true")
-    p.add_argument("--out", required=True)
+    p.add_argument("--out", required=True, help=".json, .csv or .nc (NetCDF-4 through xarray)")
     _add_physics_options(p)
     _add_trace_options(p)
     _add_sky_options(p)
@@ -236,6 +204,11 @@ def build_parser() -> argparse.ArgumentParser:
         if name == "render":
             p.add_argument("--out", required=True, help="PNG path; with several phases, frames FILE_000.png …")
             p.add_argument("--gif", default=None, help="also write an animated GIF of the frames")
+        else:
+            p.add_argument("--web", action="store_true",
+                           help="serve the viewer to a browser through trame (no display needed)")
+            p.add_argument("--port", type=int, default=None, help="with --web: TCP port (default: a free one)")
+            p.add_argument("--host", default=None, help="with --web: interface to bind (default 127.0.0.1)")
         p.add_argument("--quiet", action="store_true")
         _add_physics_options(p)
         _add_trace_options(p)
@@ -284,14 +257,14 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _sweep_settings(a, phases, method, times=None):
-    from .sweep import SweepSettings
+def _scene(a, phases, times=None):
+    """The :class:`lunarviz.Scene` the options describe (the CLI is a thin layer over the API)."""
+    from .api import Scene
     brdfs = _brdf_list(a.brdf)
-    return SweepSettings(
-        times=times, observer=getattr(a, "observer", "geocentre"),
-        brdfs=tuple(brdfs), phases_deg=tuple(phases), method=method,
-        dhg_convention=a.dhg_convention, h_function=a.h_function, params=parse_params(a.param, brdfs),
-        detector=_detector(a.detector), earth_albedo=a.earth_albedo,
+    return Scene(
+        phases=phases, time=times, observer=getattr(a, "observer", "geocentre"),
+        brdfs=tuple(brdfs), dhg_convention=a.dhg_convention, h_function=a.h_function,
+        params=parse_params(a.param, brdfs), detector=_detector(a.detector), earth_albedo=a.earth_albedo,
         earth_law=getattr(a, "earth_law", "lambert"), grid=getattr(a, "grid", "converged"),
         order=getattr(a, "order", 24), estimator=a.estimator, rays=a.rays, runs=a.runs, seed=a.seed,
         moon_level=a.mesh_level, earth_level=a.earth_level, sun_level=a.sun_level,
@@ -301,16 +274,22 @@ def _sweep_settings(a, phases, method, times=None):
 
 
 def cmd_sweep(a):
+    from . import api
     from .io import write_results
-    from .sweep import METHODS, run_sweep
+    from .sweeps import METHODS
     if a.method not in METHODS:
         raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
     times = _times(a)
     phases = parse_float_list(a.phases, "phase", 0.0, 180.0)
-    out = _check_out(a.out, (".json", ".csv"))
-    settings = _sweep_settings(a, phases, a.method, times)
-    res = run_sweep(settings, workers=a.workers, progress=not a.quiet)
-    write_results(out, res)
+    out = _check_out(a.out, (".json", ".csv", ".nc"))
+    scene = _scene(a, phases, times)
+    scene.settings(a.method)  # method-specific checks before any work
+    res = api.run(scene, a.method, workers=a.workers, progress=not a.quiet)
+    if out.suffix.lower() == ".nc":
+        from .tables import write_netcdf
+        write_netcdf(out, res)
+    else:
+        write_results(out, res)
     if not a.quiet:
         for b, m in res["bond_albedo"].items():
             for meth, v in m.items():
@@ -350,7 +329,8 @@ def cmd_brdf(a):
 
 
 def cmd_trace(a):
-    from .facets import trace_facets, write_facet_mesh
+    from . import api
+    from .viz.meshio import check_vtm_target, write_facet_mesh
     times = _times(a)
     if times is not None:
         if a.phase is not None:
@@ -366,10 +346,8 @@ def cmd_trace(a):
         key = a.phase
     out = _check_out(a.out, (".vtp", ".vtk", ".ply", ".vtm"))
     if str(out).lower().endswith(".vtm"):
-        from .facets import check_vtm_target
         check_vtm_target(out)
-    settings = _sweep_settings(a, [a.phase if a.phase is not None else 0.0], "raytrace", times)
-    res = trace_facets(settings, key)
+    res = api.trace(_scene(a, [a.phase if a.phase is not None else 0.0], times), key)
     write_facet_mesh(out, res)
     print(f"moonshine {res.totals['moonshine_W_m2']:.6e} W/m2, earthshine {res.totals['earthshine_W_m2']:.6e} W/m2")
     print(f"wrote {out} ({res.n_faces} facets)")
@@ -387,27 +365,38 @@ def cmd_render(a, interactive=False):
     if a.view not in views.VIEWS:
         raise UsageError(f"unknown view {a.view!r}: choose from {', '.join(views.VIEWS)}")
     times = _times(a)
-    settings = _sweep_settings(a, phases, "raytrace", times)
-    keys = list(times) if times is not None else phases
     brdf = _brdf_list(a.brdf)
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
+    scene = _scene(a, phases, times)
     if interactive:
+        from . import api
+        web = getattr(a, "web", False)
+        if not web and (getattr(a, "port", None) is not None or getattr(a, "host", None) is not None):
+            raise UsageError("--port and --host go with --web")
+        if web:
+            port = 0 if a.port is None else a.port
+            if not 0 <= port <= 65535:
+                raise UsageError(f"--port {port} is not a TCP port (0-65535; 0 picks a free one)")
+            api.view(scene, brdf=brdf[0], size=(w, h), web=True, port=port, host=a.host or "127.0.0.1")
+            return
         import os
         if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-            raise UsageError("lunarviz view needs a display (DISPLAY is not set); use lunarviz render for pictures")
-        views.run_viewer(settings, keys[0], brdf[0], size=(w, h))
+            raise UsageError("lunarviz view needs a display (DISPLAY is not set); use lunarviz view --web "
+                             "(a browser) or lunarviz render (pictures)")
+        api.view(scene, brdf=brdf[0], size=(w, h))
         return
     out = _check_out(a.out, (".png",))
     gif = _check_out(a.gif, (".gif",)) if a.gif else None
-    files = views.render_frames(settings, keys, brdf[0], out, view=a.view, size=(w, h),
+    settings = scene.settings("raytrace")
+    files = views.render_frames(settings, scene.keys, brdf[0], out, view=a.view, size=(w, h),
                                 gif=gif, progress=not a.quiet)
     for f in files:
         print(f"wrote {f}")
 
 
 def cmd_study(a):
-    from .study import mesh_study
+    from . import study
     levels = parse_float_list(a.levels, "level", 0, 8)
     bad = [v for v in levels if v != int(v)]
     if bad:
@@ -426,8 +415,8 @@ def cmd_study(a):
         raise UsageError(f"--levels {a.levels!r} must increase (coarse to fine)")
     if meshes is not None and len(set(meshes)) != len(meshes):
         raise UsageError("--meshes lists a mesh twice")
-    mesh_study(levels, phases, _brdf_list(a.brdf), out, shading=a.shading, progress=not a.quiet,
-               body=a.body, shape=a.shape, axes=tuple(_check_axes(a.axes)), meshes=meshes,
+    study.mesh(levels, phases, _brdf_list(a.brdf), out=out, plot=out.with_suffix(".png"), shading=a.shading,
+               progress=not a.quiet, body=a.body, shape=a.shape, axes=tuple(_check_axes(a.axes)), meshes=meshes,
                mesh_units=a.mesh_units)
     print(f"wrote {out}")
 
@@ -524,7 +513,8 @@ def main(argv=None) -> int:
     except UsageError as exc:
         print(f"lunarviz: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except ValueError as exc:  # validation errors from the physics core (parameters, meshes)
+    except LunarvizError as exc:  # validation errors from the core (parameters, meshes, dates); other
+        # exceptions are bugs and keep their traceback
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         print(f"lunarviz: error: {msg}", file=sys.stderr)
         return EXIT_USAGE

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import LunarvizError
+
 EARTH_LAWS = ("lambert", "paper_eq8")
 
 
@@ -39,6 +41,6 @@ def earth_intensity(beta, albedo: float, radius: float, irradiance: float,
     printed, 3/2 times brighter.
     """
     if law not in EARTH_LAWS:
-        raise ValueError(f"Earth intensity law {law!r} is not one of {', '.join(EARTH_LAWS)}")
+        raise LunarvizError(f"Earth intensity law {law!r} is not one of {', '.join(EARTH_LAWS)}")
     factor = 2.0 / 3.0 if law == "lambert" else 1.0
     return factor * albedo * radius**2 * irradiance * lambert_phase_function(beta)

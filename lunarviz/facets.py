@@ -41,7 +41,7 @@ class FacetResult:
 
 def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None) -> FacetResult:
     """Ray trace one phase θ [deg] (or UTC time, with ``settings.times``) with ``settings``
-    (a :class:`~lunarviz.sweep.SweepSettings`).
+    (a :class:`~lunarviz.sweeps.SweepSettings`).
 
     The unsuffixed radiance/contribution arrays are for ``brdf_name`` (default: the first
     BRDF); ``<path>_radiance_W_m2_sr_<brdf>`` holds every BRDF of ``settings``. Moon facets
@@ -52,7 +52,7 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
     ``sun_visibility`` (the Moon's shadow) and ``earthshine_beam_hits``; Sun facets
     ``moonshine_beam_hits``.
     """
-    from .trace.estimators import TraceScene, trace_path
+    from .tracer.estimators import TraceScene, trace_path
     brdf_name = brdf_name or settings.brdfs[0]
     models = settings.brdf_models()
     sc, fields = settings.scene_and_fields(theta)
@@ -117,50 +117,13 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
     return FacetResult(M.vertices.copy(), M.faces.copy(), cd, totals, info, bodies)
 
 
-def check_vtm_target(path) -> None:
-    """A .vtm is an index plus a folder of blocks beside it: refuse to replace a folder that
-    holds anything but an earlier multiblock's block files (or a file of that name)."""
-    import re
-    from pathlib import Path
-    p = Path(path)
-    d = p.parent / p.stem
-    if d.exists():
-        if not d.is_dir():
-            raise ValueError(f"--out {path}: {d} exists and is not a directory (a .vtm needs it for its blocks)")
-        pat = re.compile(rf"{re.escape(p.stem)}_\d+\.vt[pu]$")
-        other = [q.name for q in d.iterdir() if not pat.match(q.name)]
-        if other:
-            raise ValueError(f"--out {path}: folder {d} holds other files ({other[0]}); choose another name")
-
-
-def write_facet_mesh(path, res: FacetResult) -> None:
-    """Write the lunar mesh with its cell data (.vtp, .vtk or .ply), or every body as a
-    multiblock (.vtm: blocks ``moon``, ``earth``, ``sun`` in scene coordinates [m]), atomically."""
-    import json
-    from pathlib import Path
-
-    from .io import atomic_path
-    from .viz.meshio import facet_polydata
-    meta = json.dumps({**res.info, **res.totals})
-    if Path(path).suffix.lower() == ".vtm":
-        from .viz.meshio import write_multiblock
-        check_vtm_target(path)
-        write_multiblock(path, res, meta)
-        return
-    poly = facet_polydata(res)
-    if Path(path).suffix.lower() != ".ply":
-        poly.field_data["info_json"] = [meta]
-    with atomic_path(path) as tmp:
-        poly.save(tmp)
-
-
 def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict:
     """A few representative light paths as polylines (world coordinates [m]).
 
     ``moonshine``: Sun surface → lunar point → detector; ``earthshine``: Sun → Earth surface
     → lunar point → detector. Lunar points are drawn among lit, visible facets ∝ area.
     """
-    from .trace.estimators import TraceScene
+    from .tracer.estimators import TraceScene
     rng = np.random.default_rng(seed)
     sc = settings.scene(theta)
     ts = TraceScene(sc, settings.trace_settings())

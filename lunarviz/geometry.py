@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import constants as C
+from .errors import LunarvizError
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -121,25 +122,26 @@ class Scene:
         for name in ("d_se", "d_em", "r_sun", "r_earth", "r_moon", "phi_sun", "scale"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"scene parameter {name}={v!r} must be a positive finite number")
+                raise LunarvizError(f"scene parameter {name}={v!r} must be a positive finite number")
         if not np.isfinite(self.theta_deg):
-            raise ValueError(f"phase theta={self.theta_deg!r} deg must be finite")
+            raise LunarvizError(f"phase theta={self.theta_deg!r} deg must be finite")
         if (self.sun_position is None) != (self.moon_position is None):
-            raise ValueError("a general scene needs both sun_position and moon_position")
+            raise LunarvizError("a general scene needs both sun_position and moon_position")
         if self.general:
             d_sm = float(np.linalg.norm(np.subtract(self.sun_position, self.moon_position)))
             if self.d_em <= self.r_earth + self.r_moon or self.d_se <= self.r_sun + self.r_earth \
                     or d_sm <= self.r_sun + self.r_moon:
-                raise ValueError("bodies overlap: check the positions and the radii")
+                raise LunarvizError("bodies overlap: check the positions and the radii")
         elif self.d_em <= self.r_earth + self.r_moon or self.d_se <= self.r_sun + self.d_em + self.r_moon:
-            raise ValueError("bodies overlap: check d_se, d_em and the radii")
+            raise LunarvizError("bodies overlap: check d_se, d_em and the radii")
         if self.detector is not None:
             det = np.asarray(self.detector, dtype=float)
             if det.shape != (3,) or not np.all(np.isfinite(det)):
-                raise ValueError(f"detector position {self.detector!r} must be three finite numbers [m]")
+                raise LunarvizError(f"detector position {self.detector!r} must be three finite numbers [m]")
             for body in ("sun", "moon"):
                 if self.detector_inside(body):
-                    raise ValueError(f"detector position {tuple(float(c) for c in det)} m is inside the {body}")
+                    where = tuple(float(c) for c in det)
+                    raise LunarvizError(f"detector position {where} m is inside the {body.capitalize()}")
 
     # --- positions [m] -------------------------------------------------------------------
     @property

@@ -11,6 +11,8 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+from .errors import LunarvizError
+
 SUFFIXES = (".json", ".csv")
 
 
@@ -18,14 +20,14 @@ def check_output_path(path, suffixes=SUFFIXES) -> Path:
     """Validate an output path before any work is done: suffix and a writable directory."""
     p = Path(path)
     if p.suffix.lower() not in suffixes:
-        raise ValueError(f"output {str(path)!r} must end in {' or '.join(suffixes)}")
+        raise LunarvizError(f"output {str(path)!r} must end in {' or '.join(suffixes)}")
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
-        raise ValueError(f"output directory {str(parent)!r} does not exist")
+        raise LunarvizError(f"output directory {str(parent)!r} does not exist")
     if not os.access(parent, os.W_OK):
-        raise ValueError(f"output directory {str(parent)!r} is not writable")
+        raise LunarvizError(f"output directory {str(parent)!r} is not writable")
     if p.exists() and p.is_dir():
-        raise ValueError(f"output {str(path)!r} is a directory")
+        raise LunarvizError(f"output {str(path)!r} is a directory")
     return p
 
 

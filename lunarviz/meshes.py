@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from .errors import LunarvizError
+
 MESH_DIR = Path(__file__).resolve().parent.parent / "meshes"
 BODIES = ("sun", "earth", "moon")
 #: Default subdivision levels, chosen from the mesh-resolution study
@@ -35,7 +37,7 @@ def _nominal_radii() -> dict:
 NOMINAL_RADII = _nominal_radii()
 
 
-class MeshError(ValueError):
+class MeshError(LunarvizError):
     """A mesh that cannot represent a body."""
 
 

@@ -193,7 +193,7 @@ def run_paper(out, quick: bool = False, progress: bool = True) -> dict:
     from .brdf import make_brdf
     from .brdf_test import BrdfTestSettings, run_brdf_test
     from .io import write_bytes_atomic
-    from .sweep import SweepSettings, run_sweep
+    from .sweeps import SweepSettings, run_sweep
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()

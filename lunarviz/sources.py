@@ -1,7 +1,7 @@
 """The Sun and the Earth as extended sources seen from lunar surface points.
 
 Shared by the exact reference (:mod:`lunarviz.reference`) and the deterministic ray tracer
-(:mod:`lunarviz.trace.estimators`): the product Gauss rule over the part of a source's sphere
+(:mod:`lunarviz.tracer.estimators`): the product Gauss rule over the part of a source's sphere
 that a lunar point sees above its horizon (and, for the Earth, that the Sun lights), and the
 beams (directions, solid angles) toward its nodes. Regions are caps (scripts/derivations.md §1).
 """

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .brdf import make_brdf
+from .errors import LunarvizError
 from .geometry import Scene
 from .reference import ReferenceSettings, reference_irradiance
 
@@ -57,11 +58,11 @@ def _study_meshes(body, shape, levels, axes, meshes, tmp):
 def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: bool = True,
                progress: bool = False, body: str = "moon", shape: str = "sphere",
                axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m") -> dict:
-    from .trace.estimators import TraceScene, TraceSettings, trace_path
+    from .tracer.estimators import TraceScene, TraceSettings, trace_path
     if body not in ("moon", "earth", "sun"):
-        raise ValueError(f"unknown body {body!r}: choose from moon, earth, sun")
+        raise LunarvizError(f"unknown body {body!r}: choose from moon, earth, sun")
     if shape not in STUDY_SHAPES:
-        raise ValueError(f"unknown study shape {shape!r}: choose from {', '.join(STUDY_SHAPES)}")
+        raise LunarvizError(f"unknown study shape {shape!r}: choose from {', '.join(STUDY_SHAPES)}")
     if meshes:
         levels = list(range(len(meshes)))
     if body != "moon" and shape == "sphere" and not meshes and shading == "auto":
@@ -140,6 +141,33 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
         out = Path(out)
         write_results(out, res)
         plot_study(res, out.with_suffix(".png"))
+    return res
+
+
+def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg", "dhg"), *, body: str = "moon",
+         shape: str = "sphere", axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m", shading: str = "auto",
+         refine: bool = True, out=None, plot=None, progress: bool = False) -> dict:
+    """Mesh-resolution study (the Python face of ``lunarviz study mesh``).
+
+    Traces every phase θ [deg] with ``body``'s mesh at every icosphere ``level`` (or the user's
+    ``meshes``, coarse to fine) and returns ``{"settings", "rows", "summary"}``: per level the
+    facets, the relative error (against the exact reference for the sphere, else the finest
+    mesh), the observed order and the run time. Nothing is written or drawn unless asked:
+    ``out`` (.json/.csv) writes the table, ``plot`` (a .png path) draws the convergence plot.
+    """
+    from .io import check_output_path
+    if out is not None:
+        out = check_output_path(out)
+    if plot is not None:
+        plot = check_output_path(plot, (".png",))
+    res = mesh_study(list(levels), list(phases), list(brdfs), None, shading=shading, refine=refine,
+                     progress=progress, body=body, shape=shape, axes=tuple(axes), meshes=meshes,
+                     mesh_units=mesh_units)
+    if out is not None:
+        from .io import write_results
+        write_results(out, res)
+    if plot is not None:
+        plot_study(res, plot)
     return res
 
 

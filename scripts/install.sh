@@ -3,13 +3,15 @@
 #   bash scripts/install.sh        # the package with its viewer/plot extras
 #   bash scripts/install.sh test   # … and the test tools
 # System packages: Mesa's EGL/GL for offscreen rendering (PyVista/VTK) and Xvfb for the
-# desktop-viewer test. Installed only where missing and where we may (root, apt-get).
+# desktop-viewer test; with `test`, Debian's chromium for the browser-viewer test
+# (tests/test_web.py). Installed only where missing and where we may (root, apt-get).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 extra="viz"
-[ "${1:-}" = "test" ] && extra="test"
+pkgs="libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0 libxrender1 xvfb xauth"
+if [ "${1:-}" = "test" ]; then extra="test"; pkgs="$pkgs chromium"; fi
 need=()
-for pkg in libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0 libxrender1 xvfb xauth; do
+for pkg in $pkgs; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then

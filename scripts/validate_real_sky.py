@@ -30,7 +30,7 @@ from lunarviz.brdf import make_brdf  # noqa: E402
 from lunarviz.io import write_results  # noqa: E402
 from lunarviz.observers import parse_observer  # noqa: E402
 from lunarviz.sky import sky_scene  # noqa: E402
-from lunarviz.sweep import SweepSettings, run_phase  # noqa: E402
+from lunarviz.sweeps import SweepSettings, run_phase  # noqa: E402
 
 
 def main(argv=None) -> int:

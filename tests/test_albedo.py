@@ -6,7 +6,7 @@ import pytest
 from lunarviz import albedo as alb
 from lunarviz.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.geometry import Scene
-from lunarviz.sweep import SweepSettings, run_sweep
+from lunarviz.sweeps import SweepSettings, run_sweep
 
 
 def test_bond_weights_integrate_the_kernel_exactly():
@@ -66,7 +66,7 @@ def test_inversion_measures_a_non_spherical_earth():
     import independent as ind
     from lunarviz import constants as C
     from lunarviz import shapes
-    from lunarviz.sweep import run_phase
+    from lunarviz.sweeps import run_phase
     import tempfile
     x, n, w = ind.ellipsoid_surface(0.8, 1.0, 1.0, n=300)
     xs, ns, ws = ind.ellipsoid_surface(1.0, 1.0, 1.0, n=300)

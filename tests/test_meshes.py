@@ -15,8 +15,8 @@ from lunarviz import shapes
 from lunarviz.cli import main
 from lunarviz.geometry import Scene
 from lunarviz.meshes import MeshError, load_user_mesh
-from lunarviz.trace.bodies import EmbreeBody
-from lunarviz.trace.estimators import TraceScene, TraceSettings, trace_path
+from lunarviz.tracer.bodies import EmbreeBody
+from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
 
 import independent as ind
 
@@ -240,7 +240,7 @@ def test_embree_stub_changes_non_spherical_results(tmp_path, cube_path, lam_dhg,
     def miss(self, o32, d32, query, dists=None, scene=None):
         return np.full(len(o32), -1, dtype=np.int32)
     monkeypatch.setattr(EmbreeBody, "_run", miss)
-    from lunarviz.trace import bodies
+    from lunarviz.tracer import bodies
     bodies._GEOMETRY_CACHE.clear()
     for p, (ms0, es0) in before.items():
         ms1, es1, _ = _trace(120.0, p, lam, shading="flat")

@@ -26,7 +26,7 @@ from lunarviz import constants as C
 from lunarviz.brdf import make_brdf
 from lunarviz.observers import parse_observer
 from lunarviz.sky import sky_scene
-from lunarviz.sweep import SweepSettings, run_phase, run_sweep
+from lunarviz.sweeps import SweepSettings, run_phase, run_sweep
 
 HERE = os.path.dirname(__file__)
 TLE = os.path.join(HERE, "data", "leo_2027.tle")  # a synthetic ISS-like orbit, epoch 2027-01-01 (sgp4 exporter)
@@ -86,7 +86,7 @@ def test_general_scene_equals_theta_scene():
     # (vectors, paper grid about the sub-Earth point); every number must agree to round-off.
     from lunarviz.analytic import AnalyticSettings, analytic_irradiance
     from lunarviz.geometry import Scene
-    from lunarviz.trace.estimators import TraceScene, TraceSettings, trace_path
+    from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
     models = {k: make_brdf(k) for k in ("lambert", "dhg")}
     for th in (30.0, 120.0):
         a = Scene(th)
@@ -174,7 +174,7 @@ def test_tle_occultation_is_traced_by_embree():
     # The ray tracer learns that the Earth hides the Moon from Embree: with the Earth's
     # queries answered 'miss' (the Sun's still traced), the occulted LEO observer sees the
     # Moon again, as bright as from an unoccluded scene.
-    from lunarviz.trace.estimators import TraceScene, trace_path
+    from lunarviz.tracer.estimators import TraceScene, trace_path
     iso = "2027-01-01T00:20:00Z"
     s = SweepSettings(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method="raytrace")
     models = s.brdf_models()

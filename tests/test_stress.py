@@ -8,7 +8,7 @@ import pytest
 from lunarviz import brdf as B
 from lunarviz.analytic import analytic_irradiance
 from lunarviz.geometry import Scene
-from lunarviz.trace.estimators import TraceScene, TraceSettings, trace_path
+from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
 
 
 def test_single_scattering_albedo_limits():
@@ -82,7 +82,7 @@ def test_float32_trap_naive_geocentric_would_fail():
     # The trap NOTES.md describes: casting rays from the Sun's true position in a geocentric
     # float32 frame. Our body-centred frames hit the same facets as an exact float64 answer.
     from lunarviz.meshes import unit_icosphere
-    from lunarviz.trace.bodies import EmbreeBody
+    from lunarviz.tracer.bodies import EmbreeBody
     sc = Scene(60.0)
     moon = EmbreeBody(unit_icosphere(6), sc.moon, scale=sc.r_moon)
     rng = np.random.default_rng(1)

@@ -7,8 +7,8 @@ import trimesh
 from lunarviz.geometry import Scene, unit
 from lunarviz.meshes import MeshError, load_user_mesh, unit_icosphere, validate_mesh
 from lunarviz.reference import ReferenceSettings, reference_irradiance
-from lunarviz.trace.bodies import EmbreeBody
-from lunarviz.trace.estimators import TraceScene, TraceSettings, trace_path
+from lunarviz.tracer.bodies import EmbreeBody
+from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
 
 #: Issue 3 bar against the exact quadrature at default settings; we measure ≤ 1.2e-4
 #: (benchmarks/results) and hold the test to 0.1 % (issue 5's accuracy target).
@@ -165,7 +165,7 @@ def test_float32_hits_at_real_scale():
 
 def test_facet_sums_equal_totals():
     from lunarviz.facets import trace_facets
-    from lunarviz.sweep import SweepSettings
+    from lunarviz.sweeps import SweepSettings
     res = trace_facets(SweepSettings(brdfs=("shg",), method="raytrace"), 130.0)
     for path in ("moonshine", "earthshine"):
         assert res.cell_data[f"{path}_contribution_W_m2"].sum() == pytest.approx(res.totals[f"{path}_W_m2"], rel=1e-12)

@@ -11,7 +11,7 @@ import pytest
 pv = pytest.importorskip("pyvista")
 
 from lunarviz.cli import main  # noqa: E402
-from lunarviz.sweep import SweepSettings  # noqa: E402
+from lunarviz.sweeps import SweepSettings  # noqa: E402
 from lunarviz.viz import views  # noqa: E402
 
 REF_DIR = os.path.join(os.path.dirname(__file__), "data")
@@ -102,7 +102,7 @@ def test_render_rejects_bad_size(tmp_path, capsys):
 
 
 def test_core_does_not_import_pyvista():
-    code = "import sys, lunarviz.sweep, lunarviz.trace.estimators, lunarviz.cli; print('pyvista' in sys.modules)"
+    code = "import sys, lunarviz.sweeps, lunarviz.tracer.estimators, lunarviz.cli; print('pyvista' in sys.modules)"
     r = subprocess.run(["python", "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "False"
 
@@ -129,7 +129,7 @@ def xvfb():
 
 VIEWER_DRIVER = """
 import numpy as np
-from lunarviz.sweep import SweepSettings
+from lunarviz.sweeps import SweepSettings
 from lunarviz.viz.viewer import Viewer
 v = Viewer(SweepSettings(method="raytrace"), 90.0, "lambert", size=(1000, 700))
 assert type(v.plotter.render_window).__name__ != "vtkEGLRenderWindow"  # a real X window

@@ -1,9 +1,14 @@
-"""Conversion of lunarviz results to PyVista meshes."""
+"""Conversion of lunarviz results to PyVista meshes, and the VTK/PLY writers of per-facet results.
+
+The core (:mod:`lunarviz.facets`) computes the arrays; only this module knows PyVista.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pyvista as pv
+
+from ..errors import LunarvizError
 
 
 def facet_polydata(res) -> pv.PolyData:
@@ -24,6 +29,19 @@ def body_polydata(vertices, faces, cell_data) -> pv.PolyData:
     return poly
 
 
+def multiblock(res, meta: str | None = None) -> pv.MultiBlock:
+    """Every body of ``res``: blocks ``moon``, ``earth``, ``sun`` in scene coordinates [m]."""
+    mb = pv.MultiBlock()
+    moon = facet_polydata(res)
+    moon.points += np.asarray(res.info["moon_centre_m"])
+    mb["moon"] = moon
+    for name, (v, fcs, cd) in res.bodies.items():
+        mb[name] = body_polydata(v + np.asarray(res.info[f"{name}_m"]), fcs, cd)
+    if meta is not None:
+        mb.field_data["info_json"] = [meta]
+    return mb
+
+
 def write_multiblock(path, res, meta: str) -> None:
     """Every body of ``res`` as a .vtm multiblock (blocks ``moon``, ``earth``, ``sun`` in scene
     coordinates [m]). A .vtm is an index plus a folder of blocks: both are written beside a
@@ -31,13 +49,7 @@ def write_multiblock(path, res, meta: str) -> None:
     the caller has checked that the folder holds nothing but an earlier multiblock's blocks."""
     import shutil
     from pathlib import Path
-    mb = pv.MultiBlock()
-    moon = facet_polydata(res)
-    moon.points += np.asarray(res.info["moon_centre_m"])
-    mb["moon"] = moon
-    for name, (v, fcs, cd) in res.bodies.items():
-        mb[name] = body_polydata(v + np.asarray(res.info[f"{name}_m"]), fcs, cd)
-    mb.field_data["info_json"] = [meta]
+    mb = multiblock(res, meta)
     p = Path(path)
     tmpdir = p.parent / f".{p.stem}.tmp"
     if tmpdir.exists():
@@ -52,3 +64,38 @@ def write_multiblock(path, res, meta: str) -> None:
         (tmpdir / p.name).replace(p)
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def check_vtm_target(path) -> None:
+    """A .vtm is an index plus a folder of blocks beside it: refuse to replace a folder that
+    holds anything but an earlier multiblock's block files (or a file of that name)."""
+    import re
+    from pathlib import Path
+    p = Path(path)
+    d = p.parent / p.stem
+    if d.exists():
+        if not d.is_dir():
+            raise LunarvizError(f"--out {path}: {d} exists and is not a directory (a .vtm needs it for its blocks)")
+        pat = re.compile(rf"{re.escape(p.stem)}_\d+\.vt[pu]$")
+        other = [q.name for q in d.iterdir() if not pat.match(q.name)]
+        if other:
+            raise LunarvizError(f"--out {path}: folder {d} holds other files ({other[0]}); choose another name")
+
+
+def write_facet_mesh(path, res) -> None:
+    """Write the lunar mesh with its cell data (.vtp, .vtk or .ply), or every body as a
+    multiblock (.vtm: blocks ``moon``, ``earth``, ``sun`` in scene coordinates [m]), atomically."""
+    import json
+    from pathlib import Path
+
+    from ..io import atomic_path
+    meta = json.dumps({**res.info, **res.totals})
+    if Path(path).suffix.lower() == ".vtm":
+        check_vtm_target(path)
+        write_multiblock(path, res, meta)
+        return
+    poly = facet_polydata(res)
+    if Path(path).suffix.lower() != ".ply":
+        poly.field_data["info_json"] = [meta]
+    with atomic_path(path) as tmp:
+        poly.save(tmp)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import LunarvizError
 from .views import build_plotter, compute_view_data, populate
 
 BRDF_BUTTONS = ("lambert", "shg", "dhg")
@@ -47,7 +48,7 @@ class Viewer:
 
     def set_brdf(self, brdf: str):
         if brdf not in BRDF_BUTTONS:
-            raise ValueError(f"unknown BRDF {brdf!r}")
+            raise LunarvizError(f"unknown BRDF {brdf!r}")
         if brdf != self.brdf:
             self.brdf = brdf
             self._refresh()
@@ -117,3 +118,8 @@ class Viewer:
 
     def show(self, **kw):
         self.plotter.show(title="lunarviz", **kw)
+
+
+def run_viewer(settings, theta, brdf, size=(1600, 900)):
+    """Open the desktop viewer at phase θ [deg] (or a UTC time with ``settings.times``)."""
+    Viewer(settings, theta, brdf, size=size).show()

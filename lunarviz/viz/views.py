@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyvista as pv
 
+from ..errors import LunarvizError
 from ..facets import FacetResult, sample_ray_paths, trace_facets
 from .meshio import facet_polydata
 
@@ -186,7 +187,7 @@ SHAPES = {"composite": (2, 2), "maps": (2, 2), "moon": (1, 1), "rays": (1, 1)}
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True) -> pv.Plotter:
     """A plotter showing ``view`` of ``data``; call ``show()`` or ``screenshot()``."""
     if view not in VIEWS:
-        raise ValueError(f"unknown view {view!r}: choose from {', '.join(VIEWS)}")
+        raise LunarvizError(f"unknown view {view!r}: choose from {', '.join(VIEWS)}")
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
     populate(pl, data, view)
     return pl
@@ -250,6 +251,20 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
     return pl
 
 
+def render_image(settings, key, brdf, view="composite", size=(1600, 900), out=None) -> np.ndarray:
+    """One offscreen picture (RGB, height × width × 3) of phase θ or UTC time ``key``; also
+    written as PNG to ``out`` (atomically) when given."""
+    from ..io import write_bytes_atomic
+    data = compute_view_data(settings, key, brdf)
+    pl = build_plotter(data, view, size, off_screen=True)
+    pl.render()
+    img = np.asarray(pl.screenshot(return_img=True))
+    pl.close()
+    if out is not None:
+        write_bytes_atomic(out, _png_bytes(img))
+    return img
+
+
 def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900), gif=None,
                   progress=False) -> list:
     """Render one PNG per phase (``out`` itself for one phase, else ``out_000.png`` …)."""
@@ -257,19 +272,14 @@ def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900
 
     from ..io import write_bytes_atomic
     out = Path(out)
-    files = []
+    files: list = []
     it = phases
     if progress and len(phases) > 1:
         from tqdm import tqdm
         it = tqdm(phases, desc="render", unit="frame", leave=False)
     for k, th in enumerate(it):
-        data = compute_view_data(settings, th, brdf)
-        pl = build_plotter(data, view, size, off_screen=True)
-        pl.render()
-        img = pl.screenshot(return_img=True)
-        pl.close()
         target = out if len(phases) == 1 else out.with_name(f"{out.stem}_{k:03d}{out.suffix}")
-        write_bytes_atomic(target, _png_bytes(img))
+        render_image(settings, th, brdf, view=view, size=size, out=target)
         files.append(target)
     if gif:
         from PIL import Image
@@ -292,8 +302,3 @@ def _png_bytes(img) -> bytes:
     buf = io.BytesIO()
     Image.fromarray(np.asarray(img)).save(buf, format="PNG")
     return buf.getvalue()
-
-
-def run_viewer(settings, theta, brdf, size=(1600, 900)):
-    from .viewer import Viewer
-    Viewer(settings, theta, brdf, size=size).show()

@@ -18,6 +18,7 @@ import numpy as np
 from . import albedo as alb
 from .analytic import AnalyticSettings, analytic_irradiance
 from .brdf import BRDF_NAMES, make_brdf
+from .errors import LunarvizError
 from .geometry import Scene
 from .reference import ReferenceSettings, reference_irradiance
 
@@ -65,41 +66,44 @@ class SweepSettings:
 
     def __post_init__(self):
         if self.method not in METHODS:
-            raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
+            raise LunarvizError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
         if not self.brdfs:
-            raise ValueError("no BRDF given")
+            raise LunarvizError("no BRDF given")
         for b in self.brdfs:
             if b not in BRDF_NAMES:
-                raise ValueError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
+                raise LunarvizError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
         if not self.phases_deg:
-            raise ValueError("no phase given")
+            raise LunarvizError("no phase given")
         if self.times is not None:
             from .ephemeris import time_list
             if not self.times:
-                raise ValueError("no time given")
+                raise LunarvizError("no time given")
             object.__setattr__(self, "times", time_list(",".join(self.times)))  # canonical labels, checked
             if self.detector is not None:
-                raise ValueError("--detector places a detector in the θ scene; with --time use --observer")
+                raise LunarvizError("--detector places a detector in the θ scene; with --time use --observer")
+        if self.detector is not None and self.times is None:
+            for th in self.phases_deg:  # a detector inside the Sun or the Moon, before any work
+                Scene(float(th), detector=self.detector)
         obs = self.observer_model()  # validates (reads a TLE file) before any work
         if obs.kind != "geocentre" and self.times is None:
-            raise ValueError(f"--observer {self.observer} needs a date: give --time or --time-range")
+            raise LunarvizError(f"--observer {self.observer} needs a date: give --time or --time-range")
         if self.method != "raytrace":
             for value, default, flag in (
                     (self.mesh_units, "m", "--mesh-units"), (self.moon_level, None, "--mesh-level"),
                     (self.earth_level, None, "--earth-level"), (self.sun_level, None, "--sun-level"),
                     (self.shading, "auto", "--shading"), (self.self_shadow, True, "--no-self-shadow")):
                 if value != default:
-                    raise ValueError(f"{flag} cannot be used with --method {self.method}, which has no meshes; "
+                    raise LunarvizError(f"{flag} cannot be used with --method {self.method}, which has no meshes; "
                                      f"use --method raytrace")
             for body in ("moon", "earth", "sun"):
                 if getattr(self, f"{body}_mesh") is not None:
-                    raise ValueError(f"--{body}-mesh cannot be used with --method {self.method}, which assumes "
+                    raise LunarvizError(f"--{body}-mesh cannot be used with --method {self.method}, which assumes "
                                      f"exact spheres; use --method raytrace")
         self.brdf_models()  # validates parameters early
         ts = self.trace_settings()
         if self.method == "raytrace":  # read and check user meshes once, before any work
             from .meshes import NOMINAL_RADII
-            from .trace.estimators import body_mesh_m
+            from .tracer.estimators import body_mesh_m
             for body in ("moon", "earth", "sun"):
                 path = getattr(self, f"{body}_mesh")
                 if path is not None:  # same arguments as TraceScene's call: the cached mesh is reused
@@ -116,7 +120,7 @@ class SweepSettings:
 
     def trace_settings(self):
         from .meshes import DEFAULT_LEVELS
-        from .trace.estimators import TraceSettings
+        from .tracer.estimators import TraceSettings
         return TraceSettings(
             estimator=self.estimator,
             moon_level=DEFAULT_LEVELS["moon"] if self.moon_level is None else self.moon_level,
@@ -189,7 +193,7 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
                          "_terms_point": alb.lunar_terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
                                                 settings.earth_albedo)})
     else:
-        from .trace.estimators import TraceScene, trace_path
+        from .tracer.estimators import TraceScene, trace_path
         ts_set = settings.trace_settings()
         ts = TraceScene(sc, ts_set)
         ms = trace_path(ts, "moonshine", brdfs)

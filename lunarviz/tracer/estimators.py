@@ -43,6 +43,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..errors import LunarvizError
 from ..geometry import Scene, half_angle_sin_cos, unit
 from ..meshes import DEFAULT_LEVELS
 from ..sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
@@ -102,24 +103,24 @@ class TraceSettings:
 
     def __post_init__(self):
         if self.estimator not in ESTIMATORS:
-            raise ValueError(f"estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}")
+            raise LunarvizError(f"estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}")
         if self.shading not in SHADINGS:
-            raise ValueError(f"shading {self.shading!r} is not one of {', '.join(SHADINGS)}")
+            raise LunarvizError(f"shading {self.shading!r} is not one of {', '.join(SHADINGS)}")
         for body, mode in self.body_shading:
             if body not in ("moon", "earth", "sun") or mode not in SHADINGS:
-                raise ValueError(f"body shading {body}={mode} is not valid")
+                raise LunarvizError(f"body shading {body}={mode} is not valid")
         for name in ("sun_order", "earth_order"):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and 1 <= v <= 64):
-                raise ValueError(f"{name}={v!r} must be an integer in [1, 64]")
+                raise LunarvizError(f"{name}={v!r} must be an integer in [1, 64]")
         for name in ("rays", "runs"):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and v >= 1):
-                raise ValueError(f"{name}={v!r} must be a positive integer")
+                raise LunarvizError(f"{name}={v!r} must be a positive integer")
         if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
-            raise ValueError(f"seed={self.seed!r} must be a non-negative integer")
+            raise LunarvizError(f"seed={self.seed!r} must be a non-negative integer")
         if not (0 <= self.earth_albedo <= 1):
-            raise ValueError(f"Earth albedo {self.earth_albedo!r} must be in [0, 1]")
+            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be in [0, 1]")
 
 
 @lru_cache(maxsize=16)
@@ -616,7 +617,8 @@ class PathResult:
     """One path (moonshine or earthshine) at one phase, for every BRDF."""
 
     mean: dict  # brdf -> detector irradiance [W m-2]
-    std: dict  # brdf -> standard deviation of one run [W m-2] (0 for deterministic)
+    std: dict  # brdf -> standard deviation of one run [W m-2] (0 for deterministic; NaN when
+    # undefined: one Monte Carlo run of one ray)
     run_values: dict  # brdf -> list of per-run values [W m-2]
     within_std: dict  # brdf -> list of per-run standard deviations estimated inside each run
     rays: int
@@ -670,6 +672,8 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
                 # contributions c_i = f_i / (N p_i): Var(Σ c) = N Var(c), Var(c) from the sums
                 var_c = (sq[k] - tot[k] ** 2 / count) / (count - 1)
                 within[k].append(float(np.sqrt(max(count * var_c, 0.0))))
+            elif s.estimator == "montecarlo":
+                within[k].append(float("nan"))  # one sample: no spread to estimate σ from
             else:
                 within[k].append(0.0)
         if keep:

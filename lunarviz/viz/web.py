@@ -1,0 +1,84 @@
+"""The viewer in a browser: the composite view served by trame (PyVista's web backend).
+
+``lunarviz view --web [--port P] [--host H]`` serves on 127.0.0.1 unless asked otherwise. The
+picture is rendered on the server (VTK offscreen through EGL) and streamed as images, so the
+browser needs no WebGL: it works from a headless server, through an SSH tunnel, or in a
+notebook. A slider sets the phase θ (or steps through the given times) and a menu the BRDF;
+each change re-traces the scene, as in the desktop viewer.
+"""
+
+from __future__ import annotations
+
+from .views import build_plotter, compute_view_data, numbers_text, populate
+
+BRDFS = ("lambert", "shg", "dhg")
+
+
+def _refresh(pl, data) -> None:
+    for title in list(pl.scalar_bars.keys()):
+        pl.remove_scalar_bar(title, render=False)
+    for r in pl.renderers:
+        r.clear_actors()
+    populate(pl, data, "composite")
+    pl.render()
+
+
+def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
+    """A trame server showing ``settings`` at phase θ or UTC time ``key``; returns
+    ``(server, plotter)``. ``server.state.phase`` (θ [deg], or the time's index) and
+    ``server.state.brdf`` drive it."""
+    from dataclasses import replace
+
+    from trame.app import get_server
+    from trame.ui.vuetify3 import SinglePageLayout
+    from trame.widgets import html
+    from trame.widgets import vuetify3 as v3
+    from trame_pyvista.ui import plotter_ui
+
+    server = server or get_server("lunarviz", client_type="vue3")
+    state, ctrl = server.state, server.controller
+    times = settings.times
+    data = compute_view_data(replace(settings, brdfs=(brdf,)), key, brdf)
+    pl = build_plotter(data, "composite", size, off_screen=True)
+    state.phase = times.index(key) if times else float(key)
+    state.brdf = brdf
+    state.numbers = numbers_text(data.numbers)
+    state.busy = False
+
+    @state.change("phase", "brdf")
+    def _update(phase, brdf, **_):
+        k = times[int(round(phase))] if times else float(phase)
+        state.busy = True
+        new = compute_view_data(replace(settings, brdfs=(brdf,)), k, brdf)
+        _refresh(pl, new)
+        state.numbers = numbers_text(new.numbers)
+        state.busy = False
+        ctrl.view_update()
+
+    with SinglePageLayout(server, full_height=True) as layout:
+        layout.title.set_text("lunarviz")
+        with layout.toolbar:
+            v3.VSpacer()
+            if times:
+                v3.VSlider(v_model=("phase", state.phase), min=0, max=len(times) - 1, step=1,
+                           label="time index", hide_details=True, thumb_label=True, density="compact",
+                           style="max-width: 480px")
+            else:
+                v3.VSlider(v_model=("phase", state.phase), min=0, max=180, step=5, label="phase θ [deg]",
+                           hide_details=True, thumb_label=True, density="compact", style="max-width: 480px")
+            v3.VSelect(v_model=("brdf", brdf), items=("brdfs", list(BRDFS)), label="BRDF", hide_details=True,
+                       density="compact", style="max-width: 160px")
+            v3.VProgressCircular(indeterminate=True, v_show=("busy",), size=20)
+        with layout.content:
+            html.Pre("{{ numbers }}", style="font-size: 11px; margin: 4px 12px; line-height: 1.3;")
+            with html.Div(style="position: relative; width: 100%; height: calc(100vh - 190px); min-height: 400px;"):
+                view = plotter_ui(pl, mode="server", add_menu=False, server=server)
+                ctrl.view_update = view.update
+    return server, pl
+
+
+def serve(settings, key, brdf: str, host: str = "127.0.0.1", port: int = 0, size=(1600, 900)):
+    """Serve the viewer until interrupted (port 0: a free port, printed at start)."""
+    server, _ = build_app(settings, key, brdf, size=size)
+    print(f"lunarviz view --web: serving on http://{host}:{port or '<free port>'}/ (Ctrl-C stops)", flush=True)
+    server.start(host=host, port=port, open_browser=False, show_connection_info=True)
