@@ -165,7 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sweep", help="moonshine, earthshine and albedo over phases")
     p.add_argument("--brdf", default="lambert,shg,dhg")
-    p.add_argument("--phases", default="0:180:5", help="θ list [deg]: a,b,c or start:stop:step")
+    p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
     p.add_argument("--method", default="analytic", help="analytic | raytrace | reference")
     p.add_argument("--grid", default="converged", choices=["converged", "paper"], help="analytic surface grid")
     p.add_argument("--order", type=_positive_int("--order"), default=24, help="analytic Gauss order")
@@ -197,7 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     for name, helptext in (("render", "offscreen picture of a phase"), ("view", "interactive desktop viewer")):
         p = sub.add_parser(name, help=helptext)
-        p.add_argument("--phase", default="90", help="θ [deg]; render accepts a list for numbered frames")
+        p.add_argument("--phase", default=None,
+                       help="θ [deg] (default 90); render accepts a list for numbered frames")
         p.add_argument("--brdf", default="dhg")
         p.add_argument("--view", default="composite", help="composite | moon | rays | maps")
         p.add_argument("--size", default="1600x900", help="WxH pixels")
@@ -280,7 +281,9 @@ def cmd_sweep(a):
     if a.method not in METHODS:
         raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
     times = _times(a)
-    phases = parse_float_list(a.phases, "phase", 0.0, 180.0)
+    if times is not None and a.phases is not None:
+        raise UsageError("give --phases (the θ scene) or --time/--time-range (the real sky), not both")
+    phases = parse_float_list(a.phases or "0:180:5", "phase", 0.0, 180.0)
     out = _check_out(a.out, (".json", ".csv", ".nc"))
     scene = _scene(a, phases, times)
     scene.settings(a.method)  # method-specific checks before any work
@@ -355,7 +358,7 @@ def cmd_trace(a):
 
 def cmd_render(a, interactive=False):
     from .viz import views
-    phases = parse_float_list(a.phase, "phase", 0.0, 180.0)
+    phases = parse_float_list(a.phase or "90", "phase", 0.0, 180.0)
     try:
         w, h = (int(x) for x in a.size.lower().split("x"))
         if w < 64 or h < 64 or w > 8192 or h > 8192:
@@ -365,6 +368,8 @@ def cmd_render(a, interactive=False):
     if a.view not in views.VIEWS:
         raise UsageError(f"unknown view {a.view!r}: choose from {', '.join(views.VIEWS)}")
     times = _times(a)
+    if times is not None and a.phase is not None:
+        raise UsageError("give --phase (the θ scene) or --time/--time-range (the real sky), not both")
     brdf = _brdf_list(a.brdf)
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
@@ -505,7 +510,19 @@ COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": 
             "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh}
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"lunarviz: warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
+    import warnings
+
+    from .errors import LunarvizWarning
+    shown = warnings.showwarning
+    if not sys.warnoptions:
+        warnings.filterwarnings("always", category=LunarvizWarning)
+    warnings.showwarning = lambda m, c, *a, **k: (_show_warning(m, c, *a, **k) if issubclass(c, LunarvizWarning)
+                                                  else shown(m, c, *a, **k))
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -37,9 +37,9 @@ import numpy as np
 from .errors import LunarvizError
 
 #: first and last instants [UTC] covered by both DE421 and the lunar PCK (the PCK is shorter)
-VALID_START = datetime(1900, 1, 1, tzinfo=timezone.utc)
-VALID_STOP = datetime(2050, 12, 31, tzinfo=timezone.utc)
-VALID_RANGE = "1900-01-01 to 2050-12-31 (DE421 and moon_pa_de421_1900-2050.bpc)"
+VALID_START = datetime(1900, 1, 1, 0, 1, tzinfo=timezone.utc)  # the PCK starts 1900-01-01 00:00 TDB
+VALID_STOP = datetime(2050, 12, 31, 23, 58, tzinfo=timezone.utc)  # the PCK ends 2051-01-01 00:00 TDB
+VALID_RANGE = "1900-01-01T00:01 to 2050-12-31T23:58 UTC (DE421 and moon_pa_de421_1900-2050.bpc)"
 MOON_FRAME = "MOON_ME_DE421"
 _LUNAR_KERNELS = ("data/fk/satellites/moon_080317.tf", "data/fk/satellites/moon_assoc_me.tf",
                   "data/pck/moon_pa_de421_1900-2050.bpc")

@@ -6,3 +6,7 @@ class LunarvizError(ValueError):
 
     It subclasses ValueError so that callers catching ValueError keep working.
     """
+
+
+class LunarvizWarning(UserWarning):
+    """A result that is computed but may not mean what the user expects (e.g. a stale TLE)."""

@@ -25,7 +25,7 @@ from .geometry import angle_between, half_angle_sin_cos, unit
 
 @dataclass
 class FacetResult:
-    vertices: np.ndarray  # (nv, 3) Moon-centred [m]
+    vertices: np.ndarray  # (nv, 3) Moon-centred [m], the Moon's body frame (MOON_ME on dates)
     faces: np.ndarray  # (nf, 3)
     cell_data: dict
     totals: dict
@@ -114,7 +114,14 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
               "moonshine_beam_hits": ts.source_hits["sun"].copy()}
     bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd),
               "sun": (S.vertices.copy(), S.faces.copy(), sun_cd)}
-    return FacetResult(M.vertices.copy(), M.faces.copy(), cd, totals, info, bodies)
+    # the Moon's mesh is returned in its own body frame (MOON_ME on dates; the scene axes in
+    # the θ scene), so it lines up with the user's mesh and maps; the rotation to the scene
+    # is kept in ``info`` (the .vtm multiblock applies it)
+    rot = sc.rotation("moon")
+    verts = M.vertices.copy() if rot is None else M.vertices @ rot
+    if rot is not None:
+        info["moon_rotation_body_to_scene"] = rot.tolist()
+    return FacetResult(verts, M.faces.copy(), cd, totals, info, bodies)
 
 
 def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict:

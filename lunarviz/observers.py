@@ -67,6 +67,18 @@ class Observer:
             return p
         return self._orbit_position(label)
 
+    def epoch_age_days(self, label: str) -> float | None:
+        """Days from a TLE's epoch to ``label`` (SGP4 degrades beyond days to weeks); None otherwise."""
+        if self.kind != "tle":
+            return None
+        from sgp4.api import Satrec
+
+        from .ephemeris import parse_time
+        sat = Satrec.twoline2rv(self.tle[-2], self.tle[-1])
+        t = parse_time(label)
+        jd = (t - parse_time("2000-01-01T12:00Z")).total_seconds() / 86400 + 2451545.0
+        return float(jd - (sat.jdsatepoch + sat.jdsatepochF))
+
     def up(self, label: str) -> np.ndarray | None:
         """Unit geodetic vertical (ICRF) of a site at ``label``; ``None`` for other observers."""
         if self.kind != "site":
@@ -125,8 +137,10 @@ def _floats(text: str, what: str, n_min: int, n_max: int) -> list[float]:
 
 def read_tle(path: str) -> tuple:
     """The (name,) line 1, line 2 of a TLE file, checked (format and checksums) by sgp4."""
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise LunarvizError(f"TLE file {path!r} does not exist")
+    if not os.path.isfile(path):
+        raise LunarvizError(f"TLE file {path!r} is not a file")
     try:
         with open(path, encoding="ascii", errors="strict") as f:
             lines = [ln.rstrip() for ln in f if ln.strip()]

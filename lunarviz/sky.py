@@ -65,6 +65,8 @@ def sky_fields(sc: Scene, label: str, observer: Observer) -> dict:
     if observer.kind == "site":
         up = np.asarray(sc.horizon_normal)
         info["moon_altitude_deg"] = float(90.0 - np.degrees(angle_between(up, M - det)))
+    if observer.kind == "tle":
+        info["tle_epoch_age_days"] = observer.epoch_age_days(label)
     info.update({"observer_x_m": float(det[0]), "observer_y_m": float(det[1]), "observer_z_m": float(det[2])})
     return info
 

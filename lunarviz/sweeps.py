@@ -23,6 +23,8 @@ from .geometry import Scene
 from .reference import ReferenceSettings, reference_irradiance
 
 METHODS = ("analytic", "raytrace", "reference")
+#: beyond this many days from a TLE's epoch a sweep warns (SGP4 errors of km grow within weeks)
+TLE_MAX_AGE_DAYS = 30.0
 
 
 @dataclass(frozen=True)
@@ -87,6 +89,15 @@ class SweepSettings:
         obs = self.observer_model()  # validates (reads a TLE file) before any work
         if obs.kind != "geocentre" and self.times is None:
             raise LunarvizError(f"--observer {self.observer} needs a date: give --time or --time-range")
+        if obs.kind == "tle":
+            age = max(abs(obs.epoch_age_days(t)) for t in (self.times[0], self.times[-1]))
+            if age > TLE_MAX_AGE_DAYS:
+                import warnings
+
+                from .errors import LunarvizWarning
+                warnings.warn(f"TLE {self.observer!r} is propagated {age:.0f} days from its epoch; SGP4 errors grow "
+                              f"to many km within weeks (rows carry tle_epoch_age_days)", LunarvizWarning,
+                              stacklevel=2)
         if self.method != "raytrace":
             for value, default, flag in (
                     (self.mesh_units, "m", "--mesh-units"), (self.moon_level, None, "--mesh-level"),

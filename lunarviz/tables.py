@@ -20,7 +20,7 @@ from .io import atomic_path
 PER_TASK = ("theta_deg", "alpha_deg", "beta_deg", "phase_angle_deg", "observer_moon_distance_m",
             "sun_moon_distance_m", "sub_observer_lat_deg", "sub_observer_lon_deg", "sub_solar_lat_deg",
             "sub_solar_lon_deg", "moon_altitude_deg", "moon_occulted", "observer_in_shadow",
-            "observer_x_m", "observer_y_m", "observer_z_m")
+            "observer_x_m", "observer_y_m", "observer_z_m", "tle_epoch_age_days")
 #: row field → (variable name, units, long name)
 DESCRIPTIONS = {
     "moonshine_W_m2": ("moonshine", "W m-2", "irradiance at the detector from sunlight reflected by the Moon"),
@@ -53,6 +53,7 @@ DESCRIPTIONS = {
     "moon_altitude_deg": ("moon_altitude", "degree", "geometric altitude of the Moon's centre at the site"),
     "moon_occulted": ("moon_occulted", "1", "the Earth hides the Moon's centre from the observer"),
     "observer_in_shadow": ("observer_in_shadow", "1", "the Earth hides the Sun's centre from the observer"),
+    "tle_epoch_age_days": ("tle_epoch_age", "day", "time from the TLE's epoch (SGP4 accuracy degrades with it)"),
     "observer_x_m": ("observer_x", "m", "observer position, geocentric ICRF x"),
     "observer_y_m": ("observer_y", "m", "observer position, geocentric ICRF y"),
     "observer_z_m": ("observer_z", "m", "observer position, geocentric ICRF z"),

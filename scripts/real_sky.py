@@ -116,7 +116,7 @@ def eclipse(out: Path, quick: bool):
     ax.plot(h, [r["moonshine_no_occlusion_W_m2"] for r in rows], "--", color="0.5", label="no occlusion")
     ax.plot(h, [r["moonshine_W_m2"] for r in rows], ".-", ms=3, label=f"{method}, occlusion (extended Sun)")
     for t, name in ((3 + 57 / 60, "P1"), (5 + 9 / 60, "U1"), (6 + 26 / 60, "U2"), (7 + 31 / 60, "U3"),
-                    (8 + 48 / 60, "U4"), (10, "P4")):
+                    (8 + 48 / 60, "U4"), (10, "P4")):  # NASA's contacts (with the atmosphere's 2 % enlargement)
         ax.axvline(t, color="k", lw=0.4, ls=":")
         ax.text(t, ax.get_ylim()[1] * 0.98, name, fontsize=7, ha="center", va="top")
     ax.set_xlabel("hours UTC, 2025-03-14")
@@ -133,6 +133,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="benchmarks/real_sky")
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--plot-only", action="store_true", help="redraw lunation.png from lunation.json")
+    ap.add_argument("--only", choices=["eclipse", "lunation"], default=None, help="run one of the two")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -140,8 +141,10 @@ def main(argv=None) -> int:
         import json
         plot_lunation(out, json.loads((out / "lunation.json").read_text()))
         return 0
-    eclipse(out, a.quick)
-    lunation(out, a.quick)
+    if a.only != "lunation":
+        eclipse(out, a.quick)
+    if a.only != "eclipse":
+        lunation(out, a.quick)
     print(f"wrote {out}/lunation.* and {out}/eclipse_2025-03-14.*")
     return 0
 

@@ -26,9 +26,11 @@ from every lunar sample a beam toward the detector, weighted by μ cosδ dA / d�
   surface the mesh tessellates (the exact sphere for icospheres; interpolated vertex normals
   for other meshes) while the mesh decides hits and shadows; ``flat`` uses the facets.
 * Occlusion (on by default; ``occlusion=False`` is the paper's assumption): the Earth blocks
-  Sun beams (lunar eclipse) and the lunar sample's view of the detector unless the detector
-  sits in the Earth; the Moon blocks the Sun for Earth facets; a non-convex Moon mesh shadows
-  itself (convex meshes skip those rays: the sample's own horizon decides exactly).
+  Sun beams (lunar eclipse); the Moon blocks the Sun for Earth facets; a non-convex Moon mesh
+  shadows itself (convex meshes skip those rays: the sample's own horizon decides exactly).
+* The observer's own Earth: whatever the occlusion setting, the Earth hides lunar samples from
+  a detector outside it (traced with Embree; a site on the ground uses its geodetic horizon
+  plane), as in the analytic and reference methods.
 
 Neglected physics: refraction and extinction in the Earth's atmosphere (the umbra is darker
 than a real eclipse's red Moon), solar limb darkening, polarisation, multiple Moon-Earth
@@ -44,7 +46,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import LunarvizError
-from ..geometry import Scene, half_angle_sin_cos, unit
+from ..geometry import angle_between, Scene, half_angle_sin_cos, unit
 from ..meshes import DEFAULT_LEVELS
 from ..sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
 from ..sphere_quadrature import cone_rule, orthonormal_basis
@@ -66,6 +68,10 @@ REFINE = 4
 #: Samples wanted across the width of the lit-and-visible lune (see ``lunar_refinement``).
 LUNE_SAMPLES = 16
 #: Order of the sphere rule for lunar samples that see the Sun partly below the horizon.
+#: Sun-cone Gauss order (radial × 2·order azimuthal) where the Earth's disc overlaps the Sun's
+#: (lunar eclipses): the Earth's limb is a discontinuity inside the cone; order 16 puts
+#: 512 beams across it (the penumbra then agrees with the exact disc overlap to ~1e-3).
+ECLIPSE_ORDER = 16
 PENUMBRA_ORDER = 6
 #: Kink refinement is skipped when the lune is within this angle [rad] of a hemisphere.
 KINK_FREE_WIDTH = 0.05
@@ -214,7 +220,8 @@ class TraceScene:
             (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
             (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
         cand = np.flatnonzero(up & seen)
-        if self._self_shadows() or (self.settings.occlusion and body == "sun"):
+        hidden_view = not self.scene.detector_inside("earth") or self.scene.horizon_normal is not None
+        if self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view:
             self._kinks = self._kinks | self._shadow_edges(cand, c)
         self._cand_cache[body] = (cand, self._kinks)
         return cand
@@ -224,7 +231,8 @@ class TraceScene:
 
         From each candidate facet's centroid and corners (offset along the facet normal) one
         ray to the source's centre and one to the detector are traced against the Moon (when it
-        shadows itself) and the Earth (when occlusion is on). A facet whose four points
+        shadows itself) and the Earth (toward the source when occlusion is on; toward a
+        detector outside the Earth always). A facet whose four points
         disagree is a kink facet and gets refined like a terminator facet. Returns a mask
         over all facets.
         """
@@ -247,9 +255,9 @@ class TraceScene:
             if self._self_shadows():
                 blocked |= self.moon.occluded(p, d, dist)
                 self._count(len(p))
-            if to_det and s.occlusion and self.scene.horizon_normal is not None:
+            if to_det and self.scene.horizon_normal is not None:
                 blocked |= ~self.scene.sight_lines_clear(p)
-            elif s.occlusion and not (to_det and self.scene.detector_inside("earth")):
+            elif (to_det and not self.scene.detector_inside("earth")) or (not to_det and s.occlusion):
                 blocked |= self.earth.occluded(p, d, dist)
                 self._count(len(p))
             b = blocked.reshape(-1, 4)
@@ -305,11 +313,15 @@ class TraceScene:
 
     def detector_view(self, x, n, dA):
         """mu, geom and unit directions to the detector, with the sight line's occlusion (the
-        Earth, with ``occlusion``; the Moon itself, with ``self_shadow`` on a non-convex Moon)."""
+        Earth, for a detector outside it; the Moon itself, with ``self_shadow`` on a non-convex
+        Moon)."""
         sc = self.scene
         mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
-        horizon = self.settings.occlusion and sc.horizon_normal is not None
-        earth_blocks = self.settings.occlusion and not sc.detector_inside("earth") and not horizon
+        # The Earth between the Moon and the detector always hides it, as in every method
+        # (--no-occlusion removes shadows, i.e. bodies between a source and the Moon; it
+        # does not make the observer's own Earth transparent)
+        horizon = sc.horizon_normal is not None
+        earth_blocks = not sc.detector_inside("earth") and not horizon
         if horizon:  # a site on the WGS84 Earth: its horizon plane, not the model sphere
             geom = np.where(sc.sight_lines_clear(x), geom, 0.0)
         if earth_blocks or self._self_shadows():
@@ -351,8 +363,11 @@ class TraceScene:
             if body == "sun" and not with_horizon:
                 xc = x[rows] - c
                 dxc = np.linalg.norm(xc, axis=1)
-                om, w = cone_rule(-xc / dxc[:, None], R / dxc, order, 2 * order)
-                parts.append((rows, om, w))
+                ecl = self._earth_crosses_sun(x[rows], dxc)
+                for sub, o_s in ((~ecl, order), (ecl, max(order, ECLIPSE_ORDER))):
+                    if sub.any():
+                        om, w = cone_rule(-xc[sub] / dxc[sub, None], R / dxc[sub], o_s, 2 * o_s)
+                        parts.append((rows[sub], om, w))
                 continue
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
             # than its cone rule (tests/test_trace.py checks the moonshine against the reference).
@@ -368,6 +383,22 @@ class TraceScene:
             om[rows, :op.shape[1]] = op
             w[rows, :wp.shape[1]] = wp
         return om, w
+
+    def _earth_crosses_sun(self, x, d_sun) -> np.ndarray:
+        """Points from which the Earth's disc overlaps the Sun's (a lunar eclipse's penumbra and
+        umbra), when occlusion is on. There the Earth's limb cuts the solar cone and its
+        default rule (a few beams) would round the partial Sun to all or nothing: those
+        points get the ECLIPSE_ORDER rule (tests/test_sky.py checks the penumbra against the
+        exact overlap of the two discs)."""
+        if not self.settings.occlusion:
+            return np.zeros(len(x), dtype=bool)
+        sc = self.scene
+        ve = sc.earth - x
+        de = np.linalg.norm(ve, axis=1)
+        rho_e = np.arcsin(np.clip(self.earth.bound / de, 0, 1))
+        rho_s = np.arcsin(np.clip(sc.radii["sun"] / d_sun, 0, 1))
+        gamma = angle_between(sc.sun - x, ve)
+        return gamma < (rho_s + rho_e) * (1 + 1e-6)
 
     def sun_visibility_of_earth(self) -> np.ndarray:
         """Fraction of the Sun each Earth facet sees past the Moon (with occlusion) and past

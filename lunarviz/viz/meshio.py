@@ -12,7 +12,7 @@ from ..errors import LunarvizError
 
 
 def facet_polydata(res) -> pv.PolyData:
-    """The lunar mesh (Moon-centred metres) with per-facet cell data."""
+    """The lunar mesh (Moon-centred metres, the Moon's body frame) with per-facet cell data."""
     faces = np.hstack([np.full((res.n_faces, 1), 3), res.faces]).astype(np.int64).ravel()
     poly = pv.PolyData(np.asarray(res.vertices, dtype=float), faces)
     for k, v in res.cell_data.items():
@@ -33,6 +33,9 @@ def multiblock(res, meta: str | None = None) -> pv.MultiBlock:
     """Every body of ``res``: blocks ``moon``, ``earth``, ``sun`` in scene coordinates [m]."""
     mb = pv.MultiBlock()
     moon = facet_polydata(res)
+    rot = res.info.get("moon_rotation_body_to_scene")
+    if rot is not None:  # body frame (MOON_ME) → scene axes
+        moon.points = np.asarray(moon.points, dtype=float) @ np.asarray(rot).T
     moon.points += np.asarray(res.info["moon_centre_m"])
     mb["moon"] = moon
     for name, (v, fcs, cd) in res.bodies.items():
