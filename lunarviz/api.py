@@ -31,6 +31,7 @@ SCENE_DEFAULTS = {
     "moon_level": None, "earth_level": None, "sun_level": None,
     "occlusion": True, "self_shadow": True, "shading": "auto",
     "earth_albedo": 0.3, "earth_law": "lambert", "dhg_convention": "paper", "h_function": "hapke1981",
+    "moon_model": "paper",
     "params": None, "estimator": "deterministic", "rays": 50_000, "runs": 1, "seed": 0,
     "earth_order": 6, "sun_order": 2, "grid": "converged", "order": 24,
 }
@@ -69,7 +70,8 @@ class Scene:
         Every other option of the command line, by its Python name: ``detector`` (x, y, z) [m],
         ``moon_mesh``/``earth_mesh``/``sun_mesh`` (paths), ``mesh_units``, ``moon_level``,
         ``earth_level``, ``sun_level``, ``occlusion``, ``self_shadow``, ``shading``,
-        ``earth_albedo``, ``earth_law``, ``dhg_convention``, ``h_function``, ``params``
+        ``earth_albedo``, ``earth_law``, ``dhg_convention``, ``h_function``, ``moon_model``
+        (``paper`` or ``rolo-fit``), ``params``
         (``{brdf: {name: value}}``), ``estimator``, ``rays``, ``runs``, ``seed``,
         ``earth_order``, ``sun_order``, ``grid``, ``order`` (see :data:`SCENE_DEFAULTS`).
 

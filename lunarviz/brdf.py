@@ -10,8 +10,9 @@ lives, and near g = π, where a forward HG lobe with b → 1 lives (NOTES.md).
 ``radiance_factor = brdf * mu0`` is finite even where μ0 + μ → 0 (the BRDF diverges there,
 the reflected radiance does not); transport code uses it.
 
-Neglected physics: macroscopic roughness (Hapke's θ̄), porosity factor K and the coherent
-backscatter opposition effect; the paper's "smooth and semi-infinite" case (Table 2).
+Options beyond the paper (off by default, so the paper's numbers are unchanged bit for bit):
+Hapke's macroscopic roughness θ̄ (1984) and the coherent-backscatter opposition effect (2002),
+:mod:`lunarviz.roughness`. Neglected: the porosity factor K.
 
 References
 ----------
@@ -34,6 +35,10 @@ from .errors import LunarvizError
 H_FUNCTIONS = ("hapke1981", "hapke2002", "exact")
 DHG_CONVENTIONS = ("paper", "hapke2012")
 BRDF_NAMES = ("lambert", "shg", "dhg")
+#: parameters each named BRDF accepts (``--param``)
+BRDF_PARAMETERS = {"lambert": ("albedo",),
+                   "shg": ("w", "h", "B0", "xi", "theta_bar", "Bc0", "hc"),
+                   "dhg": ("w", "h", "B0", "b", "c", "theta_bar", "Bc0", "hc")}
 
 # Smallest μ0 + μ used in the 1/(μ0 + μ) factor of Eq. 12 so the bare BRDF stays finite at
 # exact double grazing (μ0 = μ = 0); radiance_factor needs no such floor.
@@ -260,13 +265,41 @@ class Hapke:
     phase: SingleHG | DoubleHG = field(default_factory=DoubleHG)
     h_function: str = "hapke1981"
     name: str = field(default="hapke", compare=False)
+    #: macroscopic roughness, mean slope angle θ̄ [deg] (Hapke 1984); 0 = smooth (the paper)
+    theta_bar: float = 0.0
+    #: coherent-backscatter amplitude B_C0 and width h_C (Hapke 2002); B_C0 = 0 = none (the paper)
+    Bc0: float = 0.0
+    hc: float = 0.05
 
     def __post_init__(self):
         _check("w", self.w, 0.0, 1.0)
         _check("h", self.h, 0.0, np.inf, hi_open=True)
         _check("B0", self.B0, 0.0, np.inf, hi_open=True)
+        _check("theta_bar", self.theta_bar, 0.0, 60.0, hi_open=True)
+        _check("Bc0", self.Bc0, 0.0, np.inf, hi_open=True)
+        _check("hc", self.hc, 0.0, np.inf, lo_open=True, hi_open=True)
         if self.h_function not in H_FUNCTIONS:
             raise LunarvizError(f"H-function {self.h_function!r} is not one of {', '.join(H_FUNCTIONS)}")
+
+    @property
+    def rough(self) -> bool:
+        """Roughness or coherent backscatter switched on (else the paper's smooth model)."""
+        return self.theta_bar > 0.0 or self.Bc0 > 0.0
+
+    def _rough_r(self, mu0, mu, sin_hg, cos_hg):
+        """Bidirectional reflectance r = BRDF·μ0 with roughness and coherent backscatter,
+        Hapke (1984) Eq. 51 and Hapke (2002) Eq. 8 (:mod:`lunarviz.roughness`)."""
+        from .roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
+        mu0 = np.clip(mu0, 0.0, 1.0)
+        mu = np.clip(mu, 0.0, 1.0)
+        psi = azimuth_from_half_angle(mu0, mu, sin_hg)
+        mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(self.theta_bar))
+        br = (1.0 + self.surge(sin_hg, cos_hg)) * self.phase(sin_hg, cos_hg) + self.H(mu0e) * self.H(mue) - 1.0
+        if self.Bc0 > 0.0:
+            br = br * (1.0 + self.Bc0 * coherent_backscatter(sin_hg, cos_hg, self.hc))
+        s = mu0e + mue
+        frac = np.where(s > 0.0, mu0e / np.where(s > 0.0, s, 1.0), 0.0)
+        return self.w / (4.0 * np.pi) * frac * br * S
 
     def H(self, x):
         return _H_IMPL[self.h_function](np.clip(x, 0.0, 1.0), self.w)
@@ -285,11 +318,17 @@ class Hapke:
             self.H(mu0) * self.H(mu) - 1.0
 
     def brdf(self, mu0, mu, sin_hg, cos_hg):
+        if self.rough:
+            r = self._rough_r(mu0, mu, sin_hg, cos_hg)
+            m0 = np.clip(mu0, 0.0, 1.0)
+            return np.where(m0 > 0.0, r / np.where(m0 > 0.0, m0, 1.0), 0.0)
         mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg)
         return self.w / (4.0 * np.pi) * br / np.maximum(mu0 + mu, _MU_SUM_FLOOR)
 
     def radiance_factor(self, mu0, mu, sin_hg, cos_hg):
         """``BRDF · μ0`` [sr⁻¹], written ``w/(4π) · μ0/(μ0+μ) · {…}``: finite at grazing."""
+        if self.rough:
+            return self._rough_r(mu0, mu, sin_hg, cos_hg)
         mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg)
         s = mu0 + mu
         frac = np.where(s > 0.0, mu0 / np.where(s > 0.0, s, 1.0), 0.0)
@@ -297,7 +336,8 @@ class Hapke:
 
     @property
     def params(self) -> dict:
-        return {"w": self.w, "h": self.h, "B0": self.B0, **self.phase.params}
+        extra = {"theta_bar": self.theta_bar, "Bc0": self.Bc0, "hc": self.hc} if self.rough else {}
+        return {"w": self.w, "h": self.h, "B0": self.B0, **self.phase.params, **extra}
 
     def with_params(self, **kw) -> "Hapke":
         phase_kw = {k: kw.pop(k) for k in list(kw) if k in ("xi", "b", "c")}
@@ -313,23 +353,27 @@ def brdf_from_angles(model, i, e, azimuth):
 
 
 def make_brdf(name: str, *, dhg_convention: str = "paper", h_function: str = "hapke1981",
-              params: dict | None = None):
-    """Build a named BRDF preset, with optional parameter overrides.
+              params: dict | None = None, moon_model: str = "paper"):
+    """Build a named BRDF, with the parameters of preset ``moon_model`` (``paper`` or a fitted
+    set, :mod:`lunarviz.moon_models`) and optional overrides ``params`` on top.
 
     ``lambert``: Lambert, albedo 0.10 (paper Table 5). ``shg``: Hapke with SHG,
     ``dhg``: Hapke with DHG; both with the paper's Table 2 parameters (Apollo 11 soil 10084,
     750 nm): w = 0.33, h = 0.017, B0 = 1, ξ = -0.075 / b = 0.308, c = 0.425.
     """
-    params = dict(params or {})
     key = str(name).strip().lower()
+    if key in BRDF_NAMES and moon_model != "paper":
+        from .moon_models import moon_model_params
+        params = {**moon_model_params(moon_model, key), **(params or {})}
+    params = dict(params or {})
     if key == "lambert":
-        allowed = {"albedo"}
+        allowed = set(BRDF_PARAMETERS["lambert"])
         model = Lambert()
     elif key == "shg":
-        allowed = {"w", "h", "B0", "xi"}
+        allowed = set(BRDF_PARAMETERS["shg"])
         model = Hapke(phase=SingleHG(-0.075), h_function=h_function, name="shg")
     elif key == "dhg":
-        allowed = {"w", "h", "B0", "b", "c"}
+        allowed = set(BRDF_PARAMETERS["dhg"])
         model = Hapke(phase=DoubleHG(0.308, 0.425, dhg_convention), h_function=h_function, name="dhg")
     else:
         raise LunarvizError(f"unknown BRDF {name!r}: choose from {', '.join(BRDF_NAMES)}")

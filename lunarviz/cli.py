@@ -30,7 +30,7 @@ class _Parser(argparse.ArgumentParser):
 # ---- parsing helpers ---------------------------------------------------------------------
 def parse_params(items, brdfs) -> dict:
     """``--param NAME=VALUE`` or ``BRDF.NAME=VALUE`` → ``{brdf: {name: value}}``."""
-    from .brdf import make_brdf
+    from .brdf import BRDF_PARAMETERS
     out: dict = {b: {} for b in brdfs}
     for item in items or []:
         if "=" not in item:
@@ -48,7 +48,7 @@ def parse_params(items, brdfs) -> dict:
             targets = [b]
         took = False
         for b in targets:
-            if key in make_brdf(b).params:
+            if key in BRDF_PARAMETERS[b]:
                 out[b][key] = value
                 took = True
         if not took:
@@ -111,8 +111,10 @@ def _check_out(path, suffixes):
 def _add_physics_options(p):
     p.add_argument("--dhg-convention", default="paper", choices=["paper", "hapke2012"])
     p.add_argument("--h-function", default="hapke1981", choices=["hapke1981", "hapke2002", "exact"])
+    p.add_argument("--moon-model", default="paper",
+                   help="BRDF parameter preset: paper (Table 2, default) or rolo-fit (fitted to ROLO, 400-750 nm)")
     p.add_argument("--param", action="append", metavar="[BRDF.]NAME=VALUE",
-                   help="override a BRDF parameter (w, h, B0, xi, b, c, albedo)")
+                   help="override a BRDF parameter (w, h, B0, xi, b, c, albedo; Hapke: theta_bar [deg], Bc0, hc)")
 
 
 def _add_sky_options(p):
@@ -246,6 +248,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--patch", default=None, help="refine toward LAT,LON by a conformal zoom factor K: LAT,LON,K")
     p.add_argument("--out", required=True, help=".ply (float64), .obj, .stl, .off or .glb; vertices in metres")
 
+    p = sub.add_parser("fit", help="fit a BRDF to disk-integrated lunar reflectance (ROLO or a table)")
+    p.add_argument("--brdf", default="dhg", help="one of lambert, shg, dhg")
+    p.add_argument("--source", default="rolo",
+                   help="rolo (the ROLO model via the optional rimopy package) or a CSV with phase_deg,reflectance"
+                        "[,waxing]")
+    p.add_argument("--band", default="400-750", help="ROLO wavelength [nm] or band LO-HI (the paper's 400-750)")
+    p.add_argument("--phases", default="2:96:2", help="ROLO phase angles [deg] (each waxing and waning)")
+    p.add_argument("--free", default=None, help="parameters to fit, e.g. w,b,c,B0,h,theta_bar (default per BRDF)")
+    p.add_argument("--dhg-convention", default="paper", choices=["paper", "hapke2012"])
+    p.add_argument("--h-function", default="hapke1981", choices=["hapke1981", "hapke2002", "exact"])
+    p.add_argument("--out", required=True, help=".json (a residual plot .png is written beside it)")
+
     p = sub.add_parser("bench", help="run time against error for every method")
     p.add_argument("--quick", action="store_true")
     p.add_argument("--out", required=True, help=".json (a .csv table and a .png Pareto plot beside it)")
@@ -264,7 +278,7 @@ def _scene(a, phases, times=None):
     brdfs = _brdf_list(a.brdf)
     return Scene(
         phases=phases, time=times, observer=getattr(a, "observer", "geocentre"),
-        brdfs=tuple(brdfs), dhg_convention=a.dhg_convention, h_function=a.h_function,
+        brdfs=tuple(brdfs), dhg_convention=a.dhg_convention, h_function=a.h_function, moon_model=a.moon_model,
         params=parse_params(a.param, brdfs), detector=_detector(a.detector), earth_albedo=a.earth_albedo,
         earth_law=getattr(a, "earth_law", "lambert"), grid=getattr(a, "grid", "converged"),
         order=getattr(a, "order", 24), estimator=a.estimator, rays=a.rays, runs=a.runs, seed=a.seed,
@@ -313,7 +327,8 @@ def cmd_brdf(a):
     azi = parse_float_list(a.azimuth, "azimuth", -360.0, 360.0)
     out = _check_out(a.out, (".json", ".csv"))
     params = parse_params(a.param, model_name).get(model_name[0], {})
-    model = make_brdf(model_name[0], dhg_convention=a.dhg_convention, h_function=a.h_function, params=params)
+    model = make_brdf(model_name[0], dhg_convention=a.dhg_convention, h_function=a.h_function, params=params,
+                      moon_model=a.moon_model)
     rows = []
     for i in inc:
         for e in emi:
@@ -487,6 +502,29 @@ def cmd_mesh(a):
     print(f"wrote {out} ({len(m.faces)} facets, vertices in metres, {a.body} frame)")
 
 
+def cmd_fit(a):
+    from .fit import DEFAULT_FREE, plot_fit, run_fit
+    from .io import write_results
+    brdf = _brdf_list(a.brdf)
+    if len(brdf) != 1:
+        raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
+    free = tuple(x.strip() for x in a.free.split(",") if x.strip()) if a.free else DEFAULT_FREE[brdf[0]]
+    if a.source != "rolo" and not Path(a.source).is_file():
+        raise UsageError(f"--source {a.source!r} is neither rolo nor a CSV file")
+    out = _check_out(a.out, (".json",))
+    res = run_fit(brdf[0], a.source, a.band, a.phases, free, dhg_convention=a.dhg_convention,
+                  h_function=a.h_function)
+    d = res.to_dict()
+    d["settings"] = {"source": a.source, "band_nm": a.band, "phases_deg": a.phases, "dhg_convention": a.dhg_convention,
+                     "h_function": a.h_function}
+    write_results(out, d)
+    plot_fit(res, out.with_suffix(".png"))
+    for k in res.free:
+        flag = "constrained" if res.constrained[k] else "NOT constrained (degenerate or at a bound)"
+        print(f"{k:10s} = {res.params[k]:.5g} ± {res.sigma[k]:.2g}   {flag}")
+    print(f"rms log residual {res.rms_log_residual:.4f}; wrote {out}")
+
+
 def cmd_bench(a):
     from .bench import run_bench
     out = _check_out(a.out, (".json",))
@@ -507,7 +545,7 @@ def cmd_paper(a):
 
 COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": cmd_render,
             "view": lambda a: cmd_render(a, interactive=True), "study": cmd_study,
-            "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh}
+            "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh, "fit": cmd_fit}
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

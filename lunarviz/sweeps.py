@@ -36,6 +36,8 @@ class SweepSettings:
     method: str = "analytic"
     dhg_convention: str = "paper"
     h_function: str = "hapke1981"
+    #: BRDF parameter preset: ``paper`` (Table 2) or a fitted one such as ``rolo-fit``
+    moon_model: str = "paper"
     params: dict = field(default_factory=dict)  # {brdf: {name: value}}
     detector: tuple | None = None
     earth_albedo: float = 0.3
@@ -123,7 +125,7 @@ class SweepSettings:
 
     def brdf_models(self) -> dict:
         return {b: make_brdf(b, dhg_convention=self.dhg_convention, h_function=self.h_function,
-                             params=self.params.get(b, {})) for b in self.brdfs}
+                             params=self.params.get(b, {}), moon_model=self.moon_model) for b in self.brdfs}
 
     def analytic_settings(self) -> AnalyticSettings:
         return AnalyticSettings(grid=self.grid, order=self.order, paper_step_deg=self.paper_step_deg,

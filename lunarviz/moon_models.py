@@ -1,0 +1,42 @@
+"""Named parameter presets of the lunar BRDFs (``--moon-model``).
+
+* ``paper``: the paper's Table 2 (Hapke, Apollo 11 soil 10084 at 750 nm; smooth) and the
+  Lambert albedo 0.10 of its Table 5. The default, and what ``lunarviz paper`` uses.
+* ``rolo-fit``: each BRDF fitted to the ROLO lunar model's disk reflectance (Kieffer & Stone
+  2005 as implemented in rimopy), 400-750 nm band, phase angles 2-96° waxing and waning, zero
+  libration; written by ``scripts/fit_rolo.py`` into ``lunarviz/data/moon_models.json`` with
+  its provenance (fit residuals and uncertainties in ``benchmarks/rolo_fit/``).
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from pathlib import Path
+
+from .errors import LunarvizError
+
+DATA = Path(__file__).with_name("data") / "moon_models.json"
+
+
+@lru_cache(maxsize=1)
+def _fitted() -> dict:
+    if not DATA.exists():
+        return {}
+    return json.loads(DATA.read_text())
+
+
+def moon_model_names() -> tuple[str, ...]:
+    return ("paper", *sorted(_fitted().get("models", {})))
+
+
+def moon_model_params(model: str, brdf: str) -> dict:
+    """Parameters of ``brdf`` in preset ``model`` (``{}`` for the paper's defaults)."""
+    if model == "paper":
+        return {}
+    models = _fitted().get("models", {})
+    if model not in models:
+        raise LunarvizError(f"unknown --moon-model {model!r}: choose from {', '.join(moon_model_names())}")
+    if brdf not in models[model]:
+        raise LunarvizError(f"--moon-model {model!r} has no {brdf!r} parameters (it has {', '.join(models[model])})")
+    return dict(models[model][brdf]["params"])
