@@ -6,6 +6,7 @@ The Python API (see :mod:`lunarviz.api` and README.md, "Python"):
 * :func:`sweep` — an ``xarray.Dataset`` of moonshine, earthshine and albedo (brdf × phase|time);
 * :func:`trace` — per-facet results with ``.to_pyvista()``;
 * :func:`render`, :func:`view` — pictures and the interactive viewer (``web=True``: trame);
+* :func:`image` — synthetic camera images in radiance units (FITS with a TAN WCS);
 * :func:`lunarviz.study.mesh` — mesh-resolution studies.
 
 Attributes are imported on first use, so ``import lunarviz`` stays light.
@@ -13,11 +14,11 @@ Attributes are imported on first use, so ``import lunarviz`` stays light.
 
 __version__ = "0.1.0"
 
-__all__ = ["Scene", "sweep", "run", "trace", "render", "view", "study", "LunarvizError", "__version__"]
+__all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "study", "LunarvizError", "__version__"]
 
 
 def __getattr__(name):
-    if name in ("Scene", "sweep", "run", "trace", "render", "view"):
+    if name in ("Scene", "sweep", "run", "trace", "render", "view", "image"):
         from . import api
         return getattr(api, name)
     if name == "study":

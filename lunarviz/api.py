@@ -221,3 +221,86 @@ def view(scene: Scene | None = None, key=None, brdf: str = "dhg", size=(1600, 90
         return serve(settings, key, brdf, host=host, port=port, size=tuple(size))
     from .viz.viewer import run_viewer
     return run_viewer(settings, key, brdf, size=tuple(size))
+
+
+def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_deg: float = 0.75, pixels=256,
+          supersample: int = 4, pointing: str = "moon", psf: str | None = None, halo: str | None = None, out=None,
+          gif=None, progress: bool = False, **scene_options):
+    """Synthetic camera images (:mod:`lunarviz.camera`) in radiance [W m-2 sr-1].
+
+    Parameters
+    ----------
+    scene : Scene
+        Every BRDF of the scene gets a MOONSHINE and an EARTHSHINE plane.
+    key : float or str, optional
+        One phase θ [deg] or UTC time (default: the scene's first); ``keys`` for several frames.
+    camera : lunarviz.camera.Camera, optional
+        Or ``fov_deg`` [deg], ``pixels`` (N or (W, H)), ``supersample`` (K×K rays per pixel),
+        ``pointing`` ("moon" or "RA,DEC" [deg]).
+    psf, halo : str, optional
+        ``gaussian:FWHM_ARCSEC`` or a .npy kernel; ``FRACTION,INDEX[,CORE_ARCSEC]`` power-law wing
+        (:mod:`lunarviz.image_io`).
+    out : path, optional
+        ``.fits`` (one HDU per plane, BUNIT, TAN WCS), ``.npy`` or ``.png``; several frames are
+        numbered ``FILE_000.ext``.
+
+    Returns
+    -------
+    ImageResult (one key, no ``out``) or list of ImageResult; with ``out``, the files written.
+    """
+    from .camera import Camera, synthesize
+    from .image_io import apply_optics, parse_halo, parse_psf, write_fits, write_npy, write_png
+    sc = _scene(scene, scene_options)
+    if camera is None:
+        w, h = (pixels, pixels) if np.isscalar(pixels) else tuple(pixels)
+        camera = Camera(fov_deg=fov_deg, width=int(w), height=int(h), supersample=supersample, pointing=pointing)
+    settings = sc.settings("raytrace")
+    keys = list(keys) if keys is not None else [sc.keys[0] if key is None else key]
+    pix_arcsec = float(np.degrees(camera.scale_rad)) * 3600.0
+    k_psf = parse_psf(psf, pix_arcsec, (camera.height, camera.width))
+    k_halo = parse_halo(halo, pix_arcsec, (camera.height, camera.width))
+    if out is not None:
+        from .io import check_output_path
+        out = check_output_path(out, (".fits", ".npy", ".png"))
+    results, files = [], []
+    it = keys
+    if progress and len(keys) > 1:
+        from tqdm import tqdm
+        it = tqdm(keys, desc="image", unit="frame", leave=False)
+    for n, k in enumerate(it):
+        res = synthesize(settings, k, camera)
+        for comp in res.planes:
+            for b in res.planes[comp]:
+                res.planes[comp][b] = apply_optics(res.planes[comp][b], k_psf, k_halo)
+        results.append(res)
+        if out is not None:
+            target = out if len(keys) == 1 else out.with_name(f"{out.stem}_{n:03d}{out.suffix}")
+            suffix = target.suffix.lower()
+            extra = {"psf": psf, "halo": halo, "settings": settings.to_dict()}
+            if suffix == ".fits":
+                write_fits(target, res, res.planes, extra)
+            elif suffix == ".npy":
+                write_npy(target, res.planes)
+            else:
+                write_png(target, res, res.planes)
+            files.append(target)
+    if gif is not None and len(results) > 1:
+        import io as _io
+
+        from PIL import Image
+
+        from .io import write_bytes_atomic
+        frames = []
+        for res in results:
+            b = next(iter(res.planes["moonshine"]))
+            tot = res.planes["moonshine"][b] + res.planes["earthshine"][b]
+            v = np.arcsinh(tot / max(np.percentile(tot[tot > 0], 5) if (tot > 0).any() else 1.0, 1e-30))
+            v = (255 * v / max(v.max(), 1e-30)).astype(np.uint8)[::-1]
+            frames.append(Image.fromarray(v))
+        buf = _io.BytesIO()
+        frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
+        write_bytes_atomic(gif, buf.getvalue())
+        files.append(gif)
+    if out is not None:
+        return files
+    return results[0] if len(results) == 1 else results

@@ -217,6 +217,23 @@ def build_parser() -> argparse.ArgumentParser:
         _add_trace_options(p)
         _add_sky_options(p)
 
+    p = sub.add_parser("image", help="synthetic camera image in radiance units (FITS, NPY or PNG)")
+    p.add_argument("--phase", default=None, help="θ [deg] (default 90); a list writes numbered frames")
+    p.add_argument("--brdf", default="dhg", help="BRDFs: one plane pair (MOONSHINE, EARTHSHINE) each")
+    p.add_argument("--fov-deg", type=float, default=0.75, help="field of view across the width [deg]")
+    p.add_argument("--pixels", default="256", help="N or WxH")
+    p.add_argument("--supersample", type=int, default=4, help="K: K×K stratified rays per pixel")
+    p.add_argument("--pointing", default="moon", help="moon or RA,DEC [deg] (ICRF on dates)")
+    p.add_argument("--psf", default="none", help="none | gaussian:FWHM_ARCSEC | FILE.npy (2-D kernel, odd sides)")
+    p.add_argument("--halo", default="none",
+                   help="scattered-light wing FRACTION,INDEX[,CORE_ARCSEC]: (1+(r/core)^2)^(-INDEX/2)")
+    p.add_argument("--out", required=True, help=".fits, .npy or .png; several phases/times: FILE_000.ext …")
+    p.add_argument("--gif", default=None, help="with several frames: also an animated GIF of the PNG stretch")
+    p.add_argument("--quiet", action="store_true")
+    _add_physics_options(p)
+    _add_trace_options(p)
+    _add_sky_options(p)
+
     p = sub.add_parser("study", help="mesh-resolution study")
     p.add_argument("kind", choices=["mesh"])
     p.add_argument("--levels", default="2:6:1", help="icosphere levels (integers)")
@@ -415,6 +432,24 @@ def cmd_render(a, interactive=False):
         print(f"wrote {f}")
 
 
+def cmd_image(a):
+    from . import api
+    from .camera import Camera, parse_pixels
+    times = _times(a)
+    if times is not None and a.phase is not None:
+        raise UsageError("give --phase (the θ scene) or --time/--time-range (the real sky), not both")
+    phases = parse_float_list(a.phase or "90", "phase", 0.0, 180.0)
+    w, h = parse_pixels(a.pixels)
+    camera = Camera(fov_deg=a.fov_deg, width=w, height=h, supersample=a.supersample, pointing=a.pointing)
+    out = _check_out(a.out, (".fits", ".npy", ".png"))
+    gif = _check_out(a.gif, (".gif",)) if a.gif else None
+    scene = _scene(a, phases, times)
+    files = api.image(scene, keys=scene.keys, camera=camera, psf=a.psf, halo=a.halo, out=out, gif=gif,
+                      progress=not a.quiet)
+    for f in files:
+        print(f"wrote {f}")
+
+
 def cmd_study(a):
     from . import study
     levels = parse_float_list(a.levels, "level", 0, 8)
@@ -545,7 +580,7 @@ def cmd_paper(a):
 
 COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": cmd_render,
             "view": lambda a: cmd_render(a, interactive=True), "study": cmd_study,
-            "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh, "fit": cmd_fit}
+            "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh, "fit": cmd_fit, "image": cmd_image}
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
