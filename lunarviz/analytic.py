@@ -48,8 +48,11 @@ class AnalyticSettings:
             raise LunarvizError(f"analytic order={self.order!r} must be an integer in [2, 512]")
         if not (0 < self.paper_step_deg <= 85):
             raise LunarvizError(f"paper grid step {self.paper_step_deg!r} deg must be in (0, 85]")
-        if not (0 <= self.earth_albedo <= 1):
-            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be in [0, 1]")
+        if not (isinstance(self.earth_albedo, (int, float, np.number)) and 0 <= self.earth_albedo <= 1):
+            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be a number in [0, 1]")
+        from .earth import EARTH_LAWS
+        if self.earth_law not in EARTH_LAWS:
+            raise LunarvizError(f"Earth law {self.earth_law!r} is not one of {', '.join(EARTH_LAWS)}")
 
 
 def lunar_surface_rule(scene: Scene, source: np.ndarray, source_radius: float = 0.0,

@@ -43,10 +43,36 @@ def _phases(phases) -> tuple:
         return tuple(float(p) for p in range(0, 181, 5))
     if isinstance(phases, str):
         return tuple(parse_float_list(phases, "phase", 0.0, 180.0))
-    vals = np.atleast_1d(np.asarray(phases, dtype=float))
-    if vals.size == 0 or not np.all(np.isfinite(vals)) or np.any((vals < 0) | (vals > 180)):
+    try:
+        vals = np.atleast_1d(np.asarray(phases, dtype=float))
+    except (TypeError, ValueError):
+        raise LunarvizError(f"phases {phases!r} must be numbers (θ [deg]) or a string a,b,c / start:stop:step") \
+            from None
+    if vals.ndim != 1 or vals.size == 0 or not np.all(np.isfinite(vals)) or np.any((vals < 0) | (vals > 180)):
         raise LunarvizError(f"phases {phases!r} must be finite angles θ in [0, 180] deg")
     return tuple(float(v) for v in vals)
+
+
+def _check_key(sc: "Scene", key):
+    """A task key for ``sc``: a phase θ [deg] in [0, 180], or (a scene with times) a UTC time."""
+    if key is None:
+        return sc.keys[0]
+    if sc.times is not None:
+        from .ephemeris import time_list
+        if not isinstance(key, str):
+            raise LunarvizError(f"this scene is dated: give a UTC time, not {key!r}")
+        return time_list(key)[0] if "," not in key else _one(key)
+    try:
+        th = float(key)
+    except (TypeError, ValueError):
+        raise LunarvizError(f"phase {key!r} is not a number (this scene has no times)") from None
+    if not (np.isfinite(th) and 0.0 <= th <= 180.0):
+        raise LunarvizError(f"phase {key!r} is out of range [0, 180] deg")
+    return th
+
+
+def _one(key):
+    raise LunarvizError(f"give one time, got {key!r}")
 
 
 class Scene:
@@ -84,13 +110,32 @@ class Scene:
         if unknown:
             raise LunarvizError(f"unknown Scene option {sorted(unknown)[0]!r}; known: {', '.join(SCENE_DEFAULTS)}")
         from .ephemeris import time_list
+        if phases is not None and (time is not None or time_range is not None):
+            raise LunarvizError("give phases (the θ scene) or time/time_range (the real sky), not both")
         if time is not None and not isinstance(time, str):
-            time = ",".join(str(t) for t in time)
+            if not isinstance(time, (list, tuple)) or not all(isinstance(t, str) for t in time):
+                raise LunarvizError(f"time {time!r} must be an ISO 8601 string or a list of them")
+            time = ",".join(time)
         self.times = None if time is None and time_range is None else time_list(time, time_range)
         self.phases = _phases(phases)
         self.options = {**SCENE_DEFAULTS, **options, "observer": observer}
-        if isinstance(self.options["brdfs"], str):
-            self.options["brdfs"] = tuple(b.strip() for b in self.options["brdfs"].split(","))
+        b = self.options["brdfs"]
+        if isinstance(b, str):
+            b = tuple(x.strip() for x in b.split(","))
+        if not isinstance(b, (list, tuple)) or not all(isinstance(x, str) for x in b):
+            raise LunarvizError(f"brdfs {self.options['brdfs']!r} must be names such as ('lambert', 'dhg')")
+        self.options["brdfs"] = tuple(b)
+        if self.options["params"] is not None and not isinstance(self.options["params"], dict):
+            raise LunarvizError(f"params {self.options['params']!r} must be {{brdf: {{name: value}}}}")
+        det = self.options["detector"]
+        if det is not None:
+            try:
+                det = tuple(float(c) for c in det)
+            except (TypeError, ValueError):
+                raise LunarvizError(f"detector {det!r} must be three numbers x, y, z [m]") from None
+            if len(det) != 3:
+                raise LunarvizError(f"detector {det!r} must be three numbers x, y, z [m]")
+            self.options["detector"] = det
         self.settings("raytrace")  # validates everything (raytrace accepts every option)
 
     def settings(self, method: str = "analytic"):
@@ -113,7 +158,9 @@ class Scene:
         return self.settings("raytrace").scene_and_fields(self.keys[0] if key is None else key)
 
     def __repr__(self) -> str:
-        where = f"times={len(self.times)} from {self.times[0]}" if self.times else f"phases={len(self.phases)}"
+        def few(v):
+            return repr(tuple(v)) if len(v) <= 4 else f"<{len(v)}: {v[0]} .. {v[-1]}>"
+        where = f"time={few(self.times)}" if self.times else f"phases={few(self.phases)}"
         diff = {k: v for k, v in self.options.items() if SCENE_DEFAULTS.get(k, "geocentre") != v}
         return f"lunarviz.Scene({where}, {', '.join(f'{k}={v!r}' for k, v in diff.items())})".replace(", )", ")")
 
@@ -130,9 +177,22 @@ def _scene(scene, scene_options) -> Scene:
 
 def run(scene: Scene | None = None, method: str = "analytic", workers: int | None = None,
         progress: bool = False, **scene_options) -> dict:
-    """Run a sweep and return the raw result (``{"settings", "rows", "bond_albedo", ...}``),
-    the structure written to JSON. See :func:`sweep` for the Dataset."""
+    """Run a sweep and return the raw result, the structure written to JSON.
+
+    Parameters
+    ----------
+    scene, method, workers, progress
+        As for :func:`sweep`.
+
+    Returns
+    -------
+    dict
+        ``{"settings", "rows", "bond_albedo", "wall_seconds", ...}``; each row has
+        ``moonshine_W_m2``, ``earthshine_W_m2`` [W m-2], angles [deg], ``apparent_albedo``.
+    """
     from .sweeps import run_sweep
+    if workers is not None and not (isinstance(workers, (int, np.integer)) and workers >= 1):
+        raise LunarvizError(f"workers={workers!r} must be a positive integer")
     sc = _scene(scene, scene_options)
     return run_sweep(sc.settings(method), workers=workers, progress=progress)
 
@@ -167,8 +227,20 @@ class Facets(FacetResult):
     """Per-facet results of :func:`trace` (arrays in ``cell_data``, totals in ``totals``)."""
 
     def to_pyvista(self, bodies: bool = False):
-        """The lunar mesh as a ``pyvista.PolyData`` with every per-facet array (Moon-centred [m]);
-        with ``bodies=True`` a ``MultiBlock`` of Moon, Earth and Sun in scene coordinates."""
+        """The per-facet results as PyVista data.
+
+        Parameters
+        ----------
+        bodies : bool
+            False: the Moon only, Moon-centred [m] in its body frame (MOON_ME on dates).
+            True: a ``MultiBlock`` of Moon, Earth and Sun in scene coordinates [m].
+
+        Returns
+        -------
+        pyvista.PolyData or pyvista.MultiBlock
+            Cell arrays as in :mod:`lunarviz.facets` (radiance [W m-2 sr-1], irradiance [W m-2],
+            contributions [W m-2], angles [deg], lit fractions).
+        """
         from .viz.meshio import facet_polydata, multiblock
         return multiblock(self) if bodies else facet_polydata(self)
 
@@ -183,13 +255,29 @@ class Facets(FacetResult):
 
 
 def trace(scene: Scene | None = None, key=None, brdf: str | None = None, **scene_options) -> Facets:
-    """Ray trace one phase θ [deg] or UTC time (default: the scene's first) and return the
-    per-facet arrays (:mod:`lunarviz.facets`) for every BRDF of the scene; ``brdf`` (default
-    the first) names the unsuffixed arrays."""
+    """Ray trace one phase or time and return per-facet results.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (or its options as keywords).
+    key : float or str, optional
+        Phase θ [deg] in [0, 180], or a UTC time for a dated scene (default: the scene's first).
+    brdf : str, optional
+        The BRDF of the unsuffixed arrays (default: the scene's first); every BRDF of the
+        scene has suffixed arrays.
+
+    Returns
+    -------
+    Facets
+        ``cell_data`` (per-facet arrays: radiance [W m-2 sr-1], irradiance and contributions
+        [W m-2], angles [deg]), ``totals`` (detector irradiance [W m-2]), ``info``;
+        ``.to_pyvista()``, ``.save(path)``.
+    """
     from .facets import trace_facets
     sc = _scene(scene, scene_options)
     settings = sc.settings("raytrace")
-    key = sc.keys[0] if key is None else key
+    key = _check_key(sc, key)
     if brdf is not None and brdf not in settings.brdfs:
         raise LunarvizError(f"BRDF {brdf!r} is not among the scene's {', '.join(settings.brdfs)}")
     res = trace_facets(settings, key, brdf)
@@ -198,29 +286,75 @@ def trace(scene: Scene | None = None, key=None, brdf: str | None = None, **scene
 
 def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = "composite",
            size=(1600, 900), out=None, **scene_options) -> np.ndarray:
-    """An offscreen picture (RGB array, height × width × 3) of one phase or time; written
-    as PNG to ``out`` when given. ``view`` is composite, moon, rays or maps."""
+    """An offscreen picture for people (PyVista) of one phase or time.
+
+    Parameters
+    ----------
+    scene, key
+        As for :func:`trace`.
+    brdf : str
+        The BRDF shown.
+    view : {"composite", "moon", "rays", "maps"}
+        The panels.
+    size : (int, int)
+        Width and height [pixels], 64..8192.
+    out : path, optional
+        Also write the picture as PNG.
+
+    Returns
+    -------
+    numpy.ndarray
+        RGB, (height, width, 3), uint8. For radiance images see :func:`image`.
+    """
     from .viz import views
     sc = _scene(scene, scene_options)
     if view not in views.VIEWS:
         raise LunarvizError(f"unknown view {view!r}: choose from {', '.join(views.VIEWS)}")
+    size = _check_size(size)
+    if out is not None:
+        from .io import check_output_path
+        out = check_output_path(out, (".png",))
     settings = replace(sc.settings("raytrace"), brdfs=(brdf,))
-    key = sc.keys[0] if key is None else key
-    return views.render_image(settings, key, brdf, view=view, size=tuple(size), out=out)
+    return views.render_image(settings, _check_key(sc, key), brdf, view=view, size=size, out=out)
+
+
+def _check_size(size) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in size)
+    except (TypeError, ValueError):
+        raise LunarvizError(f"size {size!r} must be (width, height) in pixels") from None
+    if not (64 <= w <= 8192 and 64 <= h <= 8192):
+        raise LunarvizError(f"size {size!r}: each side must be 64..8192 pixels")
+    return w, h
 
 
 def view(scene: Scene | None = None, key=None, brdf: str = "dhg", size=(1600, 900), web: bool = False,
          port: int = 0, host: str = "127.0.0.1", **scene_options):
-    """The interactive viewer: a desktop window, or with ``web=True`` a trame server on
-    ``host:port`` (127.0.0.1 unless asked; port 0 picks a free one) for a browser or notebook."""
+    """The interactive viewer.
+
+    Parameters
+    ----------
+    scene, key, brdf, size
+        As for :func:`render`.
+    web : bool
+        False: a desktop window (needs a display). True: a trame server for a browser or a
+        notebook, rendering on the server.
+    port : int
+        TCP port for ``web`` (0: a free one).
+    host : str
+        Interface to bind for ``web``: 127.0.0.1 unless asked otherwise.
+    """
     sc = _scene(scene, scene_options)
     settings = replace(sc.settings("raytrace"), brdfs=(brdf,))
-    key = sc.keys[0] if key is None else key
+    key = _check_key(sc, key)
+    size = _check_size(size)
     if web:
+        if not (isinstance(port, (int, np.integer)) and not isinstance(port, bool) and 0 <= port <= 65535):
+            raise LunarvizError(f"port {port!r} is not a TCP port (0-65535; 0 picks a free one)")
         from .viz.web import serve
-        return serve(settings, key, brdf, host=host, port=port, size=tuple(size))
+        return serve(settings, key, brdf, host=str(host), port=int(port), size=size)
     from .viz.viewer import run_viewer
-    return run_viewer(settings, key, brdf, size=tuple(size))
+    return run_viewer(settings, key, brdf, size=size)
 
 
 def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_deg: float = 0.75, pixels=256,
@@ -255,7 +389,7 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
         w, h = (pixels, pixels) if np.isscalar(pixels) else tuple(pixels)
         camera = Camera(fov_deg=fov_deg, width=int(w), height=int(h), supersample=supersample, pointing=pointing)
     settings = sc.settings("raytrace")
-    keys = list(keys) if keys is not None else [sc.keys[0] if key is None else key]
+    keys = [_check_key(sc, k) for k in keys] if keys is not None else [_check_key(sc, key)]
     pix_arcsec = float(np.degrees(camera.scale_rad)) * 3600.0
     k_psf = parse_psf(psf, pix_arcsec, (camera.height, camera.width))
     k_halo = parse_halo(halo, pix_arcsec, (camera.height, camera.width))

@@ -46,7 +46,10 @@ _MU_SUM_FLOOR = 1e-300
 
 
 def _check(name: str, value: float, lo: float, hi: float, lo_open=False, hi_open=False) -> float:
-    value = float(value)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise LunarvizError(f"BRDF parameter {name}={value!r} is not a number") from None
     ok = np.isfinite(value) and (value > lo if lo_open else value >= lo) and (
         value < hi if hi_open else value <= hi)
     if not ok:

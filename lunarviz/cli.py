@@ -294,7 +294,7 @@ def _scene(a, phases, times=None):
     from .api import Scene
     brdfs = _brdf_list(a.brdf)
     return Scene(
-        phases=phases, time=times, observer=getattr(a, "observer", "geocentre"),
+        phases=None if times is not None else phases, time=times, observer=getattr(a, "observer", "geocentre"),
         brdfs=tuple(brdfs), dhg_convention=a.dhg_convention, h_function=a.h_function, moon_model=a.moon_model,
         params=parse_params(a.param, brdfs), detector=_detector(a.detector), earth_albedo=a.earth_albedo,
         earth_law=getattr(a, "earth_law", "lambert"), grid=getattr(a, "grid", "converged"),
@@ -409,6 +409,8 @@ def cmd_render(a, interactive=False):
     if interactive:
         from . import api
         web = getattr(a, "web", False)
+        if times is None and len(phases) > 1:
+            raise UsageError("view starts at one phase (its slider moves through the others): give one --phase")
         if not web and (getattr(a, "port", None) is not None or getattr(a, "host", None) is not None):
             raise UsageError("--port and --host go with --web")
         if web:

@@ -149,13 +149,56 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
          refine: bool = True, out=None, plot=None, progress: bool = False) -> dict:
     """Mesh-resolution study (the Python face of ``lunarviz study mesh``).
 
-    Traces every phase θ [deg] with ``body``'s mesh at every icosphere ``level`` (or the user's
-    ``meshes``, coarse to fine) and returns ``{"settings", "rows", "summary"}``: per level the
-    facets, the relative error (against the exact reference for the sphere, else the finest
-    mesh), the observed order and the run time. Nothing is written or drawn unless asked:
-    ``out`` (.json/.csv) writes the table, ``plot`` (a .png path) draws the convergence plot.
+    Parameters
+    ----------
+    levels : sequence of int
+        Icosphere levels of ``body``'s mesh, increasing (ignored with ``meshes``).
+    phases : sequence of float
+        Phases θ [deg] in [0, 180].
+    brdfs : sequence of str
+        Lunar BRDFs.
+    body : {"moon", "earth", "sun"}
+        The body whose mesh varies; ``shape`` sphere, ellipsoid (semi-axes ``axes`` in body
+        radii) or craters; ``meshes`` the user's meshes coarse to fine (in ``mesh_units``).
+    shading, refine
+        Ray-tracing options (see :class:`lunarviz.tracer.estimators.TraceSettings`).
+    out : path, optional
+        Write the table (.json or .csv).
+    plot : path, optional
+        Draw the convergence plot (.png).
+
+    Returns
+    -------
+    dict
+        ``{"settings", "rows", "summary"}``: per level the facets, the relative error (against
+        the exact reference for the sphere, else the finest mesh), the observed order and the
+        run time [s]. Nothing is written or drawn unless asked.
     """
+    from .brdf import BRDF_NAMES
     from .io import check_output_path
+    from .meshes import MAX_LEVEL
+    levels = list(levels)
+    if meshes is None:
+        if not levels or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= MAX_LEVEL
+                                 for v in levels):
+            raise LunarvizError(f"levels {tuple(levels)!r} must be integers in [0, {MAX_LEVEL}]")
+        if any(b <= a for a, b in zip(levels, levels[1:])):
+            raise LunarvizError(f"levels {tuple(levels)!r} must increase (coarse to fine)")
+    elif len(meshes) < 2:
+        raise LunarvizError("meshes needs at least two meshes, coarse to fine")
+    try:
+        phases = [float(p) for p in phases]
+    except (TypeError, ValueError):
+        raise LunarvizError(f"phases {phases!r} must be numbers θ [deg]") from None
+    if not phases or not all(np.isfinite(p) and 0 <= p <= 180 for p in phases):
+        raise LunarvizError(f"phases {tuple(phases)!r} must be angles θ in [0, 180] deg")
+    for b in brdfs:
+        if b not in BRDF_NAMES:
+            raise LunarvizError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
+    if body not in ("moon", "earth", "sun"):
+        raise LunarvizError(f"body {body!r} is not moon, earth or sun")
+    if shape not in STUDY_SHAPES:
+        raise LunarvizError(f"shape {shape!r} is not one of {', '.join(STUDY_SHAPES)}")
     if out is not None:
         out = check_output_path(out)
     if plot is not None:

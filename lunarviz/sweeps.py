@@ -78,11 +78,22 @@ class SweepSettings:
                 raise LunarvizError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
         if not self.phases_deg:
             raise LunarvizError("no phase given")
+        if self.times is None and len(set(self.phases_deg)) != len(self.phases_deg):
+            dup = next(p for p in self.phases_deg if list(self.phases_deg).count(p) > 1)
+            raise LunarvizError(f"phase {dup:g} is listed twice")
+        if not isinstance(self.params, dict) or not all(isinstance(v, dict) for v in self.params.values()):
+            raise LunarvizError(f"params {self.params!r} must be {{brdf: {{name: value}}}}")
+        for b in self.params:
+            if b not in self.brdfs:
+                raise LunarvizError(f"params name BRDF {b!r}, which is not in this run ({', '.join(self.brdfs)})")
         if self.times is not None:
             from .ephemeris import time_list
             if not self.times:
                 raise LunarvizError("no time given")
             object.__setattr__(self, "times", time_list(",".join(self.times)))  # canonical labels, checked
+            if len(set(self.times)) != len(self.times):
+                dup = next(t for t in self.times if self.times.count(t) > 1)
+                raise LunarvizError(f"time {dup} is listed twice")
             if self.detector is not None:
                 raise LunarvizError("--detector places a detector in the θ scene; with --time use --observer")
         if self.detector is not None and self.times is None:
@@ -237,15 +248,19 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
     dt = time.perf_counter() - t0
     for r in rows:
         es_, ms_ = r["earthshine_W_m2"], r["moonshine_W_m2"]
-        r["ratio_earthshine_moonshine"] = es_ / ms_ if ms_ > 0 else float("nan")
+        # a ratio of round-off (no measurable sunlit Moon: new Moon, eclipse, occultation) is no ratio
+        measurable = ms_ > 0 and alb.lunar_terms(sc, 0.0, ms_, settings.earth_albedo).pb_fb > alb.MIN_LUNAR_TERM
+        r["ratio_earthshine_moonshine"] = es_ / ms_ if measurable else float("nan")
         pe = alb.geometric_albedo_term(sc, es_, ms_, r.pop("_terms"))
         r["geometric_albedo_term"] = pe
         r["apparent_albedo"] = alb.apparent_albedo(sc.beta_deg, pe)
         if "_terms_point" in r:
             pp = alb.geometric_albedo_term(sc, es_, ms_, r.pop("_terms_point"))
             r["apparent_albedo_point_source_inversion"] = alb.apparent_albedo(sc.beta_deg, pp)
-            r["extended_over_point_earthshine"] = es_ / r["earthshine_point_source_W_m2"] \
-                if r["earthshine_point_source_W_m2"] > 0 else float("nan")
+            pt_es = r["earthshine_point_source_W_m2"]
+            pt_terms = alb.lunar_terms(sc, pt_es, ms_, settings.earth_albedo)
+            r["extended_over_point_earthshine"] = es_ / pt_es \
+                if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
     return rows
 

@@ -170,3 +170,49 @@ def test_views_and_viewer_do_not_import_each_other():
     code = "import sys, lunarviz.viz.views; print('lunarviz.viz.viewer' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "False", r.stderr
+
+
+# ---- the API checks what the command line checks (review of issue 14) ---------------------------
+_S = dict(phases=30.0, moon_level=2)
+
+
+@pytest.mark.parametrize("call, word", [
+    (lambda: lunarviz.trace(lunarviz.Scene(**_S), 200), "200"),
+    (lambda: lunarviz.trace(lunarviz.Scene(**_S), "abc"), "abc"),
+    (lambda: lunarviz.render(lunarviz.Scene(**_S), 500), "500"),
+    (lambda: lunarviz.render(lunarviz.Scene(**_S), 30.0, out="x.jpg"), "x.jpg"),
+    (lambda: lunarviz.render(lunarviz.Scene(**_S), 30.0, size=(0, 0)), "size"),
+    (lambda: lunarviz.view(lunarviz.Scene(**_S), web=True, port=70000), "70000"),
+    (lambda: lunarviz.study.mesh(levels=(2.7,)), "2.7"),
+    (lambda: lunarviz.study.mesh(levels=(2, 1)), "increase"),
+    (lambda: lunarviz.study.mesh(levels=(1, 2), phases=(500,)), "500"),
+    (lambda: lunarviz.Scene(params={"w": 0.3}), "params"),
+    (lambda: lunarviz.Scene(brdfs=("dhg",), params={"shg": {"w": 0.3}}), "shg"),
+    (lambda: lunarviz.Scene(params={"dhg": {"w": "x"}}), "'x'"),
+    (lambda: lunarviz.Scene(phases=["30", "a"]), "phases"),
+    (lambda: lunarviz.Scene(phases=[[30, 60]]), "phases"),
+    (lambda: lunarviz.Scene(brdfs=3), "brdfs"),
+    (lambda: lunarviz.Scene(detector="1,2,3"), "detector"),
+    (lambda: lunarviz.Scene(earth_albedo="x"), "albedo"),
+    (lambda: lunarviz.Scene(moon_level=-1), "moon_level"),
+    (lambda: lunarviz.Scene(mesh_units="ft"), "ft"),
+    (lambda: lunarviz.Scene(earth_law="x"), "'x'"),
+    (lambda: lunarviz.Scene(occlusion="no"), "occlusion"),
+    (lambda: lunarviz.Scene(phases="30,30"), "twice"),
+    (lambda: lunarviz.Scene(phases=30, time="2026-06-01"), "not both"),
+    (lambda: lunarviz.sweep(lunarviz.Scene(**_S), workers="2"), "workers"),
+])
+def test_api_rejects_bad_values_in_one_line(call, word, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(LunarvizError) as exc:
+        call()
+    assert word in str(exc.value) and "\n" not in str(exc.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ratios_of_round_off_are_undefined():
+    # θ = 0 (full Moon, an eclipse in exact geometry) has no earthlit Moon; θ = 180 no sunlit
+    # Moon: ratios of ~1e-16 W m-2 are not measurements
+    rows = lunarviz.run(phases="0,180", brdfs="lambert")["rows"]
+    by = {r["theta_deg"]: r for r in rows}
+    assert np.isnan(by[180.0]["ratio_earthshine_moonshine"])

@@ -125,8 +125,18 @@ class TraceSettings:
                 raise LunarvizError(f"{name}={v!r} must be a positive integer")
         if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
             raise LunarvizError(f"seed={self.seed!r} must be a non-negative integer")
-        if not (0 <= self.earth_albedo <= 1):
-            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be in [0, 1]")
+        if not (isinstance(self.earth_albedo, (int, float, np.number)) and 0 <= self.earth_albedo <= 1):
+            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be a number in [0, 1]")
+        from ..meshes import MAX_LEVEL, MESH_UNITS
+        for name in ("moon_level", "earth_level", "sun_level"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= MAX_LEVEL):
+                raise LunarvizError(f"{name}={v!r} must be an integer icosphere level in [0, {MAX_LEVEL}]")
+        if self.mesh_units not in MESH_UNITS:
+            raise LunarvizError(f"mesh units {self.mesh_units!r} are not one of {', '.join(MESH_UNITS)}")
+        for name in ("occlusion", "self_shadow", "refine"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise LunarvizError(f"{name}={getattr(self, name)!r} must be True or False")
 
 
 @lru_cache(maxsize=16)

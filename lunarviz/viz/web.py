@@ -9,6 +9,8 @@ each change re-traces the scene, as in the desktop viewer.
 
 from __future__ import annotations
 
+import numpy as np
+
 from .views import build_plotter, compute_view_data, numbers_text, populate
 
 BRDFS = ("lambert", "shg", "dhg")
@@ -47,7 +49,7 @@ def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
 
     @state.change("phase", "brdf")
     def _update(phase, brdf, **_):
-        k = times[int(round(phase))] if times else float(phase)
+        k = times[int(np.clip(round(float(phase)), 0, len(times) - 1))] if times else float(np.clip(phase, 0, 180))
         state.busy = True
         new = compute_view_data(replace(settings, brdfs=(brdf,)), k, brdf)
         _refresh(pl, new)
