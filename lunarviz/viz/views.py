@@ -121,45 +121,75 @@ def _camera_from_detector(pl, fr: FacetResult, zoom=1.0):
     up = np.array([0.0, 0.0, 1.0])
     if abs(np.dot(up, view)) > 0.99:
         up = np.array([0.0, 1.0, 0.0])
-    pl.camera_position = [tuple(view * 8 * R), (0.0, 0.0, 0.0), tuple(up)]
+    # the Moon a little left of centre, so the colour bar on the right never covers its limb
+    right = np.cross(view, up)
+    right = right / np.linalg.norm(right)
+    focal = -right * 0.25 * R / zoom  # ``right`` = cross(view, up) points to the image's left
+    pl.camera_position = [tuple(focal + view * 8 * R), tuple(focal), tuple(up)]
     pl.enable_parallel_projection()
-    pl.camera.parallel_scale = 1.15 * R / zoom
+    pl.camera.parallel_scale = 1.2 * R / zoom
 
 
-def _moon_panel(pl, poly, field, title, cmap, log=True, clim=None, bar_fmt="%.1e", mask=None, floor=None):
+def _moon_panel(pl, poly, field, title, cmap, log=True, clim=None, bar_fmt="%.1e", mask=None, floor=None,
+                smooth=True):
+    """One Moon panel: ``field`` on the mesh, with a colour bar titled ``title`` (keep it short:
+    two lines of ≤ 12 characters fit the bar at 1024×768). ``smooth`` interpolates the facet
+    values across facets (no facet-jagged terminator); a degenerate range (one value) gets a
+    single-label bar instead of four equal labels."""
     mesh = poly.copy()
     if log:
         vals, lim = _log_field(mesh.cell_data[field], floor)
     else:
         vals, lim = _linear_field(mesh.cell_data[field], np.ones(mesh.n_cells, bool) if mask is None else mask)
-    mesh.cell_data[field + "_shown"] = vals
-    bar = {"title": title, "fmt": bar_fmt, "n_labels": 4, "vertical": True, "color": "white",
-           "position_x": 0.84, "position_y": 0.1, "height": 0.8, "width": 0.05,
-           "title_font_size": 14, "label_font_size": 12}
-    pl.add_mesh(mesh, scalars=field + "_shown", cmap=cmap, log_scale=log, clim=clim or lim,
-                nan_color=(0.12, 0.12, 0.14), show_edges=False, lighting=False, scalar_bar_args=bar)
+    lim = tuple(clim or lim)
+    n_labels = 4
+    if not (lim[1] > lim[0] * (1 + 1e-9) + 1e-300):  # one value: widen a little, label once
+        centre = lim[0]
+        lim = (centre * 0.999, centre * 1.001) if centre else (-0.5, 0.5)
+        n_labels = 1
+    scalars = field + "_shown"
+    mesh.cell_data[scalars] = vals
+    if smooth:
+        shown = mesh.cell_data_to_point_data(pass_cell_data=False)
+        shown.point_data[scalars] = np.where(np.isfinite(shown.point_data[scalars]), shown.point_data[scalars],
+                                             np.nan)
+        mesh = shown
+    bar = {"title": title, "fmt": bar_fmt, "n_labels": n_labels, "vertical": True, "color": "white",
+           "position_x": 0.80, "position_y": 0.08, "height": 0.74, "width": 0.045,
+           "title_font_size": 12, "label_font_size": 11}
+    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, log_scale=log, clim=lim, nan_color=(0.12, 0.12, 0.14),
+                show_edges=False, lighting=False, interpolate_before_map=True, scalar_bar_args=bar)
     return mesh
 
 
-def _ray_panel(pl, data: ViewData):
+def _ray_panel(pl, data: ViewData, text: str | None = None):
+    """Light paths, schematic: directions as seen from the Earth are kept, distances are not
+    (the Moon at 2 units, the Sun at 3.4: the triangle stays legible), bodies enlarged. Seen
+    from the normal of the Sun-Earth-Moon plane, drawn in the right part of the panel; the
+    numbers (``text``) go on the left, and the bottom stays free for the viewer's controls."""
     fr = data.facets
     moon = np.array(fr.info["moon_centre_m"])
     sun = np.array(fr.info["sun_m"])
     det = np.array(fr.info["detector_m"])
     earth = np.zeros(3)
-    # schematic: keep directions as seen from the Earth, compress distances (log), enlarge bodies
-    def place(centre):
+
+    def place(centre, dist):
         d = np.linalg.norm(centre)
-        return centre / d * (1.2 + np.log10(d / 3.8e8 + 1) * 6.0) if d > 0 else centre
-    C = {"sun": place(sun), "earth": earth, "moon": place(moon)}
-    Rs = {"sun": 0.45, "earth": 0.35, "moon": 0.16}
+        return centre / d * dist if d > 0 else centre
+    C = {"sun": place(sun, 3.4), "earth": earth, "moon": place(moon, 2.0)}
+    Rs = {"sun": 0.42, "earth": 0.3, "moon": 0.14}
     Rw = {"sun": 6.957e8, "earth": 6.378e6, "moon": 1.738e6}
     Cw = {"sun": sun, "earth": earth, "moon": moon}
     colors = {"sun": "gold", "earth": "royalblue", "moon": "lightgray"}
+    normal = np.cross(sun, moon)
+    normal = normal / np.linalg.norm(normal) if np.linalg.norm(normal) > 0 else np.array([1.0, 0.0, 0.0])
+    up = C["sun"] - C["moon"]
+    up = up - np.dot(up, normal) * normal
+    up = up / np.linalg.norm(up) if np.linalg.norm(up) > 0 else np.array([0.0, 0.0, 1.0])
     for b in C:
         pl.add_mesh(pv.Sphere(radius=Rs[b], center=C[b], theta_resolution=32, phi_resolution=32),
                     color=colors[b], smooth_shading=True)
-        pl.add_point_labels([C[b] + np.array([0, 0, Rs[b] * 1.6])], [b.capitalize()], font_size=12,
+        pl.add_point_labels([C[b] + up * Rs[b] * 1.7], [b.capitalize()], font_size=11,
                             text_color="white", shape=None, show_points=False)
 
     def snap(p, body):
@@ -172,13 +202,20 @@ def _ray_panel(pl, data: ViewData):
             for p, b in zip(line, bodies[path]):
                 pts.append(snap(p, "earth") if b == "det" else snap(p, b))
             pl.add_mesh(pv.lines_from_points(np.array(pts)), color=color, line_width=2)
-    pl.add_point_labels([snap(det, "earth")], ["detector"], font_size=10, text_color="white",
+    pl.add_point_labels([snap(det, "earth")], ["detector"], font_size=9, text_color="white",
                         point_color="red", point_size=8, shape=None)
-    pl.add_text("light paths (schematic: distances compressed, bodies enlarged)\n"
-                "orange: Sun -> Moon -> detector   blue: Sun -> Earth -> Moon -> detector",
-                font_size=9, position="upper_left", color="white")
-    pl.view_vector((1.0, 0.0, 0.0), viewup=(0.0, 0.0, 1.0))
-    pl.reset_camera()
+    legend = "light paths (schematic)\norange: Sun>Moon>detector\nblue: Sun>Earth>Moon>detector"
+    pl.add_text(legend if text is None else text + "\n\n" + legend, font_size=8, position="upper_left",
+                color="white")
+    pts = np.array(list(C.values()))
+    centre = 0.5 * (pts.min(0) + pts.max(0))
+    span = float(np.max(np.linalg.norm(pts - centre, axis=1))) + 0.6
+    right = np.cross(up, normal)
+    # the schematic in the right ~55 % of the panel, a little above the bottom controls
+    focal = centre - right * span * 0.7 - up * span * 0.2
+    pl.camera_position = [tuple(focal + normal * 20 * span), tuple(focal), tuple(up)]
+    pl.enable_parallel_projection()
+    pl.camera.parallel_scale = span * 1.3
 
 
 SHAPES = {"composite": (2, 2), "maps": (2, 2), "moon": (1, 1), "rays": (1, 1)}
@@ -203,8 +240,8 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
     if view == "moon":
         pl.subplot(0, 0)
         pl.set_background("black")
-        _moon_panel(pl, poly, "total_radiance", "radiance\n[W m^-2 sr^-1]", "gray", floor=_ashen_floor(poly))
-        pl.add_text(text, font_size=9, position="upper_left", color="white")
+        _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", "gray", floor=_ashen_floor(poly))
+        pl.add_text(text, font_size=8, position="upper_left", color="white")
         _camera_from_detector(pl, fr)
         return pl
     if view == "rays":
@@ -213,40 +250,39 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         _ray_panel(pl, data)
         return pl
     if view == "maps":
-        panels = [("incidence_deg", "incidence i [deg]", "twilight", (0, 90)),
-                  ("emission_deg", "emission e [deg]", "twilight", (0, 90)),
-                  ("solar_lit_fraction", "sunlit fraction (shadows)", "gray", (0, 1)),
-                  ("reflectance_factor", "reflectance factor pi*BRDF", "viridis", None)]
-        for k, (field, title, cmap, clim) in enumerate(panels):
+        panels = [("incidence_deg", "i [deg]", "twilight", (0, 90), "incidence i"),
+                  ("emission_deg", "e [deg]", "twilight", (0, 90), "emission e"),
+                  ("solar_lit_fraction", "sunlit\nfraction", "gray", (0, 1), "sunlit fraction (shadows)"),
+                  ("reflectance_factor", "pi*BRDF", "viridis", None, "reflectance factor pi*BRDF")]
+        for k, (field, title, cmap, clim, long_title) in enumerate(panels):
             pl.subplot(k // 2, k % 2)
             pl.set_background("black")
             seen = poly.cell_data["emission_deg"] < 90
             lit = seen & (poly.cell_data["incidence_deg"] < 90)
             _moon_panel(pl, poly, field, title, cmap, log=False, clim=clim, bar_fmt="%.3g",
                         mask=seen if field == "emission_deg" else lit)
-            pl.add_text(title + " (sunlight, seen from the detector)", font_size=9, color="white")
+            pl.add_text(long_title + " (sunlight)", font_size=9, position="upper_left", color="white")
             _camera_from_detector(pl, fr)
         return pl
     pl.subplot(0, 0)
     pl.set_background("black")
-    _moon_panel(pl, poly, "total_radiance", "radiance\n[W m^-2 sr^-1]", "gray", floor=_ashen_floor(poly))
-    pl.add_text("Moon seen from the detector: sunlit + earthshine (log scale)\n" + text,
-                font_size=8, position="upper_left", color="white")
+    _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", "gray", floor=_ashen_floor(poly))
+    pl.add_text("Moon from the detector (log)", font_size=9, position="upper_left", color="white")
     _camera_from_detector(pl, fr)
     pl.subplot(0, 1)
     pl.set_background("black")
-    _moon_panel(pl, poly, "earthshine_radiance_W_m2_sr", "earthshine\n[W m^-2 sr^-1]", "cividis")
-    pl.add_text("earthshine-lit side (Sun -> Earth -> Moon -> detector), own log scale", font_size=9, color="white")
+    _moon_panel(pl, poly, "earthshine_radiance_W_m2_sr", "earthshine\nW m-2 sr-1", "cividis")
+    pl.add_text("earthshine only (own log scale)", font_size=9, position="upper_left", color="white")
     _camera_from_detector(pl, fr)
     pl.subplot(1, 0)
     pl.set_background("black")
-    _ray_panel(pl, data)
+    _ray_panel(pl, data, text)
     pl.subplot(1, 1)
     pl.set_background("black")
     lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
-    _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\n(sunlight)", "viridis", log=False,
+    _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\nsunlight", "viridis", log=False,
                 bar_fmt="%.3f", mask=lit)
-    pl.add_text(f"patch BRDF map: reflectance factor ({data.numbers['brdf']})", font_size=9, color="white")
+    pl.add_text(f"BRDF map: pi*BRDF ({data.numbers['brdf']})", font_size=9, position="upper_left", color="white")
     _camera_from_detector(pl, fr)
     return pl
 
