@@ -242,6 +242,8 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
             if ts_set.estimator == "montecarlo":
                 row["moonshine_std_W_m2"] = ms.std[k]
                 row["earthshine_std_W_m2"] = es.std[k]
+                row["moonshine_sem_W_m2"] = ms.sem[k]
+                row["earthshine_sem_W_m2"] = es.sem[k]
                 row["runs"] = ts_set.runs
                 row["rays_per_run"] = ts_set.rays
             rows.append(row)

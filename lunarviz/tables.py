@@ -25,8 +25,10 @@ PER_TASK = ("theta_deg", "alpha_deg", "beta_deg", "phase_angle_deg", "observer_m
 DESCRIPTIONS = {
     "moonshine_W_m2": ("moonshine", "W m-2", "irradiance at the detector from sunlight reflected by the Moon"),
     "earthshine_W_m2": ("earthshine", "W m-2", "irradiance at the detector from earthlight reflected by the Moon"),
-    "moonshine_std_W_m2": ("moonshine_std", "W m-2", "standard deviation of one Monte Carlo run, moonshine"),
-    "earthshine_std_W_m2": ("earthshine_std", "W m-2", "standard deviation of one Monte Carlo run, earthshine"),
+    "moonshine_std_W_m2": ("moonshine_std", "W m-2", "standard deviation of one Monte Carlo run (pooled), moonshine"),
+    "earthshine_std_W_m2": ("earthshine_std", "W m-2", "std. deviation of one Monte Carlo run (pooled), earthshine"),
+    "moonshine_sem_W_m2": ("moonshine_sem", "W m-2", "standard deviation of the mean over runs, moonshine"),
+    "earthshine_sem_W_m2": ("earthshine_sem", "W m-2", "standard deviation of the mean over runs, earthshine"),
     "earthshine_point_source_W_m2": ("earthshine_point_source", "W m-2",
                                      "earthshine with a point Earth (paper's analytic method)"),
     "ratio_earthshine_moonshine": ("ratio_earthshine_moonshine", "1", "earthshine / moonshine"),

@@ -88,9 +88,9 @@ def test_montecarlo_statistics(paper_brdfs):
     for n in (2000, 8000):
         ms, es = traced(70.0, dhg, occlusion=False, estimator="montecarlo", rays=n, runs=K, seed=3)
         for path, res, ref in (("ms", ms, det[0].mean["dhg"]), ("es", es, det[1].mean["dhg"])):
-            sigma = np.mean(res.within_std["dhg"])
+            sigma = res.std["dhg"]  # pooled within the runs
             within[(path, n)] = sigma
-            assert lo * 0.9 < res.std["dhg"] / sigma < hi * 1.1
+            assert lo * 0.9 < res.spread["dhg"] / sigma < hi * 1.1
             # the mean of K runs lies within 3.3 standard errors (+ the deterministic
             # estimator's own 2e-4 error) of the deterministic value: unbiased
             assert abs(res.mean["dhg"] - ref) < 3.3 * sigma / np.sqrt(K) + 2e-4 * ref
@@ -213,3 +213,22 @@ def test_settings_validation():
         TraceSettings(rays=-1)
     with pytest.raises(ValueError, match="estimator 'x'"):
         TraceSettings(estimator="x")
+
+
+def test_montecarlo_sigma_over_many_seeds(paper_brdfs):
+    # 400 independent runs (each its own seeded stream) of 1000 rays: with the pooled σ that
+    # each run reports, z = (value - deterministic)/σ must have mean ≈ 0 within 3/√K and mean
+    # z² ≈ 1 within the 99.9 % χ²(K)/K band. The deterministic value errs by ≤ 2e-4, far below
+    # σ (≈ 3 %), so it stands for the truth.
+    from scipy.stats import chi2
+    dhg = {"dhg": paper_brdfs["dhg"]}
+    det = traced(70.0, dhg, occlusion=False)
+    K = 400
+    ms, es = traced(70.0, dhg, occlusion=False, estimator="montecarlo", rays=1000, runs=K, seed=11)
+    lo, hi = chi2.ppf([0.0005, 0.9995], K) / K
+    for res, ref in ((ms, det[0].mean["dhg"]), (es, det[1].mean["dhg"])):
+        z = (np.array(res.run_values["dhg"]) - ref) / np.array(res.within_std["dhg"])
+        assert abs(z.mean()) < 3.0 / np.sqrt(K)
+        assert lo < np.mean(z * z) < hi
+        # the stated σ of the mean covers the mean
+        assert abs(res.mean["dhg"] - ref) < 3.3 * res.sem["dhg"] + 2e-4 * ref

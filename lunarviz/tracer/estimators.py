@@ -658,13 +658,18 @@ class PathResult:
     """One path (moonshine or earthshine) at one phase, for every BRDF."""
 
     mean: dict  # brdf -> detector irradiance [W m-2]
-    std: dict  # brdf -> standard deviation of one run [W m-2] (0 for deterministic; NaN when
-    # undefined: one Monte Carlo run of one ray)
+    #: brdf -> standard deviation of one run [W m-2], pooled from the samples within every run
+    #: (reliable at any number of runs; 0 for deterministic; NaN when undefined: one ray)
+    std: dict
     run_values: dict  # brdf -> list of per-run values [W m-2]
     within_std: dict  # brdf -> list of per-run standard deviations estimated inside each run
     rays: int
     seconds: float
     facets: dict = field(default_factory=dict)  # per-facet arrays (last run)
+    #: brdf -> standard deviation of the mean over runs [W m-2]: std / sqrt(runs)
+    sem: dict = field(default_factory=dict)
+    #: brdf -> spread (ddof 1) of the run values [W m-2]; NaN with one run (a diagnostic)
+    spread: dict = field(default_factory=dict)
 
 
 def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False) -> PathResult:
@@ -727,14 +732,17 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
             facets[f"{path}_geom"] = np.asarray(fac.get(f"{path}_geom", zero))
             facets[f"{path}_lit_sum"] = np.asarray(fac.get(f"{path}_lit_sum", zero))
             facets[f"{path}_free_sum"] = np.asarray(fac.get(f"{path}_free_sum", zero))
-    std = {}
+    std, sem, spread = {}, {}, {}
     for k in brdfs:
         if s.estimator == "deterministic":
-            std[k] = 0.0
-        elif runs >= 2:
-            std[k] = float(np.std(vals[k], ddof=1))
-        else:
-            std[k] = within[k][0]
+            std[k] = sem[k] = spread[k] = 0.0
+            continue
+        # pooled: every run's σ is estimated from its own N samples, so the pooled value is as
+        # good with one run as with many (the spread of a few runs is not: with 4 runs its
+        # relative error is ~40 %, which made "7.9 σ" deviations in the quick report)
+        std[k] = float(np.sqrt(np.mean(np.square(within[k]))))
+        sem[k] = std[k] / np.sqrt(runs)
+        spread[k] = float(np.std(vals[k], ddof=1)) if runs >= 2 else float("nan")
     return PathResult(mean={k: float(np.mean(v)) for k, v in vals.items()}, std=std,
                       run_values=vals, within_std=within, rays=ts.rays_cast - r0,
-                      seconds=time.perf_counter() - t0, facets=facets)
+                      seconds=time.perf_counter() - t0, facets=facets, sem=sem, spread=spread)
