@@ -35,6 +35,8 @@ from .transport import Transport
 
 MAX_PIXELS = 4096
 MAX_SUPERSAMPLE = 16
+#: rays per image (the ray arrays take ~150 B per ray: 2^24 rays ≈ 2.5 GB)
+MAX_RAYS = 2**24
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,10 @@ class Camera:
                 raise LunarvizError(f"image {name} {v!r} must be an integer from 1 to {MAX_PIXELS} pixels")
         if not (isinstance(self.supersample, (int, np.integer)) and 1 <= self.supersample <= MAX_SUPERSAMPLE):
             raise LunarvizError(f"--supersample {self.supersample!r} must be an integer from 1 to {MAX_SUPERSAMPLE}")
+        rays = int(self.width) * int(self.height) * int(self.supersample) ** 2
+        if rays > MAX_RAYS:
+            raise LunarvizError(f"{self.width}x{self.height} pixels with supersample {self.supersample} make {rays:,} "
+                                f"rays (more than {MAX_RAYS:,}): fewer pixels or a smaller --supersample")
         if self.pointing != "moon":
             self.radec()
 

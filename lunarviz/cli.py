@@ -446,6 +446,8 @@ def cmd_image(a):
     out = _check_out(a.out, (".fits", ".npy", ".png"))
     gif = _check_out(a.gif, (".gif",)) if a.gif else None
     scene = _scene(a, phases, times)
+    if gif is not None and len(scene.keys) < 2:
+        raise UsageError("--gif needs several frames (several phases or times)")
     files = api.image(scene, keys=scene.keys, camera=camera, psf=a.psf, halo=a.halo, out=out, gif=gif,
                       progress=not a.quiet)
     for f in files:

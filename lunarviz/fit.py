@@ -15,8 +15,9 @@ positive waxing), at one wavelength, or averaged over a band weighted by the sol
 The fit minimises the squared log residual ln(A_model/A_target) over phase angles (both
 branches) with bounds (scipy's trust-region reflective least squares). Uncertainties are the
 square roots of the diagonal of s² (JᵀJ)⁻¹ (s² the residual variance); a parameter counts as
-*constrained* when its 1σ is below 10 % of its allowed range and its correlation with every
-other free parameter is below 0.95 in magnitude. Hapke parameters are notoriously degenerate
+*constrained* when its 1σ is below 10 % of its allowed range and below half its value, it is
+not at a bound, and its correlation with every other free parameter is below 0.95 in magnitude.
+Hapke parameters are notoriously degenerate
 on a phase curve (w against the phase-function asymmetry, B0 against h, θ̄ against both):
 the report says which ones the data pin down.
 """
@@ -127,18 +128,21 @@ def rolo_reflectance(phases_deg, waxing, band=(400.0, 750.0), lat_obs=0.0, lon_o
 def read_table(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A CSV with columns ``phase_deg`` and ``reflectance`` (and optionally ``waxing`` 0/1)."""
     try:
-        with open(path, newline="") as fh:
+        with open(path, newline="", encoding="utf-8") as fh:
             rows = list(csv.DictReader(fh))
     except OSError as exc:
         raise LunarvizError(f"table {path}: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise LunarvizError(f"table {path}: not a UTF-8 CSV ({type(exc).__name__})") from None
     if not rows or not {"phase_deg", "reflectance"} <= set(rows[0]):
         raise LunarvizError(f"table {path}: needs CSV columns phase_deg and reflectance")
     try:
         g = np.array([float(r["phase_deg"]) for r in rows])
         a = np.array([float(r["reflectance"]) for r in rows])
         wax = np.array([bool(int(float(r.get("waxing") or 1))) for r in rows])
-    except ValueError as exc:
-        raise LunarvizError(f"table {path}: {exc}") from None
+    except (ValueError, TypeError):
+        raise LunarvizError(f"table {path}: a row has a missing or non-numeric phase_deg/reflectance/waxing") \
+            from None
     if not (np.all(np.isfinite(g)) and np.all((g > 0) & (g < 180)) and np.all(np.isfinite(a) & (a > 0))):
         raise LunarvizError(f"table {path}: phase_deg must be in (0, 180) and reflectance positive")
     return g, a, wax
@@ -176,6 +180,11 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
 
     from .brdf import make_brdf
     free = tuple(free or DEFAULT_FREE[brdf])
+    if len(set(free)) != len(free):
+        raise LunarvizError(f"free parameters {','.join(free)} name one twice")
+    if len(np.atleast_1d(phases_deg)) <= len(free):
+        raise LunarvizError(f"{len(np.atleast_1d(phases_deg))} data points cannot constrain {len(free)} free "
+                            f"parameters: give more phases or fewer --free")
     base = make_brdf(brdf, dhg_convention=dhg_convention, h_function=h_function)
     p0 = {**base.params, "theta_bar": 0.0, "Bc0": 0.0, "hc": 0.05} if brdf != "lambert" else dict(base.params)
     p0.update(start or {})
@@ -212,7 +221,9 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
     constrained = {}
     for n, k in enumerate(free):
         others = np.delete(np.abs(corr[n]), n)
-        constrained[k] = bool(sig[n] < 0.1 * (hi[n] - lo[n]) and (others.size == 0 or others.max() < 0.95))
+        at_bound = min(sol.x[n] - lo[n], hi[n] - sol.x[n]) < 1e-6 * (hi[n] - lo[n])
+        constrained[k] = bool(sig[n] < 0.1 * (hi[n] - lo[n]) and sig[n] < 0.5 * abs(sol.x[n]) and not at_bound
+                              and (others.size == 0 or others.max() < 0.95))
     model = dm.reflectance(model_of(sol.x))
     return FitResult(brdf, params, free, {k: float(s) for k, s in zip(free, sig)}, corr, constrained, phases,
                      waxing, target, model, float(np.sqrt(np.mean(sol.fun**2))))

@@ -48,6 +48,8 @@ def parse_psf(text: str | None, pixel_arcsec: float, shape) -> np.ndarray | None
         k = np.load(p, allow_pickle=False)
     except Exception as exc:
         raise LunarvizError(f"--psf {text!r}: unreadable ({type(exc).__name__})") from None
+    if k.dtype.kind not in "fiu":
+        raise LunarvizError(f"--psf {text!r}: kernel values of type {k.dtype} are not real numbers")
     if k.ndim != 2 or k.shape[0] % 2 == 0 or k.shape[1] % 2 == 0:
         raise LunarvizError(f"--psf {text!r}: kernel shape {k.shape} must be 2-D with odd sides")
     if k.shape[0] > shape[0] or k.shape[1] > shape[1]:

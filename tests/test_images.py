@@ -95,9 +95,13 @@ def test_psf_conserves_flux(tmp_path):
     (["--supersample", "0"], "--supersample"),
     (["--pointing", "10,95"], "declination"),
     (["--halo", "2,3"], "FRACTION"),
+    (["--psf", "str.npy"], "str.npy"),
+    (["--pixels", "4096", "--supersample", "16"], "rays"),
+    (["--gif", "one.gif"], "--gif"),
 ])
 def test_bad_camera_settings_are_one_line(tmp_path, args, word):
     np.save(tmp_path / "bad.npy", np.ones((4, 4)))
+    np.save(tmp_path / "str.npy", np.array([["a", "b", "c"]] * 3))
     out = tmp_path / "x.fits"
     r = _cli(tmp_path, "--phase", "90", "--mesh-level", "2", *args, "--out", str(out))
     assert r.returncode == 2

@@ -182,3 +182,20 @@ def test_rolo_fit_preset_is_closer_to_rolo_than_the_paper():
         rolo = rolo_reflectance(g, wax)
         assert np.max(np.abs(fitted / rolo - 1)) < 0.08
         assert np.max(np.abs(paper / rolo - 1)) > 0.3
+
+
+def test_fit_refuses_ill_posed_requests(tmp_path):
+    from lunarviz.errors import LunarvizError
+    from lunarviz.fit import fit, read_table
+    g = np.array([10.0, 50.0])
+    with pytest.raises(LunarvizError, match="twice"):
+        fit("dhg", np.arange(5.0, 90.0, 10.0), np.ones(9), free=("w", "w"))
+    with pytest.raises(LunarvizError, match="cannot constrain"):
+        fit("dhg", g, np.ones(2), free=("w", "b", "c"))
+    t = tmp_path / "t.csv"
+    t.write_text("phase_deg,reflectance\n10,0.1\n20\n")
+    with pytest.raises(LunarvizError, match="missing"):
+        read_table(t)
+    t.write_bytes(b"phase_deg,reflectance\n10,\xff\xfe\n")
+    with pytest.raises(LunarvizError, match="UTF-8"):
+        read_table(t)
