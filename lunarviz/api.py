@@ -176,13 +176,16 @@ def _scene(scene, scene_options) -> Scene:
 
 
 def run(scene: Scene | None = None, method: str = "analytic", workers: int | None = None,
-        progress: bool = False, **scene_options) -> dict:
+        progress: bool = False, executor: str = "local", scheduler: str | None = None, **scene_options) -> dict:
     """Run a sweep and return the raw result, the structure written to JSON.
 
     Parameters
     ----------
     scene, method, workers, progress
         As for :func:`sweep`.
+    executor : {"local", "dask"}
+        Local worker processes, or a Dask distributed cluster (``scheduler`` address such as
+        ``tcp://host:8786``; without one, a local cluster of ``workers`` processes).
 
     Returns
     -------
@@ -194,11 +197,11 @@ def run(scene: Scene | None = None, method: str = "analytic", workers: int | Non
     if workers is not None and not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise LunarvizError(f"workers={workers!r} must be a positive integer")
     sc = _scene(scene, scene_options)
-    return run_sweep(sc.settings(method), workers=workers, progress=progress)
+    return run_sweep(sc.settings(method), workers=workers, progress=progress, executor=executor, scheduler=scheduler)
 
 
 def sweep(scene: Scene | None = None, method: str = "analytic", workers: int | None = None,
-          progress: bool = False, **scene_options):
+          progress: bool = False, executor: str = "local", scheduler: str | None = None, **scene_options):
     """Moonshine, earthshine and albedo at every phase or time, as an ``xarray.Dataset``.
 
     Parameters
@@ -210,6 +213,8 @@ def sweep(scene: Scene | None = None, method: str = "analytic", workers: int | N
         extended-source reference.
     workers : int, optional
         Local worker processes (default: one per core for raytrace/reference).
+    executor, scheduler
+        ``"local"`` or ``"dask"`` (see :func:`run`).
 
     Returns
     -------
@@ -220,7 +225,7 @@ def sweep(scene: Scene | None = None, method: str = "analytic", workers: int | N
         (CF conventions). ``attrs["settings_json"]`` reruns it.
     """
     from .tables import to_dataset
-    return to_dataset(run(scene, method, workers, progress, **scene_options))
+    return to_dataset(run(scene, method, workers, progress, executor, scheduler, **scene_options))
 
 
 class Facets(FacetResult):

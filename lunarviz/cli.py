@@ -173,6 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--order", type=_positive_int("--order"), default=24, help="analytic Gauss order")
     p.add_argument("--earth-law", default="lambert", choices=["lambert", "paper_eq8"])
     p.add_argument("--workers", type=_positive_int("--workers"), default=None)
+    p.add_argument("--executor", default="local", choices=["local", "dask"],
+                   help="local worker processes, or a Dask distributed cluster")
+    p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address (tcp://host:8786); "
+                                                      "default a local cluster of --workers processes")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out", required=True, help=".json, .csv or .nc (NetCDF-4 through xarray)")
     _add_physics_options(p)
@@ -318,7 +322,10 @@ def cmd_sweep(a):
     out = _check_out(a.out, (".json", ".csv", ".nc"))
     scene = _scene(a, phases, times)
     scene.settings(a.method)  # method-specific checks before any work
-    res = api.run(scene, a.method, workers=a.workers, progress=not a.quiet)
+    if a.scheduler is not None and a.executor != "dask":
+        raise UsageError("--scheduler goes with --executor dask")
+    res = api.run(scene, a.method, workers=a.workers, progress=not a.quiet, executor=a.executor,
+                  scheduler=a.scheduler)
     if out.suffix.lower() == ".nc":
         from .tables import write_netcdf
         write_netcdf(out, res)

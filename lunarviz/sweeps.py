@@ -285,12 +285,55 @@ def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
     return out
 
 
-def run_sweep(settings: SweepSettings, workers: int | None = None, progress: bool = False) -> dict:
-    """Run every phase; returns ``{"settings", "rows", "bond_albedo", ...}``."""
+EXECUTORS = ("local", "dask")
+
+
+def _dask_client(scheduler: str | None, workers: int | None):
+    """A Dask client: to ``scheduler`` (an address such as tcp://host:8786), or to a new local
+    cluster of ``workers`` single-threaded processes (closed with the client)."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise LunarvizError("--executor dask needs the optional packages dask and distributed: "
+                            "pip install 'lunarviz[dask]'") from None
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except (OSError, TimeoutError) as exc:
+            raise LunarvizError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
+    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                           dashboard_address=None)
+    return Client(cluster), cluster
+
+
+def run_sweep(settings: SweepSettings, workers: int | None = None, progress: bool = False,
+              executor: str = "local", scheduler: str | None = None) -> dict:
+    """Run every phase or time; returns ``{"settings", "rows", "bond_albedo", ...}``.
+
+    ``executor="local"``: worker processes of this machine (``workers``). ``"dask"``: the same
+    :func:`run_phase` tasks on a Dask distributed cluster (``scheduler`` address, or a local
+    cluster of ``workers``). Tasks carry only the settings and the key; each worker builds its
+    Embree scenes itself and caches them (``tracer.bodies``), nothing Embree is pickled. The
+    rows are identical whichever executor runs them.
+    """
+    if executor not in EXECUTORS:
+        raise LunarvizError(f"unknown executor {executor!r}: choose from {', '.join(EXECUTORS)}")
+    if scheduler is not None and executor != "dask":
+        raise LunarvizError("--scheduler goes with --executor dask")
     phases = settings.tasks()
+    t0 = time.perf_counter()
+    if executor == "dask":
+        client, cluster = _dask_client(scheduler, workers)
+        try:
+            futures = client.map(run_phase, [settings] * len(phases), phases, pure=False)
+            results = client.gather(futures)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        return _assemble(settings, results, t0)
     if workers is None:
         workers = 1 if settings.method == "analytic" else min(len(phases), os.cpu_count() or 1)
-    t0 = time.perf_counter()
     bar = None
     if progress:
         from tqdm import tqdm
@@ -310,6 +353,10 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
                     bar.update()
     if bar:
         bar.close()
+    return _assemble(settings, results, t0)
+
+
+def _assemble(settings: SweepSettings, results: list, t0: float) -> dict:
     rows = [r for res in results for r in res]
     out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
            "wall_seconds": time.perf_counter() - t0}
