@@ -249,6 +249,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--meshes", default=None, help="user meshes F1,F2,... coarse to fine (replaces --levels)")
     p.add_argument("--mesh-units", default="m", choices=["m", "km", "radius"])
     p.add_argument("--shading", default="auto", choices=["auto", "smooth", "flat"])
+    p.add_argument("--executor", default="local", choices=["local", "dask"])
+    p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address")
+    p.add_argument("--workers", type=_positive_int("--workers"), default=None,
+                   help="with --executor dask and no scheduler: local cluster processes")
     p.add_argument("--out", required=True, help=".json or .csv (a .png plot is written beside it)")
     p.add_argument("--quiet", action="store_true")
 
@@ -289,6 +293,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("paper", help="reproduce the paper end to end")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--quick", action="store_true", help="reduced run for CI and a first look")
+    p.add_argument("--executor", default="local", choices=["local", "dask"])
+    p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address")
     p.add_argument("--quiet", action="store_true")
     return ap
 
@@ -481,9 +487,11 @@ def cmd_study(a):
         raise UsageError(f"--levels {a.levels!r} must increase (coarse to fine)")
     if meshes is not None and len(set(meshes)) != len(meshes):
         raise UsageError("--meshes lists a mesh twice")
+    if a.scheduler is not None and a.executor != "dask":
+        raise UsageError("--scheduler goes with --executor dask")
     study.mesh(levels, phases, _brdf_list(a.brdf), out=out, plot=out.with_suffix(".png"), shading=a.shading,
                progress=not a.quiet, body=a.body, shape=a.shape, axes=tuple(_check_axes(a.axes)), meshes=meshes,
-               mesh_units=a.mesh_units)
+               mesh_units=a.mesh_units, executor=a.executor, scheduler=a.scheduler, workers=a.workers)
     print(f"wrote {out}")
 
 
@@ -586,7 +594,9 @@ def cmd_paper(a):
     parent = out.resolve().parent
     if not parent.is_dir():
         raise UsageError(f"--out {a.out!r}: parent directory does not exist")
-    run_paper(out, quick=a.quick, progress=not a.quiet)
+    if a.scheduler is not None and a.executor != "dask":
+        raise UsageError("--scheduler goes with --executor dask")
+    run_paper(out, quick=a.quick, progress=not a.quiet, executor=a.executor, scheduler=a.scheduler)
 
 
 COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": cmd_render,

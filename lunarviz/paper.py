@@ -189,7 +189,8 @@ def _max_sigma(mc: dict, ref: dict, key: str, theta_min=5.0, theta_max=175.0) ->
     return z
 
 
-def run_paper(out, quick: bool = False, progress: bool = True) -> dict:
+def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "local",
+              scheduler: str | None = None) -> dict:
     from .brdf import make_brdf
     from .brdf_test import BrdfTestSettings, run_brdf_test
     from .io import write_bytes_atomic
@@ -232,7 +233,7 @@ def run_paper(out, quick: bool = False, progress: bool = True) -> dict:
         ("occluded", replace(base, method="raytrace", occlusion=True)),
     ):
         t = time.perf_counter()
-        sweeps[key] = run_sweep(s)
+        sweeps[key] = run_sweep(s, executor=executor, scheduler=scheduler)
         timings[f"{key}_s"] = time.perf_counter() - t
         step(key)
 

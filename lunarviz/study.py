@@ -55,10 +55,31 @@ def _study_meshes(body, shape, levels, axes, meshes, tmp):
     return out
 
 
+class _Means:
+    def __init__(self, mean, rays):
+        self.mean, self.rays = mean, rays
+
+
+def _study_task(task):
+    """One (mesh, phase) of a study: ``(seconds, facets, moonshine means, earthshine means, rays)``.
+    Module-level and fed only settings, so a Dask worker can run it (meshes must be readable
+    there: generated shapes live in a local temporary folder, so remote clusters need ``meshes``
+    on a shared file system)."""
+    from .tracer.estimators import TraceScene, trace_path
+    st, th, body, brdfs = task
+    models = {b: make_brdf(b) for b in brdfs}
+    t0 = time.perf_counter()
+    ts = TraceScene(Scene(th), st)
+    ms = trace_path(ts, "moonshine", models)
+    es = trace_path(ts, "earthshine", models)
+    return time.perf_counter() - t0, int(getattr(ts, body).n_faces), ms.mean, es.mean, (ms.rays, es.rays)
+
+
 def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: bool = True,
                progress: bool = False, body: str = "moon", shape: str = "sphere",
-               axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m") -> dict:
-    from .tracer.estimators import TraceScene, TraceSettings, trace_path
+               axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m", executor: str = "local",
+               scheduler: str | None = None, workers: int | None = None) -> dict:
+    from .tracer.estimators import TraceSettings
     if body not in ("moon", "earth", "sun"):
         raise LunarvizError(f"unknown body {body!r}: choose from moon, earth, sun")
     if shape not in STUDY_SHAPES:
@@ -76,23 +97,32 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
     with tempfile.TemporaryDirectory() as tmp:
         paths = _study_meshes(body, shape, levels, axes, meshes, tmp)
         it = [(lv, th) for lv in levels for th in phases]
-        if progress:
-            from tqdm import tqdm
-            it = tqdm(it, desc="mesh study", unit="run", leave=False)
-        for lv, th in it:
-            t0 = time.perf_counter()
-            # ``shading`` applies to the studied body only; the others keep their defaults
-            # the source beams are converged (Earth order 12, Sun order 4) so the study sees the
-            # mesh's error, not the beams' (~8e-6 at the default Earth order 6)
-            base = TraceSettings(occlusion=False, refine=refine, body_shading=((body, shading),),
-                                 mesh_units=mesh_units if meshes else "m", earth_order=12, sun_order=4)
-            st = replace(base, **{f"{body}_mesh": paths[lv]}) if paths[lv] else \
-                replace(base, **{f"{body}_level": int(lv)})
-            ts = TraceScene(Scene(th), st)
-            ms = trace_path(ts, "moonshine", models)
-            es = trace_path(ts, "earthshine", models)
-            dt = time.perf_counter() - t0
-            facets = int(getattr(ts, body).n_faces)
+        # ``shading`` applies to the studied body only; the others keep their defaults
+        # the source beams are converged (Earth order 12, Sun order 4) so the study sees the
+        # mesh's error, not the beams' (~8e-6 at the default Earth order 6)
+        base = TraceSettings(occlusion=False, refine=refine, body_shading=((body, shading),),
+                             mesh_units=mesh_units if meshes else "m", earth_order=12, sun_order=4)
+        tasks = [(replace(base, **{f"{body}_mesh": paths[lv]}) if paths[lv] else
+                  replace(base, **{f"{body}_level": int(lv)}), float(th), body, tuple(brdfs)) for lv, th in it]
+        if executor == "dask":
+            from .sweeps import _dask_client
+            client, cluster = _dask_client(scheduler, workers)
+            try:
+                outs = client.gather(client.map(_study_task, tasks, pure=False))
+            finally:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+        else:
+            run_list = tasks
+            if progress:
+                from tqdm import tqdm
+                run_list = tqdm(tasks, desc="mesh study", unit="run", leave=False)
+            outs = [_study_task(t) for t in run_list]
+        for (lv, th), (dt, facets, ms_mean, es_mean, n_rays) in zip([(lv, th) for lv in levels for th in phases],
+                                                                   outs):
+            ms = _Means(ms_mean, n_rays[0])
+            es = _Means(es_mean, n_rays[1])
             for b in brdfs:
                 for path, res in (("moonshine", ms), ("earthshine", es)):
                     ref = getattr(refs[th][b], f"{path}_W_m2") if exact else None
@@ -146,7 +176,8 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
 
 def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg", "dhg"), *, body: str = "moon",
          shape: str = "sphere", axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m", shading: str = "auto",
-         refine: bool = True, out=None, plot=None, progress: bool = False) -> dict:
+         refine: bool = True, out=None, plot=None, progress: bool = False, executor: str = "local",
+         scheduler: str | None = None, workers: int | None = None) -> dict:
     """Mesh-resolution study (the Python face of ``lunarviz study mesh``).
 
     Parameters
@@ -162,6 +193,9 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
         radii) or craters; ``meshes`` the user's meshes coarse to fine (in ``mesh_units``).
     shading, refine
         Ray-tracing options (see :class:`lunarviz.tracer.estimators.TraceSettings`).
+    executor, scheduler, workers
+        ``"local"`` (this process) or ``"dask"`` (each level and phase a task; see
+        :func:`lunarviz.run`).
     out : path, optional
         Write the table (.json or .csv).
     plot : path, optional
@@ -203,9 +237,11 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
         out = check_output_path(out)
     if plot is not None:
         plot = check_output_path(plot, (".png",))
+    if executor not in ("local", "dask"):
+        raise LunarvizError(f"unknown executor {executor!r}: choose from local, dask")
     res = mesh_study(list(levels), list(phases), list(brdfs), None, shading=shading, refine=refine,
                      progress=progress, body=body, shape=shape, axes=tuple(axes), meshes=meshes,
-                     mesh_units=mesh_units)
+                     mesh_units=mesh_units, executor=executor, scheduler=scheduler, workers=workers)
     if out is not None:
         from .io import write_results
         write_results(out, res)

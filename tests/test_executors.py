@@ -32,3 +32,10 @@ def test_dask_options_are_checked(tmp_path):
     r = cli("--executor", "dask", "--scheduler", "tcp://127.0.0.1:1")
     assert r.returncode == 2 and "cannot reach the Dask scheduler" in r.stderr and r.stderr.count("\n") == 1
     assert not (tmp_path / "o.json").exists()
+
+
+def test_dask_mesh_study_gives_identical_rows():
+    from lunarviz import study
+    a = study.mesh((1, 2), (90.0,), ("lambert",))
+    b = study.mesh((1, 2), (90.0,), ("lambert",), executor="dask", workers=2)
+    assert [r["value_W_m2"] for r in a["rows"]] == [r["value_W_m2"] for r in b["rows"]]
