@@ -61,7 +61,10 @@ def _check_key(sc: "Scene", key):
         from .ephemeris import time_list
         if not isinstance(key, str):
             raise LunarvizError(f"this scene is dated: give a UTC time, not {key!r}")
-        return time_list(key)[0] if "," not in key else _one(key)
+        times = time_list(key)
+        if len(times) != 1:
+            raise LunarvizError(f"give one time, got {key!r}")
+        return times[0]
     try:
         th = float(key)
     except (TypeError, ValueError):
@@ -70,9 +73,6 @@ def _check_key(sc: "Scene", key):
         raise LunarvizError(f"phase {key!r} is out of range [0, 180] deg")
     return th
 
-
-def _one(key):
-    raise LunarvizError(f"give one time, got {key!r}")
 
 
 class Scene:

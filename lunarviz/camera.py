@@ -30,8 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import LunarvizError
-from .geometry import half_angle_sin_cos, unit
-from .transport import Transport
+from .geometry import unit
 
 MAX_PIXELS = 4096
 MAX_SUPERSAMPLE = 16
@@ -170,15 +169,7 @@ def _earthshine_at_vertices(ts, models) -> dict:
         xs, ns = x[sl], nrm[sl]
         o = unit(det - xs)
         mu = np.clip(np.einsum("ij,ij->i", ns, o), 0.0, 1.0)
-        dirs, om = ts.source_nodes(xs, ns, "earth", order)
-        mu0 = np.einsum("bkj,bj->bk", dirs, ns)
-        live = (om > 0) & (mu0 > 0)
-        L = np.zeros(om.shape)
-        bi, ki = np.nonzero(live)
-        if bi.size:
-            L[bi, ki] = ts.source_radiance(xs[bi], ns[bi], dirs[bi, ki], "earth")[0]
-        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
-        tr = Transport(mu0=np.clip(mu0, 0, 1), sin_hg=sh, cos_hg=ch, e_beam=L * om, mu=mu, geom=np.ones(len(mu)))
+        tr = ts.beam_transport(xs, ns, o, mu, np.ones(len(mu)), "earth", order)
         for b, model in models.items():
             out[b][sl] = tr.radiance(model)
     return out
@@ -257,17 +248,8 @@ def synthesize(settings, key, camera: Camera, trace_scene=None, facets=None) -> 
         pix = rr[idx] * W + cc[idx]
         w_sub = omega[idx] * cosd[idx]
         # moonshine: the extended Sun's beams at the hit (eclipses, self-shadowing)
-        sdirs, somega = ts.source_nodes(x, nrm, "sun", order)
-        mu0 = np.einsum("bkj,bj->bk", sdirs, nrm)
-        live = (somega > 0) & (mu0 > 0)
-        L = np.zeros(somega.shape)
-        bi, ki = np.nonzero(live)
-        if bi.size:
-            L[bi, ki] = ts.source_radiance(x[bi], nrm[bi], sdirs[bi, ki], "sun")[0]
-        sh, ch = half_angle_sin_cos(sdirs, o_dir[:, None, :])
-        tr = Transport(mu0=np.clip(mu0, 0, 1), sin_hg=sh, cos_hg=ch, e_beam=L * somega, mu=mu,
-                       geom=np.ones(len(mu)))
-        n_lit += int(np.count_nonzero((L * somega).sum(1) > 0))
+        tr = ts.beam_transport(x, nrm, o_dir, mu, np.ones(len(mu)), "sun", order)
+        n_lit += int(np.count_nonzero(tr.e_beam.sum(1) > 0))
         prim = hits.prim[h]
         bary = _barycentric(M.vertices[M.faces[prim]] + M.centre, x)
         for b, model in models.items():
@@ -278,10 +260,11 @@ def synthesize(settings, key, camera: Camera, trace_scene=None, facets=None) -> 
         to_radiance = np.where(pix_omega > 0, 1.0 / np.where(pix_omega > 0, pix_omega, 1.0), 0.0)
     planes = {"moonshine": {b: (ms[b] * to_radiance).reshape(H, W) for b in models},
               "earthshine": {b: (es[b] * to_radiance).reshape(H, W) for b in models}}
+    from .sky import moon_direction_radec
+    moon_radec = moon_direction_radec(sc)
     info = {**{k: v for k, v in fields.items()}, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg,
             "beta_deg": sc.beta_deg, "boresight_ra_deg": ra, "boresight_dec_deg": dec,
-            "moon_ra_deg": float(np.degrees(np.arctan2(*(unit(sc.moon - sc.det)[[1, 0]]))) % 360.0),
-            "moon_dec_deg": float(np.degrees(np.arcsin(unit(sc.moon - sc.det)[2]))),
+            "moon_ra_deg": moon_radec[0], "moon_dec_deg": moon_radec[1],
             "frame": "ICRF (geocentric axes)" if sc.general else "scene axes of the paper's theta scene",
             "sweep_moonshine_W_m2": {b: fr.totals[f"moonshine_W_m2_{b}"] for b in models},
             "sweep_earthshine_W_m2": {b: fr.totals[f"earthshine_W_m2_{b}"] for b in models}}

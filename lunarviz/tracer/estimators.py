@@ -499,16 +499,23 @@ class TraceScene:
             if len(x) == 0:
                 continue
             order = s.sun_order if body == "sun" else s.earth_order
-            dirs, omega = self.source_nodes(x, n, body, order)
-            mu0 = np.einsum("bkj,bj->bk", dirs, n)
-            live = (omega > 0) & (mu0 > 0)
-            L = np.zeros(omega.shape)
-            L_free = np.zeros(omega.shape)
-            bi, ki = np.nonzero(live)
-            L[bi, ki], L_free[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
-            sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
-            yield Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega,
-                            mu=mu, geom=geom, e_beam_free=L_free * omega), owner
+            yield self.beam_transport(x, n, o, mu, geom, body, order), owner
+
+    def beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
+        """The :class:`Transport` of points x (B,3) with normals n, unit directions o to the
+        detector, ``mu`` and ``geom``: ``body``'s deterministic beams (:meth:`source_nodes`),
+        each traced to the source (:meth:`source_radiance`). Shared by the detector transport
+        and the synthetic camera (lunarviz.camera)."""
+        dirs, omega = self.source_nodes(x, n, body, order)
+        mu0 = np.einsum("bkj,bj->bk", dirs, n)
+        live = (omega > 0) & (mu0 > 0)
+        L = np.zeros(omega.shape)
+        L_free = np.zeros(omega.shape)
+        bi, ki = np.nonzero(live)
+        L[bi, ki], L_free[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
+        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
+        return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega,
+                         mu=mu, geom=geom, e_beam_free=L_free * omega)
 
     def montecarlo_transport(self, body: str, rng: np.random.Generator):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
