@@ -208,14 +208,12 @@ class ImageResult:
 CHUNK = 20_000
 
 
-def synthesize(settings, key, camera: Camera, trace_scene=None, facets=None) -> ImageResult:
+def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
     """The image of phase θ [deg] or UTC time ``key`` for every BRDF of ``settings``."""
-    from .facets import trace_facets
     from .tracer.estimators import TraceScene
     sc, fields = settings.scene_and_fields(key)
     ts = trace_scene or TraceScene(sc, settings.trace_settings())
     models = settings.brdf_models()
-    fr = facets if facets is not None else trace_facets(settings, key, trace_scene=ts)
     M = ts.moon
     f, e, n, ra, dec = camera_axes(sc, camera)
     dirs, omega, rr, cc = _subpixel_rays(camera, f, e, n)
@@ -265,8 +263,6 @@ def synthesize(settings, key, camera: Camera, trace_scene=None, facets=None) -> 
     info = {**{k: v for k, v in fields.items()}, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg,
             "beta_deg": sc.beta_deg, "boresight_ra_deg": ra, "boresight_dec_deg": dec,
             "moon_ra_deg": moon_radec[0], "moon_dec_deg": moon_radec[1],
-            "frame": "ICRF (geocentric axes)" if sc.general else "scene axes of the paper's theta scene",
-            "sweep_moonshine_W_m2": {b: fr.totals[f"moonshine_W_m2_{b}"] for b in models},
-            "sweep_earthshine_W_m2": {b: fr.totals[f"earthshine_W_m2_{b}"] for b in models}}
+            "frame": "ICRF (geocentric axes)" if sc.general else "scene axes of the paper's theta scene"}
     total = len(dirs)
     return ImageResult(planes, camera, info, pix_omega.reshape(H, W), n_lit / max(n_disc, 1), n_disc / total)
