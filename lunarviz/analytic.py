@@ -40,6 +40,9 @@ class AnalyticSettings:
     paper_step_deg: float = 1.0
     earth_law: str = "lambert"
     earth_albedo: float = 0.3
+    #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.Surfaces`), read at the
+    #: lunar nodes; the point Earth takes the albedo its lit face shows the Moon's centre
+    surfaces: object = None
 
     def __post_init__(self):
         if self.grid not in GRIDS:
@@ -124,7 +127,16 @@ def moonshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSetti
         x, n, dA = paper_grid(scene, settings.paper_step_deg)
     else:
         x, n, dA = lunar_surface_rule(scene, scene.sun, 0.0, settings.order)
-    return _point_source_transport(scene, x, n, dA, scene.sun, scene.solar_irradiance_at(x))
+    tr = _point_source_transport(scene, x, n, dA, scene.sun, scene.solar_irradiance_at(x))
+    return _with_moon_map(tr, scene, x, settings)
+
+
+def _with_moon_map(tr: Transport, scene, x, settings) -> Transport:
+    sf = settings.surfaces
+    if sf is not None and sf.moon_map is not None:
+        tr.albedo = sf.moon_values_at(scene, x)
+        tr.albedo_absolute = sf.moon_map.absolute
+    return tr
 
 
 def earthshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
@@ -137,9 +149,12 @@ def earthshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSett
     d2 = np.sum((x - E) ** 2, axis=1)
     beta = angle_between(x - E, np.broadcast_to(scene.sun - E, x.shape))  # Kahan: exact near π
     e_in = scene.phi / (4 * np.pi * scene.d_se_actual**2)  # Eq. 7
-    intensity = earth_intensity(beta, settings.earth_albedo, scene.radii["earth"], e_in,
-                                settings.earth_law)
-    return _point_source_transport(scene, x, n, dA, E, intensity / d2)
+    unit_intensity = earth_intensity(beta, 1.0, scene.radii["earth"], e_in, settings.earth_law)
+    sf = settings.surfaces
+    albedo = settings.earth_albedo if sf is None else sf.earth_albedo_toward(scene, scene.moon)
+    tr = _point_source_transport(scene, x, n, dA, E, albedo * unit_intensity / d2)
+    tr.e_beam_unit = np.where(tr.mu0 > 0, (unit_intensity / d2)[:, None], 0.0)  # lit: μ0 > 0, as e_beam
+    return _with_moon_map(tr, scene, x, settings)
 
 
 @dataclass(frozen=True)
@@ -148,6 +163,14 @@ class DetectorIrradiance:
 
     moonshine_W_m2: float
     earthshine_W_m2: float
+    #: earthshine for an Earth of albedo 1 [W m⁻²] (the weights of ``earth_visible_lit_albedo``)
+    earthshine_unit_W_m2: float | None = None
+
+    @property
+    def earth_visible_lit_albedo(self) -> float:
+        """The Earth's albedo as the earthshine weights it: earthshine over its unit-albedo value."""
+        u = self.earthshine_unit_W_m2
+        return self.earthshine_W_m2 / u if u else float("nan")
 
 
 def analytic_irradiance(scene: Scene, brdfs: dict, settings: AnalyticSettings = AnalyticSettings()
@@ -155,5 +178,5 @@ def analytic_irradiance(scene: Scene, brdfs: dict, settings: AnalyticSettings = 
     """Moonshine and earthshine at the detector for each named BRDF (one transport each)."""
     ms = moonshine_transport(scene, settings)
     es = earthshine_transport(scene, settings)
-    return {k: DetectorIrradiance(ms.detector_irradiance(b), es.detector_irradiance(b))
+    return {k: DetectorIrradiance(ms.detector_irradiance(b), *es.detector_irradiances(b))
             for k, b in brdfs.items()}

@@ -34,6 +34,8 @@ SCENE_DEFAULTS = {
     "moon_model": "paper",
     "params": None, "estimator": "deterministic", "rays": 50_000, "runs": 1, "seed": 0,
     "earth_order": 6, "sun_order": 2, "grid": "converged", "order": 24,
+    "moon_albedo_map": None, "earth_surface": "uniform", "clouds": "none", "land_albedo": 0.25,
+    "ocean_albedo": 0.06, "cloud_albedo": 0.40, "earth_rotation_deg": None,
 }
 
 
@@ -99,7 +101,11 @@ class Scene:
         ``earth_albedo``, ``earth_law``, ``dhg_convention``, ``h_function``, ``moon_model``
         (``paper`` or ``rolo-fit``), ``params``
         (``{brdf: {name: value}}``), ``estimator``, ``rays``, ``runs``, ``seed``,
-        ``earth_order``, ``sun_order``, ``grid``, ``order`` (see :data:`SCENE_DEFAULTS`).
+        ``earth_order``, ``sun_order``, ``grid``, ``order``; surfaces (:mod:`lunarviz.surfaces`):
+        ``moon_albedo_map`` (``"FILE[:MEAN]"`` or ``"synthetic"``), ``earth_surface``
+        (``uniform``, ``landocean`` or a map file), ``clouds`` (``none``, ``zonal`` or a map
+        file), ``land_albedo``, ``ocean_albedo``, ``cloud_albedo``, ``earth_rotation_deg``
+        (the θ scene's sub-solar longitude [deg]) (see :data:`SCENE_DEFAULTS`).
 
     Everything is checked when the scene is made (meshes are read, dates and observers
     parsed); a bad value raises :class:`~lunarviz.errors.LunarvizError` naming it.

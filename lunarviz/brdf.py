@@ -230,13 +230,20 @@ class Lambert:
     def __post_init__(self):
         _check("albedo", self.albedo, 0.0, 1.0)
 
-    def brdf(self, mu0, mu, sin_hg, cos_hg):
-        shape = np.broadcast(np.asarray(mu0), np.asarray(mu), np.asarray(sin_hg)).shape
-        return np.full(shape, self.albedo / np.pi)
+    @property
+    def albedo_parameter(self) -> float:
+        """The parameter an albedo map scales (:mod:`lunarviz.surfaces`): ``albedo``."""
+        return self.albedo
 
-    def radiance_factor(self, mu0, mu, sin_hg, cos_hg):
+    def brdf(self, mu0, mu, sin_hg, cos_hg, albedo=None):
+        """``albedo`` (an array broadcasting with the angles) replaces the scalar per sample."""
+        a = self.albedo if albedo is None else albedo
+        shape = np.broadcast(np.asarray(mu0), np.asarray(mu), np.asarray(sin_hg), np.asarray(a)).shape
+        return np.broadcast_to(np.asarray(a, dtype=float) / np.pi, shape).copy()
+
+    def radiance_factor(self, mu0, mu, sin_hg, cos_hg, albedo=None):
         """``BRDF · μ0`` [sr⁻¹]: reflected radiance per unit incident normal irradiance."""
-        return self.brdf(mu0, mu, sin_hg, cos_hg) * np.clip(mu0, 0.0, 1.0)
+        return self.brdf(mu0, mu, sin_hg, cos_hg, albedo) * np.clip(mu0, 0.0, 1.0)
 
     @property
     def params(self) -> dict:
@@ -289,7 +296,20 @@ class Hapke:
         """Roughness or coherent backscatter switched on (else the paper's smooth model)."""
         return self.theta_bar > 0.0 or self.Bc0 > 0.0
 
-    def _rough_r(self, mu0, mu, sin_hg, cos_hg):
+    @property
+    def albedo_parameter(self) -> float:
+        """The parameter an albedo map scales (:mod:`lunarviz.surfaces`): ``w``."""
+        return self.w
+
+    def _w(self, albedo):
+        if albedo is None:
+            return self.w
+        if self.h_function == "exact":
+            raise LunarvizError("the exact H-function takes one w, not a per-facet map: use h_function "
+                                "hapke1981 or hapke2002 with an albedo map")
+        return albedo
+
+    def _rough_r(self, mu0, mu, sin_hg, cos_hg, w=None):
         """Bidirectional reflectance r = BRDF·μ0 with roughness and coherent backscatter,
         Hapke (1984) Eq. 51 and Hapke (2002) Eq. 8 (:mod:`lunarviz.roughness`)."""
         from .roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
@@ -297,15 +317,17 @@ class Hapke:
         mu = np.clip(mu, 0.0, 1.0)
         psi = azimuth_from_half_angle(mu0, mu, sin_hg)
         mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(self.theta_bar))
-        br = (1.0 + self.surge(sin_hg, cos_hg)) * self.phase(sin_hg, cos_hg) + self.H(mu0e) * self.H(mue) - 1.0
+        w = self.w if w is None else w
+        br = (1.0 + self.surge(sin_hg, cos_hg)) * self.phase(sin_hg, cos_hg) + self.H(mu0e, w) * self.H(mue, w) - 1.0
         if self.Bc0 > 0.0:
             br = br * (1.0 + self.Bc0 * coherent_backscatter(sin_hg, cos_hg, self.hc))
         s = mu0e + mue
         frac = np.where(s > 0.0, mu0e / np.where(s > 0.0, s, 1.0), 0.0)
-        return self.w / (4.0 * np.pi) * frac * br * S
+        return w / (4.0 * np.pi) * frac * br * S
 
-    def H(self, x):
-        return _H_IMPL[self.h_function](np.clip(x, 0.0, 1.0), self.w)
+    def H(self, x, w=None):
+        """Chandrasekhar's H(x) for this model's w (or ``w``, an array broadcasting with x)."""
+        return _H_IMPL[self.h_function](np.clip(x, 0.0, 1.0), self.w if w is None else w)
 
     def surge(self, sin_hg, cos_hg):
         """Opposition surge ``B(g) = B0 h/(h + tan(g/2)) = B0 h cos/(h cos + sin)`` (half angles)."""
@@ -314,28 +336,31 @@ class Hapke:
         at_zero = den <= 0.0  # only for h = 0 at g = 0 exactly, or g = π with h·0
         return self.B0 * np.where(at_zero, np.where(sin_hg <= 0.0, 1.0, 0.0), num / np.where(at_zero, 1.0, den))
 
-    def _bracket(self, mu0, mu, sin_hg, cos_hg):
+    def _bracket(self, mu0, mu, sin_hg, cos_hg, w=None):
         mu0 = np.clip(mu0, 0.0, 1.0)
         mu = np.clip(mu, 0.0, 1.0)
         return mu0, mu, (1.0 + self.surge(sin_hg, cos_hg)) * self.phase(sin_hg, cos_hg) + \
-            self.H(mu0) * self.H(mu) - 1.0
+            self.H(mu0, w) * self.H(mu, w) - 1.0
 
-    def brdf(self, mu0, mu, sin_hg, cos_hg):
+    def brdf(self, mu0, mu, sin_hg, cos_hg, albedo=None):
+        """``albedo`` (an array of w broadcasting with the angles) replaces w per sample."""
+        w = self._w(albedo)
         if self.rough:
-            r = self._rough_r(mu0, mu, sin_hg, cos_hg)
+            r = self._rough_r(mu0, mu, sin_hg, cos_hg, w)
             m0 = np.clip(mu0, 0.0, 1.0)
             return np.where(m0 > 0.0, r / np.where(m0 > 0.0, m0, 1.0), 0.0)
-        mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg)
-        return self.w / (4.0 * np.pi) * br / np.maximum(mu0 + mu, _MU_SUM_FLOOR)
+        mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg, w)
+        return w / (4.0 * np.pi) * br / np.maximum(mu0 + mu, _MU_SUM_FLOOR)
 
-    def radiance_factor(self, mu0, mu, sin_hg, cos_hg):
+    def radiance_factor(self, mu0, mu, sin_hg, cos_hg, albedo=None):
         """``BRDF · μ0`` [sr⁻¹], written ``w/(4π) · μ0/(μ0+μ) · {…}``: finite at grazing."""
+        w = self._w(albedo)
         if self.rough:
-            return self._rough_r(mu0, mu, sin_hg, cos_hg)
-        mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg)
+            return self._rough_r(mu0, mu, sin_hg, cos_hg, w)
+        mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg, w)
         s = mu0 + mu
         frac = np.where(s > 0.0, mu0 / np.where(s > 0.0, s, 1.0), 0.0)
-        return self.w / (4.0 * np.pi) * frac * br
+        return w / (4.0 * np.pi) * frac * br
 
     @property
     def params(self) -> dict:

@@ -158,7 +158,23 @@ def _add_trace_options(p):
     p.add_argument("--earth-order", type=_positive_int("--earth-order"), default=6)
     p.add_argument("--sun-order", type=_positive_int("--sun-order"), default=2)
     p.add_argument("--detector", default=None, help="detector position x,y,z [m] (default: Earth's centre)")
-    p.add_argument("--earth-albedo", type=float, default=0.3)
+    p.add_argument("--earth-albedo", type=float, default=0.3,
+                   help="the uniform Earth's Lambert albedo, and the model Earth of every inversion")
+    g = p.add_argument_group("surfaces (equirectangular maps in the body frame: .npy, .png, .tif)")
+    g.add_argument("--moon-albedo-map", default=None, metavar="FILE[:MEAN]",
+                   help="per-facet lunar albedo: FILE scales each BRDF's albedo/w by map/mean; FILE:MEAN makes the map "
+                        "the albedo/w itself with area-weighted mean MEAN; 'synthetic' is the shipped demo map")
+    g.add_argument("--earth-surface", default="uniform", metavar="uniform|landocean|FILE",
+                   help="uniform (--earth-albedo), landocean (global-land-mask, --land-albedo/--ocean-albedo) or a "
+                        "clear-sky albedo map")
+    g.add_argument("--clouds", default="none", metavar="none|zonal|FILE",
+                   help="cloud fraction: none, zonal (zonal means kept in the package) or a map; cloud albedo "
+                        "--cloud-albedo")
+    g.add_argument("--land-albedo", type=float, default=0.25)
+    g.add_argument("--ocean-albedo", type=float, default=0.06)
+    g.add_argument("--cloud-albedo", type=float, default=0.40)
+    g.add_argument("--earth-rotation-deg", type=float, default=None,
+                   help="θ scene only: the Earth's sub-solar longitude [deg] (default 0); dates turn the Earth")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -312,7 +328,9 @@ def _scene(a, phases, times=None):
         moon_level=a.mesh_level, earth_level=a.earth_level, sun_level=a.sun_level,
         occlusion=not a.no_occlusion, self_shadow=not a.no_self_shadow, shading=a.shading,
         earth_order=a.earth_order, sun_order=a.sun_order, moon_mesh=a.moon_mesh, earth_mesh=a.earth_mesh,
-        sun_mesh=a.sun_mesh, mesh_units=a.mesh_units)
+        sun_mesh=a.sun_mesh, mesh_units=a.mesh_units, moon_albedo_map=a.moon_albedo_map,
+        earth_surface=a.earth_surface, clouds=a.clouds, land_albedo=a.land_albedo, ocean_albedo=a.ocean_albedo,
+        cloud_albedo=a.cloud_albedo, earth_rotation_deg=a.earth_rotation_deg)
 
 
 def cmd_sweep(a):

@@ -11,7 +11,12 @@ Arrays (one value per lunar facet, zero where a facet is dark or unseen):
   and the detector; ``earth_incidence_deg``, ``earth_phase_deg`` for the Earth's centre;
 * ``brdf_per_sr``, ``reflectance_factor`` — the BRDF at those angles (sunlight), and
   ``earth_brdf_per_sr`` (earthlight);
-* ``moonshine_rays``, ``earthshine_rays`` — beams traced per facet (rays that carried light).
+* ``moonshine_rays``, ``earthshine_rays`` — beams traced per facet (rays that carried light);
+* ``albedo_parameter`` — the BRDF's albedo parameter on the facet (Lambert albedo or Hapke w:
+  the scalar, or the lunar albedo map's area average, :mod:`lunarviz.surfaces`).
+
+Earth facets carry ``albedo`` (their Lambert albedo: uniform, or the land/ocean/cloud surface
+averaged by area) and ``radiance_toward_moon_W_m2_sr``.
 """
 
 from __future__ import annotations
@@ -84,14 +89,21 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
     cd["earth_incidence_deg"] = np.degrees(angle_between(n, e_dir))
     cd["earth_phase_deg"] = np.degrees(angle_between(e_dir, o_dir))
     model = models[brdf_name]
+    amap, values = ts.settings.moon_map(), ts.moon_facet_albedo()
+    if values is None:
+        alb = None
+        cd["albedo_parameter"] = np.full(M.n_faces, model.albedo_parameter)
+    else:
+        alb = values if amap.absolute else values * model.albedo_parameter
+        cd["albedo_parameter"] = alb
     mu0 = np.clip(np.einsum("ij,ij->i", n, s_dir), 0, 1)
     mu = np.clip(np.einsum("ij,ij->i", n, o_dir), 0, 1)
     sh, ch = half_angle_sin_cos(s_dir, o_dir)
-    cd["brdf_per_sr"] = np.where((mu0 > 0) & (mu > 0), model.brdf(mu0, mu, sh, ch), 0.0)
+    cd["brdf_per_sr"] = np.where((mu0 > 0) & (mu > 0), model.brdf(mu0, mu, sh, ch, albedo=alb), 0.0)
     cd["reflectance_factor"] = np.pi * cd["brdf_per_sr"]
     mu0e = np.clip(np.einsum("ij,ij->i", n, e_dir), 0, 1)
     she, che = half_angle_sin_cos(e_dir, o_dir)
-    cd["earth_brdf_per_sr"] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che), 0.0)
+    cd["earth_brdf_per_sr"] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che, albedo=alb), 0.0)
     totals = {"moonshine_W_m2": ms.mean[brdf_name], "earthshine_W_m2": es.mean[brdf_name],
               "rays": ms.rays + es.rays, "seconds": ms.seconds + es.seconds}
     for k in models:
@@ -102,13 +114,17 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
             "detector_m": sc.det.tolist(), "sun_m": sc.sun.tolist(), "earth_m": sc.earth.tolist(),
             "estimator": ts.settings.estimator, "occlusion": ts.settings.occlusion,
             "self_shadow": ts.settings.self_shadow, "shading": ts.settings.shading,
-            "moon_shading_mode": M.mode(ts.settings.shading)}
+            "moon_shading_mode": M.mode(ts.settings.shading),
+            "moon_albedo_map": ts.settings.moon_albedo_map, "earth_surface": ts.settings.earth_surface,
+            "clouds": ts.settings.clouds}
     E, S = ts.earth, ts.sun
     from .sources import earth_radiance
     xe, ne = E.facet_points(ts.settings.shading)
     vis = ts.sun_visibility_of_earth()
-    earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, ts.settings.earth_albedo) * vis,
-                "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}
+    fa = ts.earth_facet_albedo()
+    fa = np.full(E.n_faces, ts.earth_albedo_value()) if fa is None else fa
+    earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, 1.0) * fa * vis,
+                "albedo": fa, "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}
     L_sun = ts.sun_surface_radiance()
     sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, L_sun),
               "moonshine_beam_hits": ts.source_hits["sun"].copy()}

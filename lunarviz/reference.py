@@ -34,6 +34,8 @@ class ReferenceSettings:
     inner_order: int = 8
     earth_albedo: float = 0.3
     chunk: int = 256
+    #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.Surfaces`), read at the nodes
+    surfaces: object = None
 
 
 def reference_transports(scene: Scene, path: str, settings: ReferenceSettings = ReferenceSettings()):
@@ -48,18 +50,31 @@ def reference_transports(scene: Scene, path: str, settings: ReferenceSettings = 
         xs, ns = x[sl], n[sl]
         m, w = source_sphere_rule(scene, xs, ns, body, settings.inner_order)
         y, om, omega = source_beams(scene, xs, body, m, w)
-        L = sun_radiance(scene) if body == "sun" else earth_radiance(scene, y, m, settings.earth_albedo)
+        sf = settings.surfaces
+        L_unit = None
+        if body == "sun":
+            L = sun_radiance(scene)
+        else:
+            L_unit = earth_radiance(scene, y, m, 1.0)
+            L = L_unit * (settings.earth_albedo if sf is None else sf.earth_albedo_at(scene, y))
         mu0 = np.clip(np.einsum("bmj,bj->bm", om, ns), 0.0, 1.0)
         sh, ch = half_angle_sin_cos(om, o[sl][:, None, :])
-        yield Transport(mu0=mu0, sin_hg=sh, cos_hg=ch, e_beam=L * omega, mu=mu[sl], geom=geom[sl])
+        tr = Transport(mu0=mu0, sin_hg=sh, cos_hg=ch, e_beam=L * omega, mu=mu[sl], geom=geom[sl],
+                       e_beam_unit=None if L_unit is None else L_unit * omega)
+        if sf is not None and sf.moon_map is not None:
+            tr.albedo = sf.moon_values_at(scene, xs)
+            tr.albedo_absolute = sf.moon_map.absolute
+        yield tr
 
 
 def reference_irradiance(scene: Scene, brdfs: dict, settings: ReferenceSettings = ReferenceSettings(),
                          paths=("moonshine", "earthshine")) -> dict[str, DetectorIrradiance]:
     """Converged detector irradiance [W m⁻²] with extended Sun and Earth, for each BRDF."""
-    tot = {k: {"moonshine": 0.0, "earthshine": 0.0} for k in brdfs}
+    tot = {k: {"moonshine": 0.0, "earthshine": 0.0, "unit": 0.0} for k in brdfs}
     for path in paths:
         for tr in reference_transports(scene, path, settings):
             for k, b in brdfs.items():
-                tot[k][path] += tr.detector_irradiance(b)
-    return {k: DetectorIrradiance(v["moonshine"], v["earthshine"]) for k, v in tot.items()}
+                e, e1 = tr.detector_irradiances(b)
+                tot[k][path] += e
+                tot[k]["unit"] += e1 or 0.0
+    return {k: DetectorIrradiance(v["moonshine"], v["earthshine"], v["unit"]) for k, v in tot.items()}

@@ -67,6 +67,16 @@ class SweepSettings:
     times: tuple | None = None
     #: ``--observer``: geocentre, site:LAT,LON[,H], tle:FILE, orbit:ALT,INC,RAAN,ARGLAT[,EPOCH]
     observer: str = "geocentre"
+    #: surfaces (:mod:`lunarviz.surfaces`): ``--moon-albedo-map FILE[:MEAN]``, ``--earth-surface
+    #: uniform|landocean|FILE``, ``--clouds none|zonal|FILE``, their albedos, and the θ scene's
+    #: sub-solar longitude ``--earth-rotation-deg`` (``None``: 0; dates turn the Earth themselves)
+    moon_albedo_map: str | None = None
+    earth_surface: str = "uniform"
+    clouds: str = "none"
+    land_albedo: float = 0.25
+    ocean_albedo: float = 0.06
+    cloud_albedo: float = 0.40
+    earth_rotation_deg: float | None = None
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -123,7 +133,12 @@ class SweepSettings:
                 if getattr(self, f"{body}_mesh") is not None:
                     raise LunarvizError(f"--{body}-mesh cannot be used with --method {self.method}, which assumes "
                                      f"exact spheres; use --method raytrace")
-        self.brdf_models()  # validates parameters early
+        if self.times is not None and self.earth_rotation_deg is not None:
+            raise LunarvizError("--earth-rotation-deg turns the Earth of the θ scene; on dates (--time) the "
+                                "Earth turns with the date")
+        sf = self.surfaces()  # reads and checks the maps before any work
+        if sf is not None and sf.moon_map is not None:
+            sf.moon_map.check_brdfs(self.brdf_models())
         ts = self.trace_settings()
         if self.method == "raytrace":  # read and check user meshes once, before any work
             from .meshes import NOMINAL_RADII
@@ -138,9 +153,26 @@ class SweepSettings:
         return {b: make_brdf(b, dhg_convention=self.dhg_convention, h_function=self.h_function,
                              params=self.params.get(b, {}), moon_model=self.moon_model) for b in self.brdfs}
 
-    def analytic_settings(self) -> AnalyticSettings:
+    def surfaces(self, model_earth: bool = False):
+        """The scene's :class:`~lunarviz.surfaces.Surfaces`; ``model_earth``: with the uniform
+        Earth of ``earth_albedo`` (what an inversion assumes), the lunar map kept; ``None`` when
+        both are the paper's."""
+        from .surfaces import EarthSurface, MoonAlbedoMap, Surfaces
+        earth = EarthSurface(albedo=self.earth_albedo) if model_earth else EarthSurface(
+            self.earth_surface, self.clouds, self.earth_albedo, self.land_albedo, self.ocean_albedo, self.cloud_albedo)
+        moon = None if self.moon_albedo_map is None else MoonAlbedoMap.parse(self.moon_albedo_map)
+        if moon is None and earth.uniform:
+            return None
+        return Surfaces(moon, earth, self.earth_rotation_deg or 0.0)
+
+    @property
+    def earth_uniform(self) -> bool:
+        return self.earth_surface == "uniform" and self.clouds == "none"
+
+    def analytic_settings(self, model_earth: bool = False) -> AnalyticSettings:
         return AnalyticSettings(grid=self.grid, order=self.order, paper_step_deg=self.paper_step_deg,
-                                earth_law=self.earth_law, earth_albedo=self.earth_albedo)
+                                earth_law=self.earth_law, earth_albedo=self.earth_albedo,
+                                surfaces=self.surfaces(model_earth))
 
     def trace_settings(self):
         from .meshes import DEFAULT_LEVELS
@@ -153,7 +185,10 @@ class SweepSettings:
             sun_order=self.sun_order, earth_order=self.earth_order, rays=self.rays,
             runs=self.runs, seed=self.seed, occlusion=self.occlusion, self_shadow=self.self_shadow,
             shading=self.shading, earth_albedo=self.earth_albedo, threads=1, moon_mesh=self.moon_mesh,
-            earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units)
+            earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units,
+            moon_albedo_map=self.moon_albedo_map, earth_surface=self.earth_surface, clouds=self.clouds,
+            land_albedo=self.land_albedo, ocean_albedo=self.ocean_albedo, cloud_albedo=self.cloud_albedo,
+            earth_rotation_deg=self.earth_rotation_deg or 0.0)
 
     def observer_model(self):
         """The parsed observer (an orbit's epoch defaults to the first time)."""
@@ -196,6 +231,14 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
     rows = []
     # point-source calibration (lunar terms of Eq. 15, and the point-vs-extended comparison):
     # converged grid, correct Lambert-sphere Earth law
+    # (an inversion assumes a uniform Earth of earth_albedo: a mapped Earth never calibrates its
+    # own inversion; the lunar map, which an observer knows, stays)
+    a0 = settings.earth_albedo
+    uniform = settings.earth_uniform
+
+    def model_es(es, es_unit):
+        """Earthshine of the model Earth (uniform albedo a0) on the same transport."""
+        return es if uniform else a0 * es_unit
     cal_settings = replace(settings.analytic_settings(), grid="converged", earth_law="lambert")
     point = analytic_irradiance(sc, brdfs, cal_settings)
     if settings.method == "analytic":
@@ -205,17 +248,22 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
             cal = point[k]
             rows.append({**base, "brdf": k, "method": "analytic",
                          "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
-                         "_terms": alb.lunar_terms(sc, cal.earthshine_W_m2, cal.moonshine_W_m2, settings.earth_albedo)})
+                         "earth_visible_lit_albedo": v.earth_visible_lit_albedo,
+                         "_terms": alb.lunar_terms(sc, model_es(cal.earthshine_W_m2, cal.earthshine_unit_W_m2),
+                                                   cal.moonshine_W_m2, a0)})
     elif settings.method == "reference":
         res = reference_irradiance(sc, brdfs, ReferenceSettings(settings.reference_outer, settings.reference_inner,
-                                                                settings.earth_albedo))
+                                                                settings.earth_albedo, surfaces=settings.surfaces()))
         for k, v in res.items():
+            pt = point[k]
             rows.append({**base, "brdf": k, "method": "reference",
                          "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
-                         "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
-                         "_terms": alb.lunar_terms(sc, v.earthshine_W_m2, v.moonshine_W_m2, settings.earth_albedo),
-                         "_terms_point": alb.lunar_terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
-                                                settings.earth_albedo)})
+                         "earth_visible_lit_albedo": v.earth_visible_lit_albedo,
+                         "earthshine_point_source_W_m2": pt.earthshine_W_m2,
+                         "_terms": alb.lunar_terms(sc, model_es(v.earthshine_W_m2, v.earthshine_unit_W_m2),
+                                                   v.moonshine_W_m2, a0),
+                         "_terms_point": alb.lunar_terms(sc, model_es(pt.earthshine_W_m2, pt.earthshine_unit_W_m2),
+                                                         pt.moonshine_W_m2, a0)})
     else:
         from .tracer.estimators import TraceScene, trace_path
         ts_set = settings.trace_settings()
@@ -223,21 +271,25 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
         ms = trace_path(ts, "moonshine", brdfs)
         es = trace_path(ts, "earthshine", brdfs)
         if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
-            cal_ms, cal_es = ms.mean, es.mean
+            cal_ms = ms.mean
+            cal_es = {k: model_es(es.mean[k], es.mean_unit[k]) for k in brdfs}
         else:
             # lunar terms from a deterministic transport of the same scene with the *model*
             # Earth (the nominal Lambert sphere): the Earth is what the inversion measures, so a
             # user's Earth mesh must not calibrate its own inversion (that is an identity)
-            dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None))
+            dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
+                                         earth_surface="uniform", clouds="none"))
             cal_ms = trace_path(dts, "moonshine", brdfs).mean
             cal_es = trace_path(dts, "earthshine", brdfs).mean
         for k in brdfs:
             row = {**base, "brdf": k, "method": "raytrace", "estimator": ts_set.estimator,
                    "moonshine_W_m2": ms.mean[k], "earthshine_W_m2": es.mean[k],
+                   "earth_visible_lit_albedo": es.mean[k] / es.mean_unit[k] if es.mean_unit[k] else float("nan"),
                    "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
                    "_terms": alb.lunar_terms(sc, cal_es[k], cal_ms[k], settings.earth_albedo),
-                   "_terms_point": alb.lunar_terms(sc, point[k].earthshine_W_m2, point[k].moonshine_W_m2,
-                                          settings.earth_albedo),
+                   "_terms_point": alb.lunar_terms(sc, model_es(point[k].earthshine_W_m2,
+                                                                point[k].earthshine_unit_W_m2),
+                                                   point[k].moonshine_W_m2, a0),
                    "rays": ms.rays + es.rays}
             if ts_set.estimator == "montecarlo":
                 row["moonshine_std_W_m2"] = ms.std[k]

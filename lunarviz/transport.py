@@ -32,11 +32,32 @@ class Transport:
     geom: np.ndarray
     #: ``e_beam`` before shadowing by other bodies and by the Moon itself (ray tracing only)
     e_beam_free: np.ndarray | None = None
+    #: earthshine only: ``e_beam`` for an Earth of albedo 1 everywhere (the Earth is Lambert,
+    #: so earthshine is linear in its albedo: the weights of ``earth_visible_lit_albedo``)
+    e_beam_unit: np.ndarray | None = None
+    #: per-sample values of a lunar albedo map (:mod:`lunarviz.surfaces`): the BRDF's albedo
+    #: parameter itself (``albedo_absolute``) or a factor on it; ``None``: the scalar
+    albedo: np.ndarray | None = None
+    albedo_absolute: bool = False
+
+    def sample_albedo(self, brdf):
+        """The BRDF's albedo parameter per sample ((N, 1), for ``albedo=``), or ``None``."""
+        if self.albedo is None:
+            return None
+        a = self.albedo if self.albedo_absolute else self.albedo * brdf.albedo_parameter
+        return a[:, None]
 
     def radiance(self, brdf) -> np.ndarray:
         """Radiance toward the detector at each sample [W m⁻² sr⁻¹], paper Eq. 10."""
-        rf = brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg)
-        return np.sum(rf * self.e_beam, axis=1)
+        return self.radiances(brdf)[0]
+
+    def radiances(self, brdf) -> tuple[np.ndarray, np.ndarray | None]:
+        """Radiance toward the detector [W m⁻² sr⁻¹] and, for earthshine, the same for an
+        Earth of albedo 1 (``None`` without ``e_beam_unit``); one BRDF evaluation for both."""
+        rf = brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg,
+                                  albedo=self.sample_albedo(brdf))
+        unit = None if self.e_beam_unit is None else np.sum(rf * self.e_beam_unit, axis=1)
+        return np.sum(rf * self.e_beam, axis=1), unit
 
     def irradiance_on_sample(self) -> np.ndarray:
         """Irradiance on the surface at each sample [W m⁻²]: Σ_k μ0 e_beam."""
@@ -52,6 +73,11 @@ class Transport:
     def detector_irradiance(self, brdf) -> float:
         """Irradiance at the detector [W m⁻²], paper Eq. 11."""
         return float(np.dot(self.radiance(brdf), self.geom))
+
+    def detector_irradiances(self, brdf) -> tuple[float, float | None]:
+        """Detector irradiance [W m⁻²] and the same for an Earth of albedo 1 (or ``None``)."""
+        L, L1 = self.radiances(brdf)
+        return float(np.dot(L, self.geom)), None if L1 is None else float(np.dot(L1, self.geom))
 
 
 def detector_geometry(points, normals, areas, det, det_normal):

@@ -262,3 +262,119 @@ def eclipse_moonshine(surface, model, sun, moon, det=None):
     e = C.PHI_SUN_W / (4 * np.pi * ds**2)
     free = float(np.sum(f * mu0 * e * geom))
     return float(np.sum(f * mu0 * e * geom * frac)), free
+
+
+# ----------------------------------------------------------------------------------------------
+# maps (issue 11): a Moon and an Earth whose albedo varies with longitude, integrated in each
+# body's own latitude/longitude so that the albedo's edges (meridians) are integration limits
+# ----------------------------------------------------------------------------------------------
+def _gauss(lo, hi, n):
+    x, w = np.polynomial.legendre.leggauss(n)
+    return lo + 0.5 * (hi - lo) * (x + 1), 0.5 * (hi - lo) * w
+
+
+def _lonlat_rule(lon_edges_deg, n_lon, n_lat):
+    """Nodes (lat, lon) [rad] and weights cos(lat) dlat dlon over the sphere between the
+    longitude edges (each segment its own Gauss rule)."""
+    la, wla = _gauss(-np.pi / 2, np.pi / 2, n_lat)
+    lons, wlos = [], []
+    for a, b in zip(lon_edges_deg[:-1], lon_edges_deg[1:]):
+        if b > a:
+            lo, wl = _gauss(np.radians(a), np.radians(b), n_lon)
+            lons.append(lo)
+            wlos.append(wl)
+    lo, wlo = np.concatenate(lons), np.concatenate(wlos)
+    LA, LO = np.meshgrid(la, lo, indexing="ij")
+    W = np.outer(wla * np.cos(la), wlo)
+    return LA.ravel(), LO.ravel(), W.ravel()
+
+
+def _edges(*cuts):
+    """Sorted longitudes [deg] in [-180, 180] including ±180 and each cut (wrapped)."""
+    c = [((x + 180.0) % 360.0) - 180.0 for x in cuts]
+    return np.unique(np.concatenate([[-180.0, 180.0], c]))
+
+
+def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, earth_lon_sub_solar_deg=0.0,
+                      moon_cuts=(), earth_cuts=(), n_moon=(48, 24), n_earth=(32, 24)):
+    """``{brdf: (moonshine, earthshine)}`` [W m⁻²] in the θ scene, detector at the Earth's centre.
+
+    Frames (DESIGN.md): both north poles along +x; the Moon's (0°, 0°) faces the Earth; the
+    Earth's sub-solar point is at longitude ``earth_lon_sub_solar_deg``. ``moon_albedo(lat, lon)``
+    [deg] returns each BRDF's albedo parameter (Lambert albedo, Hapke w) per node as a dict
+    ``{brdf: array}`` (``None``: the models' own); ``earth_albedo(lat, lon)`` the Earth's Lambert
+    albedo (``None``: 0.3). ``*_cuts``: longitudes [deg] where the albedo jumps; the rules are
+    split there and at the Earth's terminator and limb meridians. Point Sun; the Earth is an
+    extended Lambert body lit by a point Sun; no occlusion.
+    """
+    sun, earth, moon = scene(theta_deg)
+    pole = np.array([1.0, 0.0, 0.0])
+    # the Moon: lon/lat rule over the near side split at the map's edges and the terminator
+    e0 = -moon / np.linalg.norm(moon)
+    e1 = np.cross(pole, e0)
+    s_m = (sun - moon) / np.linalg.norm(sun - moon)
+    lon_s_moon = np.degrees(np.arctan2(s_m @ e1, s_m @ e0))
+    cuts_m = [-90.0, 90.0, lon_s_moon - 90.0, lon_s_moon + 90.0, *moon_cuts]
+    edges_m = _edges(*cuts_m)
+    edges_m = edges_m[(edges_m >= -90.0) & (edges_m <= 90.0)]
+    LA, LO, W = _lonlat_rule(edges_m, *n_moon)
+    nrm = (np.cos(LA) * np.cos(LO))[:, None] * e0 + (np.cos(LA) * np.sin(LO))[:, None] * e1 + np.sin(LA)[:, None] * pole
+    x = moon + C.R_MOON_M * nrm
+    dA = W * C.R_MOON_M**2
+    lat_m, lon_m = np.degrees(LA), np.degrees(LO)
+    # the Earth: frame of the sub-solar point
+    s_hat = (sun - earth) / np.linalg.norm(sun - earth)
+    east = np.cross(pole, s_hat)
+    lam_s = np.radians(earth_lon_sub_solar_deg)
+    m_hat = moon / np.linalg.norm(moon)
+    lon_moon_e = earth_lon_sub_solar_deg + np.degrees(np.arctan2(m_hat @ east, m_hat @ s_hat))
+    edges_e = _edges(earth_lon_sub_solar_deg - 90, earth_lon_sub_solar_deg + 90, lon_moon_e - 90, lon_moon_e + 90,
+                     *earth_cuts)
+    ELA, ELO, EW = _lonlat_rule(edges_e, *n_earth)
+    dl = ELO - lam_s
+    m = (np.cos(ELA) * np.cos(dl))[:, None] * s_hat + (np.cos(ELA) * np.sin(dl))[:, None] * east \
+        + np.sin(ELA)[:, None] * pole
+    y = earth + C.R_EARTH_M * m
+    vsy = sun - y
+    dsy = np.linalg.norm(vsy, axis=1)
+    mu_s = np.clip(np.einsum("ij,ij->i", m, vsy) / dsy, 0, None)
+    A_e = np.full(len(y), EARTH_ALBEDO) if earth_albedo is None else earth_albedo(np.degrees(ELA), np.degrees(ELO))
+    L_e = A_e / np.pi * C.PHI_SUN_W / (4 * np.pi * dsy**2) * mu_s  # (Y,)
+    keep = L_e > 0
+    y, m, L_e, dA_y = y[keep], m[keep], L_e[keep], EW[keep] * C.R_EARTH_M**2
+    # detector geometry at the Earth's centre
+    det = earth
+    v = det - x
+    d = np.linalg.norm(v, axis=1)
+    o = v / d[:, None]
+    mu = np.clip(np.einsum("ij,ij->i", nrm, o), 0, None)
+    det_n = (moon - det) / np.linalg.norm(moon - det)
+    geom = mu * np.clip(-np.einsum("ij,j->i", v, det_n) / d, 0, None) * dA / d**2
+    vs = sun - x
+    ds = np.linalg.norm(vs, axis=1)
+    s = vs / ds[:, None]
+    mu0 = np.clip(np.einsum("ij,ij->i", nrm, s), 0, None)
+    E_sun = C.PHI_SUN_W / (4 * np.pi * ds**2)
+    sh, ch = _half_angle(s, o)
+    alb = None if moon_albedo is None else moon_albedo(lat_m, lon_m)
+    out = {}
+    for k, model in models.items():
+        a = None if alb is None else alb[k]
+        f_s = np.where(mu0 > 0, model.brdf(mu0, mu, sh, ch, albedo=a), 0.0)
+        ms = float(np.sum(f_s * mu0 * E_sun * geom))
+        es = 0.0
+        for c0 in range(0, len(x), 256):
+            sl = slice(c0, c0 + 256)
+            vy = y[None, :, :] - x[sl, None, :]  # lunar point → Earth node
+            r = np.linalg.norm(vy, axis=2)
+            om = vy / r[..., None]
+            cos_y = np.clip(-np.einsum("bkj,kj->bk", om, m), 0, None)
+            mu0e = np.clip(np.einsum("bkj,bj->bk", om, nrm[sl]), 0, None)
+            she, che = _half_angle(om, o[sl][:, None, :])
+            ab = None if a is None else a[sl][:, None]
+            f_e = np.where(mu0e > 0, model.brdf(mu0e, np.broadcast_to(mu[sl][:, None], mu0e.shape), she, che,
+                                                albedo=ab), 0.0)
+            L = np.sum(f_e * mu0e * L_e[None, :] * cos_y * dA_y[None, :] / r**2, axis=1)
+            es += float(np.sum(L * geom[sl]))
+        out[k] = (ms, es)
+    return out

@@ -81,6 +81,9 @@ PATHS = {"moonshine": "sun", "earthshine": "earth"}
 MESH_SOURCE_ORDER = 16
 #: Lunar samples per batch: bounds memory (≈ CHUNK × beams × 30 doubles) for any ray count.
 CHUNK = 1 << 14
+#: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
+#: from the Moon (its beams; ``mapped_earth_transport``).
+EARTH_CELLS = 24
 
 
 @dataclass(frozen=True)
@@ -106,6 +109,28 @@ class TraceSettings:
     mesh_units: str = "m"
     #: per-body shading overriding ``shading``, e.g. ``(("earth", "flat"),)`` (mesh studies)
     body_shading: tuple = ()
+    #: surfaces (:mod:`lunarviz.surfaces`): ``--moon-albedo-map FILE[:MEAN]``, the Earth's
+    #: ``--earth-surface``/``--clouds`` and their albedos, and the θ scene's sub-solar longitude
+    moon_albedo_map: str | None = None
+    earth_surface: str = "uniform"
+    clouds: str = "none"
+    land_albedo: float = 0.25
+    ocean_albedo: float = 0.06
+    cloud_albedo: float = 0.40
+    earth_rotation_deg: float = 0.0
+
+    def moon_map(self):
+        """The parsed lunar albedo map, or ``None``."""
+        if self.moon_albedo_map is None:
+            return None
+        from ..surfaces import MoonAlbedoMap
+        return MoonAlbedoMap.parse(self.moon_albedo_map)
+
+    def surface(self):
+        """The Earth's :class:`~lunarviz.surfaces.EarthSurface`."""
+        from ..surfaces import EarthSurface
+        return EarthSurface(self.earth_surface, self.clouds, self.earth_albedo, self.land_albedo,
+                            self.ocean_albedo, self.cloud_albedo)
 
     def __post_init__(self):
         if self.estimator not in ESTIMATORS:
@@ -127,6 +152,10 @@ class TraceSettings:
             raise LunarvizError(f"seed={self.seed!r} must be a non-negative integer")
         if not (isinstance(self.earth_albedo, (int, float, np.number)) and 0 <= self.earth_albedo <= 1):
             raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be a number in [0, 1]")
+        if not (isinstance(self.earth_rotation_deg, (int, float, np.number)) and np.isfinite(self.earth_rotation_deg)):
+            raise LunarvizError(f"Earth rotation {self.earth_rotation_deg!r} deg must be a finite number")
+        self.surface()
+        self.moon_map()
         from ..meshes import MAX_LEVEL, MESH_UNITS
         for name in ("moon_level", "earth_level", "sun_level"):
             v = getattr(self, name)
@@ -179,6 +208,46 @@ class TraceScene:
         self.rays_cast = 0
         self._sun_vis_earth = None
         self._cand_cache: dict = {}
+        self._moon_albedo = self._earth_albedo = None
+
+    # ---- surfaces ----------------------------------------------------------------------------
+    def moon_facet_albedo(self):
+        """Per-facet values of the lunar albedo map (area averages, :mod:`lunarviz.surfaces`),
+        or ``None`` without a map."""
+        amap = self.settings.moon_map()
+        if amap is None:
+            return None
+        if self._moon_albedo is None:
+            from ..surfaces import map_frame, moon_facet_values
+            self._moon_albedo = moon_facet_values(amap, self.moon, map_frame(self.scene, "moon"))
+        return self._moon_albedo
+
+    def earth_facet_albedo(self):
+        """Per-facet Lambert albedo of the Earth (area averages of its surface and clouds), or
+        ``None`` for a uniform Earth (then :meth:`earth_albedo_value`; a map whose facets all
+        have one value is that uniform Earth, bit for bit)."""
+        surf = self.settings.surface()
+        if surf.uniform:
+            return None
+        if self._earth_albedo is None:
+            from ..surfaces import map_frame
+            frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
+            fa = surf.facet_albedo(self.earth, frame)
+            self._earth_albedo = float(fa[0]) if np.all(fa == fa[0]) else fa
+        return None if isinstance(self._earth_albedo, float) else self._earth_albedo
+
+    def earth_albedo_value(self) -> float:
+        """The uniform Earth's albedo: ``earth_albedo``, or a uniform map's one value."""
+        return self._earth_albedo if self.earth_facet_albedo() is None and isinstance(self._earth_albedo, float) \
+            else float(self.settings.earth_albedo)
+
+    def with_moon_albedo(self, tr: Transport, owner) -> Transport:
+        """``tr`` with the lunar map's values at the samples' owning facets (if any)."""
+        v = self.moon_facet_albedo()
+        if v is not None:
+            tr.albedo = v[owner]
+            tr.albedo_absolute = self.settings.moon_map().absolute
+        return tr
 
     def _count(self, n):
         self.rays_cast += int(n)
@@ -451,8 +520,10 @@ class TraceScene:
 
     def source_radiance(self, x, n, dirs, body: str):
         """Radiance [W m⁻² sr⁻¹] reaching x (n,3) along dirs (n,3) from ``body``'s mesh:
-        ``(L, L_free)``, zero where the ray misses the source; ``L`` is also zero where another
-        body (``occlusion``) or the Moon itself (``self_shadow``) blocks it, ``L_free`` is not."""
+        ``(L, L_free, L_unit)``, zero where the ray misses the source; ``L`` is also zero where
+        another body (``occlusion``) or the Moon itself (``self_shadow``) blocks it, ``L_free`` is
+        not. ``L_unit`` (Earth only, else ``None``) is ``L`` for an Earth of albedo 1: the Earth's
+        albedo at a hit is its facet's (a map) or the scalar."""
         sc = self.scene
         s = self.settings
         xo = x + n * (NORMAL_OFFSET * self.moon.radius)
@@ -472,18 +543,23 @@ class TraceScene:
                 self._count(live.size)
                 L[live[blocked]] = 0.0
         else:
-            L = np.zeros(len(xo))
+            L, L_unit = np.zeros(len(xo)), np.zeros(len(xo))
             h, y, nrm = self.earth.shade_hits(hits, s.shading)
             vis = self.sun_visibility_of_earth()
-            shade = np.where(hits.prim[h] >= 0, vis[np.maximum(hits.prim[h], 0)], 1.0)
-            L[h] = earth_radiance(sc, y, nrm, s.earth_albedo) * shade
+            prim = np.maximum(hits.prim[h], 0)
+            shade = np.where(hits.prim[h] >= 0, vis[prim], 1.0)
+            fa = self.earth_facet_albedo()
+            L_unit[h] = earth_radiance(sc, y, nrm, 1.0) * shade
+            L[h] = L_unit[h] * (self.earth_albedo_value() if fa is None else fa[prim])
             L_free = L.copy()
         if self._self_shadows():
-            live = np.flatnonzero(L > 0)
+            live = np.flatnonzero((L > 0) | (L_unit > 0)) if body == "earth" else np.flatnonzero(L > 0)
             blocked = self.moon.occluded(xo[live], dirs[live], hits.t[live])
             self._count(live.size)
             L[live[blocked]] = 0.0
-        return L, L_free
+            if body == "earth":
+                L_unit[live[blocked]] = 0.0
+        return L, L_free, (L_unit if body == "earth" else None)
 
     # ---- transports --------------------------------------------------------------------------
     def deterministic_transport(self, body: str):
@@ -499,23 +575,125 @@ class TraceScene:
             if len(x) == 0:
                 continue
             order = s.sun_order if body == "sun" else s.earth_order
-            yield self.beam_transport(x, n, o, mu, geom, body, order), owner
+            yield self.with_moon_albedo(self.beam_transport(x, n, o, mu, geom, body, order), owner), owner
+
+    def _earth_elements(self):
+        """The mapped Earth as surface elements, one per facet: points y, normals m, areas
+        [m²] (spherical areas on the exact sphere), radiance for albedo 1 (point Sun, the
+        Moon's shadow traced per facet) and the facet's albedo; sorted into the cells of a
+        grid over the Earth's disc seen from the Moon's centre, with each cell's
+        flux-weighted centre point. Elements neither lit nor possibly seen from the Moon are
+        dropped; on a non-convex Earth, those the Earth itself hides from the Moon's centre
+        (traced)."""
+        if getattr(self, "_earth_el", None) is not None:
+            return self._earth_el
+        sc, s, E = self.scene, self.settings, self.earth
+        if E.mode(s.shading) == "exact":
+            pts, nrm, area, owner = E.surface_samples(np.arange(E.n_faces), s.shading)
+            area_f = np.bincount(owner, area, E.n_faces)
+            m = E.normals_for(s.shading)
+            y = E.centre + E.radius * m
+        else:
+            y, m = E.facet_points(s.shading)
+            area_f = E.areas
+        L1 = earth_radiance(sc, y, m, 1.0) * self.sun_visibility_of_earth()
+        a = self.earth_facet_albedo()
+        rm = sc.radii["moon"]
+        keep = (L1 > 0) & (np.einsum("ij,ij->i", m, sc.moon - y) > -rm)
+        if self.settings.self_shadow and not E.convex:
+            idx = np.flatnonzero(keep)
+            yo = y[idx] + m[idx] * (NORMAL_OFFSET * E.radius)
+            v = sc.moon - yo
+            dist = np.linalg.norm(v, axis=1)
+            hid = E.occluded(yo, v / dist[:, None], dist - rm)
+            self._count(idx.size)
+            keep[idx[hid]] = False
+        idx = np.flatnonzero(keep)
+        y, m, L1A, a = y[idx], m[idx], L1[idx] * area_f[idx], a[idx]
+        axis = unit(sc.moon - sc.earth)
+        e1, e2 = orthonormal_basis(axis[None, :])
+        bound = E.bound if E.mode(s.shading) != "exact" else E.radius
+        g = EARTH_CELLS
+        u = np.clip(((y - sc.earth) @ e1[0] / bound + 1) * 0.5 * g, 0, g - 1).astype(int)
+        w = np.clip(((y - sc.earth) @ e2[0] / bound + 1) * 0.5 * g, 0, g - 1).astype(int)
+        cell = u * g + w
+        order = np.argsort(cell, kind="stable")
+        y, m, L1A, a, cell = y[order], m[order], L1A[order], a[order], cell[order]
+        starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]]) if len(cell) else np.zeros(0, int)
+        # each cell's centre: its elements' mean weighted by their unit flux toward the Moon's centre
+        v = sc.moon - y
+        r = np.linalg.norm(v, axis=1)
+        wt = L1A * np.clip(np.einsum("ij,ij->i", m, v) / r, 1e-12, None) / r**2
+        wsum = np.add.reduceat(wt, starts) if len(starts) else np.zeros(0)
+        centre = (np.add.reduceat(y * wt[:, None], starts, axis=0) / wsum[:, None]) if len(starts) else np.zeros((0, 3))
+        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre)
+        return self._earth_el
+
+    def mapped_earth_transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
+        """Earthshine :class:`Transport` at lunar points x from an Earth with an albedo map.
+
+        The earthlight of every Earth facet reaching x is summed exactly per facet,
+        ``a_f · L1_f · A_f · cos_f(x) / r_f(x)²`` (zero below x's horizon or behind the Earth's
+        limb seen from x), and gathered into one beam per cell of the Earth's disc
+        (:data:`EARTH_CELLS`² cells, each ≤ 0.08° across seen from the Moon) along the cell's
+        flux-weighted centre. A map's edges are thus integrated by the facets' area averages
+        (second order), not by a few Gauss beams across the disc, which leave ~1 % errors
+        (tests/test_surfaces.py). The BRDF sees each cell's light from one direction: the
+        error is second order in the cell's angular size. Traced with Embree: the Moon's
+        shadow on each facet, a non-convex Earth hiding facets, a non-convex Moon shadowing
+        each beam. Neglected: the Sun's extent lighting the Earth (as for the uniform Earth).
+        """
+        el = self._earth_elements()
+        B, C = len(x), len(el["starts"])
+        e_map, e_unit = np.zeros((B, C)), np.zeros((B, C))
+        if C:
+            y, m, L1A, a, st = el["y"], el["m"], el["L1A"], el["a"], el["starts"]
+            for c0 in range(0, B, chunk):
+                xs, ns = x[c0:c0 + chunk], n[c0:c0 + chunk]
+                v = xs[:, None, :] - y[None, :, :]  # Earth element → lunar point
+                r2 = np.einsum("bkj,bkj->bk", v, v)
+                r = np.sqrt(r2)
+                cos_y = np.clip(np.einsum("bkj,kj->bk", v, m) / r, 0.0, None)
+                up = np.einsum("bkj,bj->bk", v, ns) < 0.0  # the element above x's horizon
+                f = np.where(up, L1A * cos_y / r2, 0.0)
+                e_unit[c0:c0 + chunk] = np.add.reduceat(f, st, axis=1)
+                e_map[c0:c0 + chunk] = np.add.reduceat(f * a, st, axis=1)
+        dirs = unit(el["centre"][None, :, :] - x[:, None, :]) if C else np.zeros((B, 0, 3))
+        mu0 = np.einsum("bkj,bj->bk", dirs, n)
+        e_free = e_map.copy()
+        if self._self_shadows() and C:
+            bi, ki = np.nonzero((e_unit > 0) & (mu0 > 0))
+            xo = x[bi] + n[bi] * (NORMAL_OFFSET * self.moon.radius)
+            blocked = self.moon.occluded(xo, dirs[bi, ki])
+            self._count(bi.size)
+            e_map[bi[blocked], ki[blocked]] = 0.0
+            e_unit[bi[blocked], ki[blocked]] = 0.0
+        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
+        return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=e_map, mu=mu, geom=geom,
+                         e_beam_free=e_free, e_beam_unit=e_unit)
 
     def beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
         """The :class:`Transport` of points x (B,3) with normals n, unit directions o to the
         detector, ``mu`` and ``geom``: ``body``'s deterministic beams (:meth:`source_nodes`),
         each traced to the source (:meth:`source_radiance`). Shared by the detector transport
-        and the synthetic camera (lunarviz.camera)."""
+        and the synthetic camera (lunarviz.camera). An Earth with an albedo map takes
+        :meth:`mapped_earth_transport` instead."""
+        if body == "earth" and self.earth_facet_albedo() is not None:
+            return self.mapped_earth_transport(x, n, o, mu, geom)
         dirs, omega = self.source_nodes(x, n, body, order)
         mu0 = np.einsum("bkj,bj->bk", dirs, n)
         live = (omega > 0) & (mu0 > 0)
         L = np.zeros(omega.shape)
         L_free = np.zeros(omega.shape)
+        L_unit = np.zeros(omega.shape) if body == "earth" else None
         bi, ki = np.nonzero(live)
-        L[bi, ki], L_free[bi, ki] = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
+        L[bi, ki], L_free[bi, ki], lu = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
+        if L_unit is not None:
+            L_unit[bi, ki] = lu
         sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
         return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega,
-                         mu=mu, geom=geom, e_beam_free=L_free * omega)
+                         mu=mu, geom=geom, e_beam_free=L_free * omega,
+                         e_beam_unit=None if L_unit is None else L_unit * omega)
 
     def montecarlo_transport(self, body: str, rng: np.random.Generator):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
@@ -578,11 +756,15 @@ class TraceScene:
         mu0 = np.einsum("ij,ij->i", dirs, ns)
         li = np.flatnonzero((mu0 > 0) & (geom > 0))
         L = np.zeros(N)
-        L[li] = self.source_radiance(xs[li], ns[li], dirs[li], body)[0]
+        L_unit = np.zeros(N) if body == "earth" else None
+        L[li], _, lu = self.source_radiance(xs[li], ns[li], dirs[li], body)
+        if L_unit is not None:
+            L_unit[li] = lu
         sh, ch = half_angle_sin_cos(dirs, o)
         tr = Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],
-                       e_beam=(L * omega)[:, None], mu=mu, geom=geom)
-        return tr, f
+                       e_beam=(L * omega)[:, None], mu=mu, geom=geom,
+                       e_beam_unit=None if L_unit is None else (L_unit * omega)[:, None])
+        return self.with_moon_albedo(tr, f), f
 
     @staticmethod
     def _cone_directions(xs, c, R, rng):
@@ -677,6 +859,9 @@ class PathResult:
     sem: dict = field(default_factory=dict)
     #: brdf -> spread (ddof 1) of the run values [W m-2]; NaN with one run (a diagnostic)
     spread: dict = field(default_factory=dict)
+    #: earthshine only: brdf -> mean for an Earth of albedo 1 [W m-2] (same rays; the
+    #: earthshine-weighted albedo of the Earth is ``mean / mean_unit``)
+    mean_unit: dict = field(default_factory=dict)
 
 
 def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False) -> PathResult:
@@ -687,6 +872,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     r0 = ts.rays_cast
     runs = 1 if s.estimator == "deterministic" else s.runs
     vals = {k: [] for k in brdfs}
+    units = {k: [] for k in brdfs}
     within = {k: [] for k in brdfs}
     facets = {}
     nf = ts.moon.n_faces
@@ -697,6 +883,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
             rng = np.random.default_rng([s.seed, run, 0 if path == "moonshine" else 1])
             chunks = ts.montecarlo_transport(body, rng)
         tot = {k: 0.0 for k in brdfs}
+        tot_unit = {k: 0.0 for k in brdfs}
         sq = {k: 0.0 for k in brdfs}
         count = 0
         keep = keep_facets and run == runs - 1
@@ -704,7 +891,10 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
         for tr, owner in chunks:
             count += len(owner)
             for k, b in brdfs.items():
-                contrib = tr.radiance(b) * tr.geom
+                L, L_unit = tr.radiances(b)
+                contrib = L * tr.geom
+                if L_unit is not None:
+                    tot_unit[k] += float(np.dot(L_unit, tr.geom))
                 tot[k] += float(contrib.sum())
                 sq[k] += float(np.dot(contrib, contrib))
                 if keep:
@@ -721,6 +911,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
                     fac[key] = fac.get(key, 0.0) + np.bincount(owner, per_sample, nf)
         for k in brdfs:
             vals[k].append(tot[k])
+            units[k].append(tot_unit[k])
             if s.estimator == "montecarlo" and count > 1:
                 # contributions c_i = f_i / (N p_i): Var(Σ c) = N Var(c), Var(c) from the sums
                 var_c = (sq[k] - tot[k] ** 2 / count) / (count - 1)
@@ -752,4 +943,5 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
         spread[k] = float(np.std(vals[k], ddof=1)) if runs >= 2 else float("nan")
     return PathResult(mean={k: float(np.mean(v)) for k, v in vals.items()}, std=std,
                       run_values=vals, within_std=within, rays=ts.rays_cast - r0,
-                      seconds=time.perf_counter() - t0, facets=facets, sem=sem, spread=spread)
+                      seconds=time.perf_counter() - t0, facets=facets, sem=sem, spread=spread,
+                      mean_unit={k: float(np.mean(v)) for k, v in units.items()} if body == "earth" else {})
