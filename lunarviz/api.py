@@ -39,24 +39,30 @@ SCENE_DEFAULTS = {
 }
 
 
+#: θ in [0, 180] is the paper's half orbit (waxing: the Moon east of the Sun, full Moon at 0,
+#: new Moon at 180); θ in (180, 360) is its mirror image, the waning half (same phase angle at
+#: θ and 360 - θ, the other limb lit): with a lunar albedo map the two differ.
+THETA_MAX = 360.0
+
+
 def _phases(phases) -> tuple:
     from .parsing import parse_float_list
     if phases is None:
         return tuple(float(p) for p in range(0, 181, 5))
     if isinstance(phases, str):
-        return tuple(parse_float_list(phases, "phase", 0.0, 180.0))
+        return tuple(parse_float_list(phases, "phase", 0.0, THETA_MAX))
     try:
         vals = np.atleast_1d(np.asarray(phases, dtype=float))
     except (TypeError, ValueError):
         raise LunarvizError(f"phases {phases!r} must be numbers (θ [deg]) or a string a,b,c / start:stop:step") \
             from None
-    if vals.ndim != 1 or vals.size == 0 or not np.all(np.isfinite(vals)) or np.any((vals < 0) | (vals > 180)):
-        raise LunarvizError(f"phases {phases!r} must be finite angles θ in [0, 180] deg")
+    if vals.ndim != 1 or vals.size == 0 or not np.all(np.isfinite(vals)) or np.any((vals < 0) | (vals > THETA_MAX)):
+        raise LunarvizError(f"phases {phases!r} must be finite angles θ in [0, 360] deg")
     return tuple(float(v) for v in vals)
 
 
 def _check_key(sc: "Scene", key):
-    """A task key for ``sc``: a phase θ [deg] in [0, 180], or (a scene with times) a UTC time."""
+    """A task key for ``sc``: a phase θ [deg] in [0, 360], or (a scene with times) a UTC time."""
     if key is None:
         return sc.keys[0]
     if sc.times is not None:
@@ -71,8 +77,8 @@ def _check_key(sc: "Scene", key):
         th = float(key)
     except (TypeError, ValueError):
         raise LunarvizError(f"phase {key!r} is not a number (this scene has no times)") from None
-    if not (np.isfinite(th) and 0.0 <= th <= 180.0):
-        raise LunarvizError(f"phase {key!r} is out of range [0, 180] deg")
+    if not (np.isfinite(th) and 0.0 <= th <= THETA_MAX):
+        raise LunarvizError(f"phase {key!r} is out of range [0, 360] deg")
     return th
 
 
@@ -273,7 +279,7 @@ def trace(scene: Scene | None = None, key=None, brdf: str | None = None, **scene
     scene : Scene
         The scene (or its options as keywords).
     key : float or str, optional
-        Phase θ [deg] in [0, 180], or a UTC time for a dated scene (default: the scene's first).
+        Phase θ [deg] in [0, 360], or a UTC time for a dated scene (default: the scene's first).
     brdf : str, optional
         The BRDF of the unsuffixed arrays (default: the scene's first); every BRDF of the
         scene has suffixed arrays.

@@ -342,7 +342,7 @@ def cmd_sweep(a):
     times = _times(a)
     if times is not None and a.phases is not None:
         raise UsageError("give --phases (the θ scene) or --time/--time-range (the real sky), not both")
-    phases = parse_float_list(a.phases or "0:180:5", "phase", 0.0, 180.0)
+    phases = parse_float_list(a.phases or "0:180:5", "phase", 0.0, 360.0)
     out = _check_out(a.out, (".json", ".csv", ".nc"))
     scene = _scene(a, phases, times)
     scene.settings(a.method)  # method-specific checks before any work
@@ -407,8 +407,8 @@ def cmd_trace(a):
     else:
         if a.phase is None:
             raise UsageError("trace needs --phase θ or --time")
-        if not (0.0 <= a.phase <= 180.0) or not math.isfinite(a.phase):
-            raise UsageError(f"phase {a.phase:g} is out of range [0, 180]")
+        if not (0.0 <= a.phase <= 360.0) or not math.isfinite(a.phase):
+            raise UsageError(f"phase {a.phase:g} is out of range [0, 360]")
         key = a.phase
     out = _check_out(a.out, (".vtp", ".vtk", ".ply", ".vtm"))
     if str(out).lower().endswith(".vtm"):
@@ -421,7 +421,7 @@ def cmd_trace(a):
 
 def cmd_render(a, interactive=False):
     from .viz import views
-    phases = parse_float_list(a.phase or "90", "phase", 0.0, 180.0)
+    phases = parse_float_list(a.phase or "90", "phase", 0.0, 360.0)
     try:
         w, h = (int(x) for x in a.size.lower().split("x"))
         if w < 64 or h < 64 or w > 8192 or h > 8192:
@@ -471,7 +471,7 @@ def cmd_image(a):
     times = _times(a)
     if times is not None and a.phase is not None:
         raise UsageError("give --phase (the θ scene) or --time/--time-range (the real sky), not both")
-    phases = parse_float_list(a.phase or "90", "phase", 0.0, 180.0)
+    phases = parse_float_list(a.phase or "90", "phase", 0.0, 360.0)
     w, h = parse_pixels(a.pixels)
     camera = Camera(fov_deg=a.fov_deg, width=w, height=h, supersample=a.supersample, pointing=a.pointing)
     out = _check_out(a.out, (".fits", ".npy", ".png"))

@@ -102,7 +102,7 @@ def test_scene_rejects_bad_options_in_one_line(tmp_path):
     with pytest.raises(LunarvizError, match="unknown Scene option 'moon_levle'"):
         lunarviz.Scene(moon_levle=3)
     with pytest.raises(LunarvizError, match="phase"):
-        lunarviz.Scene(phases=200)
+        lunarviz.Scene(phases=400)
     with pytest.raises(LunarvizError, match="--time"):
         lunarviz.Scene(observer="site:10,10")
     with pytest.raises(LunarvizError, match="--moon-mesh cannot be used with --method analytic"):

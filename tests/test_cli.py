@@ -63,7 +63,7 @@ def test_brdf_command(tmp_path, capsys):
 @pytest.mark.parametrize("args,needle", [
     (["sweep", "--brdf", "foo"], "unknown BRDF 'foo'"),
     (["sweep", "--method", "magic"], "unknown method 'magic'"),
-    (["sweep", "--phases", "0:190:5"], "phase 185 is out of range"),
+    (["sweep", "--phases", "0:370:5"], "phase 365 is out of range"),
     (["sweep", "--phases", "5:0:5"], "malformed phase '5:0:5'"),
     (["sweep", "--phases", "a,b"], "malformed phase 'a'"),
     (["sweep", "--param", "w=1.7"], "w=1.7"),

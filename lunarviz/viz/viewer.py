@@ -32,7 +32,7 @@ class Viewer:
 
     # ---- state changes (also driven by tests) -----------------------------------------------
     def set_phase(self, theta: float):
-        theta = float(np.clip(theta, 0.0, 180.0))
+        theta = float(np.clip(theta, 0.0, 360.0))
         if abs(theta - self.theta) < 1e-9:
             return
         self.theta = theta
