@@ -140,8 +140,44 @@ def _subpixel_rays(camera: Camera, f, e, n):
     return d / norm[:, None], omega, rr, cc
 
 
-def _earthshine_at_vertices(ts, models) -> dict:
+def _facet_params(ts, models) -> dict | None:
+    """Each BRDF's albedo parameter per Moon facet under a lunar albedo map, or ``None``."""
+    v = ts.moon_facet_albedo()
+    if v is None:
+        return None
+    absolute = ts.settings.moon_map().absolute
+    return {b: v if absolute else v * m.albedo_parameter for b, m in models.items()}
+
+
+def _albedo_nodes(p: np.ndarray) -> np.ndarray:
+    """Three albedo values spanning ``p`` (Chebyshev points; one where p is uniform)."""
+    lo, hi = float(p.min()), float(p.max())
+    if hi - lo <= 1e-12 * max(hi, 1e-300):
+        return np.array([lo])
+    return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos(np.pi * (np.arange(3) + 0.5) / 3)
+
+
+def _lagrange(nodes: np.ndarray, values: list, x: np.ndarray) -> np.ndarray:
+    """Interpolate ``values`` (one array per node) at ``x``: quadratic through three nodes."""
+    if len(nodes) == 1:
+        return values[0]
+    out = np.zeros_like(values[0])
+    for j, (nj, vj) in enumerate(zip(nodes, values)):
+        w = np.ones_like(x)
+        for k, nk in enumerate(nodes):
+            if k != j:
+                w = w * (x - nk) / (nj - nk)
+        out = out + w * vj
+    return out
+
+
+def _earthshine_at_vertices(ts, models, params=None) -> dict:
     """Earthshine radiance toward the detector [W m⁻² sr⁻¹] at every Moon vertex, per BRDF.
+
+    With a lunar albedo map (``params``, per facet), per BRDF a list of fields at three albedo
+    values spanning the map's (:func:`_albedo_nodes`): each hit interpolates them
+    quadratically at its facet's albedo (exact for Lambert, whose radiance is linear in the
+    albedo; Hapke's radiance is smooth in w).
 
     The transport's own earthlight (the Earth's beams, its lit part, the Moon's and the
     Earth's shadows) evaluated at the vertices, on the exact sphere for the packaged icospheres
@@ -161,7 +197,8 @@ def _earthshine_at_vertices(ts, models) -> dict:
         for k in range(3):
             np.add.at(acc, M.faces[:, k], cn[:, k] * M.areas[:, None])
         nrm = acc / np.linalg.norm(acc, axis=1, keepdims=True)
-    out = {b: np.zeros(len(v)) for b in models}
+    nodes = {b: np.array([np.nan]) if params is None else _albedo_nodes(params[b]) for b in models}
+    out = {b: [np.zeros(len(v)) for _ in nodes[b]] for b in models}
     order = ts.settings.earth_order
     det = ts.scene.det
     for a in range(0, len(v), CHUNK // 8):
@@ -171,8 +208,11 @@ def _earthshine_at_vertices(ts, models) -> dict:
         mu = np.clip(np.einsum("ij,ij->i", ns, o), 0.0, 1.0)
         tr = ts.beam_transport(xs, ns, o, mu, np.ones(len(mu)), "earth", order)
         for b, model in models.items():
-            out[b][sl] = tr.radiance(model)
-    return out
+            for j, wj in enumerate(nodes[b]):
+                if params is not None:
+                    tr.albedo, tr.albedo_absolute = np.full(len(mu), wj), True
+                out[b][j][sl] = tr.radiance(model)
+    return {b: (nodes[b], out[b]) for b in models}
 
 
 def _barycentric(tri, p):
@@ -223,7 +263,8 @@ def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
     es = {b: np.zeros(H * W) for b in models}
     pix_omega = np.zeros(H * W)
     np.add.at(pix_omega, rr * W + cc, omega * cosd)
-    vfield = _earthshine_at_vertices(ts, models)
+    params = _facet_params(ts, models)
+    vfield = _earthshine_at_vertices(ts, models, params)
     order = settings.trace_settings().sun_order
     n_disc = n_lit = 0
     origin = sc.det
@@ -246,14 +287,16 @@ def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
         pix = rr[idx] * W + cc[idx]
         w_sub = omega[idx] * cosd[idx]
         # moonshine: the extended Sun's beams at the hit (eclipses, self-shadowing)
-        tr = ts.beam_transport(x, nrm, o_dir, mu, np.ones(len(mu)), "sun", order)
-        n_lit += int(np.count_nonzero(tr.e_beam.sum(1) > 0))
         prim = hits.prim[h]
+        tr = ts.with_moon_albedo(ts.beam_transport(x, nrm, o_dir, mu, np.ones(len(mu)), "sun", order), prim)
+        n_lit += int(np.count_nonzero(tr.e_beam.sum(1) > 0))
         bary = _barycentric(M.vertices[M.faces[prim]] + M.centre, x)
         for b, model in models.items():
             np.add.at(ms[b], pix, tr.radiance(model) * w_sub)
-            vf = vfield[b][M.faces[prim]]
-            np.add.at(es[b], pix, np.einsum("ij,ij->i", bary, vf) * w_sub)
+            nodes, node_fields = vfield[b]
+            at_hit = [np.einsum("ij,ij->i", bary, f[M.faces[prim]]) for f in node_fields]
+            val = at_hit[0] if params is None else _lagrange(nodes, at_hit, params[b][prim])
+            np.add.at(es[b], pix, val * w_sub)
     with np.errstate(invalid="ignore", divide="ignore"):
         to_radiance = np.where(pix_omega > 0, 1.0 / np.where(pix_omega > 0, pix_omega, 1.0), 0.0)
     planes = {"moonshine": {b: (ms[b] * to_radiance).reshape(H, W) for b in models},

@@ -222,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--phase", default=None,
                        help="θ [deg] (default 90); render accepts a list for numbered frames")
         p.add_argument("--brdf", default="dhg")
-        p.add_argument("--view", default="composite", help="composite | moon | rays | maps")
+        p.add_argument("--view", default="composite", help="composite | moon | rays | maps | surfaces")
         p.add_argument("--size", default="1600x900", help="WxH pixels")
         if name == "render":
             p.add_argument("--out", required=True, help="PNG path; with several phases, frames FILE_000.png …")

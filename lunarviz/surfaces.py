@@ -372,9 +372,19 @@ class EarthSurface:
         return (1.0 - c) * a + c * self.cloud_albedo
 
     def facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
-        """Per-facet (area-averaged) albedo of an Embree body for map frame ``frame``."""
+        """Per-facet (area-averaged) albedo of an Embree body for map frame ``frame``; kept with
+        the body's cached geometry (a θ sweep's Earth keeps one frame: computed once)."""
         if self.uniform:
             return np.full(body.n_faces, float(self.albedo))
+        memo = body._geo.setdefault("surface_albedo", {})
+        key = (self, np.asarray(frame, dtype=float).tobytes())
+        if key not in memo:
+            if len(memo) > 8:
+                memo.clear()
+            memo[key] = self._facet_albedo(body, frame)
+        return memo[key]
+
+    def _facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
         shape = (1800, 3600) if self.surface == "landocean" else \
             (self.clear_map().shape if self.surface != "uniform" else (180, 360))
         k = facet_sub_count(body.vertices, body.faces, shape)

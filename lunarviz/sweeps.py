@@ -77,6 +77,8 @@ class SweepSettings:
     ocean_albedo: float = 0.06
     cloud_albedo: float = 0.40
     earth_rotation_deg: float | None = None
+    #: ``facets`` (default) or ``beams``: see :class:`lunarviz.tracer.estimators.TraceSettings`
+    mapped_earth: str = "facets"
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -188,7 +190,7 @@ class SweepSettings:
             earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units,
             moon_albedo_map=self.moon_albedo_map, earth_surface=self.earth_surface, clouds=self.clouds,
             land_albedo=self.land_albedo, ocean_albedo=self.ocean_albedo, cloud_albedo=self.cloud_albedo,
-            earth_rotation_deg=self.earth_rotation_deg or 0.0)
+            earth_rotation_deg=self.earth_rotation_deg or 0.0, mapped_earth=self.mapped_earth)
 
     def observer_model(self):
         """The parsed observer (an orbit's epoch defaults to the first time)."""

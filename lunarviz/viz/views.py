@@ -15,6 +15,10 @@ Panels of the ``composite`` view:
 
 The ``maps`` view adds the sunlit fraction of every facet: the shadows that a non-convex
 Moon (craters, topography) casts on itself, and the Earth's shadow in an eclipse.
+
+The ``surfaces`` view (issue 11) shows the Moon's albedo parameter per facet (a lunar albedo
+map) seen from the detector, and the Earth seen from the Moon: its per-facet albedo (land,
+ocean, clouds) and its radiance toward the Moon, with the earthshine-weighted albedo.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from ..errors import LunarvizError
 from ..facets import FacetResult, sample_ray_paths, trace_facets
 from .meshio import facet_polydata
 
-VIEWS = ("composite", "moon", "rays", "maps")
+VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
 #: Dynamic range of the logarithmic colour scales (max / floor).
 LOG_RANGE = 1e7
 
@@ -64,6 +68,7 @@ def compute_view_data(settings, theta: float, brdf: str) -> ViewData:
             sc.beta_deg, alb.geometric_albedo_term(sc, es, ms, terms_pt)),
         "point_source_earthshine_W_m2": pt.earthshine_W_m2,
         "rays": fr.totals["rays"],
+        "earth_visible_lit_albedo": fr.totals.get("earth_visible_lit_albedo", float("nan")),
         "error_note": "deterministic: error <= 2e-4 vs exact reference (benchmarks/)"
         if fr.info["estimator"] == "deterministic" else "Monte Carlo: see std in sweep",
     }
@@ -81,6 +86,7 @@ def numbers_text(n: dict) -> str:
         f"earthshine E = {f(n['earthshine_W_m2'], '.4e')} W/m^2  (point Earth {f(n['point_source_earthshine_W_m2'], '.4e')})",
         f"earthshine / moonshine = {f(n['ratio'], '.4e')}",
         f"apparent albedo p* = {f(n['apparent_albedo'], '.4f')}  (point-source inversion {f(n['apparent_albedo_point_inversion'], '.4f')})",
+        f"albedo of the Earth's lit face, as earthshine weights it = {f(n.get('earth_visible_lit_albedo'), '.4f')}",
         f"rays traced: {n['rays']:,}    {n['error_note']}",
     ])
 
@@ -112,13 +118,13 @@ def _ashen_floor(poly):
     return float(np.percentile(pos, 1.0)) * 0.1 if pos.size else None
 
 
-def _camera_from_detector(pl, fr: FacetResult, zoom=1.0):
-    """Look at the Moon from the detector (parallel projection), world z up."""
+def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=(0.0, 0.0, 1.0)):
+    """Look at the Moon from the detector (parallel projection), ``up`` (world z) up."""
     moon = np.array(fr.info["moon_centre_m"])
     det = np.array(fr.info["detector_m"])
     R = float(np.max(np.linalg.norm(fr.vertices, axis=1)))
     view = (det - moon) / np.linalg.norm(det - moon)
-    up = np.array([0.0, 0.0, 1.0])
+    up = np.asarray(up, dtype=float)
     if abs(np.dot(up, view)) > 0.99:
         up = np.array([0.0, 1.0, 0.0])
     # the Moon a little left of centre, so the colour bar on the right never covers its limb
@@ -218,7 +224,32 @@ def _ray_panel(pl, data: ViewData, text: str | None = None):
     pl.camera.parallel_scale = span * 1.3
 
 
-SHAPES = {"composite": (2, 2), "maps": (2, 2), "moon": (1, 1), "rays": (1, 1)}
+SHAPES = {"composite": (2, 2), "maps": (2, 2), "moon": (1, 1), "rays": (1, 1), "surfaces": (2, 2)}
+
+
+def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bool):
+    """The Earth seen from the Moon's centre, coloured by its facet ``field``."""
+    v, f, cd = fr.bodies["earth"]
+    mesh = pv.PolyData(np.asarray(v), np.hstack([np.full((len(f), 1), 3), f]).astype(np.int64))
+    vals = np.asarray(cd[field], dtype=float)
+    if log:
+        vals, lim = _log_field(vals)
+    else:
+        lim = (float(np.min(vals)), float(np.max(vals)))
+        if lim[1] <= lim[0]:
+            lim = (lim[0] - 0.05, lim[0] + 0.05)
+    mesh.cell_data["shown"] = vals
+    bar = dict(title=title, color="white", fmt="%.2e" if log else "%.2f", vertical=True, position_x=0.84,
+               position_y=0.1, height=0.75, width=0.06, title_font_size=12, label_font_size=10)
+    pl.add_mesh(mesh, scalars="shown", cmap=cmap, log_scale=log, clim=lim, nan_color=(0.05, 0.05, 0.08),
+                lighting=False, scalar_bar_args=bar)
+    moon = np.array(fr.info["moon_centre_m"]) - np.array(fr.info["earth_m"])
+    view = moon / np.linalg.norm(moon)
+    up = np.array([1.0, 0.0, 0.0]) if abs(view[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    R = float(np.max(np.linalg.norm(v, axis=1)))
+    pl.camera_position = [tuple(view * 8 * R), (0.0, 0.0, 0.0), tuple(up)]
+    pl.enable_parallel_projection()
+    pl.camera.parallel_scale = 1.25 * R
 
 
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True) -> pv.Plotter:
@@ -248,6 +279,27 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         pl.subplot(0, 0)
         pl.set_background("black")
         _ray_panel(pl, data)
+        return pl
+    if view == "surfaces":
+        pl.subplot(0, 0)
+        pl.set_background("black")
+        seen = poly.cell_data["emission_deg"] < 90
+        _moon_panel(pl, poly, "albedo_parameter", "albedo\nor w", "gray", log=False, bar_fmt="%.3f", mask=seen)
+        pl.add_text("Moon: albedo parameter per facet", font_size=9, position="upper_left", color="white")
+        # lunar north up: +x in the θ scene (DESIGN.md); the sky's north (ICRF z) on dates
+        _camera_from_detector(pl, fr, up=(0.0, 0.0, 1.0) if "time_utc" in fr.info else (1.0, 0.0, 0.0))
+        pl.subplot(0, 1)
+        pl.set_background("black")
+        _earth_panel(pl, fr, "albedo", "albedo", "Blues_r", log=False)
+        pl.add_text("Earth from the Moon: albedo per facet", font_size=9, position="upper_left", color="white")
+        pl.subplot(1, 0)
+        pl.set_background("black")
+        _earth_panel(pl, fr, "radiance_toward_moon_W_m2_sr", "radiance\nW m-2 sr-1", "inferno", log=True)
+        pl.add_text("Earth from the Moon: radiance toward the Moon", font_size=9, position="upper_left",
+                    color="white")
+        pl.subplot(1, 1)
+        pl.set_background("black")
+        pl.add_text(text, font_size=8, position="upper_left", color="white")
         return pl
     if view == "maps":
         panels = [("incidence_deg", "i [deg]", "twilight", (0, 90), "incidence i"),
