@@ -226,6 +226,8 @@ class Lambert:
 
     albedo: float = C.MOON_LAMBERT_ALBEDO
     name: str = field(default="lambert", compare=False)
+    #: the radiance is linear in ``albedo``: a map's spread within a facet needs no correction
+    linear_in_albedo = True
 
     def __post_init__(self):
         _check("albedo", self.albedo, 0.0, 1.0)

@@ -112,7 +112,8 @@ def _add_physics_options(p):
     p.add_argument("--dhg-convention", default="paper", choices=["paper", "hapke2012"])
     p.add_argument("--h-function", default="hapke1981", choices=["hapke1981", "hapke2002", "exact"])
     p.add_argument("--moon-model", default="paper",
-                   help="BRDF parameter preset: paper (Table 2, default) or rolo-fit (fitted to ROLO, 400-750 nm)")
+                   help="BRDF parameter preset: paper (Table 2, default), rolo-fit (fitted to ROLO, 400-750 nm) or "
+                        "rolo-fit-map (fitted on the synthetic lunar albedo map, which it brings)")
     p.add_argument("--param", action="append", metavar="[BRDF.]NAME=VALUE",
                    help="override a BRDF parameter (w, h, B0, xi, b, c, albedo; Hapke: theta_bar [deg], Bc0, hc)")
 
@@ -299,6 +300,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free", default=None, help="parameters to fit, e.g. w,b,c,B0,h,theta_bar (default per BRDF)")
     p.add_argument("--dhg-convention", default="paper", choices=["paper", "hapke2012"])
     p.add_argument("--h-function", default="hapke1981", choices=["hapke1981", "hapke2002", "exact"])
+    p.add_argument("--moon-albedo-map", default=None, metavar="FILE[:MEAN]",
+                   help="fit on a Moon carrying this albedo map (e.g. synthetic): waxing and waning then differ")
+    p.add_argument("--order", type=_positive_int("--order"), default=24, help="analytic Gauss order of the disk")
     p.add_argument("--out", required=True, help=".json (a residual plot .png is written beside it)")
 
     p = sub.add_parser("bench", help="run time against error for every method")
@@ -584,11 +588,14 @@ def cmd_fit(a):
     if a.source != "rolo" and not Path(a.source).is_file():
         raise UsageError(f"--source {a.source!r} is neither rolo nor a CSV file")
     out = _check_out(a.out, (".json",))
+    if a.moon_albedo_map is not None:
+        from .surfaces import MoonAlbedoMap
+        MoonAlbedoMap.parse(a.moon_albedo_map)  # a bad map: one line, before any work
     res = run_fit(brdf[0], a.source, a.band, a.phases, free, dhg_convention=a.dhg_convention,
-                  h_function=a.h_function)
+                  h_function=a.h_function, moon_map=a.moon_albedo_map, order=a.order)
     d = res.to_dict()
     d["settings"] = {"source": a.source, "band_nm": a.band, "phases_deg": a.phases, "dhg_convention": a.dhg_convention,
-                     "h_function": a.h_function}
+                     "h_function": a.h_function, "moon_albedo_map": a.moon_albedo_map, "order": a.order}
     write_results(out, d)
     plot_fit(res, out.with_suffix(".png"))
     for k in res.free:

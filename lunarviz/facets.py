@@ -110,6 +110,7 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
         totals[f"moonshine_W_m2_{k}"] = ms.mean[k]
         totals[f"earthshine_W_m2_{k}"] = es.mean[k]
     u = es.mean_unit.get(brdf_name, 0.0)
+    totals["earthshine_unit_W_m2"] = u  # the same transport for an Earth of albedo 1
     totals["earth_visible_lit_albedo"] = es.mean[brdf_name] / u if u else float("nan")
     info = {**fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
             "brdf": brdf_name, "brdfs": list(models), "moon_centre_m": sc.moon.tolist(),

@@ -40,24 +40,45 @@ DEFAULT_FREE = {"dhg": ("w", "b", "c", "B0", "h", "theta_bar"), "shg": ("w", "xi
 ROLO_DISTANCE_KM = 384_400.0
 
 
-def disk_geometry(phase_deg: float):
+def disk_geometry(phase_deg: float, waxing: bool | None = None):
     """A scene with the detector at the Earth's centre, the Moon 384,400 km away and the Sun
-    1 au from the Moon at phase angle ``phase_deg`` (the Sun in the detector-Moon plane)."""
+    1 au from the Moon at phase angle ``phase_deg`` (the Sun in the detector-Moon plane).
+
+    ``waxing`` (for a lunar albedo map) also orients the Moon at zero libration: its map's
+    (0°, 0°) toward the detector, north along +z, and the sub-solar point at longitude +g
+    (waxing) or −g (waning), ROLO's convention; ``None`` keeps the unoriented scene (a uniform
+    Moon, for which both branches are one)."""
     from .geometry import Scene
     g = np.radians(phase_deg)
     moon = np.array([ROLO_DISTANCE_KM * 1e3, 0.0, 0.0])
-    to_sun = np.array([-np.cos(g), np.sin(g), 0.0])
-    return Scene.from_vectors(moon + 1.495978707e11 * to_sun, moon)
+    if waxing is None:
+        to_sun = np.array([-np.cos(g), np.sin(g), 0.0])
+        return Scene.from_vectors(moon + 1.495978707e11 * to_sun, moon)
+    x_b, z_b = np.array([-1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    y_b = np.cross(z_b, x_b)  # east
+    lon_sun = g if waxing else -g
+    to_sun = np.cos(lon_sun) * x_b + np.sin(lon_sun) * y_b
+    return Scene.from_vectors(moon + 1.495978707e11 * to_sun, moon, moon_rotation=np.stack([x_b, y_b, z_b], 1))
 
 
 class DiskModel:
-    """Disk reflectance A(g) of a BRDF model on the analytic sphere, transports cached per g."""
+    """Disk reflectance A(g) of a BRDF model on the analytic sphere, transports cached per g.
 
-    def __init__(self, phases_deg, order: int = 24):
+    ``moon_map`` (``--moon-albedo-map`` syntax, e.g. ``"synthetic"``) puts a lunar albedo map
+    on the sphere (read at the Gauss nodes, order ``order``); the branches then differ and
+    ``waxing`` (one flag per phase) says which each phase is."""
+
+    def __init__(self, phases_deg, order: int = 24, waxing=None, moon_map: str | None = None):
         from .analytic import AnalyticSettings, moonshine_transport
         self.phases = np.asarray(phases_deg, dtype=float)
-        self.scenes = [disk_geometry(p) for p in self.phases]
-        st = AnalyticSettings(order=order)
+        if moon_map is None:
+            self.scenes = [disk_geometry(p) for p in self.phases]
+            st = AnalyticSettings(order=order)
+        else:
+            from .surfaces import MoonAlbedoMap, Surfaces
+            wax = np.broadcast_to(np.ones(1, bool) if waxing is None else np.asarray(waxing, bool), self.phases.shape)
+            self.scenes = [disk_geometry(p, bool(w)) for p, w in zip(self.phases, wax)]
+            st = AnalyticSettings(order=order, surfaces=Surfaces(moon_map=MoonAlbedoMap.parse(moon_map)))
         self.transports = [moonshine_transport(sc, st) for sc in self.scenes]
 
     def reflectance(self, model) -> np.ndarray:
@@ -125,6 +146,26 @@ def rolo_reflectance(phases_deg, waxing, band=(400.0, 750.0), lat_obs=0.0, lon_o
     return (a * sun[None, :]).sum(1) / sun.sum()
 
 
+#: ROLO's solid angle of the Moon at 384,400 km [sr] (rimopy's constant, Kieffer & Stone 2005)
+ROLO_OMEGA = 6.4177e-05
+AU_M = 1.495978707e11
+
+
+def rolo_irradiance(row: dict, band=(400.0, 750.0), phi_sun: float = 1.626e26) -> float:
+    """ROLO's irradiance [W m⁻²] for the geometry of a dated sweep row (``phase_angle_deg``,
+    sub-observer and sub-solar selenographic points, distances), its reflectance turned into
+    irradiance with lunarviz's Sun (the paper's Φ in 400–750 nm, not rimopy's solar spectrum:
+    the comparison is of the lunar photometry)."""
+    g = row["phase_angle_deg"]
+    waxing = row["sub_solar_lon_deg"] > row["sub_observer_lon_deg"]
+    a = float(rolo_reflectance([g], [waxing], band=band, lat_obs=row["sub_observer_lat_deg"],
+                               lon_obs=row["sub_observer_lon_deg"], lon_sun=row["sub_solar_lon_deg"],
+                               dsm_au=row["sun_moon_distance_m"] / AU_M,
+                               dom_km=row["observer_moon_distance_m"] / 1e3)[0])
+    e_sun = phi_sun / (4 * np.pi * row["sun_moon_distance_m"] ** 2)
+    return a * ROLO_OMEGA * (ROLO_DISTANCE_KM * 1e3 / row["observer_moon_distance_m"]) ** 2 * e_sun / np.pi
+
+
 def read_table(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A CSV with columns ``phase_deg`` and ``reflectance`` (and optionally ``waxing`` 0/1)."""
     try:
@@ -174,8 +215,10 @@ class FitResult:
 
 
 def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | None = None,
-        fixed: dict | None = None, dhg_convention: str = "paper", h_function: str = "hapke1981") -> FitResult:
-    """Least-squares fit of ``brdf``'s ``free`` parameters to disk reflectance ``target``."""
+        fixed: dict | None = None, dhg_convention: str = "paper", h_function: str = "hapke1981",
+        moon_map: str | None = None, order: int = 24) -> FitResult:
+    """Least-squares fit of ``brdf``'s ``free`` parameters to disk reflectance ``target``
+    (on a Moon carrying the albedo map ``moon_map``, if given: then waxing and waning differ)."""
     from scipy.optimize import least_squares
 
     from .brdf import make_brdf
@@ -195,7 +238,7 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
     phases = np.asarray(phases_deg, dtype=float)
     target = np.asarray(target, dtype=float)
     waxing = np.ones(len(phases), bool) if waxing is None else np.asarray(waxing, bool)
-    dm = DiskModel(phases)
+    dm = DiskModel(phases, order=order, waxing=waxing, moon_map=moon_map)
     lo = np.array([BOUNDS[k][0] for k in free])
     hi = np.array([BOUNDS[k][1] for k in free])
     x0 = np.clip(np.array([p0[k] for k in free], dtype=float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
@@ -256,7 +299,8 @@ def plot_fit(res: FitResult, path, title: str = "") -> None:
 
 
 def run_fit(brdf: str, source: str = "rolo", band: str = "400-750", phases: str = "2:96:2", free=None,
-            start_model: str = "paper", dhg_convention: str = "paper", h_function: str = "hapke1981") -> FitResult:
+            start_model: str = "paper", dhg_convention: str = "paper", h_function: str = "hapke1981",
+            moon_map: str | None = None, order: int = 24) -> FitResult:
     """The ``lunarviz fit`` pipeline: target from ROLO (both branches) or a CSV table."""
     from .moon_models import moon_model_params
     from .parsing import parse_float_list
@@ -270,4 +314,5 @@ def run_fit(brdf: str, source: str = "rolo", band: str = "400-750", phases: str 
     start = moon_model_params(start_model, brdf) if start_model != "paper" else {}
     if brdf != "lambert" and "theta_bar" in (free or DEFAULT_FREE[brdf]):
         start = {"theta_bar": 20.0, **start}
-    return fit(brdf, G, A, W, free=free, start=start, dhg_convention=dhg_convention, h_function=h_function)
+    return fit(brdf, G, A, W, free=free, start=start, dhg_convention=dhg_convention, h_function=h_function,
+               moon_map=moon_map, order=order)

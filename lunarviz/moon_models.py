@@ -6,6 +6,9 @@
   2005 as implemented in rimopy), 400-750 nm band, phase angles 2-96° waxing and waning, zero
   libration; written by ``scripts/fit_rolo.py`` into ``lunarviz/data/moon_models.json`` with
   its provenance (fit residuals and uncertainties in ``benchmarks/rolo_fit/``).
+* ``rolo-fit-map``: the same fit on a Moon carrying the synthetic lunar albedo map
+  (:mod:`lunarviz.surfaces`, ``--moon-albedo-map synthetic``), which the preset brings with it
+  unless a map is given: its maria make the waxing and waning branches differ, as ROLO's do.
 """
 
 from __future__ import annotations
@@ -30,6 +33,13 @@ def moon_model_names() -> tuple[str, ...]:
     return ("paper", *sorted(_fitted().get("models", {})))
 
 
+def moon_model_map(model: str) -> str | None:
+    """The lunar albedo map a preset was fitted with (``--moon-albedo-map`` syntax), or ``None``."""
+    if model == "paper":
+        return None
+    return _fitted().get("models", {}).get(model, {}).get("moon_albedo_map")
+
+
 def moon_model_params(model: str, brdf: str) -> dict:
     """Parameters of ``brdf`` in preset ``model`` (``{}`` for the paper's defaults)."""
     if model == "paper":
@@ -37,6 +47,7 @@ def moon_model_params(model: str, brdf: str) -> dict:
     models = _fitted().get("models", {})
     if model not in models:
         raise LunarvizError(f"unknown --moon-model {model!r}: choose from {', '.join(moon_model_names())}")
-    if brdf not in models[model]:
-        raise LunarvizError(f"--moon-model {model!r} has no {brdf!r} parameters (it has {', '.join(models[model])})")
+    if brdf not in models[model] or brdf == "moon_albedo_map":
+        has = ", ".join(b for b in models[model] if b != "moon_albedo_map")
+        raise LunarvizError(f"--moon-model {model!r} has no {brdf!r} parameters (it has {has})")
     return dict(models[model][brdf]["params"])

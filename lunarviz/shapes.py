@@ -106,35 +106,10 @@ def ellipsoid(a: float, b: float, c: float, level: int, patch=None) -> trimesh.T
 
 def read_map(path) -> np.ndarray:
     """An equirectangular map (.npy values, or .png/.tif image scaled to [0, 1]) as float64
-    (rows from +90° to −90°, columns from −180° eastward, pixel-centred)."""
-    p = Path(path)
-    if not p.is_file():
-        raise MeshError(f"map {path}: file not found")
-    try:
-        if p.suffix.lower() == ".npy":
-            arr = np.load(p, allow_pickle=False)
-        elif p.suffix.lower() in (".png", ".tif", ".tiff"):
-            from PIL import Image
-            with Image.open(p) as im:
-                arr = np.asarray(im)
-            if arr.ndim == 3:
-                arr = arr[..., :3].mean(axis=2) if arr.shape[2] >= 3 else arr[..., 0]
-            info = np.iinfo(arr.dtype) if np.issubdtype(arr.dtype, np.integer) else None
-            arr = arr.astype(float) / (info.max if info else 1.0)
-        else:
-            raise MeshError(f"map {path}: unknown format {p.suffix!r}: use .npy, .png or .tif")
-    except MeshError:
-        raise
-    except Exception as exc:
-        raise MeshError(f"map {path}: unreadable ({type(exc).__name__}: {exc})") from None
-    if np.iscomplexobj(arr) or not np.issubdtype(np.asarray(arr).dtype, np.number):
-        raise MeshError(f"map {path}: values of type {np.asarray(arr).dtype} are not real numbers")
-    arr = np.asarray(arr, dtype=float)
-    if arr.ndim != 2 or min(arr.shape) < 2:
-        raise MeshError(f"map {path}: shape {arr.shape} is not a 2-D grid (rows = latitude, columns = longitude)")
-    if not np.all(np.isfinite(arr)):
-        raise MeshError(f"map {path}: contains NaN or inf")
-    return arr
+    (rows from +90° to −90°, columns from −180° eastward, pixel-centred):
+    :func:`lunarviz.surfaces.read_grid`, errors as :class:`MeshError`."""
+    from .surfaces import read_grid
+    return read_grid(path, "map", MeshError)
 
 
 def sample_map(grid: np.ndarray, lon_deg, lat_deg) -> np.ndarray:

@@ -46,47 +46,65 @@ CLOUDS = ("none", "zonal")
 #: Rev. Geophys. 53, 141). They are parameters (``--land-albedo`` ...), not measurements.
 LAND_ALBEDO, OCEAN_ALBEDO, CLOUD_ALBEDO = 0.25, 0.06, 0.40
 #: samples per facet side are capped so one facet average reads at most this many cells in all
-MAX_SAMPLES = 4_000_000
+MAX_SAMPLES = 8_000_000
 _LAND_BLOCK = 12  # 30″ mask cells per 0.1° land-fraction cell
 
 
 # --------------------------------------------------------------------------------------------
 # reading and checking maps
 # --------------------------------------------------------------------------------------------
-def read_map(path, what: str = "map") -> np.ndarray:
-    """An equirectangular map as float64 (H, 2H); one-line :class:`LunarvizError` otherwise."""
+def read_grid(path, what: str = "map", error=LunarvizError) -> np.ndarray:
+    """A 2-D grid of real, finite numbers from ``.npy`` (values) or ``.png``/``.tif`` (linear,
+    scaled to [0, 1]: 8- and 16-bit integers by their full range, float images as they are,
+    palette and colour images by the mean of their RGB channels); ``error`` (one line) otherwise.
+    Shared by the surface maps and the DEM meshes (:func:`lunarviz.shapes.read_map`)."""
     p = Path(path)
     suffix = p.suffix.lower()
-    if suffix not in MAP_SUFFIXES:
-        raise LunarvizError(f"{what} {str(path)!r}: unknown format {suffix or '(none)'}; use "
-                            f"{', '.join(MAP_SUFFIXES)}")
     if not p.is_file():
-        raise LunarvizError(f"{what} {str(path)!r} does not exist or is not a file")
+        raise error(f"{what} {str(path)!r}: file not found (or not a file)")
+    if suffix not in MAP_SUFFIXES:
+        raise error(f"{what} {str(path)!r}: unknown format {suffix or '(none)'}; use {', '.join(MAP_SUFFIXES)}")
     try:
         if suffix == ".npy":
             a = np.load(p, allow_pickle=False)
         else:
             from PIL import Image
             with Image.open(p) as im:
+                if im.mode in ("P", "PA", "LA", "RGBA", "CMYK", "YCbCr", "LAB", "HSV"):
+                    im = im.convert("RGB")
+                if im.mode == "I":  # 32-bit integers: no full range to scale by
+                    raise error(f"{what} {str(path)!r}: 32-bit integer images are ambiguous; save 8- or 16-bit "
+                                f"integers, floats, or a .npy array")
+                bits16 = im.mode.startswith("I;16")
                 a = np.asarray(im)
-            if a.dtype.kind in "ui":
-                a = a.astype(float) / float(np.iinfo(a.dtype).max)
+            if bits16:
+                a = a.astype(float) / 65535.0
             elif a.dtype == bool:
                 a = a.astype(float)
+            elif a.dtype.kind in "ui":
+                a = a.astype(float) / float(np.iinfo(a.dtype).max)
             if a.ndim == 3:
-                a = a[..., :3].mean(axis=2) if a.shape[2] >= 3 else a[..., 0]
+                a = a[..., :3].mean(axis=2)
     except LunarvizError:
         raise
     except Exception as exc:  # noqa: BLE001 (any reader failure is a bad file)
-        raise LunarvizError(f"{what} {str(path)!r} is unreadable: {type(exc).__name__}: {exc}") from None
+        raise error(f"{what} {str(path)!r}: unreadable ({type(exc).__name__}: {exc})") from None
     if a.dtype.kind not in "fiub":
-        raise LunarvizError(f"{what} {str(path)!r} holds {a.dtype} values, not numbers")
+        raise error(f"{what} {str(path)!r}: values of type {a.dtype} are not real numbers")
     a = np.asarray(a, dtype=float)
-    if a.ndim != 2 or a.shape[0] < 2 or a.shape[1] != 2 * a.shape[0]:
-        raise LunarvizError(f"{what} {str(path)!r} has shape {a.shape}: an equirectangular map is 2-D with "
-                            f"width = 2 × height (e.g. (180, 360))")
+    if a.ndim != 2 or min(a.shape) < 2:
+        raise error(f"{what} {str(path)!r}: shape {a.shape} is not a 2-D grid (rows = latitude, columns = longitude)")
     if not np.all(np.isfinite(a)):
-        raise LunarvizError(f"{what} {str(path)!r} holds {int((~np.isfinite(a)).sum())} NaN or infinite values")
+        raise error(f"{what} {str(path)!r}: holds {int((~np.isfinite(a)).sum())} NaN or infinite values")
+    return a
+
+
+def read_map(path, what: str = "map") -> np.ndarray:
+    """An equirectangular map as float64 (H, 2H) (:func:`read_grid`); one-line error otherwise."""
+    a = read_grid(path, what)
+    if a.shape[1] != 2 * a.shape[0]:
+        raise LunarvizError(f"{what} {str(path)!r} has shape {a.shape}: an equirectangular map has width = 2 × "
+                            f"height (e.g. (180, 360))")
     return a
 
 
@@ -172,24 +190,45 @@ def facet_sub_count(vertices, faces, m_shape, max_samples: int = MAX_SAMPLES) ->
     cell = np.pi / m_shape[0]
     k = int(np.ceil(2.0 * edge / cell))
     cap = int(np.sqrt(max_samples / max(len(faces), 1)))
-    return int(max(2, min(k, 16, max(cap, 1))))
+    return int(max(min(8, cap), min(k, 16, max(cap, 1))))
 
 
-def facet_points(vertices, faces, k: int) -> np.ndarray:
-    """(F, k², 3) centroids of the k² equal sub-triangles of each facet (body-centred)."""
+def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None) -> np.ndarray:
+    """(F, k², 3) points, one uniform in each of the k² equal sub-triangles of each facet
+    (body-centred): stratified and jittered, so a map's pattern cannot line up with the mesh's
+    (the sub-triangles' centroids of an icosphere sit on its symmetry circles and bias a banded
+    map by up to 1e-3). ``rng`` ``None``: the centroids."""
     from .tracer.bodies import _sub_barycentric
-    cen, _ = _sub_barycentric(k)
-    return np.einsum("sk,fkj->fsj", cen, vertices[faces])
+    cen, corners = _sub_barycentric(k)
+    if rng is None:
+        return np.einsum("sk,fkj->fsj", cen, vertices[faces])
+    F, S = len(faces), len(cen)
+    r1, r2 = rng.random((F, S)), rng.random((F, S))
+    s1 = np.sqrt(r1)
+    # uniform in a triangle: (1 - √r1) A + √r1 (1 - r2) B + √r1 r2 C, in barycentric coordinates
+    bary = ((1 - s1)[..., None] * corners[None, :, 0] + (s1 * (1 - r2))[..., None] * corners[None, :, 1]
+            + (s1 * r2)[..., None] * corners[None, :, 2])  # (F, S, 3)
+    return np.einsum("fsk,fkj->fsj", bary, vertices[faces])
 
 
-def facet_average(values_at, vertices, faces, k: int, chunk: int = 65536) -> np.ndarray:
-    """Area average over each facet of ``values_at(dirs)`` (dirs (n, 3) in the mesh frame)."""
+#: the fixed seed of the jittered facet samples: results are deterministic
+SAMPLE_SEED = 20261124
+
+
+def facet_average(values_at, vertices, faces, k: int, chunk: int = 65536, spread: bool = False):
+    """Area average over each facet of ``values_at(dirs)`` (dirs (n, 3) in the mesh frame), from
+    k² stratified, jittered points per facet (deterministic: a fixed seed); with ``spread`` also
+    the values' standard deviation over the facet (``(mean, std)``)."""
     out = np.empty(len(faces))
+    sd = np.zeros(len(faces))
+    rng = np.random.default_rng(SAMPLE_SEED)
     for a in range(0, len(faces), chunk):
-        p = facet_points(vertices, faces[a:a + chunk], k)
+        p = facet_points(vertices, faces[a:a + chunk], k, rng)
         v = values_at(p.reshape(-1, 3)).reshape(p.shape[:2])
         out[a:a + chunk] = v.mean(axis=1)
-    return out
+        if spread:
+            sd[a:a + chunk] = v.std(axis=1)
+    return (out, sd) if spread else out
 
 
 # --------------------------------------------------------------------------------------------
@@ -211,9 +250,11 @@ class MoonAlbedoMap:
     @classmethod
     def parse(cls, text: str) -> "MoonAlbedoMap":
         text = str(text).strip()
+        if not text:
+            raise LunarvizError("--moon-albedo-map is empty: give FILE[:MEAN] or synthetic[:MEAN]")
         path, mean = text, None
         head, sep, tail = text.rpartition(":")
-        if sep and head and not tail.startswith(("\\", "/")):
+        if sep and head and not tail.startswith(("\\", "/")) and not Path(text).is_file():
             try:
                 mean = float(tail)
             except ValueError:
@@ -262,12 +303,14 @@ def _moon_map_values(path: str, mean: float | None) -> np.ndarray:
     return out
 
 
-def moon_facet_values(amap: MoonAlbedoMap, body, frame: np.ndarray) -> np.ndarray:
+def moon_facet_values(amap: MoonAlbedoMap, body, frame: np.ndarray, faces=None):
     """Per-facet map values on an Embree body (vertices in scene axes, body-centred), for a map
-    frame ``frame`` (:func:`map_frame`)."""
+    frame ``frame`` (:func:`map_frame`): ``(mean, std)`` over each facet (or over each triangle
+    of ``faces`` into ``body.vertices``-like ``(vertices, faces)``)."""
     m = amap.values()
-    k = facet_sub_count(body.vertices, body.faces, m.shape)
-    return facet_average(lambda d: sample_map(m, d @ frame), body.vertices, body.faces, k)
+    verts, tris = (body.vertices, body.faces) if faces is None else faces
+    k = facet_sub_count(verts, tris, m.shape)
+    return facet_average(lambda d: sample_map(m, d @ frame), verts, tris, k, spread=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -291,14 +334,21 @@ def _land_fraction() -> np.ndarray:
                 return counts.astype(float) / _LAND_BLOCK**2
         except (OSError, ValueError):
             pass
-    try:
-        from global_land_mask import globe
-    except ImportError:
+    import importlib.util
+    spec = importlib.util.find_spec("global_land_mask")
+    if spec is None or not spec.submodule_search_locations:
         raise LunarvizError("--earth-surface landocean needs the global-land-mask package: "
-                            "pip install global-land-mask") from None
-    ocean = globe._mask  # (21600, 43200) bool, True = ocean; rows from +90° down, columns from -180°
-    counts = (~ocean).reshape(1800, _LAND_BLOCK, 3600, _LAND_BLOCK).sum(axis=(1, 3), dtype=np.int32)
-    counts = counts.astype(np.uint8)
+                            "pip install global-land-mask")
+    # the package's own file, read here (importing its ``globe`` module keeps ~1 GB alive)
+    npz = Path(list(spec.submodule_search_locations)[0]) / "globe_combined_mask_compressed.npz"
+    with np.load(npz) as z:
+        ocean = z["mask"]  # (21600, 43200) bool, True = ocean; rows from +90° down, columns from -180°
+    counts = np.empty((1800, 3600), dtype=np.uint8)
+    step = 100  # blocks of rows at a time: bounded temporaries
+    for r in range(0, 1800, step):
+        blk = ocean[r * _LAND_BLOCK:(r + step) * _LAND_BLOCK].reshape(-1, _LAND_BLOCK, 3600, _LAND_BLOCK)
+        counts[r:r + step] = _LAND_BLOCK**2 - blk.sum(axis=(1, 3), dtype=np.int32)
+    del ocean
     try:
         cache.mkdir(parents=True, exist_ok=True)
         tmp = f.with_suffix(f".{os.getpid()}.tmp.npy")

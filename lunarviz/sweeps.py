@@ -138,9 +138,28 @@ class SweepSettings:
         if self.times is not None and self.earth_rotation_deg is not None:
             raise LunarvizError("--earth-rotation-deg turns the Earth of the θ scene; on dates (--time) the "
                                 "Earth turns with the date")
+        if self.moon_albedo_map is None and self.moon_model != "paper":
+            from .moon_models import moon_model_map
+            preset_map = moon_model_map(self.moon_model)  # a preset fitted on a mapped Moon brings its map
+            if preset_map is not None:
+                object.__setattr__(self, "moon_albedo_map", preset_map)
+        models = self.brdf_models()  # validates parameters early
         sf = self.surfaces()  # reads and checks the maps before any work
         if sf is not None and sf.moon_map is not None:
-            sf.moon_map.check_brdfs(self.brdf_models())
+            sf.moon_map.check_brdfs(models)
+            if self.h_function == "exact" and any(b != "lambert" for b in self.brdfs):
+                raise LunarvizError("--h-function exact takes one w, not a per-facet map: use hapke1981 or "
+                                    "hapke2002 with --moon-albedo-map")
+        if sf is not None and self.method == "reference":
+            raise LunarvizError("--method reference integrates the paper's uniform bodies (a check, exact only "
+                                "there): with surface maps use --method raytrace (or analytic)")
+        if self.times is None and ((sf is not None and sf.moon_map is not None and self.moon_mesh is not None)
+                                   or (not self.earth_uniform and self.earth_mesh is not None)):
+            raise LunarvizError("a surface map on a user mesh needs a date (--time): in the θ scene a mesh keeps the "
+                                "scene's axes while maps take the tidal/sub-solar frame")
+        if not self.earth_uniform:
+            from .surfaces import EarthSurface
+            EarthSurface(self.earth_surface, self.clouds).clear_map()  # the land mask, once, before workers
         ts = self.trace_settings()
         if self.method == "raytrace":  # read and check user meshes once, before any work
             from .meshes import NOMINAL_RADII

@@ -39,6 +39,9 @@ class Transport:
     #: parameter itself (``albedo_absolute``) or a factor on it; ``None``: the scalar
     albedo: np.ndarray | None = None
     albedo_absolute: bool = False
+    #: the map's standard deviation over each sample's area (same units as ``albedo``): a BRDF
+    #: that is not linear in its albedo (Hapke's H-functions) is averaged over it (below)
+    albedo_std: np.ndarray | None = None
 
     def sample_albedo(self, brdf):
         """The BRDF's albedo parameter per sample ((N, 1), for ``albedo=``), or ``None``."""
@@ -47,6 +50,20 @@ class Transport:
         a = self.albedo if self.albedo_absolute else self.albedo * brdf.albedo_parameter
         return a[:, None]
 
+    def _albedo_pair(self, brdf):
+        """``(w - σ, w + σ)`` per sample ((N, 1) each) where the map varies within the samples'
+        areas and the BRDF is not linear in w, else ``None``: the mean of the BRDF at the two
+        is exact to second order in the variation (the mean of f(w) over an area is
+        f(w̄) + f''(w̄) σ²/2 + …), where f(w̄) alone is first order (Hapke reflectance grows
+        faster than linearly with w)."""
+        if self.albedo is None or self.albedo_std is None or getattr(brdf, "linear_in_albedo", False):
+            return None
+        if not np.any(self.albedo_std > 0):
+            return None
+        k = 1.0 if self.albedo_absolute else brdf.albedo_parameter
+        a, s = self.albedo * k, self.albedo_std * k
+        return np.clip(a - s, 0.0, 1.0)[:, None], np.clip(a + s, 0.0, 1.0)[:, None]
+
     def radiance(self, brdf) -> np.ndarray:
         """Radiance toward the detector at each sample [W m⁻² sr⁻¹], paper Eq. 10."""
         return self.radiances(brdf)[0]
@@ -54,8 +71,13 @@ class Transport:
     def radiances(self, brdf) -> tuple[np.ndarray, np.ndarray | None]:
         """Radiance toward the detector [W m⁻² sr⁻¹] and, for earthshine, the same for an
         Earth of albedo 1 (``None`` without ``e_beam_unit``); one BRDF evaluation for both."""
-        rf = brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg,
-                                  albedo=self.sample_albedo(brdf))
+        pair = self._albedo_pair(brdf)
+        if pair is not None:
+            rf = 0.5 * sum(brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg, albedo=w)
+                           for w in pair)
+        else:
+            rf = brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg,
+                                      albedo=self.sample_albedo(brdf))
         unit = None if self.e_beam_unit is None else np.sum(rf * self.e_beam_unit, axis=1)
         return np.sum(rf * self.e_beam, axis=1), unit
 

@@ -95,6 +95,45 @@ def main(argv=None) -> int:
         k: {"raytrace": r[(120.0, k)]["moonshine_W_m2"] / r[(240.0, k)]["moonshine_W_m2"],
             "quadrature": refs[120.0][k][0] / refs[240.0][k][0]} for k in MODELS}
     res["half_bright_moon_seconds_3_phases"] = sec
+    # a latitude-banded Earth (0.6 within 20° of the equator, 0.1 elsewhere): edges along latitude
+    lat = 90 - (np.arange(180) + 0.5)
+    np.save(tmp / "band.npy", np.where(np.abs(lat)[:, None] < 20, 0.6, 0.1) * np.ones((1, 360)))
+
+    def band_f(la, lo):
+        return np.where(np.abs(la) < 20, 0.6, 0.1)
+    band = []
+    for th in (90.0, 150.0):
+        r, _ = rows(phases_deg=(th,), earth_surface=str(tmp / "band.npy"))
+        ref = ind.mapped_irradiance(th, MODELS, earth_albedo=band_f, earth_lat_cuts=(-20, 20), n_moon=(32, 20),
+                                    n_earth=(48, 32))
+        band += [{"theta_deg": th, "brdf": k, "rel_error": r[(th, k)]["earthshine_W_m2"] / ref[k][1] - 1}
+                 for k in MODELS]
+    res["banded_earth"] = band
+    # the half-bright Moon at crescents (its edge at the limb) and a 30° checkerboard Moon
+    cres = []
+    for th in (150.0, 165.0):
+        r, _ = rows(phases_deg=(th,), moon_albedo_map=str(tmp / "moon.npy"))
+        ref = ind.mapped_irradiance(th, MODELS, moon_albedo=moon_f, moon_cuts=(0, 90), n_moon=(64, 40), n_earth=(8, 8))
+        cres += [{"theta_deg": th, "brdf": k, "rel_error": r[(th, k)]["moonshine_W_m2"] / ref[k][0] - 1}
+                 for k in MODELS]
+    res["half_bright_moon_crescent"] = cres
+    lon = -180 + (np.arange(360) + 0.5)
+    chk = np.where((np.floor(lat / 30)[:, None] + np.floor(lon / 30)[None, :]) % 2 == 0, 1.5, 0.5)
+    np.save(tmp / "chk.npy", chk)
+    from lunarviz.surfaces import map_mean
+    mc = map_mean(chk)
+
+    def chk_f(la, lo):
+        v = np.where((np.floor(la / 30) + np.floor(lo / 30)) % 2 == 0, 1.5, 0.5) / mc
+        return {k: paper_albedo[k] * v for k in MODELS}
+    ref = ind.mapped_irradiance(90.0, MODELS, moon_albedo=chk_f, moon_cuts=tuple(range(-180, 181, 30)),
+                                moon_lat_cuts=tuple(range(-60, 61, 30)), n_moon=(20, 20), n_earth=(8, 8))
+    checker = []
+    for level in (4, 5, 6):
+        r, _ = rows(phases_deg=(90.0,), moon_albedo_map=str(tmp / "chk.npy"), moon_level=level)
+        checker += [{"moon_level": level, "brdf": k, "rel_error": r[(90.0, k)]["moonshine_W_m2"] / ref[k][0] - 1}
+                    for k in MODELS]
+    res["checkerboard_moon_theta90"] = checker
     from global_land_mask import globe
 
     from lunarviz.geometry import Scene

@@ -273,10 +273,15 @@ def _gauss(lo, hi, n):
     return lo + 0.5 * (hi - lo) * (x + 1), 0.5 * (hi - lo) * w
 
 
-def _lonlat_rule(lon_edges_deg, n_lon, n_lat):
+def _lonlat_rule(lon_edges_deg, n_lon, n_lat, lat_edges_deg=(-90.0, 90.0)):
     """Nodes (lat, lon) [rad] and weights cos(lat) dlat dlon over the sphere between the
-    longitude edges (each segment its own Gauss rule)."""
-    la, wla = _gauss(-np.pi / 2, np.pi / 2, n_lat)
+    longitude edges and the latitude edges (each segment its own Gauss rule)."""
+    las, wlas = [], []
+    for a, b in zip(lat_edges_deg[:-1], lat_edges_deg[1:]):
+        x, w = _gauss(np.radians(a), np.radians(b), n_lat)
+        las.append(x)
+        wlas.append(w)
+    la, wla = np.concatenate(las), np.concatenate(wlas)
     lons, wlos = [], []
     for a, b in zip(lon_edges_deg[:-1], lon_edges_deg[1:]):
         if b > a:
@@ -296,7 +301,8 @@ def _edges(*cuts):
 
 
 def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, earth_lon_sub_solar_deg=0.0,
-                      moon_cuts=(), earth_cuts=(), n_moon=(48, 24), n_earth=(32, 24)):
+                      moon_cuts=(), earth_cuts=(), n_moon=(48, 24), n_earth=(32, 24), moon_lat_cuts=(),
+                      earth_lat_cuts=()):
     """``{brdf: (moonshine, earthshine)}`` [W m⁻²] in the θ scene, detector at the Earth's centre.
 
     Frames (DESIGN.md): both north poles along +x; the Moon's (0°, 0°) faces the Earth; the
@@ -317,7 +323,7 @@ def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, ea
     cuts_m = [-90.0, 90.0, lon_s_moon - 90.0, lon_s_moon + 90.0, *moon_cuts]
     edges_m = _edges(*cuts_m)
     edges_m = edges_m[(edges_m >= -90.0) & (edges_m <= 90.0)]
-    LA, LO, W = _lonlat_rule(edges_m, *n_moon)
+    LA, LO, W = _lonlat_rule(edges_m, *n_moon, np.unique(np.r_[-90.0, 90.0, moon_lat_cuts]))
     nrm = (np.cos(LA) * np.cos(LO))[:, None] * e0 + (np.cos(LA) * np.sin(LO))[:, None] * e1 + np.sin(LA)[:, None] * pole
     x = moon + C.R_MOON_M * nrm
     dA = W * C.R_MOON_M**2
@@ -330,7 +336,7 @@ def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, ea
     lon_moon_e = earth_lon_sub_solar_deg + np.degrees(np.arctan2(m_hat @ east, m_hat @ s_hat))
     edges_e = _edges(earth_lon_sub_solar_deg - 90, earth_lon_sub_solar_deg + 90, lon_moon_e - 90, lon_moon_e + 90,
                      *earth_cuts)
-    ELA, ELO, EW = _lonlat_rule(edges_e, *n_earth)
+    ELA, ELO, EW = _lonlat_rule(edges_e, *n_earth, np.unique(np.r_[-90.0, 90.0, earth_lat_cuts]))
     dl = ELO - lam_s
     m = (np.cos(ELA) * np.cos(dl))[:, None] * s_hat + (np.cos(ELA) * np.sin(dl))[:, None] * east \
         + np.sin(ELA)[:, None] * pole

@@ -177,7 +177,7 @@ _S = dict(phases=30.0, moon_level=2)
 
 
 @pytest.mark.parametrize("call, word", [
-    (lambda: lunarviz.trace(lunarviz.Scene(**_S), 200), "200"),
+    (lambda: lunarviz.trace(lunarviz.Scene(**_S), 400), "400"),
     (lambda: lunarviz.trace(lunarviz.Scene(**_S), "abc"), "abc"),
     (lambda: lunarviz.render(lunarviz.Scene(**_S), 500), "500"),
     (lambda: lunarviz.render(lunarviz.Scene(**_S), 30.0, out="x.jpg"), "x.jpg"),

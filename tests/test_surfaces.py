@@ -121,7 +121,8 @@ def test_zonal_clouds_give_the_documented_mean():
     ocean 0.06, cloud 0.40, the Earth's mean albedo is 0.30 within 0.01."""
     la, cf = zonal_cloud_table()
     x = np.linspace(-90, 90, 3601)
-    assert np.trapezoid(np.interp(x, la, cf) * np.cos(np.radians(x)), x) / 2 * np.pi / 180 == pytest.approx(0.64, abs=0.01)
+    mean_cloud = np.trapezoid(np.interp(x, la, cf) * np.cos(np.radians(x)), x) / 2 * np.pi / 180
+    assert mean_cloud == pytest.approx(0.64, abs=0.01)
     from lunarviz.tracer.estimators import TraceScene, TraceSettings
     ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean", clouds="zonal"))
     a = ts.earth_facet_albedo()
@@ -154,16 +155,18 @@ def _moon_albedo(lat, lon):
 
 def test_half_bright_moon_matches_quadrature(tmp_path):
     """Bar: a Moon bright on one half of its near side: moonshine within 1e-3 of the independent
-    quadrature at two phases (θ = 60°, 120°), and the waxing/waning pair of equal phase angle
-    (θ = 120° and 240°) differs as the quadrature says (ratio within 1e-3). The quadrature uses a
-    point Sun (extended Sun: 2e-5) and converges to 2e-5; the tracer's facets average the map
-    by area (second order)."""
+    quadrature at phases θ = 60°, 120° and a crescent, 150° (the map's edge at 90° is then at the
+    limb, where the light is: the refined limb facets read the map over their own sub-triangles),
+    and the waxing/waning pair of equal phase angle (θ = 120° and 240°) differs as the quadrature
+    says (ratio within 1e-3). The quadrature uses a point Sun (extended Sun: 2e-5) and converges
+    to 2e-5; the tracer's facets average the map by area (second order)."""
     path = _half_bright_moon(tmp_path)
     assert map_mean(np.load(path)) == pytest.approx(1.125, rel=1e-12)
-    rows = _rows(phases_deg=(60.0, 120.0, 240.0), moon_albedo_map=path)
+    phases = (60.0, 120.0, 150.0, 240.0)
+    rows = _rows(phases_deg=phases, moon_albedo_map=path)
     ref = {th: ind.mapped_irradiance(th, MODELS, moon_albedo=_moon_albedo, moon_cuts=(0, 90), n_moon=(48, 32),
-                                     n_earth=(8, 8)) for th in (60.0, 120.0, 240.0)}
-    for th in (60.0, 120.0, 240.0):
+                                     n_earth=(8, 8)) for th in phases}
+    for th in phases:
         for k in MODELS:
             assert rows[(th, k)]["moonshine_W_m2"] == pytest.approx(ref[th][k][0], rel=1e-3), (th, k)
     for k in MODELS:
@@ -237,7 +240,7 @@ def test_bad_maps_end_with_one_line(tmp_path, kind):
         msg = "unreadable"
     elif kind == "missing":
         opt = ["--moon-albedo-map", str(tmp_path / "nope.npy")]
-        msg = "does not exist"
+        msg = "file not found"
     elif kind == "suffix":
         p = tmp_path / "map.txt"
         p.write_text("1 2 3")
@@ -278,3 +281,68 @@ def test_earth_surface_validation():
     from lunarviz.errors import LunarvizError
     with pytest.raises(LunarvizError, match="cloud albedo"):
         EarthSurface(cloud_albedo=1.2)
+
+
+def test_checkerboard_hapke_moon_second_order(tmp_path):
+    """Hapke's reflectance is not linear in w, so a facet's mean w is not its mean reflectance:
+    the transport averages the BRDF at w̄ ± σ (σ: the map's spread over the sample's area), exact
+    to second order. A 30° checkerboard (w 0.495 / 0.165) at θ = 90°, level-4 Moon: DHG within
+    1e-3 of the quadrature (split at every edge in latitude and longitude); with w̄ alone it
+    was -1.2 % (measured), Lambert (linear) needs nothing."""
+    lat = 90 - (np.arange(180) + 0.5)
+    lon = -180 + (np.arange(360) + 0.5)
+    chk = np.where((np.floor(lat / 30)[:, None] + np.floor(lon / 30)[None, :]) % 2 == 0, 1.5, 0.5)
+    path = _save(tmp_path, "chk.npy", chk)
+    mc = map_mean(chk)
+
+    def fc(la, lo):
+        v = np.where((np.floor(la / 30) + np.floor(lo / 30)) % 2 == 0, 1.5, 0.5) / mc
+        return {k: PAPER_ALBEDO[k] * v for k in MODELS}
+    rows = _rows(phases_deg=(90.0,), moon_albedo_map=path)
+    ref = ind.mapped_irradiance(90.0, MODELS, moon_albedo=fc, moon_cuts=tuple(range(-180, 181, 30)),
+                                moon_lat_cuts=tuple(range(-60, 61, 30)), n_moon=(16, 16), n_earth=(8, 8))
+    for k in MODELS:
+        assert rows[k]["moonshine_W_m2"] == pytest.approx(ref[k][0], rel=1e-3), k
+
+
+def test_view_numbers_match_the_sweep(tmp_path):
+    """The viewer's numbers invert against the uniform model Earth, as the sweep's rows do."""
+    from lunarviz.viz.views import compute_view_data
+    s = SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(120.0,), moon_level=3,
+                      earth_surface=_hemispheric_earth(tmp_path), earth_rotation_deg=-30.0)
+    r = run_phase(s, 120.0)[0]
+    v = compute_view_data(s, 120.0, "dhg").numbers
+    assert v["apparent_albedo"] == pytest.approx(r["apparent_albedo"], rel=1e-12)
+    assert v["apparent_albedo_point_inversion"] == pytest.approx(r["apparent_albedo_point_source_inversion"],
+                                                                  rel=1e-12)
+    assert v["earth_visible_lit_albedo"] == pytest.approx(r["earth_visible_lit_albedo"], rel=1e-12)
+
+
+def test_maps_refused_where_they_would_mislead(tmp_path):
+    from lunarviz.errors import LunarvizError
+    with pytest.raises(LunarvizError, match="reference"):
+        SweepSettings(method="reference", earth_surface="landocean")
+    mesh = tmp_path / "m.ply"
+    from lunarviz import shapes
+    shapes.write_mesh(shapes.ellipsoid(1.74e6, 1.73e6, 1.72e6, 2), mesh)
+    with pytest.raises(LunarvizError, match="needs a date"):
+        SweepSettings(method="raytrace", moon_mesh=str(mesh), moon_albedo_map="synthetic")
+
+
+def test_images_read_as_linear_values(tmp_path):
+    """Palette images by their colours, 16-bit by 65535; 32-bit integer images refused."""
+    from PIL import Image
+
+    from lunarviz.errors import LunarvizError
+    from lunarviz.surfaces import read_map
+    grey = np.zeros((10, 20), dtype=np.uint8)
+    grey[:, 10:] = 200
+    im = Image.fromarray(grey).convert("P")
+    im.save(tmp_path / "p.png")
+    a = read_map(tmp_path / "p.png")
+    assert a[0, 15] == pytest.approx(200 / 255, abs=1e-9) and a[0, 0] == 0.0
+    Image.fromarray((np.full((10, 20), 40000)).astype(np.uint16)).save(tmp_path / "g16.png")
+    assert read_map(tmp_path / "g16.png")[0, 0] == pytest.approx(40000 / 65535, rel=1e-9)
+    Image.fromarray(np.full((10, 20), 5, dtype=np.int32)).save(tmp_path / "i32.tif")
+    with pytest.raises(LunarvizError, match="32-bit"):
+        read_map(tmp_path / "i32.tif")

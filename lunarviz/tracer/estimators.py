@@ -81,6 +81,8 @@ PATHS = {"moonshine": "sun", "earthshine": "earth"}
 MESH_SOURCE_ORDER = 16
 #: Lunar samples per batch: bounds memory (≈ CHUNK × beams × 30 doubles) for any ray count.
 CHUNK = 1 << 14
+#: Facets of a mapped Earth that its terminator crosses are split this many ways per side.
+TERMINATOR_SUB = 8
 #: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
 #: from the Moon (its beams; ``mapped_earth_transport``).
 EARTH_CELLS = 24
@@ -217,16 +219,16 @@ class TraceScene:
         self._moon_albedo = self._earth_albedo = None
 
     # ---- surfaces ----------------------------------------------------------------------------
-    def moon_facet_albedo(self):
+    def moon_facet_albedo(self, spread: bool = False):
         """Per-facet values of the lunar albedo map (area averages, :mod:`lunarviz.surfaces`),
-        or ``None`` without a map."""
+        or ``None`` without a map; ``spread``: ``(mean, std)`` over each facet."""
         amap = self.settings.moon_map()
         if amap is None:
             return None
         if self._moon_albedo is None:
             from ..surfaces import map_frame, moon_facet_values
             self._moon_albedo = moon_facet_values(amap, self.moon, map_frame(self.scene, "moon"))
-        return self._moon_albedo
+        return self._moon_albedo if spread else self._moon_albedo[0]
 
     def earth_facet_albedo(self):
         """Per-facet Lambert albedo of the Earth (area averages of its surface and clouds), or
@@ -248,10 +250,10 @@ class TraceScene:
             else float(self.settings.earth_albedo)
 
     def with_moon_albedo(self, tr: Transport, owner) -> Transport:
-        """``tr`` with the lunar map's values at the samples' owning facets (if any)."""
-        v = self.moon_facet_albedo()
+        """``tr`` with the lunar map's values (mean and spread) at the samples' owning facets."""
+        v = self.moon_facet_albedo(spread=True)
         if v is not None:
-            tr.albedo = v[owner]
+            tr.albedo, tr.albedo_std = v[0][owner], v[1][owner]
             tr.albedo_absolute = self.settings.moon_map().absolute
         return tr
 
@@ -378,13 +380,36 @@ class TraceScene:
         c, _, _ = self._source(body)
         return np.pi - float(np.arccos(np.clip(np.dot(unit(c - sc.moon), unit(sc.det - sc.moon)), -1, 1)))
 
+    def sample_albedo(self, faces, sub: int):
+        """The lunar map's value for each sample of ``M.surface_samples(faces, shading, sub)``,
+        in its order: the map's area average over the sample's own sub-triangle (so refined
+        facets, at terminators and limbs, see the map at their finer scale; ``sub = 1`` gives
+        the facet averages of :meth:`moon_facet_albedo`). ``None`` without a map."""
+        amap = self.settings.moon_map()
+        if amap is None:
+            return None
+        if sub == 1 or len(faces) == 0:
+            mean, sd = (a[faces] for a in self.moon_facet_albedo(spread=True))
+        else:
+            from ..surfaces import map_frame, moon_facet_values
+            from .bodies import _sub_barycentric
+            M = self.moon
+            _, tri_b = _sub_barycentric(sub)
+            corners = np.einsum("svk,fkj->fsvj", tri_b, M.vertices[M.faces[np.asarray(faces, dtype=np.int64)]])
+            verts = corners.reshape(-1, 3)
+            mean, sd = moon_facet_values(amap, M, map_frame(self.scene, "moon"),
+                                         faces=(verts, np.arange(len(verts)).reshape(-1, 3)))  # (F·sub²,)
+        per = 1 if self.moon.mode(self.settings.shading) == "flat" else 3
+        return np.repeat(mean, per), np.repeat(sd, per)
+
     def lunar_samples(self, body: str):
-        """Deterministic lunar samples: points, normals, areas, owning facets."""
+        """Deterministic lunar samples: points, normals, areas, owning facets, and the lunar
+        map's value per sample (``None`` without a map; :meth:`sample_albedo`)."""
         M = self.moon
         s = self.settings
         cand = self.candidates(body)
         if not s.refine:
-            return M.surface_samples(cand, s.shading)
+            return (*M.surface_samples(cand, s.shading), self.sample_albedo(cand, 1))
         sub = self.lunar_refinement(body)
         kink = self._kinks[cand]
         if self._lune_width(body) > np.pi - KINK_FREE_WIDTH and M.mode(s.shading) == "exact":
@@ -394,7 +419,9 @@ class TraceScene:
             kink = np.zeros_like(kink)
         a = M.surface_samples(cand[~kink], s.shading, sub=sub)
         b = M.surface_samples(cand[kink], s.shading, sub=max(REFINE, sub))
-        return tuple(np.concatenate([u, v]) for u, v in zip(a, b))
+        out = tuple(np.concatenate([u, v]) for u, v in zip(a, b))
+        va, vb = self.sample_albedo(cand[~kink], sub), self.sample_albedo(cand[kink], max(REFINE, sub))
+        return (*out, None if va is None else tuple(np.concatenate([u, v]) for u, v in zip(va, vb)))
 
     def detector_view(self, x, n, dA):
         """mu, geom and unit directions to the detector, with the sight line's occlusion (the
@@ -571,7 +598,7 @@ class TraceScene:
     def deterministic_transport(self, body: str):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK lunar samples."""
         s = self.settings
-        x_all, n_all, dA_all, owner_all = self.lunar_samples(body)
+        x_all, n_all, dA_all, owner_all, alb_all = self.lunar_samples(body)
         for a in range(0, len(x_all), CHUNK):
             sl = slice(a, a + CHUNK)
             x, n, dA, owner = x_all[sl], n_all[sl], dA_all[sl], owner_all[sl]
@@ -581,7 +608,11 @@ class TraceScene:
             if len(x) == 0:
                 continue
             order = s.sun_order if body == "sun" else s.earth_order
-            yield self.with_moon_albedo(self.beam_transport(x, n, o, mu, geom, body, order), owner), owner
+            tr = self.beam_transport(x, n, o, mu, geom, body, order)
+            if alb_all is not None:
+                tr.albedo, tr.albedo_std = alb_all[0][sl][keep], alb_all[1][sl][keep]
+                tr.albedo_absolute = self.settings.moon_map().absolute
+            yield tr, owner
 
     def _earth_elements(self):
         """The mapped Earth as surface elements, one per facet: points y, normals m, areas
@@ -594,16 +625,20 @@ class TraceScene:
         if getattr(self, "_earth_el", None) is not None:
             return self._earth_el
         sc, s, E = self.scene, self.settings, self.earth
-        if E.mode(s.shading) == "exact":
-            pts, nrm, area, owner = E.surface_samples(np.arange(E.n_faces), s.shading)
-            area_f = np.bincount(owner, area, E.n_faces)
-            m = E.normals_for(s.shading)
-            y = E.centre + E.radius * m
-        else:
-            y, m = E.facet_points(s.shading)
-            area_f = E.areas
-        L1 = earth_radiance(sc, y, m, 1.0) * self.sun_visibility_of_earth()
-        a = self.earth_facet_albedo()
+        # three points per facet (the degree-2 rule of surface_samples; on the packaged sphere
+        # they lie on the exact sphere): the terminator crosses facets, and a one-point rule
+        # there costs 6e-4 where the lit part is a thin band (tests/test_surfaces.py)
+        # facets the terminator crosses (corners lit and unlit) are split TERMINATOR_SUB² ways:
+        # the lit edge is a kink the map's light ends at, coherently along the whole terminator
+        corners = E.vertices[E.faces] + E.centre  # (F, 3, 3)
+        cn = self._corner_normals(E)
+        mu_c = np.einsum("fkj,fkj->fk", cn, sc.sun - corners)
+        term = (mu_c > 0).any(1) & (mu_c <= 0).any(1)
+        parts = [E.surface_samples(np.flatnonzero(~term), s.shading),
+                 E.surface_samples(np.flatnonzero(term), s.shading, sub=TERMINATOR_SUB)]
+        y, m, area_f, owner = (np.concatenate([u, v]) for u, v in zip(*parts))
+        L1 = earth_radiance(sc, y, m, 1.0) * self.sun_visibility_of_earth()[owner]
+        a = self.earth_facet_albedo()[owner]
         rm = sc.radii["moon"]
         keep = (L1 > 0) & (np.einsum("ij,ij->i", m, sc.moon - y) > -rm)
         if self.settings.self_shadow and not E.convex:

@@ -55,9 +55,16 @@ def compute_view_data(settings, theta: float, brdf: str) -> ViewData:
     sc, fields = settings.scene_and_fields(theta)
     ms, es = fr.totals["moonshine_W_m2"], fr.totals["earthshine_W_m2"]
     model = settings.brdf_models()
-    pt = analytic_irradiance(sc, model)[brdf]
-    terms_pt = alb.lunar_terms(sc, pt.earthshine_W_m2, pt.moonshine_W_m2, settings.earth_albedo)
-    terms = alb.lunar_terms(sc, es, ms, settings.earth_albedo)
+    pt = analytic_irradiance(sc, model, replace(settings.analytic_settings(), grid="converged",
+                                                earth_law="lambert"))[brdf]
+    # inversions assume the uniform model Earth of earth_albedo (as the sweep's rows): a mapped
+    # Earth never calibrates its own inversion; both terms come from unit-albedo transports
+    a0 = settings.earth_albedo
+    uniform = settings.earth_uniform
+    pt_model = pt.earthshine_W_m2 if uniform else a0 * pt.earthshine_unit_W_m2
+    es_model = es if uniform else a0 * fr.totals["earthshine_unit_W_m2"]
+    terms_pt = alb.lunar_terms(sc, pt_model, pt.moonshine_W_m2, a0)
+    terms = alb.lunar_terms(sc, es_model, ms, a0)
     numbers = {
         **fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg, "brdf": brdf,
         "method": f"raytrace ({fr.info['estimator']}, occlusion {'on' if fr.info['occlusion'] else 'off'})",

@@ -1,0 +1,226 @@
+"""Honest throughput: end-to-end against raw Embree on the very same rays, and where the time goes.
+
+    python scripts/throughput.py [--out benchmarks/throughput] [--quick]
+
+Issue 13, item 1. Rays are counted the same way on both sides: the rays *submitted to Embree*
+(every float32 batch :meth:`EmbreeBody._run` sends, recorded). The end-to-end time is one
+deterministic trace of both paths (three BRDFs), one thread; the raw time replays the recorded
+batches through ``embreex`` alone (``scene.run``), one thread, best of three. Then
+
+* ``ratio = (N / T_end_to_end) / (N / T_raw) = T_raw / T_end_to_end`` (the same N on both
+  sides), which is also Embree's share of the time;
+* the exclusive time of each stage, measured by wrapping the tracer's functions:
+  ray generation (lunar samples, candidates, source beams, detector geometry), Embree (inside
+  ``_run``), source look-ups (hit refinement, source radiance), shading (BRDF evaluation) and
+  accumulation (the rest of ``trace_path``).
+
+Two scenes: the paper's (θ = 90°, packaged spheres, occlusion on) and a cratered Moon (level 6,
+400 craters of 20-300 km, self-shadowing on), where Embree has real work. ``rays_<scene>.npz``
+holds the counted rays (origins, directions, tmax, query per batch, and the mesh) so anyone can
+replay them through embreex and recount the ratio (:func:`replay_npz`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lunarviz.brdf import make_brdf
+from lunarviz.geometry import Scene
+from lunarviz.tracer import bodies as B
+from lunarviz.tracer import estimators as E
+from lunarviz import transport as T
+
+MODELS = {b: make_brdf(b) for b in ("lambert", "shg", "dhg")}
+
+
+class StageTimer:
+    """Exclusive time per stage: wrapped functions push onto a stack; a call's time is charged
+    to its stage minus the time of wrapped calls inside it."""
+
+    def __init__(self):
+        self.total: dict = {}
+        self.stack: list = []
+        self.saved: list = []
+
+    def wrap(self, owner, name: str, stage: str):
+        fn = getattr(owner, name)
+        self.saved.append((owner, name, fn))
+        timer = self
+
+        def wrapped(*a, **kw):
+            t0 = time.perf_counter()
+            timer.stack.append(0.0)
+            try:
+                return fn(*a, **kw)
+            finally:
+                el = time.perf_counter() - t0
+                inner = timer.stack.pop()
+                timer.total[stage] = timer.total.get(stage, 0.0) + el - inner
+                if timer.stack:
+                    timer.stack[-1] += el
+        setattr(owner, name, wrapped)
+
+    def restore(self):
+        for owner, name, fn in reversed(self.saved):
+            setattr(owner, name, fn)
+        self.saved.clear()
+
+
+def instrument(timer: StageTimer):
+    TS = E.TraceScene
+    for name in ("lunar_samples", "candidates", "source_nodes", "detector_view", "_earth_elements",
+                 "sun_visibility_of_earth"):
+        timer.wrap(TS, name, "ray generation")
+    for name in ("source_radiance", "mapped_earth_transport"):
+        timer.wrap(TS, name, "source look-ups")
+    timer.wrap(B.EmbreeBody, "_run", "embree")
+    timer.wrap(T.Transport, "radiances", "shading")
+    timer.wrap(E, "trace_path", "accumulation")
+
+
+def make_scene(name: str, quick: bool):
+    if name == "paper":
+        return Scene(90.0), E.TraceSettings(occlusion=True, threads=1), None
+    from lunarviz import shapes
+    from lunarviz.constants import R_MOON_M
+    level = 5 if quick else 6
+    mesh = shapes.craters(R_MOON_M, level, 400, 20e3, 300e3, seed=1)
+    path = Path("/tmp") / f"lunarviz_craters_L{level}.ply"
+    shapes.write_mesh(mesh, path)
+    return Scene(90.0), E.TraceSettings(occlusion=True, threads=1, moon_mesh=str(path)), path
+
+
+def trace_once(scene, settings):
+    ts = E.TraceScene(scene, settings)
+    t0 = time.perf_counter()
+    E.trace_path(ts, "moonshine", MODELS)
+    E.trace_path(ts, "earthshine", MODELS)
+    return ts, time.perf_counter() - t0
+
+
+def record(scene, settings):
+    """The batches one trace sends to Embree: (body, scene, query, o32, d32, dists)."""
+    ts = E.TraceScene(scene, settings)
+    for b in (ts.moon, ts.earth, ts.sun):
+        b.recorder = []
+    E.trace_path(ts, "moonshine", MODELS)
+    E.trace_path(ts, "earthshine", MODELS)
+    out = [(b, *rec) for b in (ts.moon, ts.earth, ts.sun) for rec in b.recorder]
+    for b in (ts.moon, ts.earth, ts.sun):
+        b.recorder = None
+    return ts, out
+
+
+def replay(batches) -> float:
+    """Raw embreex time for the recorded batches, one thread, no Python around the calls."""
+    t0 = time.perf_counter()
+    for _, scene, query, o, d, dists in batches:
+        kw = {} if dists is None else {"dists": dists}
+        scene.run(o, d, query=query, **kw)
+    return time.perf_counter() - t0
+
+
+def save_npz(path: Path, ts, batches):
+    """Rays and meshes for an independent replay (``replay_npz``)."""
+    arrays = {}
+    names = {id(ts.moon._scene): "moon", id(ts.earth._scene): "earth", id(ts.sun._scene): "sun"}
+    for body in (ts.moon, ts.earth, ts.sun):
+        geo = body._geo
+        if geo.get("outer") is not None:
+            names[id(geo["outer"])] = f"{'moon' if body is ts.moon else 'earth' if body is ts.earth else 'sun'}_outer"
+    meshes = {"moon": ts.moon, "earth": ts.earth, "sun": ts.sun}
+    for n, b in meshes.items():
+        arrays[f"{n}_vertices"] = b.vertices.astype(np.float32)
+        arrays[f"{n}_faces"] = b.faces.astype(np.int32)
+        if b._geo.get("outer") is not None:
+            plane = np.einsum("ij,ij->i", b.normals, b.vertices[b.faces[:, 0]])
+            k = b.radius / float(plane.min()) * (1.0 + 1e-9)
+            arrays[f"{n}_outer_vertices"] = (b.vertices * k).astype(np.float32)
+    for i, (_, scene, query, o, d, dists) in enumerate(batches):
+        arrays[f"b{i}_mesh"] = np.array(names[id(scene)])
+        arrays[f"b{i}_query"] = np.array(query)
+        arrays[f"b{i}_o"] = o
+        arrays[f"b{i}_d"] = d
+        if dists is not None:
+            arrays[f"b{i}_dists"] = dists
+    arrays["n_batches"] = np.array(len(batches))
+    np.savez_compressed(path, **arrays)
+
+
+def replay_npz(path) -> tuple[int, float]:
+    """Replay a saved ``.npz`` through embreex alone: (rays, seconds)."""
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh
+    z = np.load(path)
+    scenes = {}
+    for n in ("moon", "earth", "sun"):
+        for suffix in ("", "_outer"):
+            key = f"{n}{suffix}_vertices"
+            if key in z:
+                sc = rtcore_scene.EmbreeScene()
+                TriangleMesh(scene=sc, vertices=z[key], indices=z[f"{n}_faces"])
+                scenes[n + suffix] = sc
+    n_rays, t = 0, 0.0
+    for i in range(int(z["n_batches"])):
+        sc = scenes[str(z[f"b{i}_mesh"])]
+        kw = {"dists": z[f"b{i}_dists"]} if f"b{i}_dists" in z else {}
+        o, d = z[f"b{i}_o"], z[f"b{i}_d"]
+        t0 = time.perf_counter()
+        sc.run(o, d, query=str(z[f"b{i}_query"]), **kw)
+        t += time.perf_counter() - t0
+        n_rays += len(o)
+    return n_rays, t
+
+
+def measure(name: str, out: Path, quick: bool) -> dict:
+    scene, settings, mesh_path = make_scene(name, quick)
+    trace_once(scene, settings)  # warm-up: mesh loading, Embree builds, caches
+    ts, batches = record(scene, settings)
+    n = sum(len(b[3]) for b in batches)
+    raw = min(replay(batches) for _ in range(3))
+    e2e = min(trace_once(scene, settings)[1] for _ in range(3))
+    timer = StageTimer()
+    instrument(timer)
+    try:
+        _, t_inst = trace_once(scene, settings)
+    finally:
+        timer.restore()
+    npz = out / f"rays_{name}.npz"
+    save_npz(npz, ts, batches)
+    n_re, t_re = replay_npz(npz)
+    stages = {k: v for k, v in sorted(timer.total.items(), key=lambda kv: -kv[1])}
+    return {"scene": name, "moon_mesh": None if mesh_path is None else str(mesh_path),
+            "moon_faces": int(ts.moon.n_faces), "rays_sent_to_embree": n, "batches": len(batches),
+            "end_to_end_seconds": e2e, "raw_embree_seconds": raw,
+            "end_to_end_rays_per_s": n / e2e, "raw_embree_rays_per_s": n / raw,
+            "ratio_end_to_end_over_raw": raw / e2e, "target_ratio": 0.8, "met": raw / e2e >= 0.8,
+            "stage_seconds_instrumented_run": stages, "instrumented_run_seconds": t_inst,
+            "stage_shares": {k: v / sum(stages.values()) for k, v in stages.items()},
+            "npz": npz.name, "npz_replay_rays": n_re, "npz_replay_seconds": t_re}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="benchmarks/throughput")
+    ap.add_argument("--quick", action="store_true")
+    a = ap.parse_args(argv)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    res = {"command": "python scripts/throughput.py", "threads": 1, "brdfs": list(MODELS),
+           "scenes": [measure(s, out, a.quick) for s in ("paper", "craters")]}
+    (out / "throughput.json").write_text(json.dumps(res, indent=1) + "\n")
+    for r in res["scenes"]:
+        print(f"{r['scene']}: {r['rays_sent_to_embree']:,} rays to Embree; end-to-end {r['end_to_end_rays_per_s']:.3g}"
+              f" rays/s, raw {r['raw_embree_rays_per_s']:.3g} rays/s, ratio {r['ratio_end_to_end_over_raw']:.3f}")
+        print("   stages: " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["stage_shares"].items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
