@@ -71,6 +71,16 @@ class Transport:
     def radiances(self, brdf) -> tuple[np.ndarray, np.ndarray | None]:
         """Radiance toward the detector [W m⁻² sr⁻¹] and, for earthshine, the same for an
         Earth of albedo 1 (``None`` without ``e_beam_unit``); one BRDF evaluation for both."""
+        from . import kernels
+        if kernels.available() and kernels.hapke_codes(brdf) is not None:
+            # compiled: one pass over the beams, no (N, K) temporaries (lunarviz.kernels)
+            args = (brdf, self.mu0, self.mu, self.sin_hg, self.cos_hg, self.e_beam, self.e_beam_unit)
+            pair = self._albedo_pair(brdf)
+            if pair is None:
+                a = self.sample_albedo(brdf)
+                return kernels.hapke_radiances(*args, None if a is None else a[:, 0])
+            (lo, lo_u), (hi, hi_u) = (kernels.hapke_radiances(*args, w[:, 0]) for w in pair)
+            return 0.5 * (lo + hi), None if lo_u is None else 0.5 * (lo_u + hi_u)
         pair = self._albedo_pair(brdf)
         if pair is not None:
             rf = 0.5 * sum(brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg, albedo=w)
