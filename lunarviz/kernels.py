@@ -96,7 +96,47 @@ def _hapke_sum(mu0, mu, sh, ch, e, e_unit, albedo, w0, h, B0, pcode, p1, p2, hco
         out_unit[i] = acc_u
 
 
+def _beam_angles(dirs, n, o, mu0_out, sh_out, ch_out):
+    """μ0 = dirs·n and the half-angle sine and cosine between dirs and o, per beam
+    (:func:`lunarviz.geometry.half_angle_sin_cos`: |a − b| = 2 sin(g/2), |a + b| = 2 cos(g/2))."""
+    B, K = mu0_out.shape
+    for i in range(B):
+        n0, n1, n2 = n[i, 0], n[i, 1], n[i, 2]
+        o0, o1, o2 = o[i, 0], o[i, 1], o[i, 2]
+        for k in range(K):
+            a0, a1, a2 = dirs[i, k, 0], dirs[i, k, 1], dirs[i, k, 2]
+            mu0_out[i, k] = a0 * n0 + a1 * n1 + a2 * n2
+            d0, d1, d2 = a0 - o0, a1 - o1, a2 - o2
+            p0, p1, p2 = a0 + o0, a1 + o1, a2 + o2
+            s2 = d0 * d0 + d1 * d1 + d2 * d2
+            c2 = p0 * p0 + p1 * p1 + p2 * p2
+            norm = np.sqrt(s2 + c2)
+            sh_out[i, k] = np.sqrt(s2) / norm
+            ch_out[i, k] = np.sqrt(c2) / norm
+
+
+def _sphere_refine(o, d, radius, prim, t_out, point_out, centre):
+    """First hit of rays (body-frame origins o, unit d) on the sphere of ``radius`` where Embree
+    found a facet (prim ≥ 0): t, world point; prim set to -1 where the sphere is missed."""
+    n = o.shape[0]
+    for i in range(n):
+        if prim[i] < 0:
+            continue
+        b = -(o[i, 0] * d[i, 0] + o[i, 1] * d[i, 1] + o[i, 2] * d[i, 2])
+        perp2 = o[i, 0] * o[i, 0] + o[i, 1] * o[i, 1] + o[i, 2] * o[i, 2] - b * b
+        disc = radius * radius - perp2
+        t = b - np.sqrt(max(disc, 0.0))
+        if disc > 0.0 and t > 0.0:
+            t_out[i] = t
+            for j in range(3):
+                point_out[i, j] = o[i, j] + t * d[i, j] + centre[j]
+        else:
+            prim[i] = -1
+
+
 if _NUMBA:
+    _beam_angles = numba.njit(cache=True, nogil=True)(_beam_angles)
+    _sphere_refine = numba.njit(cache=True, nogil=True)(_sphere_refine)
     _lobe = numba.njit(cache=True, inline="always")(_lobe)
     _h = numba.njit(cache=True, inline="always")(_h)
     _hapke_sum = numba.njit(cache=True, nogil=True)(_hapke_sum)
@@ -131,3 +171,40 @@ def hapke_radiances(model, mu0, mu, sin_hg, cos_hg, e_beam, e_unit=None, albedo=
                float(model.B0), pcode, float(p1), float(p2), hcode, e_unit is not None, albedo is not None,
                out, out_u)
     return out, (out_u if e_unit is not None else None)
+
+
+def beam_angles(dirs, n, o):
+    """``(μ0, sin(g/2), cos(g/2))`` (B, K) of beams ``dirs`` (B, K, 3) at points with normals
+    ``n`` (B, 3) seen along ``o`` (B, 3): compiled, or numpy where numba is off."""
+    if not _NUMBA:
+        from .geometry import half_angle_sin_cos
+        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
+        return np.einsum("bkj,bj->bk", dirs, n), sh, ch
+    B, K = dirs.shape[:2]
+    mu0, sh, ch = np.empty((B, K)), np.empty((B, K)), np.empty((B, K))
+    f = np.ascontiguousarray
+    _beam_angles(f(dirs, dtype=float), f(n, dtype=float), f(o, dtype=float), mu0, sh, ch)
+    return mu0, sh, ch
+
+
+def sphere_refine(o, d, radius: float, prim, centre):
+    """``(hit, t, point)`` on the exact sphere for rays whose facet Embree found (``prim``)."""
+    n = len(o)
+    prim = np.array(prim, dtype=np.int64)
+    if not _NUMBA:
+        b = -np.einsum("ij,ij->i", o, d)
+        perp2 = np.einsum("ij,ij->i", o, o) - b * b
+        disc = radius**2 - perp2
+        t = b - np.sqrt(np.clip(disc, 0.0, None))
+        hit = (prim >= 0) & (disc > 0) & (t > 0)
+        point = np.full((n, 3), np.nan)
+        tt = np.full(n, np.inf)
+        point[hit] = o[hit] + t[hit, None] * d[hit] + centre
+        tt[hit] = t[hit]
+        prim[~hit] = -1
+        return prim, tt, point
+    t = np.full(n, np.inf)
+    point = np.full((n, 3), np.nan)
+    f = np.ascontiguousarray
+    _sphere_refine(f(o, dtype=float), f(d, dtype=float), float(radius), prim, t, point, f(centre, dtype=float))
+    return prim, t, point

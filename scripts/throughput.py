@@ -205,6 +205,41 @@ def measure(name: str, out: Path, quick: bool) -> dict:
             "npz": npz.name, "npz_replay_rays": n_re, "npz_replay_seconds": t_re}
 
 
+def _reference(theta: float) -> dict:
+    from lunarviz.reference import ReferenceSettings, reference_irradiance
+    r = reference_irradiance(Scene(theta), MODELS, ReferenceSettings(32, 12))
+    return {k: (v.moonshine_W_m2, v.earthshine_W_m2) for k, v in r.items()}
+
+
+def paper_sweep(out: Path, quick: bool) -> dict:
+    """The issue's paper sweep from the command line (wall time, numba on and off in the same
+    run) and its largest error against the exact reference (order 32, 12) at θ = 5-175°."""
+    import os
+    import subprocess
+    from concurrent.futures import ProcessPoolExecutor
+    phases = "0:180:45" if quick else "0:180:5"
+    cmd = [sys.executable, "-m", "lunarviz", "sweep", "--method", "raytrace", "--no-occlusion", "--phases", phases,
+           "--brdf", "lambert,shg,dhg", "--quiet"]
+    walls, rows = {}, None
+    for flag in ("1", "0", "1"):  # numba, numpy, numba again (the first call may compile)
+        target = out / f"paper_sweep_numba{flag}.json"
+        t0 = time.perf_counter()
+        subprocess.run([*cmd, "--out", str(target)], check=True, env={**os.environ, "LUNARVIZ_NUMBA": flag})
+        walls[flag] = time.perf_counter() - t0
+        if flag == "1":
+            rows = json.loads(target.read_text())["rows"]
+        target.unlink()
+    thetas = sorted({r["theta_deg"] for r in rows if 5 <= r["theta_deg"] <= 175})
+    with ProcessPoolExecutor(os.cpu_count() or 1) as ex:
+        refs = dict(zip(thetas, ex.map(_reference, thetas)))
+    err = max(abs(r[f"{p}_W_m2"] / refs[r["theta_deg"]][r["brdf"]][i] - 1)
+              for r in rows if r["theta_deg"] in refs for i, p in enumerate(("moonshine", "earthshine")))
+    return {"command": " ".join(["lunarviz", *cmd[3:]]), "phases": phases, "wall_seconds_numba": walls["1"],
+            "wall_seconds_numpy": walls["0"], "speedup_numba": walls["0"] / walls["1"],
+            "max_rel_error_vs_reference_5_175": err, "target_seconds": 10.0, "target_error": 1e-4,
+            "met_time": walls["1"] <= 10.0, "met_error": err <= 1e-4}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="benchmarks/throughput")
@@ -213,12 +248,16 @@ def main(argv=None) -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     res = {"command": "python scripts/throughput.py", "threads": 1, "brdfs": list(MODELS),
-           "scenes": [measure(s, out, a.quick) for s in ("paper", "craters")]}
+           "scenes": [measure(s, out, a.quick) for s in ("paper", "craters")],
+           "paper_sweep": paper_sweep(out, a.quick)}
     (out / "throughput.json").write_text(json.dumps(res, indent=1) + "\n")
     for r in res["scenes"]:
         print(f"{r['scene']}: {r['rays_sent_to_embree']:,} rays to Embree; end-to-end {r['end_to_end_rays_per_s']:.3g}"
               f" rays/s, raw {r['raw_embree_rays_per_s']:.3g} rays/s, ratio {r['ratio_end_to_end_over_raw']:.3f}")
         print("   stages: " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["stage_shares"].items()))
+    ps = res["paper_sweep"]
+    print(f"paper sweep: {ps['wall_seconds_numba']:.1f} s (numpy {ps['wall_seconds_numpy']:.1f} s), max error "
+          f"{ps['max_rel_error_vs_reference_5_175']:.1e}")
     return 0
 
 

@@ -233,17 +233,9 @@ class EmbreeBody:
         if idx.size:
             start = o[idx] + t0[idx, None] * d[idx]
             prim[idx] = self._run(start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "INTERSECT", scene=scene)
-        b = -np.einsum("ij,ij->i", o, d)
-        perp2 = np.einsum("ij,ij->i", o, o) - b * b
-        disc = self.radius**2 - perp2
-        t = b - np.sqrt(np.clip(disc, 0.0, None))
-        hit = (prim >= 0) & (disc > 0) & (t > 0)
-        prim[~hit] = -1
-        point = np.full((n, 3), np.nan)
-        tt = np.full(n, np.inf)
-        point[hit] = o[hit] + t[hit, None] * d[hit] + self.centre
-        tt[hit] = t[hit]
-        return Hits(hit, prim, tt, point)
+        from ..kernels import sphere_refine
+        prim, tt, point = sphere_refine(o, d, self.radius, prim, self.centre)
+        return Hits(prim >= 0, prim, tt, point)
 
     def shade_hits(self, hits: "Hits", shading: str):
         """Rows with a hit, their shading points and unit normals."""

@@ -746,8 +746,9 @@ class TraceScene:
         :meth:`mapped_earth_transport` instead."""
         if body == "earth" and self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
             return self.mapped_earth_transport(x, n, o, mu, geom)
+        from ..kernels import beam_angles
         dirs, omega = self.source_nodes(x, n, body, order)
-        mu0 = np.einsum("bkj,bj->bk", dirs, n)
+        mu0, sh, ch = beam_angles(dirs, n, o)
         live = (omega > 0) & (mu0 > 0)
         L = np.zeros(omega.shape)
         L_free = np.zeros(omega.shape)
@@ -756,7 +757,6 @@ class TraceScene:
         L[bi, ki], L_free[bi, ki], lu = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
         if L_unit is not None:
             L_unit[bi, ki] = lu
-        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
         return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega,
                          mu=mu, geom=geom, e_beam_free=L_free * omega,
                          e_beam_unit=None if L_unit is None else L_unit * omega)
