@@ -33,7 +33,7 @@ SCENE_DEFAULTS = {
     "earth_albedo": 0.3, "earth_law": "lambert", "dhg_convention": "paper", "h_function": "hapke1981",
     "moon_model": "paper",
     "params": None, "estimator": "deterministic", "rays": 50_000, "runs": 1, "seed": 0,
-    "earth_order": 6, "sun_order": 2, "grid": "converged", "order": 24,
+    "earth_order": 6, "sun_order": 2, "grid": "converged", "order": None,
     "moon_albedo_map": None, "earth_surface": "uniform", "clouds": "none", "land_albedo": 0.25,
     "ocean_albedo": 0.06, "cloud_albedo": 0.40, "earth_rotation_deg": None,
 }

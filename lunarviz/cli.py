@@ -187,7 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
     p.add_argument("--method", default="analytic", help="analytic | raytrace | reference")
     p.add_argument("--grid", default="converged", choices=["converged", "paper"], help="analytic surface grid")
-    p.add_argument("--order", type=_positive_int("--order"), default=24, help="analytic Gauss order")
+    p.add_argument("--order", type=_positive_int("--order"), default=None,
+                   help="analytic Gauss order (default 24; 96 with a lunar albedo map, which it reads at its nodes)")
     p.add_argument("--earth-law", default="lambert", choices=["lambert", "paper_eq8"])
     p.add_argument("--workers", type=_positive_int("--workers"), default=None)
     p.add_argument("--executor", default="local", choices=["local", "dask"],
@@ -328,7 +329,7 @@ def _scene(a, phases, times=None):
         brdfs=tuple(brdfs), dhg_convention=a.dhg_convention, h_function=a.h_function, moon_model=a.moon_model,
         params=parse_params(a.param, brdfs), detector=_detector(a.detector), earth_albedo=a.earth_albedo,
         earth_law=getattr(a, "earth_law", "lambert"), grid=getattr(a, "grid", "converged"),
-        order=getattr(a, "order", 24), estimator=a.estimator, rays=a.rays, runs=a.runs, seed=a.seed,
+        order=getattr(a, "order", None), estimator=a.estimator, rays=a.rays, runs=a.runs, seed=a.seed,
         moon_level=a.mesh_level, earth_level=a.earth_level, sun_level=a.sun_level,
         occlusion=not a.no_occlusion, self_shadow=not a.no_self_shadow, shading=a.shading,
         earth_order=a.earth_order, sun_order=a.sun_order, moon_mesh=a.moon_mesh, earth_mesh=a.earth_mesh,

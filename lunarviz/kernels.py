@@ -134,12 +134,24 @@ def _sphere_refine(o, d, radius, prim, t_out, point_out, centre):
             prim[i] = -1
 
 
+def _jit(fn, **kw):
+    """``numba.njit`` with an on-disk cache where one can be written (the package folder or
+    numba's user cache), else without: a read-only install must not stop lunarviz."""
+    try:
+        return numba.njit(cache=True, **kw)(fn)
+    except Exception:  # noqa: BLE001 (numba raises RuntimeError "no locator available")
+        return numba.njit(cache=False, **kw)(fn)
+
+
 if _NUMBA:
-    _beam_angles = numba.njit(cache=True, nogil=True)(_beam_angles)
-    _sphere_refine = numba.njit(cache=True, nogil=True)(_sphere_refine)
-    _lobe = numba.njit(cache=True, inline="always")(_lobe)
-    _h = numba.njit(cache=True, inline="always")(_h)
-    _hapke_sum = numba.njit(cache=True, nogil=True)(_hapke_sum)
+    try:
+        _lobe = _jit(_lobe, inline="always")
+        _h = _jit(_h, inline="always")
+        _beam_angles = _jit(_beam_angles, nogil=True)
+        _sphere_refine = _jit(_sphere_refine, nogil=True)
+        _hapke_sum = _jit(_hapke_sum, nogil=True)
+    except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
+        _NUMBA = False
 
 
 def hapke_codes(model) -> tuple[int, float, float, int] | None:

@@ -10,9 +10,10 @@ batches through ``embreex`` alone (``scene.run``), one thread, best of three. Th
 * ``ratio = (N / T_end_to_end) / (N / T_raw) = T_raw / T_end_to_end`` (the same N on both
   sides), which is also Embree's share of the time;
 * the exclusive time of each stage, measured by wrapping the tracer's functions:
-  ray generation (lunar samples, candidates, source beams, detector geometry), Embree (inside
+  ray generation (lunar samples, candidates, source beams and their angles, detector
+  geometry), beam assembly (gathering live beams, building each Transport), Embree (inside
   ``_run``), source look-ups (hit refinement, source radiance), shading (BRDF evaluation) and
-  accumulation (the rest of ``trace_path``).
+  accumulation (``trace_path``'s own loop: sums and per-facet bincounts).
 
 Two scenes: the paper's (θ = 90°, packaged spheres, occlusion on) and a cratered Moon (level 6,
 400 craters of 20-300 km, self-shadowing on), where Embree has real work. ``rays_<scene>.npz``
@@ -34,6 +35,7 @@ from lunarviz.brdf import make_brdf
 from lunarviz.geometry import Scene
 from lunarviz.tracer import bodies as B
 from lunarviz.tracer import estimators as E
+from lunarviz import kernels as K
 from lunarviz import transport as T
 
 MODELS = {b: make_brdf(b) for b in ("lambert", "shg", "dhg")}
@@ -79,6 +81,8 @@ def instrument(timer: StageTimer):
         timer.wrap(TS, name, "ray generation")
     for name in ("source_radiance", "mapped_earth_transport"):
         timer.wrap(TS, name, "source look-ups")
+    timer.wrap(K, "beam_angles", "ray generation")
+    timer.wrap(TS, "beam_transport", "beam assembly")
     timer.wrap(B.EmbreeBody, "_run", "embree")
     timer.wrap(T.Transport, "radiances", "shading")
     timer.wrap(E, "trace_path", "accumulation")

@@ -63,3 +63,25 @@ def test_sweep_rows_equal_with_and_without_numba():
         assert p.returncode == 0, p.stderr
         out[flag] = np.array(eval(p.stdout.strip()))  # noqa: S307 (our own JSON list)
     np.testing.assert_allclose(out["1"], out["0"], rtol=1e-13, atol=0)
+
+
+def test_unwritable_numba_cache_does_not_stop_lunarviz():
+    """A read-only install (numba: "cannot cache function ...: no locator available") compiles
+    without the on-disk cache instead of failing (review of issue 13)."""
+    code = ("import numba\n"
+            "orig = numba.njit\n"
+            "def njit(*a, **kw):\n"
+            "    if kw.get('cache'):\n"
+            "        raise RuntimeError('cannot cache function: no locator available')\n"
+            "    return orig(*a, **kw)\n"
+            "numba.njit = njit\n"
+            "from lunarviz import kernels\n"
+            "from lunarviz.brdf import make_brdf\n"
+            "import numpy as np\n"
+            "f = np.full\n"
+            "L, _ = kernels.hapke_radiances(make_brdf('dhg'), f((2, 3), 0.5), f(2, 0.5), f((2, 3), 0.1), "
+            "f((2, 3), 0.99), np.ones((2, 3)))\n"
+            "print(kernels.available(), bool(np.all(L > 0)))\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split() == ["True", "True"]

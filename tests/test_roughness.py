@@ -241,3 +241,7 @@ def test_explicit_map_overrides_the_presets():
     from lunarviz.sweeps import SweepSettings
     assert SweepSettings(moon_model="rolo-fit-map", moon_albedo_map="synthetic:0.2").moon_albedo_map == "synthetic:0.2"
     assert SweepSettings(moon_model="rolo-fit").moon_albedo_map is None
+    assert SweepSettings(moon_model="rolo-fit-map", moon_albedo_map="none").moon_albedo_map is None
+    # the analytic method reads a lunar map at its nodes: its default order rises to 96
+    assert SweepSettings(moon_model="rolo-fit-map").analytic_settings().order == 96
+    assert SweepSettings().analytic_settings().order == 24

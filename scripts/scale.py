@@ -1,0 +1,85 @@
+"""Run time and peak memory against the Moon's facet count (issue 13, item 3: measured, not met).
+
+    python scripts/scale.py [--levels 5,6,7,8] [--out benchmarks/scale]
+
+For each level a cratered Moon (``shapes.craters``: 400 craters of 20-300 km, seed 1; facets =
+20·4^level, 20 k at level 5 to 1.3 M at level 8, 5.2 M at level 9) is traced at θ = 90°, both
+paths, DHG, occlusion and self-shadowing on, deterministic, in a fresh process (one thread), and
+the process's wall time and peak RSS are recorded. Writes ``scale.json`` and ``scale.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+CHILD = """
+import sys, time, json
+from lunarviz import shapes
+from lunarviz.constants import R_MOON_M
+from lunarviz.sweeps import SweepSettings, run_phase
+level = int(sys.argv[1]); path = sys.argv[2]
+t0 = time.perf_counter()
+shapes.write_mesh(shapes.craters(R_MOON_M, level, 400, 20e3, 300e3, seed=1), path)
+t1 = time.perf_counter()
+r = run_phase(SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(90.0,), moon_mesh=path), 90.0)[0]
+t2 = time.perf_counter()
+print(json.dumps({"mesh_seconds": t1 - t0, "trace_seconds": t2 - t1, "moonshine_W_m2": r["moonshine_W_m2"],
+                  "earthshine_W_m2": r["earthshine_W_m2"], "rays": r["rays"]}))
+"""
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--levels", default="5,6,7")
+    ap.add_argument("--out", default="benchmarks/scale")
+    a = ap.parse_args(argv)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for level in (int(x) for x in a.levels.split(",")):
+        mesh = Path("/tmp") / f"lunarviz_scale_L{level}.ply"
+        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        t0 = time.perf_counter()
+        p = subprocess.run([sys.executable, "-c", CHILD, str(level), str(mesh)], capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        rss_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        row = {"level": level, "facets": 20 * 4**level, "wall_seconds": wall, "returncode": p.returncode,
+               "peak_rss_GB": rss_kb / 1024**2 if rss_kb > before else None}
+        if p.returncode == 0:
+            row.update(json.loads(p.stdout.strip().splitlines()[-1]))
+        else:
+            row["error"] = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "killed"
+        rows.append(row)
+        print(json.dumps(row))
+        mesh.unlink(missing_ok=True)
+    res = {"command": "python scripts/scale.py --levels " + a.levels, "theta_deg": 90.0, "brdf": "dhg",
+           "targets": {"facets": 5_000_000, "seconds": 60, "peak_rss_GB": 4}, "rows": rows,
+           "note": "peak RSS is the largest child's so far (ru_maxrss of children), so it is exact only when "
+                   "levels run in increasing order"}
+    (out / "scale.json").write_text(json.dumps(res, indent=1) + "\n")
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ok = [r for r in rows if r["returncode"] == 0]
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    ax.loglog([r["facets"] for r in ok], [r["trace_seconds"] for r in ok], "o-", label="trace [s]")
+    ax.loglog([r["facets"] for r in ok], [r["peak_rss_GB"] or float("nan") for r in ok], "s-", label="peak RSS [GB]")
+    ax.axvline(5e6, color="gray", ls=":")
+    ax.axhline(60, color="C0", ls=":", lw=0.8)
+    ax.axhline(4, color="C1", ls=":", lw=0.8)
+    ax.set_xlabel("Moon facets")
+    ax.legend()
+    ax.set_title("cratered Moon, θ = 90°, both paths, one thread")
+    fig.tight_layout()
+    fig.savefig(out / "scale.png", dpi=110)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
