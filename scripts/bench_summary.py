@@ -34,12 +34,27 @@ def issue13_section() -> list:
         L.append(f"| end-to-end over raw Embree, same rays, {label} ≥ 0.8 | {r['ratio_end_to_end_over_raw']:.3f} "
                  f"({r['rays_sent_to_embree']:,} rays; {r['end_to_end_rays_per_s']:.3g} vs "
                  f"{r['raw_embree_rays_per_s']:.3g} rays/s) | {'yes' if r['ratio_end_to_end_over_raw'] >= 0.8 else 'no'} |")
-    L.append("| 5 M-facet Moon, one phase, both paths ≤ 60 s, ≤ 4 GB | not done (see the README) | no |")
+    sf = B / "scale" / "scale.json"
+    if sf.exists():
+        rows = [r for r in json.loads(sf.read_text())["rows"] if r["returncode"] == 0]
+        big = max(rows, key=lambda r: r["facets"])
+        L.append(f"| 5 M-facet Moon, one phase, both paths ≤ 60 s, ≤ 4 GB | largest run {big['facets']:,} facets: "
+                 f"{big['trace_seconds']:.0f} s, {big['peak_rss_GB']:.1f} GB (`python scripts/scale.py`; the "
+                 f"icospheres stop at level 8) | no |")
+    else:
+        L.append("| 5 M-facet Moon, one phase, both paths ≤ 60 s, ≤ 4 GB | not measured | no |")
     d = B / "dask_overhead.json"
     if d.exists():
         dj = json.loads(d.read_text())
         L.append(f"| Dask LocalCluster overhead per task ≤ 50 ms | {dj['overhead_per_task_ms']:.1f} ms "
                  f"({dj['tasks']} tasks, rows identical to local) | {'yes' if dj['overhead_per_task_ms'] <= 50 else 'no'} |")
+    if sf.exists():
+        L += ["", "Run time and peak memory against the Moon's facets (cratered Moon, θ = 90°, both paths, DHG, "
+              "one thread, `python scripts/scale.py`):", "", "| facets | trace [s] | peak RSS [GB] | rays |",
+              "| --- | --- | --- | --- |"]
+        for r in json.loads(sf.read_text())["rows"]:
+            if r["returncode"] == 0:
+                L.append(f"| {r['facets']:,} | {r['trace_seconds']:.1f} | {r['peak_rss_GB']:.2f} | {r['rays']:,} |")
     L += ["", "Where the time goes (exclusive time per stage, one instrumented trace of both paths):", ""]
     for name in ("paper", "craters"):
         r = sc[name]
@@ -57,6 +72,8 @@ def main():
          "Files: `bench.json` (everything), `bench.csv` (Pareto rows), `bench.png` (error against run",
          "time), `mesh_study_{auto,flat,ellipsoid,craters}.*` (mesh-resolution studies).", "",
          "## Targets (issue 5)", "",
+         "From `bench.json` (`bash scripts/run_benchmarks.sh`), last run before the compiled kernels of issue 13;",
+         "the issue-13 table below is current.", "",
          "| target | measured | met |", "| --- | --- | --- |"]
     if "paper_sweep_raytrace" in tg:
         p = tg["paper_sweep_raytrace"]
