@@ -197,8 +197,12 @@ class SweepSettings:
 
     def analytic_settings(self, model_earth: bool = False) -> AnalyticSettings:
         order = self.order
-        if order is None:
-            order = 96 if self.moon_albedo_map not in (None, "none") else 24
+        if order is None:  # 96 for a lunar map with any contrast (a uniform map is the scalar)
+            order = 24
+            if self.moon_albedo_map not in (None, "none"):
+                from .surfaces import MoonAlbedoMap
+                if np.ptp(MoonAlbedoMap.parse(self.moon_albedo_map).values()) > 0:
+                    order = 96
         return AnalyticSettings(grid=self.grid, order=order, paper_step_deg=self.paper_step_deg,
                                 earth_law=self.earth_law, earth_albedo=self.earth_albedo,
                                 surfaces=self.surfaces(model_earth))
