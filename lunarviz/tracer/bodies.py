@@ -347,6 +347,8 @@ class EmbreeBody:
 
 
 _GEOMETRY_CACHE: dict = {}
+#: body geometries kept (insertion-ordered; the oldest is dropped first)
+GEOMETRY_CACHE_SIZE = 6
 
 
 def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | None = None) -> dict:
@@ -377,8 +379,11 @@ def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | N
            "areas": areas, "normals": cross / (2.0 * areas[:, None]), "centroids_local": tri.mean(axis=1),
            "convex": bool(tag is not None or mesh.is_convex), "mean_radius": float(rad.mean()),
            "sphere_radius": sphere_radius, "scene": scene, "outer": None, "corner_normals": None}
-    if len(_GEOMETRY_CACHE) > 16:
-        _GEOMETRY_CACHE.clear()
+    # least recently built first out: a θ sweep needs three entries (one per body), a dated
+    # sweep turns the Moon and the Earth at every time and never reuses them (each Earth at
+    # level 6 holds ~100 MB with its Embree scenes: 16 entries made dated sweeps take 3 GB)
+    while len(_GEOMETRY_CACHE) >= GEOMETRY_CACHE_SIZE:
+        _GEOMETRY_CACHE.pop(next(iter(_GEOMETRY_CACHE)))
     _GEOMETRY_CACHE[key] = geo
     return geo
 

@@ -452,7 +452,7 @@ class TraceScene:
         return mu, geom, o
 
     # ---- source beams ------------------------------------------------------------------------
-    def source_nodes(self, x, n, body: str, order: int):
+    def source_nodes(self, x, n, body: str, order: int, eclipse: bool = True):
         """Deterministic beams from points x (B,3) with normals n: unit directions (B,K,3)
         and solid angles (B,K) [sr]. Where the horizon does not cut the source (most points),
         the Sun gets a Gauss rule over its cone and the Earth a rule without the horizon cap.
@@ -475,7 +475,8 @@ class TraceScene:
             if body == "sun" and not with_horizon:
                 xc = x[rows] - c
                 dxc = np.linalg.norm(xc, axis=1)
-                ecl = self._earth_crosses_sun(x[rows], dxc)
+                # (points on the Earth itself: its own limb is their horizon, no eclipse rule)
+                ecl = self._earth_crosses_sun(x[rows], dxc) if eclipse else np.zeros(len(rows), dtype=bool)
                 for sub, o_s in ((~ecl, order), (ecl, max(order, ECLIPSE_ORDER))):
                     if sub.any():
                         om, w = cone_rule(-xc[sub] / dxc[sub, None], R / dxc[sub], o_s, 2 * o_s)
@@ -526,7 +527,7 @@ class TraceScene:
             c, R, _ = self._source("sun")
             idx = np.flatnonzero(np.einsum("ij,ij->i", n, c - x) > -R)
             xo = x[idx] + n[idx] * (NORMAL_OFFSET * E.radius)
-            dirs, w = self.source_nodes(xo, n[idx], "sun", 2)
+            dirs, w = self.source_nodes(xo, n[idx], "sun", 2, eclipse=False)
             B, K = w.shape
             occ = np.zeros(B * K, dtype=bool)
             rep_o, rep_d = np.repeat(xo, K, 0), dirs.reshape(-1, 3)
