@@ -6,6 +6,7 @@ For each level a cratered Moon (``shapes.craters``: 400 craters of 20-300 km, se
 20·4^level, 20 k at level 5 to 1.3 M at level 8, 5.2 M at level 9) is traced at θ = 90°, both
 paths, DHG, occlusion and self-shadowing on, deterministic, in a fresh process (one thread), and
 the process's wall time and peak RSS are recorded. Writes ``scale.json`` and ``scale.png``.
+Level 9 (5.2 M facets) builds the same craters on trimesh's icosphere (the packaged ones stop at 8).
 """
 
 from __future__ import annotations
@@ -25,7 +26,15 @@ from lunarviz.constants import R_MOON_M
 from lunarviz.sweeps import SweepSettings, run_phase
 level = int(sys.argv[1]); path = sys.argv[2]
 t0 = time.perf_counter()
-shapes.write_mesh(shapes.craters(R_MOON_M, level, 400, 20e3, 300e3, seed=1), path)
+if level <= 8:
+    shapes.write_mesh(shapes.craters(R_MOON_M, level, 400, 20e3, 300e3, seed=1), path)
+else:  # beyond the packaged icospheres' level 8: the same craters on trimesh's icosphere
+    import numpy as np, trimesh
+    u = np.asarray(trimesh.creation.icosphere(subdivisions=level).vertices)
+    m = trimesh.creation.icosphere(subdivisions=level)
+    cen, D = shapes.crater_population(400, 20e3, 300e3, 1, None)
+    h = shapes.crater_heights(u, cen, D, R_MOON_M)
+    shapes.write_mesh(trimesh.Trimesh(u * (R_MOON_M + h)[:, None], m.faces, process=False), path)
 t1 = time.perf_counter()
 r = run_phase(SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(90.0,), moon_mesh=path), 90.0)[0]
 t2 = time.perf_counter()
@@ -38,6 +47,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", default="5,6,7")
     ap.add_argument("--out", default="benchmarks/scale")
+    ap.add_argument("--append", action="store_true", help="add the rows to an existing scale.json")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -58,7 +68,10 @@ def main(argv=None) -> int:
         rows.append(row)
         print(json.dumps(row))
         mesh.unlink(missing_ok=True)
-    res = {"command": "python scripts/scale.py --levels " + a.levels, "theta_deg": 90.0, "brdf": "dhg",
+    if a.append and (out / "scale.json").exists():
+        rows = json.loads((out / "scale.json").read_text())["rows"] + rows
+    command = "python scripts/scale.py --levels " + a.levels + (" --append" if a.append else "")
+    res = {"command": command, "theta_deg": 90.0, "brdf": "dhg",
            "targets": {"facets": 5_000_000, "seconds": 60, "peak_rss_GB": 4}, "rows": rows,
            "note": "peak RSS is the largest child's so far (ru_maxrss of children), so it is exact only when "
                    "levels run in increasing order"}
