@@ -341,3 +341,43 @@ def test_cli_bad_times_and_observers(tmp_path, args, word):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and word in lines[0], r.stderr
     assert not out.exists()
+
+
+def _disc_overlap(rs, rm, d):
+    """Share of a disc of angular radius rs covered by one of radius rm at centre distance d
+    (flat geometry: the discs are 0.27° across, the error ~ρ² ≈ 2e-5)."""
+    rs, rm, d = np.broadcast_arrays(np.asarray(rs, float), np.asarray(rm, float), np.asarray(d, float))
+    out = np.zeros(d.shape)
+    full = d <= np.abs(rm - rs)
+    out[full] = np.minimum(1.0, (rm[full] / rs[full]) ** 2)
+    part = (d < rs + rm) & ~full
+    a, b, c = rs[part], rm[part], d[part]
+    area = (a * a * np.arccos(np.clip((c * c + a * a - b * b) / (2 * c * a), -1, 1))
+            + b * b * np.arccos(np.clip((c * c + b * b - a * a) / (2 * c * b), -1, 1))
+            - 0.5 * np.sqrt(np.clip((-c + a + b) * (c + a - b) * (c - a + b) * (c + a + b), 0, None)))
+    out[part] = area / (np.pi * a * a)
+    return out
+
+
+def test_moon_shadow_on_the_earth_matches_disc_overlap():
+    """The Moon's shadow on the Earth (θ = 179.5°, a solar eclipse): the share of the Sun each
+    Earth facet sees against the exact overlap of the solar and lunar discs. Facets under the
+    penumbra take a 512-beam Sun (ECLIPSE_ORDER); measured mean |error| 2.5e-3 and max 1.9e-2
+    per facet (a straight limb across the beams), 5.1e-2 and 0.24 with the default 8 beams,
+    which moved the new-Moon earthshine by 0.7 %."""
+    from lunarviz.geometry import Scene
+    from lunarviz.tracer import estimators as E
+    sc = Scene(179.5)
+    ts = E.TraceScene(sc, E.TraceSettings(occlusion=True))
+    vis = ts.sun_visibility_of_earth()
+    Eb = ts.earth
+    n = Eb.normals_for("auto")
+    xo = Eb.centroids + n * (E.NORMAL_OFFSET * Eb.radius)
+    vs, vm = sc.sun - xo, sc.moon - xo
+    ds, dm = np.linalg.norm(vs, axis=1), np.linalg.norm(vm, axis=1)
+    gam = np.arccos(np.clip(np.einsum("ij,ij->i", vs, vm) / (ds * dm), -1, 1))
+    expect = 1 - _disc_overlap(np.arcsin(sc.radii["sun"] / ds), np.arcsin(sc.radii["moon"] / dm), gam)
+    sel = (np.einsum("ij,ij->i", n, vs / ds[:, None]) > 0.01) & (expect < 0.999)
+    assert sel.sum() > 1000
+    err = np.abs(vis[sel] - expect[sel])
+    assert err.mean() < 5e-3 and err.max() < 0.04

@@ -540,6 +540,26 @@ class TraceScene:
             occ = occ.reshape(B, K)
             tot = w.sum(1)
             vis[idx] = np.where(tot > 0, (w * ~occ).sum(1) / np.where(tot > 0, tot, 1), 1.0)
+            if self.settings.occlusion:
+                # facets from which the Moon's disc overlaps the Sun's (the Moon's shadow and
+                # penumbra on the Earth, a solar eclipse): the Moon's limb cuts the solar cone,
+                # and 8 beams round the partial Sun to steps; ECLIPSE_ORDER beams resolve it
+                sc = self.scene
+                vs, vm = sc.sun - xo, sc.moon - xo
+                ds, dm = np.linalg.norm(vs, axis=1), np.linalg.norm(vm, axis=1)
+                rho = np.arcsin(np.clip(R / ds, 0, 1)) + np.arcsin(np.clip(self.moon.bound / dm, 0, 1))
+                pen = np.flatnonzero(angle_between(vs, vm) < rho * (1 + 1e-6))
+                if pen.size:
+                    d2, w2 = self.source_nodes(xo[pen], n[idx[pen]], "sun", ECLIPSE_ORDER, eclipse=False)
+                    K2 = w2.shape[1]
+                    o2 = np.repeat(xo[pen], K2, 0)
+                    occ2 = self.moon.occluded(o2, d2.reshape(-1, 3)).reshape(-1, K2)
+                    self._count(o2.shape[0])
+                    if earth_self:
+                        occ2 |= E.occluded(o2, d2.reshape(-1, 3)).reshape(-1, K2)
+                        self._count(o2.shape[0])
+                    t2 = w2.sum(1)
+                    vis[idx[pen]] = np.where(t2 > 0, (w2 * ~occ2).sum(1) / np.where(t2 > 0, t2, 1), 1.0)
         self._sun_vis_earth = vis
         return vis
 
