@@ -23,6 +23,7 @@ import numpy as np
 
 from .errors import LunarvizError
 from .facets import FacetResult
+from .surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
 
 #: options of :class:`Scene` and their defaults (the command line's defaults)
 SCENE_DEFAULTS = {
@@ -34,8 +35,8 @@ SCENE_DEFAULTS = {
     "moon_model": "paper",
     "params": None, "estimator": "deterministic", "rays": 50_000, "runs": 1, "seed": 0,
     "earth_order": 6, "sun_order": 2, "grid": "converged", "order": None,
-    "moon_albedo_map": None, "earth_surface": "uniform", "clouds": "none", "land_albedo": 0.25,
-    "ocean_albedo": 0.06, "cloud_albedo": 0.40, "earth_rotation_deg": None,
+    "moon_albedo_map": None, "earth_surface": "uniform", "clouds": "none", "land_albedo": LAND_ALBEDO,
+    "ocean_albedo": OCEAN_ALBEDO, "cloud_albedo": CLOUD_ALBEDO, "earth_rotation_deg": None,
 }
 
 

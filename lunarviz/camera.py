@@ -145,8 +145,9 @@ def _facet_params(ts, models) -> dict | None:
     v = ts.moon_facet_albedo()
     if v is None:
         return None
+    from .surfaces import map_scale
     absolute = ts.settings.moon_map().absolute
-    return {b: v if absolute else v * m.albedo_parameter for b, m in models.items()}
+    return {b: v * map_scale(absolute, m) for b, m in models.items()}
 
 
 def _albedo_nodes(p: np.ndarray) -> np.ndarray:

@@ -171,9 +171,10 @@ def _add_trace_options(p):
     g.add_argument("--clouds", default="none", metavar="none|zonal|FILE",
                    help="cloud fraction: none, zonal (zonal means kept in the package) or a map; cloud albedo "
                         "--cloud-albedo")
-    g.add_argument("--land-albedo", type=float, default=0.25)
-    g.add_argument("--ocean-albedo", type=float, default=0.06)
-    g.add_argument("--cloud-albedo", type=float, default=0.40)
+    from .surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+    g.add_argument("--land-albedo", type=float, default=LAND_ALBEDO)
+    g.add_argument("--ocean-albedo", type=float, default=OCEAN_ALBEDO)
+    g.add_argument("--cloud-albedo", type=float, default=CLOUD_ALBEDO)
     g.add_argument("--earth-rotation-deg", type=float, default=None,
                    help="θ scene only: the Earth's sub-solar longitude [deg] (default 0); dates turn the Earth")
 

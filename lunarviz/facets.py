@@ -94,7 +94,8 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
         alb = None
         cd["albedo_parameter"] = np.full(M.n_faces, model.albedo_parameter)
     else:
-        alb = values if amap.absolute else values * model.albedo_parameter
+        from .surfaces import map_scale
+        alb = values * map_scale(amap.absolute, model)
         cd["albedo_parameter"] = alb
     mu0 = np.clip(np.einsum("ij,ij->i", n, s_dir), 0, 1)
     mu = np.clip(np.einsum("ij,ij->i", n, o_dir), 0, 1)

@@ -108,6 +108,12 @@ def read_map(path, what: str = "map") -> np.ndarray:
     return a
 
 
+def map_scale(absolute: bool, brdf) -> float:
+    """Factor from a lunar map's values to ``brdf``'s albedo parameter: 1 for a ``FILE:MEAN``
+    map (its values are the parameter), the BRDF's own parameter for a pattern (``FILE``)."""
+    return 1.0 if absolute else brdf.albedo_parameter
+
+
 def check_range(values: np.ndarray, what: str, lo: float = 0.0, hi: float = 1.0) -> None:
     vmin, vmax = float(np.min(values)), float(np.max(values))
     if vmin < lo or vmax > hi:
@@ -282,7 +288,7 @@ class MoonAlbedoMap:
         """Every BRDF's per-facet albedo parameter stays within [0, 1]."""
         v = self.values()
         for name, b in brdfs.items():
-            top = float(v.max()) * (1.0 if self.absolute else b.albedo_parameter)
+            top = float(v.max()) * map_scale(self.absolute, b)
             if top > 1.0:
                 pname = "albedo" if name == "lambert" else "w"
                 raise LunarvizError(f"--moon-albedo-map {self.path!r} gives {name} {pname} up to {top:.3g} > 1: "

@@ -21,6 +21,7 @@ from .brdf import BRDF_NAMES, make_brdf
 from .errors import LunarvizError
 from .geometry import Scene
 from .reference import ReferenceSettings, reference_irradiance
+from .surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
 
 METHODS = ("analytic", "raytrace", "reference")
 #: beyond this many days from a TLE's epoch a sweep warns (SGP4 errors of km grow within weeks)
@@ -75,9 +76,9 @@ class SweepSettings:
     moon_albedo_map: str | None = None
     earth_surface: str = "uniform"
     clouds: str = "none"
-    land_albedo: float = 0.25
-    ocean_albedo: float = 0.06
-    cloud_albedo: float = 0.40
+    land_albedo: float = LAND_ALBEDO
+    ocean_albedo: float = OCEAN_ALBEDO
+    cloud_albedo: float = CLOUD_ALBEDO
     earth_rotation_deg: float | None = None
     #: ``facets`` (default) or ``beams``: see :class:`lunarviz.tracer.estimators.TraceSettings`
     mapped_earth: str = "facets"

@@ -47,8 +47,8 @@ class Transport:
         """The BRDF's albedo parameter per sample ((N, 1), for ``albedo=``), or ``None``."""
         if self.albedo is None:
             return None
-        a = self.albedo if self.albedo_absolute else self.albedo * brdf.albedo_parameter
-        return a[:, None]
+        from .surfaces import map_scale
+        return (self.albedo * map_scale(self.albedo_absolute, brdf))[:, None]
 
     def _albedo_pair(self, brdf):
         """``(w - σ, w + σ)`` per sample ((N, 1) each) where the map varies within the samples'
@@ -60,7 +60,8 @@ class Transport:
             return None
         if not np.any(self.albedo_std > 0):
             return None
-        k = 1.0 if self.albedo_absolute else brdf.albedo_parameter
+        from .surfaces import map_scale
+        k = map_scale(self.albedo_absolute, brdf)
         a, s = self.albedo * k, self.albedo_std * k
         return np.clip(a - s, 0.0, 1.0)[:, None], np.clip(a + s, 0.0, 1.0)[:, None]
 

@@ -50,6 +50,7 @@ from ..geometry import angle_between, Scene, half_angle_sin_cos, unit
 from ..meshes import DEFAULT_LEVELS
 from ..sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
 from ..sphere_quadrature import cone_rule, orthonormal_basis
+from ..surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
 from ..transport import Transport, detector_geometry
 from .bodies import EmbreeBody
 
@@ -116,9 +117,9 @@ class TraceSettings:
     moon_albedo_map: str | None = None
     earth_surface: str = "uniform"
     clouds: str = "none"
-    land_albedo: float = 0.25
-    ocean_albedo: float = 0.06
-    cloud_albedo: float = 0.40
+    land_albedo: float = LAND_ALBEDO
+    ocean_albedo: float = OCEAN_ALBEDO
+    cloud_albedo: float = CLOUD_ALBEDO
     earth_rotation_deg: float = 0.0
     #: a mapped Earth's earthlight: ``facets`` (default: summed per facet into disc cells,
     #: :meth:`TraceScene.mapped_earth_transport`) or ``beams`` (the uniform Earth's Gauss beams
@@ -249,11 +250,14 @@ class TraceScene:
         return self._earth_albedo if self.earth_facet_albedo() is None and isinstance(self._earth_albedo, float) \
             else float(self.settings.earth_albedo)
 
-    def with_moon_albedo(self, tr: Transport, owner) -> Transport:
-        """``tr`` with the lunar map's values (mean and spread) at the samples' owning facets."""
-        v = self.moon_facet_albedo(spread=True)
-        if v is not None:
-            tr.albedo, tr.albedo_std = v[0][owner], v[1][owner]
+    def with_moon_albedo(self, tr: Transport, owner=None, values=None) -> Transport:
+        """``tr`` with the lunar map's (mean, spread) per sample: ``values`` as given, or the
+        facet values at the samples' owning facets ``owner``; unchanged without a map."""
+        if values is None and owner is not None:
+            v = self.moon_facet_albedo(spread=True)
+            values = None if v is None else (v[0][owner], v[1][owner])
+        if values is not None:
+            tr.albedo, tr.albedo_std = values
             tr.albedo_absolute = self.settings.moon_map().absolute
         return tr
 
@@ -631,8 +635,7 @@ class TraceScene:
             order = s.sun_order if body == "sun" else s.earth_order
             tr = self.beam_transport(x, n, o, mu, geom, body, order)
             if alb_all is not None:
-                tr.albedo, tr.albedo_std = alb_all[0][sl][keep], alb_all[1][sl][keep]
-                tr.albedo_absolute = self.settings.moon_map().absolute
+                self.with_moon_albedo(tr, values=(alb_all[0][sl][keep], alb_all[1][sl][keep]))
             yield tr, owner
 
     def _earth_elements(self):
