@@ -42,7 +42,8 @@ def available() -> bool:
 
 
 def _lobe(x, t):
-    return (1.0 - x * x) / ((1.0 - x) ** 2 + 4.0 * x * t * t) ** 1.5
+    q = (1.0 - x) ** 2 + 4.0 * x * t * t
+    return (1.0 - x * x) / (q * np.sqrt(q))  # q**1.5 (a pow call costs ~3x a sqrt)
 
 
 def _h(x, w, hcode):
@@ -134,6 +135,186 @@ def _sphere_refine(o, d, radius, prim, t_out, point_out, centre):
             prim[i] = -1
 
 
+def _sphere_cap_beams(x, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, nodes, wts, seg, nseg):
+    """The sphere-surface rule of :func:`lunarviz.sphere_quadrature.cap_rule` for one
+    constraint cap per row (``cus`` (B, 3), ``ccs`` (B,)), filled into
+    ``nodes`` (B, S·n_t·n_phi, 3) and ``wts``; ``seg`` (B, 4, 4) scratch: t_lo, t_hi, tangent
+    flags; ``nseg`` (B,) the non-empty segments. Same operations in the same order as the numpy
+    rule (tests/test_kernels.py compares them), one row at a time instead of (B, ...) arrays."""
+    B = x.shape[0]
+    n_t = gx_t.shape[0]
+    n_p = gx_p.shape[0]
+    S = nodes.shape[1] // (n_t * n_p)
+    two_pi = 2.0 * np.pi
+    for i in range(B):
+        xc0, xc1, xc2 = x[i, 0] - c[0], x[i, 1] - c[1], x[i, 2] - c[2]
+        dxc = np.sqrt(xc0 * xc0 + xc1 * xc1 + xc2 * xc2)
+        a0, a1, a2 = xc0 / dxc, xc1 / dxc, xc2 / dxc
+        cos_max = R / dxc
+        # orthonormal_basis
+        if abs(a0) < 0.9:
+            h0, h1, h2 = 1.0, 0.0, 0.0
+        else:
+            h0, h1, h2 = 0.0, 1.0, 0.0
+        e10, e11, e12 = a1 * h2 - a2 * h1, a2 * h0 - a0 * h2, a0 * h1 - a1 * h0
+        nrm = np.sqrt(e10 * e10 + e11 * e11 + e12 * e12)
+        e10, e11, e12 = e10 / nrm, e11 / nrm, e12 / nrm
+        e20, e21, e22 = a1 * e12 - a2 * e11, a2 * e10 - a0 * e12, a0 * e11 - a1 * e10
+        t_max = np.arccos(min(max(cos_max, -1.0), 1.0))
+        cu = cus[i]
+        cc = ccs[i]
+        ua = cu[0] * a0 + cu[1] * a1 + cu[2] * a2
+        u1 = cu[0] * e10 + cu[1] * e11 + cu[2] * e12
+        u2 = cu[0] * e20 + cu[1] * e21 + cu[2] * e22
+        t_u = np.arctan2(np.hypot(u1, u2), ua)
+        phi_u = np.arctan2(u2, u1)
+        ac = np.arccos(min(max(cc, -1.0), 1.0))
+        real = cc > -1.0 and cc < 1.0
+        pts = np.empty(5)
+        tan = np.zeros(5, dtype=np.bool_)
+        pts[0] = 0.0
+        pts[4] = t_max
+        cands = (abs(t_u - ac), t_u + ac, two_pi - t_u - ac)
+        for j in range(3):
+            v = min(max(cands[j], 0.0), t_max) if real else 0.0
+            pts[1 + j] = v
+            tan[1 + j] = v > 0.0 and v < t_max
+        # stable insertion sort (argsort kind="stable")
+        for j in range(1, 5):
+            pv, tv = pts[j], tan[j]
+            m = j - 1
+            while m >= 0 and pts[m] > pv:
+                pts[m + 1] = pts[m]
+                tan[m + 1] = tan[m]
+                m -= 1
+            pts[m + 1] = pv
+            tan[m + 1] = tv
+        # non-empty segments first, in order, then the empty ones (t_hi := t_lo)
+        q = 0
+        for j in range(4):
+            if pts[j + 1] > pts[j]:
+                seg[i, q, 0], seg[i, q, 1] = pts[j], pts[j + 1]
+                seg[i, q, 2], seg[i, q, 3] = 1.0 if tan[j] else 0.0, 1.0 if tan[j + 1] else 0.0
+                q += 1
+        nseg[i] = q
+        for j in range(4):
+            if not pts[j + 1] > pts[j]:
+                if q < 4:
+                    seg[i, q, 0], seg[i, q, 1] = pts[j], pts[j]
+                    seg[i, q, 2], seg[i, q, 3] = 1.0 if tan[j] else 0.0, 1.0 if tan[j + 1] else 0.0
+                q += 1
+        stu, ctu = np.sin(t_u), np.cos(t_u)
+        col = 0
+        for sgi in range(S):
+            lo, hi = seg[i, sgi, 0], seg[i, sgi, 1]
+            if sgi >= nseg[i]:  # an empty segment: zero weights (numpy's nodes there are never used)
+                for m in range(n_t * n_p):
+                    wts[i, col] = 0.0
+                    nodes[i, col, 0], nodes[i, col, 1], nodes[i, col, 2] = a0, a1, a2
+                    col += 1
+                continue
+            s_lo, s_hi = seg[i, sgi, 2] > 0.5, seg[i, sgi, 3] > 0.5
+            for it in range(n_t):
+                u = gx_t[it]
+                if s_lo and s_hi:
+                    f, jac = u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u)
+                elif s_lo:
+                    f, jac = u * u, 2.0 * u
+                elif s_hi:
+                    f, jac = 1.0 - (1.0 - u) ** 2, 2.0 * (1.0 - u)
+                else:
+                    f, jac = u, 1.0
+                t = lo + (hi - lo) * f
+                wt = (hi - lo) * gw_t[it] * jac * np.sin(t)
+                st, ct = np.sin(t), np.cos(t)
+                den = st * stu
+                num = cc - ct * ctu
+                if abs(den) > 1e-300:
+                    qq = num / den
+                else:
+                    qq = -np.inf if num < 0 else np.inf
+                hw = np.arccos(min(max(qq, -1.0), 1.0))
+                p_lo, p_hi = phi_u - hw, phi_u + hw
+                for ip in range(n_p):
+                    phi = p_lo + (p_hi - p_lo) * gx_p[ip]
+                    wts[i, col] = wt * ((p_hi - p_lo) * gw_p[ip])
+                    sp, cp = np.sin(phi), np.cos(phi)
+                    nodes[i, col, 0] = ct * a0 + st * (cp * e10 + sp * e20)
+                    nodes[i, col, 1] = ct * a1 + st * (cp * e11 + sp * e21)
+                    nodes[i, col, 2] = ct * a2 + st * (cp * e12 + sp * e22)
+                    col += 1
+
+
+def _compact_beams(x, c, R, nodes, wts, kmax, om, omega):
+    """The non-zero-weight nodes of each row first (stable), then zero-weight ones up to
+    ``kmax``; as beams from x: unit directions ``om`` and solid angles ``omega``
+    (:func:`lunarviz.sources.source_beams`: dΩ = cos_y R² dω / r²)."""
+    B, M = wts.shape
+    for i in range(B):
+        q = 0
+        for pas in range(2):
+            for m in range(M):
+                if q >= kmax:
+                    break
+                if (wts[i, m] > 0.0) != (pas == 0):
+                    continue
+                m0, m1, m2 = nodes[i, m, 0], nodes[i, m, 1], nodes[i, m, 2]
+                v0 = c[0] + R * m0 - x[i, 0]
+                v1 = c[1] + R * m1 - x[i, 1]
+                v2 = c[2] + R * m2 - x[i, 2]
+                r = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+                o0, o1, o2 = v0 / r, v1 / r, v2 / r
+                om[i, q, 0], om[i, q, 1], om[i, q, 2] = o0, o1, o2
+                cos_y = max(-(m0 * o0 + m1 * o1 + m2 * o2), 0.0)
+                omega[i, q] = cos_y * R * R * wts[i, m] / r ** 2
+                q += 1
+
+
+def _live_beams(x, n, dirs, omega, mu0, bi, ki, xs, ns, ds):
+    """Gather the live beams (ω > 0 and μ0 > 0), row-major like ``np.nonzero``."""
+    B, K = omega.shape
+    q = 0
+    for i in range(B):
+        for k in range(K):
+            if omega[i, k] > 0.0 and mu0[i, k] > 0.0:
+                bi[q], ki[q] = i, k
+                for j in range(3):
+                    xs[q, j] = x[i, j]
+                    ns[q, j] = n[i, j]
+                    ds[q, j] = dirs[i, k, j]
+                q += 1
+
+
+def _ray_starts(origins, dirs, centre, R, tmax, has_tmax, o_out, t0_out, live):
+    """Body-frame origins and the entry distance t0 into the bounding sphere of radius R
+    (``EmbreeBody._prepare``); ``live``: the ray meets the sphere ahead (and before tmax)."""
+    n = origins.shape[0]
+    for i in range(n):
+        o0, o1, o2 = origins[i, 0] - centre[0], origins[i, 1] - centre[1], origins[i, 2] - centre[2]
+        o_out[i, 0], o_out[i, 1], o_out[i, 2] = o0, o1, o2
+        d0, d1, d2 = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        b = -(o0 * d0 + o1 * d1 + o2 * d2)
+        perp2 = (o0 * o0 + o1 * o1 + o2 * o2) - b * b
+        disc = R * R - perp2
+        sq = np.sqrt(max(disc, 0.0))
+        t_exit = b + sq
+        t0 = max(b - sq, 0.0)
+        t0_out[i] = t0
+        ok = disc > 0.0 and t_exit > 0.0
+        if has_tmax:
+            ok = ok and t0 < tmax[i]
+        live[i] = ok
+
+
+def _ray_batch32(o, d, t0, idx, o32, d32):
+    """float32 starts ``o + t0·d`` and directions of rays ``idx`` (Embree's input)."""
+    for q in range(idx.shape[0]):
+        i = idx[q]
+        for j in range(3):
+            o32[q, j] = o[i, j] + t0[i] * d[i, j]
+            d32[q, j] = d[i, j]
+
+
 def _jit(fn, **kw):
     """``numba.njit`` with an on-disk cache where one can be written (the package folder or
     numba's user cache), else without: a read-only install must not stop lunarviz."""
@@ -150,6 +331,11 @@ if _NUMBA:
         _beam_angles = _jit(_beam_angles, nogil=True)
         _sphere_refine = _jit(_sphere_refine, nogil=True)
         _hapke_sum = _jit(_hapke_sum, nogil=True)
+        _sphere_cap_beams = _jit(_sphere_cap_beams, nogil=True)
+        _compact_beams = _jit(_compact_beams, nogil=True)
+        _live_beams = _jit(_live_beams, nogil=True)
+        _ray_starts = _jit(_ray_starts, nogil=True)
+        _ray_batch32 = _jit(_ray_batch32, nogil=True)
     except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
         _NUMBA = False
 
@@ -220,3 +406,101 @@ def sphere_refine(o, d, radius: float, prim, centre):
     f = np.ascontiguousarray
     _sphere_refine(f(o, dtype=float), f(d, dtype=float), float(radius), prim, t, point, f(centre, dtype=float))
     return prim, t, point
+
+
+def sphere_cap_beams(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
+    """Beams ``(om, omega)`` (B, K, 3), (B, K) from points x (B, 3) over the part of the sphere
+    (centre c, radius R) they see that lies inside the cap ``{m·cap_u > cap_c}`` (one cap, (3,)
+    and scalar, or one per row, (B, 3) and (B,)): the same beams as
+    ``source_beams(source_sphere_rule(...))`` where that rule has one cap (the Earth's lit face
+    seen from points whose horizon does not cut the Earth; the Sun cut by the horizon),
+    compiled; ``None`` where numba is off."""
+    if not _NUMBA:
+        return None
+    from .sphere_quadrature import _gauss
+    x = np.ascontiguousarray(x, dtype=float)
+    B = len(x)
+    gx_t, gw_t = _gauss(n_t)
+    gx_p, gw_p = _gauss(n_phi)
+    seg = np.zeros((B, 4, 4))
+    nseg = np.zeros(B, dtype=np.int64)
+    # segments: first pass with room for all four, then the rule is cut to the widest row
+    nodes = np.empty((B, 4 * n_t * n_phi, 3))
+    wts = np.empty((B, 4 * n_t * n_phi))
+    c = np.asarray(c, dtype=float)
+    cu = np.ascontiguousarray(np.broadcast_to(cap_u, (B, 3)), dtype=float)
+    cc = np.ascontiguousarray(np.broadcast_to(cap_c, (B,)), dtype=float)
+    _sphere_cap_beams(x, c, float(R), cu, cc, gx_t, gw_t, gx_p, gw_p, nodes, wts, seg, nseg)
+    S = max(int(nseg.max(initial=0)), 1)
+    M = S * n_t * n_phi
+    nodes, wts = nodes[:, :M], wts[:, :M]
+    kmax = max(int((wts > 0).sum(1).max(initial=0)), 1)
+    om = np.empty((B, kmax, 3))
+    omega = np.empty((B, kmax))
+    _compact_beams(x, c, float(R), nodes, wts, kmax, om, omega)
+    return om, omega
+
+
+def live_beams(x, n, dirs, omega, mu0):
+    """``(bi, ki, x[bi], n[bi], dirs[bi, ki])`` for the beams with ω > 0 and μ0 > 0."""
+    live = (omega > 0) & (mu0 > 0)
+    if not _NUMBA:
+        bi, ki = np.nonzero(live)
+        return bi, ki, x[bi], n[bi], dirs[bi, ki]
+    N = int(np.count_nonzero(live))
+    bi, ki = np.empty(N, dtype=np.int64), np.empty(N, dtype=np.int64)
+    xs, ns, ds = np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3))
+    f = np.ascontiguousarray
+    _live_beams(f(x, dtype=float), f(n, dtype=float), f(dirs, dtype=float), f(omega, dtype=float),
+                f(mu0, dtype=float), bi, ki, xs, ns, ds)
+    return bi, ki, xs, ns, ds
+
+
+def ray_starts(origins, dirs, centre, R: float, tmax=None):
+    """``(o, t0, live)``: body-frame origins, entry distance into the sphere of radius R
+    about ``centre``, and whether the ray meets it ahead (and before ``tmax``)."""
+    origins = np.asarray(origins, dtype=float)
+    dirs = np.asarray(dirs, dtype=float)
+    n = len(origins)
+    if not _NUMBA:
+        o = origins - centre
+        b = -np.einsum("ij,ij->i", o, dirs)
+        perp2 = np.einsum("ij,ij->i", o, o) - b * b
+        disc = R * R - perp2
+        t_exit = b + np.sqrt(np.clip(disc, 0.0, None))
+        live = (disc > 0.0) & (t_exit > 0.0)
+        t0 = np.clip(b - np.sqrt(np.clip(disc, 0.0, None)), 0.0, None)
+        if tmax is not None:
+            live &= t0 < tmax
+        return o, t0, live
+    o, t0, live = np.empty((n, 3)), np.empty(n), np.empty(n, dtype=np.bool_)
+    tm = np.zeros(1) if tmax is None else np.ascontiguousarray(np.broadcast_to(tmax, (n,)), dtype=float)
+    f = np.ascontiguousarray
+    _ray_starts(f(origins), f(dirs), f(centre, dtype=float), float(R), tm, tmax is not None, o, t0, live)
+    return o, t0, live
+
+
+def ray_batch32(o, d, t0, idx):
+    """``(o[idx] + t0[idx]·d[idx], d[idx])`` as float32 (Embree's input)."""
+    if not _NUMBA:
+        return (o[idx] + t0[idx, None] * d[idx]).astype(np.float32), d[idx].astype(np.float32)
+    o32, d32 = np.empty((len(idx), 3), np.float32), np.empty((len(idx), 3), np.float32)
+    f = np.ascontiguousarray
+    _ray_batch32(f(o, dtype=float), f(d, dtype=float), f(t0, dtype=float), f(idx, dtype=np.int64), o32, d32)
+    return o32, d32
+
+
+def warm_up() -> None:
+    """Load (or compile) every kernel once on tiny inputs, e.g. before forking workers."""
+    if not _NUMBA:
+        return
+    from .brdf import make_brdf
+    one = np.ones((1, 1))
+    beam_angles(np.ones((1, 1, 3)), np.ones((1, 3)), np.ones((1, 3)))
+    sphere_refine(np.ones((1, 3)), np.ones((1, 3)), 1.0, np.zeros(1, np.int64), np.zeros(3))
+    hapke_radiances(make_brdf("dhg"), one, np.ones(1), one, one, one, one, np.ones(1))
+    x = np.array([[0.0, 0.0, 10.0]])
+    sphere_cap_beams(x, np.zeros(3), 1.0, np.array([1.0, 0.0, 0.0]), 0.0, 2, 2)
+    live_beams(x, x, np.ones((1, 1, 3)), one, one)
+    ray_starts(x, np.array([[0.0, 0.0, -1.0]]), np.zeros(3), 1.0)
+    ray_batch32(x, x, np.zeros(1), np.zeros(1, np.int64))

@@ -79,22 +79,117 @@ def body_mesh(body: str, level: int | None = None) -> trimesh.Trimesh:
     return unit_icosphere(level)
 
 
+#: Faces per block in the mesh checks below (bounds their temporaries on multi-million-facet meshes).
+CHECK_BLOCK = 1 << 20
+
+
+def _face_blocks(n: int):
+    return (slice(a, min(n, a + CHECK_BLOCK)) for a in range(0, n, CHECK_BLOCK))
+
+
+def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Facet areas, computed in blocks of faces."""
+    out = np.empty(len(faces))
+    for b in _face_blocks(len(faces)):
+        t = vertices[faces[b]]
+        out[b] = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    return out
+
+
+def edge_checks(faces: np.ndarray, n_vertices: int) -> tuple[bool, bool]:
+    """``(watertight, winding consistent)`` of a triangle mesh, as trimesh defines them: every
+    edge shared by exactly two faces, which traverse it in opposite directions (the second is
+    meaningful, and used, only for watertight meshes).
+
+    Computed on int64 edge keys (``a·V + b``) instead of trimesh's edge caches, which take
+    ~3 GB on a 5-million-facet mesh (issue 13); tests/test_trace.py checks both against
+    trimesh on good and broken meshes."""
+    f = np.asarray(faces, dtype=np.int64)
+    a = f.reshape(-1)
+    b = f[:, [1, 2, 0]].reshape(-1)
+    V = np.int64(n_vertices)
+    undirected = np.sort(np.minimum(a, b) * V + np.maximum(a, b))
+    pairs = len(undirected) % 2 == 0 and bool(np.all(undirected[0::2] == undirected[1::2]))
+    watertight = pairs and (len(undirected) < 4 or bool(np.all(undirected[2::2] != undirected[1:-1:2])))
+    del undirected
+    directed = np.sort(a * V + b)
+    consistent = not bool(np.any(directed[1:] == directed[:-1]))
+    return watertight, consistent
+
+
+def is_convex(vertices: np.ndarray, faces: np.ndarray) -> bool:
+    """trimesh's convexity test (``Trimesh.is_convex``) without its caches: a closed mesh is
+    convex when, across every edge, the far vertex of one face lies on or below the other
+    face's plane (projection < 1e-5 × the mesh's scale, trimesh's ``tol.planar``).
+
+    On sorted undirected edge keys, as :func:`edge_checks`; ~0.5 GB on a 5 M-facet mesh where
+    trimesh's face adjacency takes ~3 GB. tests/test_trace.py compares it with trimesh."""
+    v = np.asarray(vertices, dtype=float)
+    f = np.asarray(faces, dtype=np.int64)
+    if not edge_checks(f, len(v))[0] or body_count(f, len(v)) != 1:
+        return False
+    a = f.reshape(-1)
+    b = f[:, [1, 2, 0]].reshape(-1)
+    order = np.argsort(np.minimum(a, b) * np.int64(len(v)) + np.maximum(a, b), kind="stable")
+    del a, b
+    c1, c2 = order[0::2], order[1::2]  # the two face corners that start each shared edge
+    del order
+    scale = float(np.linalg.norm(np.ptp(v, axis=0)))
+    for blk in _face_blocks(len(c1)):
+        f1, e2 = c1[blk] // 3, c2[blk]
+        far = f[e2 // 3, (e2 % 3 + 2) % 3]  # the vertex of the other face off the edge
+        tri = v[f[f1]]
+        n1 = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n1 /= np.linalg.norm(n1, axis=1, keepdims=True)
+        if np.einsum("ij,ij->i", v[far] - tri[:, 0], n1).max() >= 1e-5 * scale:
+            return False
+    return True
+
+
+def volume_and_centroid(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, np.ndarray]:
+    """Enclosed (signed) volume and centre of mass of a closed, uniformly dense mesh: the
+    divergence theorem as a sum of tetrahedra (origin, face), in blocks of faces."""
+    vol, moment = 0.0, np.zeros(3)
+    for blk in _face_blocks(len(faces)):
+        t = vertices[faces[blk]]
+        v6 = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2]))  # 6 × tetra volume
+        vol += float(v6.sum()) / 6.0
+        moment += (v6[:, None] * t.sum(axis=1)).sum(axis=0) / 24.0  # tetra centroid = Σv/4
+    return vol, (moment / vol if vol != 0 else np.zeros(3))
+
+
+def body_count(faces: np.ndarray, n_vertices: int) -> int:
+    """Connected parts of the mesh (through shared vertices; every vertex referenced)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    f = np.asarray(faces)
+    rows = np.concatenate([f[:, 0], f[:, 1]]).astype(np.int32)
+    cols = np.concatenate([f[:, 1], f[:, 2]]).astype(np.int32)
+    g = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n_vertices, n_vertices))
+    return int(connected_components(g, directed=False, return_labels=False))
+
+
 def validate_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> trimesh.Trimesh:
-    """Check that ``mesh`` can stand for a body; raise :class:`MeshError` naming the defect."""
+    """Check that ``mesh`` can stand for a body; raise :class:`MeshError` naming the defect.
+
+    Same criteria as trimesh's ``is_watertight``, ``is_winding_consistent`` and ``volume``,
+    computed without filling the mesh's caches (:func:`edge_checks`)."""
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshError(f"{name}: not a triangle mesh with faces")
-    if not np.all(np.isfinite(mesh.vertices)):
+    v, f = np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
+    if not np.all(np.isfinite(v)):
         raise MeshError(f"{name}: vertices contain NaN or inf")
-    areas = mesh.area_faces
-    scale = float(np.max(np.ptp(mesh.vertices, axis=0)))
+    areas = face_areas(v, f)
+    scale = float(np.max(np.ptp(v, axis=0)))
     bad = np.flatnonzero(areas <= 1e-12 * scale**2)
     if bad.size:
         raise MeshError(f"{name}: {bad.size} degenerate (zero-area) faces, first is face {bad[0]}")
-    if not mesh.is_watertight:
+    watertight, consistent = edge_checks(f, len(v))
+    if not watertight:
         raise MeshError(f"{name}: not watertight (has holes or open edges)")
-    if not mesh.is_winding_consistent:
+    if not consistent:
         raise MeshError(f"{name}: inconsistent face winding")
-    if mesh.volume <= 0:
+    if volume_and_centroid(v, f)[0] <= 0:
         raise MeshError(f"{name}: normals point inward (negative enclosed volume)")
     return mesh
 
@@ -144,13 +239,16 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
         # positions are not changed
         mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True, validate=False)
         mesh.remove_unreferenced_vertices()
+        mesh = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), process=False)  # no caches
     validate_mesh(mesh, name)
-    parts = int(mesh.body_count)
+    v, f = np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
+    parts = body_count(f, len(v))
     if parts != 1:
         raise MeshError(f"{name}: {parts} disconnected parts; a body must be one closed surface")
-    v = np.asarray(mesh.vertices, dtype=float) * factor
-    radius_about_com = float(np.mean(np.linalg.norm(v - np.asarray(mesh.center_mass) * factor, axis=1)))
-    off = float(np.linalg.norm(mesh.center_mass)) * factor
+    com = volume_and_centroid(v, f)[1] * factor
+    v = v * factor
+    radius_about_com = float(np.mean(np.linalg.norm(v - com, axis=1)))
+    off = float(np.linalg.norm(com))
     if off > CENTRE_TOLERANCE * radius_about_com:
         raise MeshError(f"{name}: centre of mass {off:.4g} m from the origin (> {CENTRE_TOLERANCE:.0%} of its "
                         f"{radius_about_com:.4g} m radius); vertices must be centred on the {body}'s centre "
@@ -164,7 +262,7 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
         hint = f"; the vertices look like {words[guess[0]]}: pass --mesh-units {guess[0]}" if guess else ""
         raise MeshError(f"{name}: mean vertex radius {size:.4g} m (as --mesh-units {units}) is implausible for the "
                         f"{body} (nominal radius {nominal_radius:.4g} m){hint}")
-    out = trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
+    out = trimesh.Trimesh(v, f, process=False)
     out.metadata["lunarviz_source"] = str(path)
     return out
 

@@ -194,6 +194,41 @@ def test_rejected_meshes(tmp_path):
         load_user_mesh(tmp_path / "missing.obj")
 
 
+@pytest.mark.parametrize("block", [1 << 20, 97])  # one block, and many (the 5 M-facet path)
+def test_lean_mesh_checks_agree_with_trimesh(block, monkeypatch):
+    # meshes.edge_checks / volume_and_centroid / body_count replace trimesh's cached properties
+    # (which take ~3 GB on a 5 M-facet mesh); trimesh is the independent reference here, on a
+    # good mesh and on each defect the checks exist for. Volumes agree to rounding (1e-12).
+    from lunarviz import meshes
+    from lunarviz.meshes import body_count, edge_checks, is_convex, volume_and_centroid
+    monkeypatch.setattr(meshes, "CHECK_BLOCK", block)
+    sphere = unit_icosphere(2)
+    v, f = sphere.vertices + [0.1, -0.2, 0.3], sphere.faces
+    flipped = f.copy()
+    flipped[5] = flipped[5, ::-1]
+    two = np.vstack([f, f + len(v)])
+    cases = {"good": (v, f), "open": (v, f[:-3]), "flipped": (v, flipped), "reversed": (v, f[:, ::-1]),
+             "two bodies": (np.vstack([v, v + 5.0]), two),
+             "doubled face": (v, np.vstack([f, f[:1]]))}
+    for name, (vv, ff) in cases.items():
+        ref = trimesh.Trimesh(vv, ff, process=False)
+        watertight, consistent = edge_checks(ff, len(vv))
+        assert watertight == ref.is_watertight, name
+        if watertight:  # (winding is judged only on closed meshes; trimesh and we differ on open ones)
+            assert consistent == ref.is_winding_consistent, name
+        assert body_count(ff, len(vv)) == ref.body_count, name
+    dented = v.copy()
+    dented[0] *= 0.9
+    box = trimesh.creation.box()
+    for name, (vv, ff) in {**cases, "dented": (dented, f), "box": (box.vertices, box.faces),
+                           "level 4": (unit_icosphere(4).vertices, unit_icosphere(4).faces)}.items():
+        assert is_convex(vv, ff) == trimesh.Trimesh(vv, ff, process=False).is_convex, name
+    ref = trimesh.Trimesh(v, f, process=False)
+    vol, com = volume_and_centroid(v, f)
+    assert vol == pytest.approx(ref.volume, rel=1e-12)
+    assert com == pytest.approx(ref.center_mass, rel=1e-12, abs=1e-12)
+
+
 def test_user_mesh_is_traced(tmp_path, paper_brdfs):
     # a non-convex Moon (a sphere with a dent) exercises the self-shadowing path
     m = unit_icosphere(4)

@@ -23,6 +23,8 @@ import trimesh
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
+from ..kernels import ray_batch32
+
 #: Embree's coordinate type.
 EMBREE_DTYPE = np.float32
 #: Ray origins start this far (× body radius) outside the bounding sphere.
@@ -231,8 +233,7 @@ class EmbreeBody:
         prim = np.full(n, -1, dtype=np.int64)
         idx = np.flatnonzero(live)
         if idx.size:
-            start = o[idx] + t0[idx, None] * d[idx]
-            prim[idx] = self._run(start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "INTERSECT", scene=scene)
+            prim[idx] = self._run(*ray_batch32(o, d, t0, idx), "INTERSECT", scene=scene)
         from ..kernels import sphere_refine
         prim, tt, point = sphere_refine(o, d, self.radius, prim, self.centre)
         return Hits(prim >= 0, prim, tt, point)
@@ -261,17 +262,10 @@ class EmbreeBody:
     def _prepare(self, origins, dirs, tmax, bound=None):
         """Body-frame float64 origins advanced to the bounding sphere (radius ``bound``, the
         mesh's by default); culled rays flagged."""
-        o = np.asarray(origins, dtype=float) - self.centre
+        from ..kernels import ray_starts
         d = np.asarray(dirs, dtype=float)
-        b = -np.einsum("ij,ij->i", o, d)  # distance to closest approach
-        perp2 = np.einsum("ij,ij->i", o, o) - b * b
         R = (self.bound if bound is None else bound) * (1.0 + ENTRY_MARGIN)
-        disc = R * R - perp2
-        t_exit = b + np.sqrt(np.clip(disc, 0.0, None))
-        live = (disc > 0.0) & (t_exit > 0.0)
-        t0 = np.clip(b - np.sqrt(np.clip(disc, 0.0, None)), 0.0, None)
-        if tmax is not None:
-            live &= t0 < tmax
+        o, t0, live = ray_starts(origins, d, self.centre, R, tmax)
         return o, d, t0, live
 
     def _run(self, o32, d32, query, dists=None, scene=None):
@@ -307,9 +301,7 @@ class EmbreeBody:
         prim = np.full(n, -1, dtype=np.int64)
         idx = np.flatnonzero(live)
         if idx.size:
-            o_start = o[idx] + t0[idx, None] * d[idx]
-            res = self._run(o_start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "INTERSECT")
-            prim[idx] = res
+            prim[idx] = self._run(*ray_batch32(o, d, t0, idx), "INTERSECT")
         hit = prim >= 0
         t = np.full(n, np.inf)
         point = np.full((n, 3), np.nan)
@@ -336,12 +328,11 @@ class EmbreeBody:
         out = np.zeros(n, dtype=bool)
         idx = np.flatnonzero(live)
         if idx.size:
-            o_start = o[idx] + t0[idx, None] * d[idx]
             dists = None
             if tmax is not None:
                 tm = np.broadcast_to(np.asarray(tmax, dtype=float), (n,))[idx] - t0[idx]
                 dists = np.clip(tm, 0.0, np.finfo(np.float32).max).astype(EMBREE_DTYPE)
-            res = self._run(o_start.astype(EMBREE_DTYPE), d[idx].astype(EMBREE_DTYPE), "OCCLUDED", dists)
+            res = self._run(*ray_batch32(o, d, t0, idx), "OCCLUDED", dists)
             out[idx] = res != -1
         return out
 
@@ -367,17 +358,24 @@ def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | N
     if rotation is not None:
         vertices = vertices @ rotation.T
     faces = np.asarray(mesh.faces, dtype=np.int64)
-    tri = vertices[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    areas = 0.5 * np.linalg.norm(cross, axis=1)
+    F = len(faces)
+    areas, normals, centroids = np.empty(F), np.empty((F, 3)), np.empty((F, 3))
+    for a in range(0, F, 1 << 18):  # in blocks: (F, 3, 3) temporaries are 0.4 GB at 5 M facets
+        b = slice(a, min(F, a + (1 << 18)))
+        tri = vertices[faces[b]]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        areas[b] = 0.5 * np.linalg.norm(cross, axis=1)
+        normals[b] = cross / (2.0 * areas[b, None])
+        centroids[b] = tri.mean(axis=1)
     rad = np.linalg.norm(vertices, axis=1)
     tag = mesh.metadata.get("lunarviz_analytic") if mesh.metadata else None
     sphere_radius = float(tag["radius"]) * scale if tag and tag.get("shape") == "sphere" else None
+    convex = bool(tag is not None or _is_convex(mesh))
     scene = rtcore_scene.EmbreeScene()
     TriangleMesh(scene=scene, vertices=vertices.astype(EMBREE_DTYPE), indices=faces.astype(np.int32))
     geo = {"mesh": mesh, "vertices": vertices, "faces": faces, "bound": float(rad.max()),
-           "areas": areas, "normals": cross / (2.0 * areas[:, None]), "centroids_local": tri.mean(axis=1),
-           "convex": bool(tag is not None or mesh.is_convex), "mean_radius": float(rad.mean()),
+           "areas": areas, "normals": normals, "centroids_local": centroids,
+           "convex": convex, "mean_radius": float(rad.mean()),
            "sphere_radius": sphere_radius, "scene": scene, "outer": None, "corner_normals": None}
     # least recently built first out: a θ sweep needs three entries (one per body), a dated
     # sweep turns the Moon and the Earth at every time and never reuses them (each Earth at
@@ -386,6 +384,13 @@ def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | N
         _GEOMETRY_CACHE.pop(next(iter(_GEOMETRY_CACHE)))
     _GEOMETRY_CACHE[key] = geo
     return geo
+
+
+def _is_convex(mesh: trimesh.Trimesh) -> bool:
+    """Convexity by :func:`lunarviz.meshes.is_convex` (trimesh's test without its caches,
+    which would take ~3 GB on a 5-million-facet mesh and stay alive with the cached mesh)."""
+    from ..meshes import is_convex
+    return is_convex(mesh.vertices, mesh.faces)
 
 
 def _crease_corner_normals(faces, normals, areas, n_vertices, crease_deg: float = CREASE_DEG) -> np.ndarray:

@@ -82,6 +82,9 @@ PATHS = {"moonshine": "sun", "earthshine": "earth"}
 MESH_SOURCE_ORDER = 16
 #: Lunar samples per batch: bounds memory (≈ CHUNK × beams × 30 doubles) for any ray count.
 CHUNK = 1 << 14
+#: Facets per block in the per-facet passes (candidate tests, shadow edges): bounds their
+#: temporaries (≈ 100 doubles per facet) on multi-million-facet meshes.
+FACET_BLOCK = 1 << 18
 #: Facets of a mapped Earth that its terminator crosses are split this many ways per side.
 TERMINATOR_SUB = 8
 #: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
@@ -279,41 +282,51 @@ class TraceScene:
         return self.settings.self_shadow and not self.moon.convex
 
     # ---- lunar samples -----------------------------------------------------------------------
-    def _corner_normals(self, M) -> np.ndarray:
+    def _corner_normals(self, M, rows=slice(None)) -> np.ndarray:
+        """Shading normals (F, 3, 3) at the corners of facets ``rows`` (all by default)."""
         mode = M.mode(self.settings.shading)
         if mode == "flat":
-            return np.repeat(M.normals[:, None, :], 3, axis=1)
+            return np.repeat(M.normals[rows][:, None, :], 3, axis=1)
         if mode == "exact":
-            v = M.vertices[M.faces]
+            v = M.vertices[M.faces[rows]]
             return v / np.linalg.norm(v, axis=2, keepdims=True)
-        return M.corner_normals
+        return M.corner_normals[rows]
 
     def candidates(self, body: str) -> np.ndarray:
         """Lunar facets that the detector may see and the source may (partly) light.
 
         Tested on the facet's corners as well as its centroid, so a facet that a kink crosses
         is never dropped. Memoised per body (``self._kinks`` follows the last body asked).
+        Computed in blocks of FACET_BLOCK facets, so memory stays bounded on any mesh.
         """
         if body in self._cand_cache:
             cand, self._kinks = self._cand_cache[body]
             return cand
         M = self.moon
         c, R, _ = self._source(body)
-        x, n = M.facet_points(self.settings.shading)
-        lit, vis = self._kink_values(x, n, c, R)
-        tri = M.vertices[M.faces] + M.centre
-        vn = self._corner_normals(M)
-        lit_v, vis_v = self._kink_values(tri.reshape(-1, 3), vn.reshape(-1, 3), c, R)
-        lit_v, vis_v = lit_v.reshape(-1, 3), vis_v.reshape(-1, 3)
-        up = (lit > -1) | (lit_v > -1).any(1)
-        seen = (vis > 0) | (vis_v > 0).any(1)
-        self._kinks = (np.sign(lit_v + 1) != np.sign(lit_v[:, :1] + 1)).any(1) | \
-            (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
-            (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
-        cand = np.flatnonzero(up & seen)
+        x_all, n_all = M.facet_points(self.settings.shading)
+        F = M.n_faces
+        keep = np.zeros(F, dtype=bool)
+        kinks = np.zeros(F, dtype=bool)
+        for a in range(0, F, FACET_BLOCK):
+            blk = slice(a, min(F, a + FACET_BLOCK))
+            lit, vis = self._kink_values(x_all[blk], n_all[blk], c, R)
+            tri = M.vertices[M.faces[blk]] + M.centre
+            vn = self._corner_normals(M, blk)
+            lit_v, vis_v = self._kink_values(tri.reshape(-1, 3), vn.reshape(-1, 3), c, R)
+            lit_v, vis_v = lit_v.reshape(-1, 3), vis_v.reshape(-1, 3)
+            up = (lit > -1) | (lit_v > -1).any(1)
+            seen = (vis > 0) | (vis_v > 0).any(1)
+            kinks[blk] = (np.sign(lit_v + 1) != np.sign(lit_v[:, :1] + 1)).any(1) | \
+                (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
+                (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
+            keep[blk] = up & seen
+        cand = np.flatnonzero(keep)
+        self._kinks = kinks
         hidden_view = not self.scene.detector_inside("earth") or self.scene.horizon_normal is not None
         if self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view:
-            self._kinks = self._kinks | self._shadow_edges(cand, c)
+            for a in range(0, len(cand), FACET_BLOCK):
+                self._kinks |= self._shadow_edges(cand[a:a + FACET_BLOCK], c)
         self._cand_cache[body] = (cand, self._kinks)
         return cand
 
@@ -489,6 +502,19 @@ class TraceScene:
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
             # than its cone rule (tests/test_trace.py checks the moonshine against the reference).
             o_s = max(order, PENUMBRA_ORDER) if body == "sun" else order
+            if body == "earth" and not with_horizon or body == "sun" and with_horizon:
+                # rules with one cap (compiled): the Earth's terminator where the horizon does not
+                # cut the Earth (nearly every lunar point), the horizon across the Sun (penumbra)
+                from ..kernels import sphere_cap_beams
+                if body == "earth":
+                    cs = sc.sun - c
+                    cap = unit(cs), R / np.linalg.norm(cs)
+                else:
+                    cap = n[rows], np.einsum("ij,ij->i", x[rows] - c, n[rows]) / R
+                fast = sphere_cap_beams(x[rows], c, R, *cap, o_s, o_s)
+                if fast is not None:
+                    parts.append((rows, *fast))
+                    continue
             m, w = source_sphere_rule(sc, x[rows], n[rows], body, o_s, horizon=with_horizon)
             _, om, omega = source_beams(sc, x[rows], body, m, w)
             parts.append((rows, om, omega))
@@ -633,10 +659,30 @@ class TraceScene:
             if len(x) == 0:
                 continue
             order = s.sun_order if body == "sun" else s.earth_order
-            tr = self.beam_transport(x, n, o, mu, geom, body, order)
-            if alb_all is not None:
-                self.with_moon_albedo(tr, values=(alb_all[0][sl][keep], alb_all[1][sl][keep]))
-            yield tr, owner
+            for g in self._rule_groups(x, n, body):
+                tr = self.beam_transport(x[g], n[g], o[g], mu[g], geom[g], body, order)
+                if alb_all is not None:
+                    self.with_moon_albedo(tr, values=(alb_all[0][sl][keep][g], alb_all[1][sl][keep][g]))
+                yield tr, owner[g]
+
+    def _rule_groups(self, x, n, body: str) -> list:
+        """Rows of x grouped by the size of their source rule (:meth:`source_nodes`): the few
+        rows whose horizon cuts the source (or, for the Sun, whose view the Earth's limb cuts)
+        take rules of 72-512 beams, the rest 8 (the Sun's cone) or ~60 (the Earth). Transports
+        are padded to their longest row, so tracing the groups apart spares ~10x padded beams
+        in a moonshine chunk. Each group keeps the rows' order; results only change by the
+        order of the sums (rounding)."""
+        c, R, B = self._source(body)
+        if B.mode(self.settings.shading) != "exact" or body == "earth" and self.earth_facet_albedo() is not None \
+                and self.settings.mapped_earth == "facets":
+            return [slice(None)]
+        cut = horizon_cuts_source(self.scene, x, n, body)
+        if body == "sun":
+            ecl = ~cut & self._earth_crosses_sun(x, np.linalg.norm(x - c, axis=1))
+            groups = [~cut & ~ecl, cut, ecl]
+        else:
+            groups = [~cut, cut]
+        return [np.flatnonzero(g) for g in groups if g.any()]
 
     def _earth_elements(self):
         """The mapped Earth as surface elements, one per facet: points y, normals m, areas
@@ -770,20 +816,21 @@ class TraceScene:
         :meth:`mapped_earth_transport` instead."""
         if body == "earth" and self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
             return self.mapped_earth_transport(x, n, o, mu, geom)
-        from ..kernels import beam_angles
+        from ..kernels import beam_angles, live_beams
         dirs, omega = self.source_nodes(x, n, body, order)
         mu0, sh, ch = beam_angles(dirs, n, o)
-        live = (omega > 0) & (mu0 > 0)
-        L = np.zeros(omega.shape)
-        L_free = np.zeros(omega.shape)
-        L_unit = np.zeros(omega.shape) if body == "earth" else None
-        bi, ki = np.nonzero(live)
-        L[bi, ki], L_free[bi, ki], lu = self.source_radiance(x[bi], n[bi], dirs[bi, ki], body)
-        if L_unit is not None:
-            L_unit[bi, ki] = lu
-        return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=L * omega,
-                         mu=mu, geom=geom, e_beam_free=L_free * omega,
-                         e_beam_unit=None if L_unit is None else L_unit * omega)
+        bi, ki, xb, nb, db = live_beams(x, n, dirs, omega, mu0)
+        Lb, Lb_free, lu = self.source_radiance(xb, nb, db, body)
+        flat = bi * omega.shape[1] + ki  # scatter through flat indices (2-D fancy indexing is slower)
+        om_b = omega.reshape(-1)[flat]
+
+        def beams(values):
+            e = np.zeros(omega.shape)
+            e.reshape(-1)[flat] = values * om_b
+            return e
+        return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=beams(Lb),
+                         mu=mu, geom=geom, e_beam_free=beams(Lb_free),
+                         e_beam_unit=None if lu is None else beams(lu))
 
     def montecarlo_transport(self, body: str, rng: np.random.Generator):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
