@@ -4,7 +4,8 @@
 
 For each level a cratered Moon (``shapes.craters``: 400 craters of 20-300 km, seed 1; facets =
 20·4^level, 20 k at level 5 to 1.3 M at level 8, 5.2 M at level 9) is traced at θ = 90°, both
-paths, DHG, occlusion and self-shadowing on, deterministic, in a fresh process (one thread), and
+paths, DHG, occlusion and self-shadowing on, deterministic, in a fresh process (``--threads``,
+default 2: chunks of lunar samples traced on both cores), and
 the process's wall time and peak RSS are recorded (the mesh is built and written beforehand, in
 another process: the run starts from the mesh file, as a user's would). Writes ``scale.json``
 and ``scale.png``.
@@ -15,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
 import time
@@ -43,9 +43,11 @@ print(json.dumps({"mesh_seconds": time.perf_counter() - t0,
 #: The measured run, in a fresh process: read and check the mesh file, then one phase, both paths.
 TRACE = """
 import sys, time, json, resource
-from lunarviz.sweeps import SweepSettings, run_phase
 from lunarviz import meshes
-path = sys.argv[1]
+from lunarviz.brdf import make_brdf
+from lunarviz.geometry import Scene
+from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
+path, threads = sys.argv[1], int(sys.argv[2])
 load = []
 _load = meshes.load_user_mesh
 def timed_load(*a, **k):
@@ -56,10 +58,11 @@ def timed_load(*a, **k):
         load.append(time.perf_counter() - t)
 meshes.load_user_mesh = timed_load  # (the tracer imports it at call time)
 t1 = time.perf_counter()
-r = run_phase(SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(90.0,), moon_mesh=path), 90.0)[0]
+ts = TraceScene(Scene(90.0), TraceSettings(moon_mesh=path, threads=threads))
+ms, es = (trace_path(ts, p, {"dhg": make_brdf("dhg")}) for p in ("moonshine", "earthshine"))
 t2 = time.perf_counter()
-print(json.dumps({"load_seconds": sum(load), "trace_seconds": t2 - t1, "moonshine_W_m2": r["moonshine_W_m2"],
-                  "earthshine_W_m2": r["earthshine_W_m2"], "rays": r["rays"],
+print(json.dumps({"load_seconds": sum(load), "trace_seconds": t2 - t1, "moonshine_W_m2": ms.mean["dhg"],
+                  "earthshine_W_m2": es.mean["dhg"], "rays": ts.rays_cast, "threads": threads,
                   "peak_rss_GB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2}))
 """
 
@@ -77,6 +80,7 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", default="5,6,7")
     ap.add_argument("--out", default="benchmarks/scale")
     ap.add_argument("--append", action="store_true", help="add the rows to an existing scale.json")
+    ap.add_argument("--threads", type=int, default=2, help="threads of the trace (default 2: this machine's cores)")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -88,7 +92,7 @@ def main(argv=None) -> int:
         if built["returncode"] == 0:
             row["mesh_seconds"], row["mesh_peak_rss_GB"] = built["mesh_seconds"], built["mesh_peak_rss_GB"]
             t0 = time.perf_counter()
-            row.update(_child(TRACE, mesh))
+            row.update(_child(TRACE, mesh, a.threads))
             row["wall_seconds"] = time.perf_counter() - t0
         else:
             row.update(built)
@@ -97,7 +101,7 @@ def main(argv=None) -> int:
         mesh.unlink(missing_ok=True)
     if a.append and (out / "scale.json").exists():
         rows = json.loads((out / "scale.json").read_text())["rows"] + rows
-    command = "python scripts/scale.py --levels " + a.levels + (" --append" if a.append else "")
+    command = f"python scripts/scale.py --levels {a.levels} --threads {a.threads}" + (" --append" if a.append else "")
     res = {"command": command, "theta_deg": 90.0, "brdf": "dhg",
            "targets": {"facets": 5_000_000, "seconds": 60, "peak_rss_GB": 4}, "rows": rows,
            "note": "the mesh is built (and written) in one process; a fresh process then reads and checks it "
@@ -116,7 +120,7 @@ def main(argv=None) -> int:
     ax.axhline(4, color="C1", ls=":", lw=0.8)
     ax.set_xlabel("Moon facets")
     ax.legend()
-    ax.set_title("cratered Moon, θ = 90°, both paths, one thread")
+    ax.set_title(f"cratered Moon, θ = 90°, both paths, {a.threads} thread(s)")
     fig.tight_layout()
     fig.savefig(out / "scale.png", dpi=110)
     return 0

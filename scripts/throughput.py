@@ -15,6 +15,10 @@ batches through ``embreex`` alone (``scene.run``), one thread, best of three. Th
   ``_run``), source look-ups (hit refinement, source radiance), shading (BRDF evaluation) and
   accumulation (``trace_path``'s own loop: sums and per-facet bincounts).
 
+Both cores: the same trace with ``threads=2`` (chunks of lunar samples traced on two threads,
+``TraceScene.deterministic_transport``) against raw Embree on one thread and on two
+(``replay_threads``).
+
 Two scenes: the paper's (θ = 90°, packaged spheres, occlusion on) and a cratered Moon (level 6,
 400 craters of 20-300 km, self-shadowing on), where Embree has real work. ``rays_<scene>.npz``
 holds the counted rays (origins, directions, tmax, query per batch, and the mesh) so anyone can
@@ -130,6 +134,26 @@ def replay(batches) -> float:
     return time.perf_counter() - t0
 
 
+def replay_threads(batches, threads: int = 2) -> float:
+    """Raw embreex time for the same batches on ``threads`` threads (embreex releases the
+    GIL): the batches shared out, large ones halved, as fast as Embree alone uses the cores."""
+    from concurrent.futures import ThreadPoolExecutor
+    jobs = []
+    for _, scene, query, o, d, dists in batches:
+        cut = [0, len(o) // 2, len(o)] if len(o) > 4096 else [0, len(o)]
+        for a, b in zip(cut[:-1], cut[1:]):
+            jobs.append((scene, query, o[a:b], d[a:b], None if dists is None else dists[a:b]))
+
+    def one(job):
+        scene, query, o, d, dists = job
+        kw = {} if dists is None else {"dists": dists}
+        scene.run(o, d, query=query, **kw)
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(threads) as ex:
+        list(ex.map(one, jobs))
+    return time.perf_counter() - t0
+
+
 def save_npz(path: Path, ts, batches):
     """Rays and meshes for an independent replay (``replay_npz``)."""
     arrays = {}
@@ -189,6 +213,13 @@ def measure(name: str, out: Path, quick: bool) -> dict:
     n = sum(len(b[3]) for b in batches)
     raw = min(replay(batches) for _ in range(3))
     e2e = min(trace_once(scene, settings)[1] for _ in range(3))
+    # both cores: chunks traced on two threads (TraceScene.deterministic_transport), against
+    # raw Embree on one thread and on two
+    from dataclasses import replace as _replace
+    settings2 = _replace(settings, threads=2)
+    trace_once(scene, settings2)
+    e2e2 = min(trace_once(scene, settings2)[1] for _ in range(3))
+    raw2 = min(replay_threads(batches) for _ in range(3))
     timer = StageTimer()
     instrument(timer)
     try:
@@ -204,6 +235,9 @@ def measure(name: str, out: Path, quick: bool) -> dict:
             "end_to_end_seconds": e2e, "raw_embree_seconds": raw,
             "end_to_end_rays_per_s": n / e2e, "raw_embree_rays_per_s": n / raw,
             "ratio_end_to_end_over_raw": raw / e2e, "target_ratio": 0.8, "met": raw / e2e >= 0.8,
+            "two_threads": {"end_to_end_seconds": e2e2, "raw_embree_seconds_2_threads": raw2,
+                            "ratio_over_raw_1_thread": raw / e2e2, "ratio_over_raw_2_threads": raw2 / e2e2,
+                            "end_to_end_speedup": e2e / e2e2, "raw_speedup": raw / raw2},
             "stage_seconds_instrumented_run": stages, "instrumented_run_seconds": t_inst,
             "stage_shares": {k: v / sum(stages.values()) for k, v in stages.items()},
             "npz": npz.name, "npz_replay_rays": n_re, "npz_replay_seconds": t_re}
@@ -258,6 +292,9 @@ def main(argv=None) -> int:
     for r in res["scenes"]:
         print(f"{r['scene']}: {r['rays_sent_to_embree']:,} rays to Embree; end-to-end {r['end_to_end_rays_per_s']:.3g}"
               f" rays/s, raw {r['raw_embree_rays_per_s']:.3g} rays/s, ratio {r['ratio_end_to_end_over_raw']:.3f}")
+        t2 = r["two_threads"]
+        print(f"   two threads: end-to-end x{t2['end_to_end_speedup']:.2f}, raw x{t2['raw_speedup']:.2f}; ratio over "
+              f"raw on one thread {t2['ratio_over_raw_1_thread']:.3f}, on two {t2['ratio_over_raw_2_threads']:.3f}")
         print("   stages: " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["stage_shares"].items()))
     ps = res["paper_sweep"]
     print(f"paper sweep: {ps['wall_seconds_numba']:.1f} s (numpy {ps['wall_seconds_numpy']:.1f} s), max error "

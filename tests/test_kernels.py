@@ -147,3 +147,4 @@ def test_unwritable_numba_cache_does_not_stop_lunarviz():
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     assert p.stdout.split() == ["True", "True"]
+

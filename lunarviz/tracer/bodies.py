@@ -15,7 +15,9 @@ over a thread pool (``threads``).
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +37,20 @@ BATCH = 1 << 18
 
 def default_threads() -> int:
     return max(1, min(2, os.cpu_count() or 1))
+
+
+_SERIAL = threading.local()
+
+
+@contextmanager
+def serial_embree():
+    """Within this block (per thread), Embree batches are not split over the body's threads:
+    the caller already runs several chunks on the cores (TraceScene.deterministic_transport)."""
+    _SERIAL.on = True
+    try:
+        yield
+    finally:
+        _SERIAL.on = False
 
 
 @dataclass
@@ -276,7 +292,7 @@ class EmbreeBody:
         if n == 0:
             return np.empty(0, np.int32)
         chunks = [slice(a, min(n, a + BATCH)) for a in range(0, n, BATCH)]
-        if len(chunks) == 1 and n > 4096 and self.threads > 1:
+        if len(chunks) == 1 and n > 4096 and self.threads > 1 and not getattr(_SERIAL, "on", False):
             step = -(-n // self.threads)
             chunks = [slice(a, min(n, a + step)) for a in range(0, n, step)]
 
@@ -287,7 +303,7 @@ class EmbreeBody:
             kw = {} if dists is None else {"dists": dists[sl]}
             return scene.run(o32[sl], d32[sl], query=query, **kw)
 
-        if len(chunks) == 1 or self.threads == 1:
+        if len(chunks) == 1 or self.threads == 1 or getattr(_SERIAL, "on", False):
             parts = [one(s) for s in chunks]
         else:
             with ThreadPoolExecutor(self.threads) as ex:

@@ -39,6 +39,7 @@ bounces, the Sun's extent when it lights the Earth (O(ρ²) ≈ 2e-5, see refere
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -218,6 +219,7 @@ class TraceScene:
         #: beams that hit each source facet (per body), accumulated over the trace
         self.source_hits = {"sun": np.zeros(self.sun.n_faces), "earth": np.zeros(self.earth.n_faces)}
         self.rays_cast = 0
+        self._lock = threading.Lock()
         self._sun_vis_earth = None
         self._cand_cache: dict = {}
         self._moon_albedo = self._earth_albedo = None
@@ -265,7 +267,8 @@ class TraceScene:
         return tr
 
     def _count(self, n):
-        self.rays_cast += int(n)
+        with self._lock:  # chunks may be traced on several threads (deterministic_transport)
+            self.rays_cast += int(n)
 
     def _source(self, body):
         """Centre [m], radius of the sphere the source's beams cover [m], and its Embree body.
@@ -617,7 +620,9 @@ class TraceScene:
         else:
             hits = target.intersect(xo, dirs)
         self._count(len(xo))
-        self.source_hits[body] += np.bincount(hits.prim[hits.hit], minlength=target.n_faces)
+        per_facet = np.bincount(hits.prim[hits.hit], minlength=target.n_faces)
+        with self._lock:
+            self.source_hits[body] += per_facet
         if body == "sun":
             L = np.where(hits.hit, self.sun_surface_radiance(), 0.0)
             L_free = L.copy()
@@ -647,23 +652,70 @@ class TraceScene:
 
     # ---- transports --------------------------------------------------------------------------
     def deterministic_transport(self, body: str):
-        """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK lunar samples."""
+        """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK lunar samples, in order.
+
+        With ``threads`` > 1 the chunks are traced on that many threads, a few ahead of the
+        consumer: Embree and the compiled kernels release the GIL, so one chunk's Embree
+        queries run while another's rules and beams are built (issue 13: "use both cores").
+        The chunks and their order are the same for any thread count, so are the results,
+        bit for bit (tests/test_kernels.py)."""
         s = self.settings
         x_all, n_all, dA_all, owner_all, alb_all = self.lunar_samples(body)
-        for a in range(0, len(x_all), CHUNK):
+        self._warm_shared(body)
+
+        def chunk(a):
             sl = slice(a, a + CHUNK)
             x, n, dA, owner = x_all[sl], n_all[sl], dA_all[sl], owner_all[sl]
             mu, geom, o = self.detector_view(x, n, dA)
             keep = geom > 0
             x, n, owner, mu, geom, o = x[keep], n[keep], owner[keep], mu[keep], geom[keep], o[keep]
+            out = []
             if len(x) == 0:
-                continue
+                return out
             order = s.sun_order if body == "sun" else s.earth_order
             for g in self._rule_groups(x, n, body):
                 tr = self.beam_transport(x[g], n[g], o[g], mu[g], geom[g], body, order)
                 if alb_all is not None:
                     self.with_moon_albedo(tr, values=(alb_all[0][sl][keep][g], alb_all[1][sl][keep][g]))
-                yield tr, owner[g]
+                out.append((tr, owner[g]))
+            return out
+
+        starts = list(range(0, len(x_all), CHUNK))
+        threads = self.moon.threads
+        if threads <= 1 or len(starts) <= 1:
+            for a in starts:
+                yield from chunk(a)
+            return
+        from collections import deque
+        from concurrent.futures import ThreadPoolExecutor
+
+        from .bodies import serial_embree
+
+        def job(a):
+            with serial_embree():  # the chunks share the cores; Embree calls are not split again
+                return chunk(a)
+        with ThreadPoolExecutor(threads) as ex:
+            ahead = deque()
+            for a in starts:
+                ahead.append(ex.submit(job, a))
+                if len(ahead) > threads:  # bounded: at most threads + 1 chunks in memory
+                    yield from ahead.popleft().result()
+            while ahead:
+                yield from ahead.popleft().result()
+
+    def _warm_shared(self, body: str) -> None:
+        """Fill the scene's lazy caches before chunks are traced on several threads."""
+        if body == "earth":
+            self.earth_facet_albedo()
+            self.sun_visibility_of_earth()
+            if self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
+                self._earth_elements()
+        self.moon_facet_albedo()
+        for b in (self.sun, self.earth):
+            if b.mode(self.settings.shading) == "exact":
+                b._outer_scene()
+            elif b.mode(self.settings.shading) == "interp":
+                b.corner_normals  # noqa: B018 (a cached property: built here, once)
 
     def _rule_groups(self, x, n, body: str) -> list:
         """Rows of x grouped by the size of their source rule (:meth:`source_nodes`): the few
