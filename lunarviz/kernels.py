@@ -315,6 +315,88 @@ def _ray_batch32(o, d, t0, idx, o32, d32):
             d32[q, j] = d[i, j]
 
 
+def _earth_lit_dirs(xs, earth, R, us, c_s, n_tab, r1, r2, dirs, weight):
+    """One direction per sample toward the Earth's lit, visible part and its weight [sr]:
+    the tabulated polar pdf of ``TraceScene._earth_lit_directions`` (same formulas, same
+    uniforms ``r1`` for t and ``r2`` for φ), one sample at a time instead of (N, n_tab) arrays."""
+    N = xs.shape[0]
+    cell = np.empty(n_tab)
+    cdf = np.empty(n_tab)
+    g = np.empty(n_tab + 1)
+    for i in range(N):
+        v0, v1, v2 = xs[i, 0] - earth[0], xs[i, 1] - earth[1], xs[i, 2] - earth[2]
+        d = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        a0, a1, a2 = v0 / d, v1 / d, v2 / d
+        if abs(a0) < 0.9:
+            h0, h1, h2 = 1.0, 0.0, 0.0
+        else:
+            h0, h1, h2 = 0.0, 1.0, 0.0
+        e10, e11, e12 = a1 * h2 - a2 * h1, a2 * h0 - a0 * h2, a0 * h1 - a1 * h0
+        nrm = np.sqrt(e10 * e10 + e11 * e11 + e12 * e12)
+        e10, e11, e12 = e10 / nrm, e11 / nrm, e12 / nrm
+        e20, e21, e22 = a1 * e12 - a2 * e11, a2 * e10 - a0 * e12, a0 * e11 - a1 * e10
+        ctu = a0 * us[0] + a1 * us[1] + a2 * us[2]
+        stu = np.sqrt(max(1.0 - ctu * ctu, 0.0))
+        phi_u = np.arctan2(e20 * us[0] + e21 * us[1] + e22 * us[2], e10 * us[0] + e11 * us[1] + e12 * us[2])
+        t_max = np.arccos(R / d)
+        for k in range(n_tab + 1):
+            t = t_max * (k / n_tab)
+            ct, st = np.cos(t), np.sin(t)
+            g[k] = _jac_t(ct, st, d, R) * 2.0 * _half_width(ct, st, stu, ctu, c_s)
+        tot = 0.0
+        for k in range(n_tab):
+            cell[k] = 0.5 * (g[k + 1] + g[k])
+            tot += cell[k]
+        floor = 1e-3 * (tot / n_tab) + 1e-300
+        dt = t_max / n_tab
+        acc = 0.0
+        for k in range(n_tab):
+            cell[k] = max(cell[k], floor)
+            acc += cell[k] * dt
+            cdf[k] = acc
+        total = cdf[n_tab - 1]
+        u = r1[i] * total
+        k = 0
+        for j in range(n_tab):
+            if cdf[j] < u:
+                k += 1
+        k = min(k, n_tab - 1)
+        lo = cdf[k - 1] if k > 0 else 0.0
+        frac = (u - lo) / (cell[k] * dt)
+        t = (k + min(max(frac, 0.0), 1.0)) * dt
+        pdf_t = cell[k] / total
+        ct, st = np.cos(t), np.sin(t)
+        hw = _half_width(ct, st, stu, ctu, c_s)
+        phi = phi_u + (2.0 * r2[i] - 1.0) * hw
+        cp, sp = np.cos(phi), np.sin(phi)
+        m0 = ct * a0 + st * (cp * e10 + sp * e20)
+        m1 = ct * a1 + st * (cp * e11 + sp * e21)
+        m2 = ct * a2 + st * (cp * e12 + sp * e22)
+        w0 = earth[0] + R * m0 - xs[i, 0]
+        w1 = earth[1] + R * m1 - xs[i, 1]
+        w2 = earth[2] + R * m2 - xs[i, 2]
+        r = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        dirs[i, 0], dirs[i, 1], dirs[i, 2] = w0 / r, w1 / r, w2 / r
+        weight[i] = _jac_t(ct, st, d, R) * 2.0 * hw / pdf_t if hw > 0 else 0.0
+
+
+def _half_width(ct, st, stu, ctu, c_s):
+    """Half-width of the lit arc of the ring at polar angle t (cos t, sin t) about the sample."""
+    den = st * stu
+    num = c_s - ct * ctu
+    if abs(den) > 1e-300:
+        q = num / den
+    else:
+        q = -np.inf if num < 0 else np.inf
+    return np.arccos(min(max(q, -1.0), 1.0))
+
+
+def _jac_t(ct, st, d, R):
+    """dΩ/(dt dφ) seen from distance d of the sphere point at polar angle t (cos t, sin t)."""
+    r2 = d * d + R * R - 2.0 * d * R * ct
+    return max(d * ct - R, 0.0) * R * R * st / (r2 * np.sqrt(r2))
+
+
 def _jit(fn, **kw):
     """``numba.njit`` with an on-disk cache where one can be written (the package folder or
     numba's user cache), else without: a read-only install must not stop lunarviz."""
@@ -336,6 +418,9 @@ if _NUMBA:
         _live_beams = _jit(_live_beams, nogil=True)
         _ray_starts = _jit(_ray_starts, nogil=True)
         _ray_batch32 = _jit(_ray_batch32, nogil=True)
+        _half_width = _jit(_half_width, inline="always")
+        _jac_t = _jit(_jac_t, inline="always")
+        _earth_lit_dirs = _jit(_earth_lit_dirs, nogil=True)
     except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
         _NUMBA = False
 
@@ -490,6 +575,19 @@ def ray_batch32(o, d, t0, idx):
     return o32, d32
 
 
+def earth_lit_directions(xs, earth, R: float, sun_dir, c_s: float, n_tab: int, r1, r2):
+    """Compiled ``TraceScene._earth_lit_directions`` given its two uniforms per sample
+    (``r1`` picks the polar angle, ``r2`` the azimuth); ``None`` where numba is off."""
+    if not _NUMBA:
+        return None
+    N = len(xs)
+    dirs, weight = np.empty((N, 3)), np.empty(N)
+    f = np.ascontiguousarray
+    _earth_lit_dirs(f(xs, dtype=float), f(earth, dtype=float), float(R), f(sun_dir, dtype=float), float(c_s),
+                    int(n_tab), f(r1, dtype=float), f(r2, dtype=float), dirs, weight)
+    return dirs, weight
+
+
 def warm_up() -> None:
     """Load (or compile) every kernel once on tiny inputs, e.g. before forking workers."""
     if not _NUMBA:
@@ -504,3 +602,4 @@ def warm_up() -> None:
     live_beams(x, x, np.ones((1, 1, 3)), one, one)
     ray_starts(x, np.array([[0.0, 0.0, -1.0]]), np.zeros(3), 1.0)
     ray_batch32(x, x, np.zeros(1), np.zeros(1, np.int64))
+    earth_lit_directions(x, np.zeros(3), 1.0, np.array([1.0, 0.0, 0.0]), 0.01, 4, np.ones(1) * 0.5, np.ones(1) * 0.5)

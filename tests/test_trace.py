@@ -295,3 +295,12 @@ def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
         assert a.mean == b.mean and a.mean_unit == b.mean_unit
         for k in a.facets:
             np.testing.assert_array_equal(a.facets[k], b.facets[k])
+    # Monte Carlo: chunk i draws from its own generator (seed, run, path, i), so the numbers
+    # do not depend on the threads either
+    mc = {}
+    for threads in (1, 2):
+        ts = E.TraceScene(Scene(100.0), E.TraceSettings(estimator="montecarlo", rays=1000, runs=2, seed=4,
+                                                        threads=threads, moon_mesh=str(path)))
+        mc[threads] = [E.trace_path(ts, p, models) for p in ("moonshine", "earthshine")]
+    for a, b in zip(mc[1], mc[2]):
+        assert a.mean == b.mean and a.std == b.std and a.run_values == b.run_values

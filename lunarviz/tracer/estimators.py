@@ -681,27 +681,7 @@ class TraceScene:
             return out
 
         starts = list(range(0, len(x_all), CHUNK))
-        threads = self.moon.threads
-        if threads <= 1 or len(starts) <= 1:
-            for a in starts:
-                yield from chunk(a)
-            return
-        from collections import deque
-        from concurrent.futures import ThreadPoolExecutor
-
-        from .bodies import serial_embree
-
-        def job(a):
-            with serial_embree():  # the chunks share the cores; Embree calls are not split again
-                return chunk(a)
-        with ThreadPoolExecutor(threads) as ex:
-            ahead = deque()
-            for a in starts:
-                ahead.append(ex.submit(job, a))
-                if len(ahead) > threads:  # bounded: at most threads + 1 chunks in memory
-                    yield from ahead.popleft().result()
-            while ahead:
-                yield from ahead.popleft().result()
+        yield from self._chunks_in_order(lambda i: chunk(starts[i]), len(starts))
 
     def _warm_shared(self, body: str) -> None:
         """Fill the scene's lazy caches before chunks are traced on several threads."""
@@ -884,15 +864,46 @@ class TraceScene:
                          mu=mu, geom=geom, e_beam_free=beams(Lb_free),
                          e_beam_unit=None if lu is None else beams(lu))
 
-    def montecarlo_transport(self, body: str, rng: np.random.Generator):
+    def montecarlo_transport(self, body: str, key):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
-        samples; each sample's weight already carries the 1/N of the estimator."""
+        samples; each sample's weight already carries the 1/N of the estimator.
+
+        Chunk i draws from its own generator, ``default_rng([*key, i])`` (``key`` = seed, run,
+        path), so the chunks are independent of each other and of the thread count: with
+        ``threads`` > 1 they are traced on that many threads, in order, with the same numbers."""
         s = self.settings
-        done = 0
-        while done < s.rays:
-            n = min(CHUNK, s.rays - done)
-            yield self._montecarlo_chunk(body, rng, n, s.rays)
-            done += n
+        sizes = [min(CHUNK, s.rays - a) for a in range(0, s.rays, CHUNK)]
+        self._warm_shared(body)
+        self.candidates(body)  # memoised here, before any thread asks
+
+        def chunk(i):
+            return [self._montecarlo_chunk(body, np.random.default_rng([*key, i]), sizes[i], s.rays)]
+        yield from self._chunks_in_order(chunk, len(sizes))
+
+    def _chunks_in_order(self, chunk, n: int):
+        """``chunk(0), chunk(1), …`` (each a list of ``(Transport, owner)``), flattened in order;
+        on ``threads`` threads a few ahead of the consumer when there are several."""
+        threads = self.moon.threads
+        if threads <= 1 or n <= 1:
+            for i in range(n):
+                yield from chunk(i)
+            return
+        from collections import deque
+        from concurrent.futures import ThreadPoolExecutor
+
+        from .bodies import serial_embree
+
+        def job(i):
+            with serial_embree():  # the chunks share the cores; Embree calls are not split again
+                return chunk(i)
+        with ThreadPoolExecutor(threads) as ex:
+            ahead = deque()
+            for i in range(n):
+                ahead.append(ex.submit(job, i))
+                if len(ahead) > threads:  # bounded: at most threads + 1 chunks in memory
+                    yield from ahead.popleft().result()
+            while ahead:
+                yield from ahead.popleft().result()
 
     def _montecarlo_chunk(self, body: str, rng: np.random.Generator, N: int, N_total: int):
         sc = self.scene
@@ -985,12 +996,15 @@ class TraceScene:
         sc = self.scene
         N = len(xs)
         R = sc.radii["earth"]
+        from .. import kernels
+        us = unit(sc.sun - sc.earth)
+        c_s = R / np.linalg.norm(sc.sun - sc.earth)
+        if kernels.available():  # compiled, the same two uniforms per sample in the same order
+            return kernels.earth_lit_directions(xs, sc.earth, R, us, c_s, n_tab, rng.random(N), rng.random(N))
         v = xs - sc.earth
         d = np.linalg.norm(v, axis=1)
         a = v / d[:, None]
         e1, e2 = orthonormal_basis(a)
-        us = unit(sc.sun - sc.earth)
-        c_s = R / np.linalg.norm(sc.sun - sc.earth)
         ctu = a @ us
         stu = np.sqrt(np.clip(1 - ctu**2, 0, None))
         phi_u = np.arctan2(e2 @ us, e1 @ us)
@@ -1069,8 +1083,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
         if s.estimator == "deterministic":
             chunks = ts.deterministic_transport(body)
         else:
-            rng = np.random.default_rng([s.seed, run, 0 if path == "moonshine" else 1])
-            chunks = ts.montecarlo_transport(body, rng)
+            chunks = ts.montecarlo_transport(body, [s.seed, run, 0 if path == "moonshine" else 1])
         tot = {k: 0.0 for k in brdfs}
         tot_unit = {k: 0.0 for k in brdfs}
         sq = {k: 0.0 for k in brdfs}
