@@ -57,7 +57,7 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
     ``sun_visibility`` (the Moon's shadow) and ``earthshine_beam_hits``; Sun facets
     ``moonshine_beam_hits``.
     """
-    from .tracer.estimators import TraceScene, trace_path
+    from .tracer.estimators import FACET_BLOCK, TraceScene, trace_path
     brdf_name = brdf_name or settings.brdfs[0]
     models = settings.brdf_models()
     sc, fields = settings.scene_and_fields(theta)
@@ -80,14 +80,6 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
     for path, name in (("moonshine", "solar_lit_fraction"), ("earthshine", "earth_lit_fraction")):
         lit, free = f[f"{path}_lit_sum"], f[f"{path}_free_sum"]
         cd[name] = np.where(free > 0, lit / np.where(free > 0, free, 1), 0.0)
-    x = M.centroids
-    n = M.normals_for(ts.settings.shading)
-    s_dir, e_dir, o_dir = unit(sc.sun - x), unit(sc.earth - x), unit(sc.det - x)
-    cd["incidence_deg"] = np.degrees(angle_between(n, s_dir))
-    cd["emission_deg"] = np.degrees(angle_between(n, o_dir))
-    cd["phase_deg"] = np.degrees(angle_between(s_dir, o_dir))
-    cd["earth_incidence_deg"] = np.degrees(angle_between(n, e_dir))
-    cd["earth_phase_deg"] = np.degrees(angle_between(e_dir, o_dir))
     model = models[brdf_name]
     amap, values = ts.settings.moon_map(), ts.moon_facet_albedo()
     if values is None:
@@ -97,14 +89,32 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
         from .surfaces import map_scale
         alb = values * map_scale(amap.absolute, model)
         cd["albedo_parameter"] = alb
-    mu0 = np.clip(np.einsum("ij,ij->i", n, s_dir), 0, 1)
-    mu = np.clip(np.einsum("ij,ij->i", n, o_dir), 0, 1)
-    sh, ch = half_angle_sin_cos(s_dir, o_dir)
-    cd["brdf_per_sr"] = np.where((mu0 > 0) & (mu > 0), model.brdf(mu0, mu, sh, ch, albedo=alb), 0.0)
+    # per-facet geometry and BRDF, in blocks of facets (a few dozen (F, 3) temporaries took
+    # 1 GB at 5 M facets, issue 13)
+    names = ("incidence_deg", "emission_deg", "phase_deg", "earth_incidence_deg", "earth_phase_deg",
+             "brdf_per_sr", "earth_brdf_per_sr")
+    for name in names:
+        cd[name] = np.empty(M.n_faces)
+    normals = M.normals_for(ts.settings.shading)
+    for a in range(0, M.n_faces, FACET_BLOCK):
+        b = slice(a, min(M.n_faces, a + FACET_BLOCK))
+        x = M.centroids_local[b] + M.centre
+        n = normals[b]
+        s_dir, e_dir, o_dir = unit(sc.sun - x), unit(sc.earth - x), unit(sc.det - x)
+        cd["incidence_deg"][b] = np.degrees(angle_between(n, s_dir))
+        cd["emission_deg"][b] = np.degrees(angle_between(n, o_dir))
+        cd["phase_deg"][b] = np.degrees(angle_between(s_dir, o_dir))
+        cd["earth_incidence_deg"][b] = np.degrees(angle_between(n, e_dir))
+        cd["earth_phase_deg"][b] = np.degrees(angle_between(e_dir, o_dir))
+        ab = None if alb is None else alb[b]
+        mu0 = np.clip(np.einsum("ij,ij->i", n, s_dir), 0, 1)
+        mu = np.clip(np.einsum("ij,ij->i", n, o_dir), 0, 1)
+        sh, ch = half_angle_sin_cos(s_dir, o_dir)
+        cd["brdf_per_sr"][b] = np.where((mu0 > 0) & (mu > 0), model.brdf(mu0, mu, sh, ch, albedo=ab), 0.0)
+        mu0e = np.clip(np.einsum("ij,ij->i", n, e_dir), 0, 1)
+        she, che = half_angle_sin_cos(e_dir, o_dir)
+        cd["earth_brdf_per_sr"][b] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che, albedo=ab), 0.0)
     cd["reflectance_factor"] = np.pi * cd["brdf_per_sr"]
-    mu0e = np.clip(np.einsum("ij,ij->i", n, e_dir), 0, 1)
-    she, che = half_angle_sin_cos(e_dir, o_dir)
-    cd["earth_brdf_per_sr"] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che, albedo=alb), 0.0)
     totals = {"moonshine_W_m2": ms.mean[brdf_name], "earthshine_W_m2": es.mean[brdf_name],
               "rays": ms.rays + es.rays, "seconds": ms.seconds + es.seconds}
     for k in models:

@@ -400,6 +400,7 @@ def _jac_t(ct, st, d, R):
 def _jit(fn, **kw):
     """``numba.njit`` with an on-disk cache where one can be written (the package folder or
     numba's user cache), else without: a read-only install must not stop lunarviz."""
+    kw.setdefault("error_model", "numpy")  # x/0 gives inf/NaN as in numpy, never raises
     try:
         return numba.njit(cache=True, **kw)(fn)
     except Exception:  # noqa: BLE001 (numba raises RuntimeError "no locator available")

@@ -159,13 +159,24 @@ def volume_and_centroid(vertices: np.ndarray, faces: np.ndarray) -> tuple[float,
 
 
 def body_count(faces: np.ndarray, n_vertices: int) -> int:
-    """Connected parts of the mesh (through shared vertices; every vertex referenced)."""
+    """Connected parts of a watertight mesh, faces joined through shared *edges*: two closed
+    surfaces that touch at a single vertex are two bodies (trimesh, joining through vertices,
+    counts one; such a pinched pair is not one closed surface, and its convexity test would
+    pass). Faces of a mesh that is not watertight count through every shared edge."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
-    f = np.asarray(faces)
-    rows = np.concatenate([f[:, 0], f[:, 1]]).astype(np.int32)
-    cols = np.concatenate([f[:, 1], f[:, 2]]).astype(np.int32)
-    g = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n_vertices, n_vertices))
+    f = np.asarray(faces, dtype=np.int64)
+    a = f.reshape(-1)
+    b = f[:, [1, 2, 0]].reshape(-1)
+    key = np.minimum(a, b) * np.int64(n_vertices) + np.maximum(a, b)
+    del a, b
+    order = np.argsort(key, kind="stable")
+    same = np.flatnonzero(key[order][1:] == key[order][:-1])  # consecutive corners on one edge
+    del key
+    f1, f2 = (order[same] // 3).astype(np.int32), (order[same + 1] // 3).astype(np.int32)
+    del order, same
+    F = len(f)
+    g = coo_matrix((np.ones(len(f1), dtype=np.int8), (f1, f2)), shape=(F, F))
     return int(connected_components(g, directed=False, return_labels=False))
 
 
@@ -244,7 +255,8 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     v, f = np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
     parts = body_count(f, len(v))
     if parts != 1:
-        raise MeshError(f"{name}: {parts} disconnected parts; a body must be one closed surface")
+        raise MeshError(f"{name}: {parts} disconnected parts (joined at most at single vertices); a body must be "
+                        f"one closed surface")
     com = volume_and_centroid(v, f)[1] * factor
     v = v * factor
     radius_about_com = float(np.mean(np.linalg.norm(v - com, axis=1)))

@@ -208,7 +208,9 @@ class SweepSettings:
                                 earth_law=self.earth_law, earth_albedo=self.earth_albedo,
                                 surfaces=self.surfaces(model_earth))
 
-    def trace_settings(self):
+    def trace_settings(self, threads: int | None = None):
+        """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
+        over several worker processes pass 1). Results do not depend on it."""
         from .meshes import DEFAULT_LEVELS
         from .tracer.estimators import TraceSettings
         return TraceSettings(
@@ -218,7 +220,7 @@ class SweepSettings:
             sun_level=DEFAULT_LEVELS["sun"] if self.sun_level is None else self.sun_level,
             sun_order=self.sun_order, earth_order=self.earth_order, rays=self.rays,
             runs=self.runs, seed=self.seed, occlusion=self.occlusion, self_shadow=self.self_shadow,
-            shading=self.shading, earth_albedo=self.earth_albedo, threads=1, moon_mesh=self.moon_mesh,
+            shading=self.shading, earth_albedo=self.earth_albedo, threads=threads, moon_mesh=self.moon_mesh,
             earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units,
             moon_albedo_map=self.moon_albedo_map, earth_surface=self.earth_surface, clouds=self.clouds,
             land_albedo=self.land_albedo, ocean_albedo=self.ocean_albedo, cloud_albedo=self.cloud_albedo,
@@ -255,9 +257,9 @@ class SweepSettings:
         return d
 
 
-def run_phase(settings: SweepSettings, key) -> list[dict]:
+def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[dict]:
     """All rows (one per BRDF) for one task: a phase θ [deg], or a UTC time with ``times``.
-    Pure function of its arguments."""
+    Pure function of its arguments (``threads``, the trace's threads, changes no number)."""
     sc, fields = settings.scene_and_fields(key)
     brdfs = settings.brdf_models()
     base = {**fields, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
@@ -300,7 +302,7 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
                                                          pt.moonshine_W_m2, a0)})
     else:
         from .tracer.estimators import TraceScene, trace_path
-        ts_set = settings.trace_settings()
+        ts_set = settings.trace_settings(threads)
         ts = TraceScene(sc, ts_set)
         ms = trace_path(ts, "moonshine", brdfs)
         es = trace_path(ts, "earthshine", brdfs)
@@ -354,7 +356,7 @@ def run_phase(settings: SweepSettings, key) -> list[dict]:
 
 
 def _run_phase_star(args):
-    return run_phase(*args)
+    return run_phase(*args, threads=1)  # one of several worker processes: one thread each
 
 
 def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
@@ -411,7 +413,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
     if executor == "dask":
         client, cluster = _dask_client(scheduler, workers)
         try:
-            futures = client.map(run_phase, [settings] * len(phases), phases, pure=False)
+            futures = client.map(run_phase, [settings] * len(phases), phases, threads=1, pure=False)
             results = client.gather(futures)
         finally:
             client.close()
@@ -437,7 +439,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
         # worker is left with one at the end; rows come back in the sweep's order
         order = list(range(len(phases)))
         if not settings.times:
-            order.sort(key=lambda i: -abs(float(phases[i])))
+            order.sort(key=lambda i: abs(float(phases[i]) - 180.0))  # (θ in [0, 360]: both crescents)
         results = [None] * len(phases)
         with ProcessPoolExecutor(workers) as ex:
             for i, res in zip(order, ex.map(_run_phase_star, [(settings, phases[i]) for i in order])):

@@ -45,11 +45,16 @@ def issue13_section() -> list:
         big = max(rows, key=lambda r: r["facets"])
         met_s, met_m = big["trace_seconds"] <= 60, big["peak_rss_GB"] <= 4
         L.append(f"| 5 M-facet Moon, one phase, both paths ≤ 60 s, ≤ 4 GB | largest run {big['facets']:,} facets: "
-                 f"{big['trace_seconds']:.0f} s, {big['peak_rss_GB']:.2f} GB peak RSS of the run (reading and checking "
+                 f"{big['trace_seconds']:.0f} s, {big['peak_rss_GB']:.2f} GiB peak RSS of the run (reading and checking "
                  f"the mesh file included; `python scripts/scale.py`) | "
                  f"{'yes' if met_s and met_m else 'memory yes, time no' if met_m else 'time yes, memory no' if met_s else 'no'} |")
     else:
         L.append("| 5 M-facet Moon, one phase, both paths ≤ 60 s, ≤ 4 GB | not measured | no |")
+    mc = th.get("montecarlo_phase")
+    if mc:
+        L.append(f"| Monte Carlo, paper's 0.2 % per phase ≤ 0.2 s | {mc['seconds_per_phase']:.3f} s (θ = 90°, three BRDFs; "
+                 f"moonshine {mc['moonshine']['rays']:,} rays, earthshine {mc['earthshine']['rays']:,} rays, default "
+                 f"threads) | {'yes' if mc['met'] else 'no'} |")
     d = B / "dask_overhead.json"
     if d.exists():
         dj = json.loads(d.read_text())
@@ -60,7 +65,7 @@ def issue13_section() -> list:
         L += ["", "Run time and peak memory against the Moon's facets (cratered Moon, θ = 90°, both paths, DHG, "
               f"`{sj['command']}`; each run in a fresh process that reads the mesh file; the mesh is built "
               "beforehand in another):", "",
-              "| facets | run [s] | of which reading + checking the mesh [s] | peak RSS [GB] | rays | "
+              "| facets | run [s] | of which reading + checking the mesh [s] | peak RSS [GiB] | rays | "
               "moonshine [W/m²] | earthshine [W/m²] |", "| --- | --- | --- | --- | --- | --- | --- |"]
         for r in sj["rows"]:
             if r["returncode"] == 0:
@@ -110,7 +115,9 @@ def main():
         L.append(f"| `lunarviz render` from a cold start < 60 s | {rd['cold_start_render_seconds']:.1f} s | "
                  f"{'yes' if rd['cold_start_render_seconds'] < 60 else 'no'} |")
     L += issue13_section()
-    L += ["", "## Throughput (θ = 90°, occlusion on, 3 BRDFs, same rays)", "",
+    L += ["", "## Throughput before the compiled kernels (θ = 90°, occlusion on, 3 BRDFs, same rays)", "",
+          "From `bench.json`, the last full `bash scripts/run_benchmarks.sh`, before issue 13's kernels: kept for",
+          "the record; the issue-13 table above is current.", "",
           f"* {t['rays_sent_to_embree']:,} rays sent to Embree: end-to-end {t['rays_sent_to_embree'] / t['end_to_end_seconds_1_thread']:.3g} "
           f"rays/s; raw embreex on the very same float32 rays: {t['raw_embree_rays_per_s']:.3g} rays/s; ratio "
           f"{t['raw_embree_seconds_1_thread'] / t['end_to_end_seconds_1_thread']:.2f} (bench.json's older "

@@ -105,8 +105,8 @@ def main(argv=None) -> int:
     res = {"command": command, "theta_deg": 90.0, "brdf": "dhg",
            "targets": {"facets": 5_000_000, "seconds": 60, "peak_rss_GB": 4}, "rows": rows,
            "note": "the mesh is built (and written) in one process; a fresh process then reads and checks it "
-                   "and traces one phase: peak_rss_GB and wall_seconds are that run's own (ru_maxrss of "
-                   "the process), load_seconds the reading and checking of the mesh within it"}
+                   "and traces one phase: peak_rss_GB (in GiB, 2**30 bytes) and wall_seconds are that run's own "
+                   "(ru_maxrss of the process), load_seconds the reading and checking of the mesh within it"}
     (out / "scale.json").write_text(json.dumps(res, indent=1) + "\n")
     import matplotlib
     matplotlib.use("Agg")
@@ -114,7 +114,7 @@ def main(argv=None) -> int:
     ok = [r for r in rows if r["returncode"] == 0]
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     ax.loglog([r["facets"] for r in ok], [r["trace_seconds"] for r in ok], "o-", label="trace [s]")
-    ax.loglog([r["facets"] for r in ok], [r["peak_rss_GB"] or float("nan") for r in ok], "s-", label="peak RSS [GB]")
+    ax.loglog([r["facets"] for r in ok], [r["peak_rss_GB"] or float("nan") for r in ok], "s-", label="peak RSS [GiB]")
     ax.axvline(5e6, color="gray", ls=":")
     ax.axhline(60, color="C0", ls=":", lw=0.8)
     ax.axhline(4, color="C1", ls=":", lw=0.8)

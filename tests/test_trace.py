@@ -217,6 +217,16 @@ def test_lean_mesh_checks_agree_with_trimesh(block, monkeypatch):
         if watertight:  # (winding is judged only on closed meshes; trimesh and we differ on open ones)
             assert consistent == ref.is_winding_consistent, name
         assert body_count(ff, len(vv)) == ref.body_count, name
+    # two spheres touching at one vertex: one part for trimesh (joined through vertices), two
+    # closed surfaces for us (joined through edges), so a pinched Moon is refused (review)
+    k = int(np.argmax(v[:, 0]))
+    w = v + [2.0, 0.0, 0.0]  # a copy whose -x pole sits on the first sphere's +x pole v[k]
+    j = int(np.argmin(w[:, 0]))
+    assert np.allclose(w[j], v[k])
+    verts = np.vstack([v, w])
+    faces2 = f + len(v)
+    faces2[faces2 == j + len(v)] = k
+    assert body_count(np.vstack([f, faces2]), len(verts)) == 2
     dented = v.copy()
     dented[0] *= 0.9
     box = trimesh.creation.box()

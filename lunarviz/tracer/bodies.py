@@ -354,6 +354,16 @@ class EmbreeBody:
 
 
 _GEOMETRY_CACHE: dict = {}
+
+
+def release_caches() -> None:
+    """Drop every cached body geometry, Embree scene and loaded mesh (their memory returns once
+    nothing else holds them): for one-shot commands that go on to write large outputs."""
+    _GEOMETRY_CACHE.clear()
+    from .estimators import body_mesh_m
+    body_mesh_m.cache_clear()
+    import gc
+    gc.collect()
 #: body geometries kept (insertion-ordered; the oldest is dropped first)
 GEOMETRY_CACHE_SIZE = 6
 

@@ -900,7 +900,7 @@ class TraceScene:
             ahead = deque()
             for i in range(n):
                 ahead.append(ex.submit(job, i))
-                if len(ahead) > threads:  # bounded: at most threads + 1 chunks in memory
+                if len(ahead) > threads:  # bounded: ≤ threads + 2 chunks in memory (one being consumed)
                     yield from ahead.popleft().result()
             while ahead:
                 yield from ahead.popleft().result()
