@@ -874,7 +874,7 @@ class TraceScene:
         s = self.settings
         sizes = [min(CHUNK, s.rays - a) for a in range(0, s.rays, CHUNK)]
         self._warm_shared(body)
-        self.candidates(body)  # memoised here, before any thread asks
+        self._facet_pdf(body)  # memoised here (with the candidates), before any thread asks
 
         def chunk(i):
             return [self._montecarlo_chunk(body, np.random.default_rng([*key, i]), sizes[i], s.rays)]
@@ -905,14 +905,17 @@ class TraceScene:
             while ahead:
                 yield from ahead.popleft().result()
 
-    def _montecarlo_chunk(self, body: str, rng: np.random.Generator, N: int, N_total: int):
+    def _facet_pdf(self, body: str):
+        """Candidate facets, their areas and the probability of drawing each (memoised per
+        body: every Monte Carlo chunk draws from the same distribution)."""
+        key = ("pdf", body)
+        if key in self._cand_cache:
+            return self._cand_cache[key]
         sc = self.scene
-        s = self.settings
         M = self.moon
-        c, R, src = self._source(body)
+        c, R, _ = self._source(body)
         cand = self.candidates(body)
-        mode = M.mode(s.shading)
-        x, n = (a[cand] for a in M.facet_points(s.shading))
+        x, n = (a[cand] for a in M.facet_points(self.settings.shading))
         dA = M.areas[cand]
         _, g0, _ = detector_geometry(x, n, dA, sc.det, sc.det_normal)
         v = c - x
@@ -928,6 +931,15 @@ class TraceScene:
             p = p + (1 - UNIFORM_SHARE) * proxy / proxy.sum()
         else:
             p = p / UNIFORM_SHARE
+        self._cand_cache[key] = (cand, dA, p)
+        return cand, dA, p
+
+    def _montecarlo_chunk(self, body: str, rng: np.random.Generator, N: int, N_total: int):
+        s = self.settings
+        M = self.moon
+        c, R, src = self._source(body)
+        cand, dA, p = self._facet_pdf(body)
+        mode = M.mode(s.shading)
         pick = rng.choice(len(cand), size=N, p=p)
         f = cand[pick]
         # a uniform point in each picked flat triangle (then shaded per ``shading``)
