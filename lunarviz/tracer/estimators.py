@@ -505,7 +505,7 @@ class TraceScene:
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
             # than its cone rule (tests/test_trace.py checks the moonshine against the reference).
             o_s = max(order, PENUMBRA_ORDER) if body == "sun" else order
-            if body == "earth" and not with_horizon or body == "sun" and with_horizon:
+            if (body == "earth" and not with_horizon) or (body == "sun" and with_horizon):
                 # rules with one cap (compiled): the Earth's terminator where the horizon does not
                 # cut the Earth (nearly every lunar point), the horizon across the Sun (penumbra)
                 from ..kernels import sphere_cap_beams
@@ -658,7 +658,7 @@ class TraceScene:
         consumer: Embree and the compiled kernels release the GIL, so one chunk's Embree
         queries run while another's rules and beams are built (issue 13: "use both cores").
         The chunks and their order are the same for any thread count, so are the results,
-        bit for bit (tests/test_kernels.py)."""
+        bit for bit (tests/test_trace.py)."""
         s = self.settings
         x_all, n_all, dA_all, owner_all, alb_all = self.lunar_samples(body)
         self._warm_shared(body)
