@@ -278,7 +278,7 @@ def paper_sweep(out: Path, quick: bool) -> dict:
             "met_time": walls["1"] <= 10.0, "met_error": err <= 1e-4}
 
 
-def montecarlo_phase(target: float = 0.002) -> dict:
+def montecarlo_phase(target: float = 0.002, quick: bool = False) -> dict:
     """Issue 13's Monte Carlo target: the seconds one phase (θ = 90°, no occlusion, both paths,
     three BRDFs, one run each, default threads) takes at the paper's 0.2 % standard deviation per
     path. N per path from a pilot run (σ ∝ N^-1/2), then the best of three timed runs at that N
@@ -287,7 +287,8 @@ def montecarlo_phase(target: float = 0.002) -> dict:
     from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
     out = {"target_seconds": 0.2, "target_relative_std": target}
     total = 0.0
-    for path, pilot in (("moonshine", 10_000), ("earthshine", 100_000)):
+    for path, pilot in (("moonshine", 2_000), ("earthshine", 5_000)) if quick else \
+            (("moonshine", 10_000), ("earthshine", 100_000)):
         def run(n, seed):
             ts = TraceScene(Scene(90.0), TraceSettings(estimator="montecarlo", rays=n, occlusion=False, seed=seed))
             r = trace_path(ts, path, MODELS)
@@ -312,7 +313,8 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     res = {"command": "python scripts/throughput.py", "threads": 1, "brdfs": list(MODELS),
            "scenes": [measure(s, out, a.quick) for s in ("paper", "craters")],
-           "paper_sweep": paper_sweep(out, a.quick), "montecarlo_phase": montecarlo_phase()}
+           "paper_sweep": paper_sweep(out, a.quick),
+           "montecarlo_phase": montecarlo_phase(0.01 if a.quick else 0.002, a.quick)}
     (out / "throughput.json").write_text(json.dumps(res, indent=1) + "\n")
     for r in res["scenes"]:
         print(f"{r['scene']}: {r['rays_sent_to_embree']:,} rays to Embree; end-to-end {r['end_to_end_rays_per_s']:.3g}"
