@@ -135,6 +135,19 @@ def _sphere_refine(o, d, radius, prim, t_out, point_out, centre):
             prim[i] = -1
 
 
+def _basis(a0, a1, a2):
+    """:func:`lunarviz.sphere_quadrature.orthonormal_basis` for one unit axis: e1, e2 (six
+    components) completing it to a right-handed basis, with the same helper-vector choice."""
+    if abs(a0) < 0.9:
+        h0, h1, h2 = 1.0, 0.0, 0.0
+    else:
+        h0, h1, h2 = 0.0, 1.0, 0.0
+    e10, e11, e12 = a1 * h2 - a2 * h1, a2 * h0 - a0 * h2, a0 * h1 - a1 * h0
+    nrm = np.sqrt(e10 * e10 + e11 * e11 + e12 * e12)
+    e10, e11, e12 = e10 / nrm, e11 / nrm, e12 / nrm
+    return e10, e11, e12, a1 * e12 - a2 * e11, a2 * e10 - a0 * e12, a0 * e11 - a1 * e10
+
+
 def _sphere_cap_beams(x, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, nodes, wts, seg, nseg):
     """The sphere-surface rule of :func:`lunarviz.sphere_quadrature.cap_rule` for one
     constraint cap per row (``cus`` (B, 3), ``ccs`` (B,)), filled into
@@ -151,15 +164,7 @@ def _sphere_cap_beams(x, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, nodes, wts, seg
         dxc = np.sqrt(xc0 * xc0 + xc1 * xc1 + xc2 * xc2)
         a0, a1, a2 = xc0 / dxc, xc1 / dxc, xc2 / dxc
         cos_max = R / dxc
-        # orthonormal_basis
-        if abs(a0) < 0.9:
-            h0, h1, h2 = 1.0, 0.0, 0.0
-        else:
-            h0, h1, h2 = 0.0, 1.0, 0.0
-        e10, e11, e12 = a1 * h2 - a2 * h1, a2 * h0 - a0 * h2, a0 * h1 - a1 * h0
-        nrm = np.sqrt(e10 * e10 + e11 * e11 + e12 * e12)
-        e10, e11, e12 = e10 / nrm, e11 / nrm, e12 / nrm
-        e20, e21, e22 = a1 * e12 - a2 * e11, a2 * e10 - a0 * e12, a0 * e11 - a1 * e10
+        e10, e11, e12, e20, e21, e22 = _basis(a0, a1, a2)
         t_max = np.arccos(min(max(cos_max, -1.0), 1.0))
         cu = cus[i]
         cc = ccs[i]
@@ -327,14 +332,7 @@ def _earth_lit_dirs(xs, earth, R, us, c_s, n_tab, r1, r2, dirs, weight):
         v0, v1, v2 = xs[i, 0] - earth[0], xs[i, 1] - earth[1], xs[i, 2] - earth[2]
         d = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         a0, a1, a2 = v0 / d, v1 / d, v2 / d
-        if abs(a0) < 0.9:
-            h0, h1, h2 = 1.0, 0.0, 0.0
-        else:
-            h0, h1, h2 = 0.0, 1.0, 0.0
-        e10, e11, e12 = a1 * h2 - a2 * h1, a2 * h0 - a0 * h2, a0 * h1 - a1 * h0
-        nrm = np.sqrt(e10 * e10 + e11 * e11 + e12 * e12)
-        e10, e11, e12 = e10 / nrm, e11 / nrm, e12 / nrm
-        e20, e21, e22 = a1 * e12 - a2 * e11, a2 * e10 - a0 * e12, a0 * e11 - a1 * e10
+        e10, e11, e12, e20, e21, e22 = _basis(a0, a1, a2)
         ctu = a0 * us[0] + a1 * us[1] + a2 * us[2]
         stu = np.sqrt(max(1.0 - ctu * ctu, 0.0))
         phi_u = np.arctan2(e20 * us[0] + e21 * us[1] + e22 * us[2], e10 * us[0] + e11 * us[1] + e12 * us[2])
@@ -414,6 +412,7 @@ if _NUMBA:
         _beam_angles = _jit(_beam_angles, nogil=True)
         _sphere_refine = _jit(_sphere_refine, nogil=True)
         _hapke_sum = _jit(_hapke_sum, nogil=True)
+        _basis = _jit(_basis, inline="always")
         _sphere_cap_beams = _jit(_sphere_cap_beams, nogil=True)
         _compact_beams = _jit(_compact_beams, nogil=True)
         _live_beams = _jit(_live_beams, nogil=True)
