@@ -18,6 +18,7 @@ on disk (``cache=True``), so worker processes load it instead of compiling.
 from __future__ import annotations
 
 import os
+from typing import NamedTuple
 
 import numpy as np
 
@@ -97,6 +98,25 @@ def _hapke_sum(mu0, mu, sh, ch, e, e_unit, albedo, w0, h, B0, pcode, p1, p2, hco
         out_unit[i] = acc_u
 
 
+def _lambert_sum(mu0, e, e_unit, albedo, a0, has_unit, has_albedo, out, out_unit):
+    """Lambert's ``Σ_k (a/π)·clip(μ0)·E`` per sample (:meth:`lunarviz.brdf.Lambert.radiance_factor`),
+    and the same over ``e_unit``."""
+    n, k = mu0.shape
+    for i in range(n):
+        f = (albedo[i] if has_albedo else a0) / np.pi
+        acc = 0.0
+        acc_u = 0.0
+        for j in range(k):
+            ej = e[i, j]
+            eu = e_unit[i, j] if has_unit else 0.0
+            if ej == 0.0 and eu == 0.0:
+                continue
+            rf = f * min(max(mu0[i, j], 0.0), 1.0)
+            acc += rf * ej
+            acc_u += rf * eu
+        out[i] = acc
+        out_unit[i] = acc_u
+
 def _beam_angles(dirs, n, o, mu0_out, sh_out, ch_out):
     """μ0 = dirs·n and the half-angle sine and cosine between dirs and o, per beam
     (:func:`lunarviz.geometry.half_angle_sin_cos`: |a − b| = 2 sin(g/2), |a + b| = 2 cos(g/2))."""
@@ -148,131 +168,126 @@ def _basis(a0, a1, a2):
     return e10, e11, e12, a1 * e12 - a2 * e11, a2 * e10 - a0 * e12, a0 * e11 - a1 * e10
 
 
-def _sphere_cap_beams(x, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, nodes, wts, seg, nseg):
-    """The sphere-surface rule of :func:`lunarviz.sphere_quadrature.cap_rule` for one
-    constraint cap per row (``cus`` (B, 3), ``ccs`` (B,)), filled into
-    ``nodes`` (B, S·n_t·n_phi, 3) and ``wts``; ``seg`` (B, 4, 4) scratch: t_lo, t_hi, tangent
-    flags; ``nseg`` (B,) the non-empty segments. Same operations in the same order as the numpy
-    rule (tests/test_kernels.py compares them), one row at a time instead of (B, ...) arrays."""
-    B = x.shape[0]
-    n_t = gx_t.shape[0]
-    n_p = gx_p.shape[0]
-    S = nodes.shape[1] // (n_t * n_p)
+def _cap_row(x, i, c, R, cus, ccs, seg):
+    """Row i of the one-cap sphere rule of :func:`lunarviz.sphere_quadrature.cap_rule`: the
+    axis a from the sphere's centre to x, the basis e1, e2 about it, the cap's polar angle t_u and
+    azimuth φ_u, and the polar segments ``seg`` (4, 4): t_lo, t_hi and tangent flags, non-empty
+    ones first (returned: how many). Same operations in the same order as the numpy rule."""
     two_pi = 2.0 * np.pi
-    for i in range(B):
-        xc0, xc1, xc2 = x[i, 0] - c[0], x[i, 1] - c[1], x[i, 2] - c[2]
-        dxc = np.sqrt(xc0 * xc0 + xc1 * xc1 + xc2 * xc2)
-        a0, a1, a2 = xc0 / dxc, xc1 / dxc, xc2 / dxc
-        cos_max = R / dxc
-        e10, e11, e12, e20, e21, e22 = _basis(a0, a1, a2)
-        t_max = np.arccos(min(max(cos_max, -1.0), 1.0))
-        cu = cus[i]
-        cc = ccs[i]
-        ua = cu[0] * a0 + cu[1] * a1 + cu[2] * a2
-        u1 = cu[0] * e10 + cu[1] * e11 + cu[2] * e12
-        u2 = cu[0] * e20 + cu[1] * e21 + cu[2] * e22
-        t_u = np.arctan2(np.hypot(u1, u2), ua)
-        phi_u = np.arctan2(u2, u1)
-        ac = np.arccos(min(max(cc, -1.0), 1.0))
-        real = cc > -1.0 and cc < 1.0
-        pts = np.empty(5)
-        tan = np.zeros(5, dtype=np.bool_)
-        pts[0] = 0.0
-        pts[4] = t_max
-        cands = (abs(t_u - ac), t_u + ac, two_pi - t_u - ac)
-        for j in range(3):
-            v = min(max(cands[j], 0.0), t_max) if real else 0.0
-            pts[1 + j] = v
-            tan[1 + j] = v > 0.0 and v < t_max
-        # stable insertion sort (argsort kind="stable")
-        for j in range(1, 5):
-            pv, tv = pts[j], tan[j]
-            m = j - 1
-            while m >= 0 and pts[m] > pv:
-                pts[m + 1] = pts[m]
-                tan[m + 1] = tan[m]
-                m -= 1
-            pts[m + 1] = pv
-            tan[m + 1] = tv
-        # non-empty segments first, in order, then the empty ones (t_hi := t_lo)
-        q = 0
-        for j in range(4):
-            if pts[j + 1] > pts[j]:
-                seg[i, q, 0], seg[i, q, 1] = pts[j], pts[j + 1]
-                seg[i, q, 2], seg[i, q, 3] = 1.0 if tan[j] else 0.0, 1.0 if tan[j + 1] else 0.0
-                q += 1
-        nseg[i] = q
-        for j in range(4):
-            if not pts[j + 1] > pts[j]:
-                if q < 4:
-                    seg[i, q, 0], seg[i, q, 1] = pts[j], pts[j]
-                    seg[i, q, 2], seg[i, q, 3] = 1.0 if tan[j] else 0.0, 1.0 if tan[j + 1] else 0.0
-                q += 1
+    xc0, xc1, xc2 = x[i, 0] - c[0], x[i, 1] - c[1], x[i, 2] - c[2]
+    dxc = np.sqrt(xc0 * xc0 + xc1 * xc1 + xc2 * xc2)
+    a0, a1, a2 = xc0 / dxc, xc1 / dxc, xc2 / dxc
+    cos_max = R / dxc
+    e10, e11, e12, e20, e21, e22 = _basis(a0, a1, a2)
+    t_max = np.arccos(min(max(cos_max, -1.0), 1.0))
+    cu = cus[i]
+    cc = ccs[i]
+    ua = cu[0] * a0 + cu[1] * a1 + cu[2] * a2
+    u1 = cu[0] * e10 + cu[1] * e11 + cu[2] * e12
+    u2 = cu[0] * e20 + cu[1] * e21 + cu[2] * e22
+    t_u = np.arctan2(np.hypot(u1, u2), ua)
+    phi_u = np.arctan2(u2, u1)
+    ac = np.arccos(min(max(cc, -1.0), 1.0))
+    real = cc > -1.0 and cc < 1.0
+    pts = np.empty(5)
+    tan = np.zeros(5, dtype=np.bool_)
+    pts[0] = 0.0
+    pts[4] = t_max
+    cands = (abs(t_u - ac), t_u + ac, two_pi - t_u - ac)
+    for j in range(3):
+        v = min(max(cands[j], 0.0), t_max) if real else 0.0
+        pts[1 + j] = v
+        tan[1 + j] = v > 0.0 and v < t_max
+    # stable insertion sort (argsort kind="stable")
+    for j in range(1, 5):
+        pv, tv = pts[j], tan[j]
+        m = j - 1
+        while m >= 0 and pts[m] > pv:
+            pts[m + 1] = pts[m]
+            tan[m + 1] = tan[m]
+            m -= 1
+        pts[m + 1] = pv
+        tan[m + 1] = tv
+    q = 0  # the non-empty segments, in order (the empty ones carry zero weight)
+    for j in range(4):
+        if pts[j + 1] > pts[j]:
+            seg[q, 0], seg[q, 1] = pts[j], pts[j + 1]
+            seg[q, 2], seg[q, 3] = 1.0 if tan[j] else 0.0, 1.0 if tan[j + 1] else 0.0
+            q += 1
+    return a0, a1, a2, e10, e11, e12, e20, e21, e22, t_u, phi_u, cc, q
+
+
+def _cap_ring(seg, sgi, u, gw, stu, ctu, cc, phi_u):
+    """Polar node u of segment sgi: (sin t, cos t, its weight, φ_lo, φ_hi) (the ring's lit arc)."""
+    lo, hi = seg[sgi, 0], seg[sgi, 1]
+    s_lo, s_hi = seg[sgi, 2] > 0.5, seg[sgi, 3] > 0.5
+    if s_lo and s_hi:
+        f, jac = u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u)
+    elif s_lo:
+        f, jac = u * u, 2.0 * u
+    elif s_hi:
+        f, jac = 1.0 - (1.0 - u) ** 2, 2.0 * (1.0 - u)
+    else:
+        f, jac = u, 1.0
+    t = lo + (hi - lo) * f
+    wt = (hi - lo) * gw * jac * np.sin(t)
+    st, ct = np.sin(t), np.cos(t)
+    hw = _half_width(ct, st, stu, ctu, cc)
+    return st, ct, wt, phi_u - hw, phi_u + hw
+
+
+def _sphere_cap_count(x, c, R, cus, ccs, gx_t, gw_t, gw_p, counts):
+    """Beams with a positive weight per row of :func:`_sphere_cap_beams` (no azimuth trig)."""
+    seg = np.empty((4, 4))
+    for i in range(x.shape[0]):
+        a0, a1, a2, e10, e11, e12, e20, e21, e22, t_u, phi_u, cc, ns = _cap_row(x, i, c, R, cus, ccs, seg)
         stu, ctu = np.sin(t_u), np.cos(t_u)
-        col = 0
-        for sgi in range(S):
-            lo, hi = seg[i, sgi, 0], seg[i, sgi, 1]
-            if sgi >= nseg[i]:  # an empty segment: zero weights (numpy's nodes there are never used)
-                for m in range(n_t * n_p):
-                    wts[i, col] = 0.0
-                    nodes[i, col, 0], nodes[i, col, 1], nodes[i, col, 2] = a0, a1, a2
-                    col += 1
-                continue
-            s_lo, s_hi = seg[i, sgi, 2] > 0.5, seg[i, sgi, 3] > 0.5
-            for it in range(n_t):
-                u = gx_t[it]
-                if s_lo and s_hi:
-                    f, jac = u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u)
-                elif s_lo:
-                    f, jac = u * u, 2.0 * u
-                elif s_hi:
-                    f, jac = 1.0 - (1.0 - u) ** 2, 2.0 * (1.0 - u)
-                else:
-                    f, jac = u, 1.0
-                t = lo + (hi - lo) * f
-                wt = (hi - lo) * gw_t[it] * jac * np.sin(t)
-                st, ct = np.sin(t), np.cos(t)
-                den = st * stu
-                num = cc - ct * ctu
-                if abs(den) > 1e-300:
-                    qq = num / den
-                else:
-                    qq = -np.inf if num < 0 else np.inf
-                hw = np.arccos(min(max(qq, -1.0), 1.0))
-                p_lo, p_hi = phi_u - hw, phi_u + hw
-                for ip in range(n_p):
-                    phi = p_lo + (p_hi - p_lo) * gx_p[ip]
-                    wts[i, col] = wt * ((p_hi - p_lo) * gw_p[ip])
-                    sp, cp = np.sin(phi), np.cos(phi)
-                    nodes[i, col, 0] = ct * a0 + st * (cp * e10 + sp * e20)
-                    nodes[i, col, 1] = ct * a1 + st * (cp * e11 + sp * e21)
-                    nodes[i, col, 2] = ct * a2 + st * (cp * e12 + sp * e22)
-                    col += 1
-
-
-def _compact_beams(x, c, R, nodes, wts, kmax, om, omega):
-    """The non-zero-weight nodes of each row first (stable), then zero-weight ones up to
-    ``kmax``; as beams from x: unit directions ``om`` and solid angles ``omega``
-    (:func:`lunarviz.sources.source_beams`: dΩ = cos_y R² dω / r²)."""
-    B, M = wts.shape
-    for i in range(B):
         q = 0
-        for pas in range(2):
-            for m in range(M):
-                if q >= kmax:
-                    break
-                if (wts[i, m] > 0.0) != (pas == 0):
-                    continue
-                m0, m1, m2 = nodes[i, m, 0], nodes[i, m, 1], nodes[i, m, 2]
-                v0 = c[0] + R * m0 - x[i, 0]
-                v1 = c[1] + R * m1 - x[i, 1]
-                v2 = c[2] + R * m2 - x[i, 2]
-                r = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-                o0, o1, o2 = v0 / r, v1 / r, v2 / r
-                om[i, q, 0], om[i, q, 1], om[i, q, 2] = o0, o1, o2
-                cos_y = max(-(m0 * o0 + m1 * o1 + m2 * o2), 0.0)
-                omega[i, q] = cos_y * R * R * wts[i, m] / r ** 2
-                q += 1
+        for sgi in range(ns):
+            for it in range(gx_t.shape[0]):
+                st, ct, wt, p_lo, p_hi = _cap_ring(seg, sgi, gx_t[it], gw_t[it], stu, ctu, cc, phi_u)
+                for ip in range(gw_p.shape[0]):
+                    if wt * ((p_hi - p_lo) * gw_p[ip]) > 0.0:
+                        q += 1
+        counts[i] = q
+
+
+def _sphere_cap_beams(x, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, om, omega):
+    """The sphere-surface rule of :func:`lunarviz.sphere_quadrature.cap_rule` for one
+    constraint cap per row (``cus`` (B, 3), ``ccs`` (B,)), as beams from x
+    (:func:`lunarviz.sources.source_beams`: unit directions ``om`` (B, K, 3) and solid angles
+    dΩ = cos_y R² dω / r² ``omega``): the nodes of positive weight first, in the rule's order,
+    then padding (ω = 0, toward the centre). One row at a time instead of numpy's (B, ...)
+    arrays; tests/test_kernels.py compares the two."""
+    K = omega.shape[1]
+    seg = np.empty((4, 4))
+    for i in range(x.shape[0]):
+        a0, a1, a2, e10, e11, e12, e20, e21, e22, t_u, phi_u, cc, ns = _cap_row(x, i, c, R, cus, ccs, seg)
+        stu, ctu = np.sin(t_u), np.cos(t_u)
+        q = 0
+        for sgi in range(ns):
+            for it in range(gx_t.shape[0]):
+                st, ct, wt, p_lo, p_hi = _cap_ring(seg, sgi, gx_t[it], gw_t[it], stu, ctu, cc, phi_u)
+                for ip in range(gx_p.shape[0]):
+                    w = wt * ((p_hi - p_lo) * gw_p[ip])
+                    if not w > 0.0:
+                        continue
+                    phi = p_lo + (p_hi - p_lo) * gx_p[ip]
+                    sp, cp = np.sin(phi), np.cos(phi)
+                    m0 = ct * a0 + st * (cp * e10 + sp * e20)
+                    m1 = ct * a1 + st * (cp * e11 + sp * e21)
+                    m2 = ct * a2 + st * (cp * e12 + sp * e22)
+                    v0 = c[0] + R * m0 - x[i, 0]
+                    v1 = c[1] + R * m1 - x[i, 1]
+                    v2 = c[2] + R * m2 - x[i, 2]
+                    r = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+                    o0, o1, o2 = v0 / r, v1 / r, v2 / r
+                    om[i, q, 0], om[i, q, 1], om[i, q, 2] = o0, o1, o2
+                    omega[i, q] = max(-(m0 * o0 + m1 * o1 + m2 * o2), 0.0) * R * R * w / r ** 2
+                    q += 1
+        for k in range(q, K):
+            om[i, k, 0], om[i, k, 1], om[i, k, 2] = -a0, -a1, -a2
+            omega[i, k] = 0.0
 
 
 def _live_beams(x, n, dirs, omega, mu0, bi, ki, xs, ns, ds):
@@ -395,6 +410,193 @@ def _jac_t(ct, st, d, R):
     return max(d * ct - R, 0.0) * R * R * st / (r2 * np.sqrt(r2))
 
 
+# ---- one compiled pass per stage between the Embree calls (TraceScene._fused_beam_transport) ----
+def _live_beam(i, q, d0, d1, d2, w, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki, ds, om_b, idx, o32, d32, m, p):
+    """Beam (i, q) of direction d and solid angle w: μ0 and the half phase angle
+    (:func:`_beam_angles`); if live (ω > 0, μ0 > 0) it becomes live beam m, and its ray from xo
+    (relative to the source's centre c) ray p if it meets the bounding sphere of radius Rb
+    (:func:`_ray_starts`, :func:`_ray_batch32`). Returns the new (m, p)."""
+    m0 = d0 * n[i, 0] + d1 * n[i, 1] + d2 * n[i, 2]
+    mu0[i, q] = m0
+    e0, e1, e2 = d0 - o[i, 0], d1 - o[i, 1], d2 - o[i, 2]
+    f0, f1, f2 = d0 + o[i, 0], d1 + o[i, 1], d2 + o[i, 2]
+    s2 = e0 * e0 + e1 * e1 + e2 * e2
+    c2 = f0 * f0 + f1 * f1 + f2 * f2
+    inv = 1.0 / np.sqrt(s2 + c2)
+    sh[i, q] = np.sqrt(s2) * inv
+    ch[i, q] = np.sqrt(c2) * inv
+    if not (w > 0.0 and m0 > 0.0):
+        return m, p
+    bi[m], ki[m] = i, q
+    ds[m, 0], ds[m, 1], ds[m, 2] = d0, d1, d2
+    om_b[m] = w
+    r0, r1, r2 = xo0 - c[0], xo1 - c[1], xo2 - c[2]
+    b = -(r0 * d0 + r1 * d1 + r2 * d2)
+    perp2 = (r0 * r0 + r1 * r1 + r2 * r2) - b * b
+    disc = Rb * Rb - perp2
+    sq = np.sqrt(max(disc, 0.0))
+    if disc > 0.0 and b + sq > 0.0:
+        t = max(b - sq, 0.0)
+        idx[p] = m
+        o32[p, 0], o32[p, 1], o32[p, 2] = r0 + t * d0, r1 + t * d1, r2 + t * d2
+        d32[p, 0], d32[p, 1], d32[p, 2] = d0, d1, d2
+        p += 1
+    return m + 1, p
+
+
+def _beam_rays(x, n, o, dirs, omega, off, c, Rb, mu0, sh, ch, bi, ki, ds, om_b, idx, o32, d32):
+    """Every beam of a (B, K) rule through :func:`_live_beam`, row-major like ``np.nonzero``;
+    origins ``x + n·off``. Returns (live beams, rays)."""
+    B, K = omega.shape
+    m = 0
+    p = 0
+    for i in range(B):
+        xo0, xo1, xo2 = x[i, 0] + n[i, 0] * off, x[i, 1] + n[i, 1] * off, x[i, 2] + n[i, 2] * off
+        for k in range(K):
+            m, p = _live_beam(i, k, dirs[i, k, 0], dirs[i, k, 1], dirs[i, k, 2], omega[i, k], n, o, xo0, xo1, xo2,
+                              c, Rb, mu0, sh, ch, bi, ki, ds, om_b, idx, o32, d32, m, p)
+    return m, p
+
+
+def _cap_beam_rays(x, n, o, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, off, Rb,
+                   mu0, sh, ch, bi, ki, ds, om_b, idx, o32, d32):
+    """:func:`_sphere_cap_beams` and :func:`_beam_rays` in one pass: each beam of the one-cap
+    rule goes straight to :func:`_live_beam`, without the (B, K, 3) directions in between."""
+    K = mu0.shape[1]
+    seg = np.empty((4, 4))
+    n_p = gx_p.shape[0]
+    sx = 2.0 * gx_p - 1.0
+    ca, sa = np.empty(n_p), np.empty(n_p)
+    m = 0
+    p = 0
+    for i in range(x.shape[0]):
+        a0, a1, a2, e10, e11, e12, e20, e21, e22, t_u, phi_u, cc, ns = _cap_row(x, i, c, R, cus, ccs, seg)
+        stu, ctu = np.sin(t_u), np.cos(t_u)
+        xo0, xo1, xo2 = x[i, 0] + n[i, 0] * off, x[i, 1] + n[i, 1] * off, x[i, 2] + n[i, 2] * off
+        cpu, spu = np.cos(phi_u), np.sin(phi_u)
+        q = 0
+        for sgi in range(ns):
+            for it in range(gx_t.shape[0]):
+                st, ct, wt, p_lo, p_hi = _cap_ring(seg, sgi, gx_t[it], gw_t[it], stu, ctu, cc, phi_u)
+                hw = 0.5 * (p_hi - p_lo)
+                for ip in range(n_p):
+                    w = wt * ((p_hi - p_lo) * gw_p[ip])
+                    if not w > 0.0:
+                        continue
+                    # φ = φ_u + α, α = hw·(2 x_ip − 1): the Gauss nodes are symmetric, so one
+                    # sin/cos serves the pair ±α (angle addition; the numpy rule takes sin φ, cos φ)
+                    j = ip if ip < n_p - 1 - ip else n_p - 1 - ip
+                    if ip == j:
+                        ca[j], sa[j] = np.cos(hw * sx[j]), np.sin(hw * sx[j])
+                    sal = sa[j] if ip == j else -sa[j]
+                    cp = cpu * ca[j] - spu * sal
+                    sp = spu * ca[j] + cpu * sal
+                    m0 = ct * a0 + st * (cp * e10 + sp * e20)
+                    m1 = ct * a1 + st * (cp * e11 + sp * e21)
+                    m2 = ct * a2 + st * (cp * e12 + sp * e22)
+                    v0 = c[0] + R * m0 - x[i, 0]
+                    v1 = c[1] + R * m1 - x[i, 1]
+                    v2 = c[2] + R * m2 - x[i, 2]
+                    inv_r = 1.0 / np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+                    d0, d1, d2 = v0 * inv_r, v1 * inv_r, v2 * inv_r
+                    wb = max(-(m0 * d0 + m1 * d1 + m2 * d2), 0.0) * R * R * w * (inv_r * inv_r)
+                    m, p = _live_beam(i, q, d0, d1, d2, wb, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki, ds,
+                                      om_b, idx, o32, d32, m, p)
+                    q += 1
+        for k in range(q, K):  # padding: no light, toward the centre
+            m, p = _live_beam(i, k, -a0, -a1, -a2, 0.0, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki, ds, om_b,
+                              idx, o32, d32, m, p)
+    return m, p
+
+
+def _source_hits(x, n, off, bi, ds, idx, prim_in, radius, centre, sun, phi, vis, albedo, has_vis, t_out, L, L_unit,
+                 is_earth, L_sun, counts):
+    """Embree's facets (``prim_in`` for the rays of live beams ``idx``) refined onto the exact
+    sphere (:func:`_sphere_refine`), then the radiance each beam brings: the Sun's surface
+    radiance ``L_sun``, or the Lambertian Earth lit by a point Sun
+    (:func:`lunarviz.sources.earth_radiance`) times the facet's sunlit fraction ``vis`` and its
+    albedo (``albedo`` per facet, or one value); ``counts`` the hits per facet."""
+    for q in range(bi.shape[0]):
+        t_out[q] = np.inf
+        L[q] = 0.0
+        L_unit[q] = 0.0
+    four_pi = 4.0 * np.pi
+    for j in range(idx.shape[0]):
+        pr = prim_in[j]
+        if pr < 0:
+            continue
+        q = idx[j]
+        i = bi[q]
+        o0 = x[i, 0] + n[i, 0] * off - centre[0]
+        o1 = x[i, 1] + n[i, 1] * off - centre[1]
+        o2 = x[i, 2] + n[i, 2] * off - centre[2]
+        d0, d1, d2 = ds[q, 0], ds[q, 1], ds[q, 2]
+        b = -(o0 * d0 + o1 * d1 + o2 * d2)
+        perp2 = o0 * o0 + o1 * o1 + o2 * o2 - b * b
+        disc = radius * radius - perp2
+        t = b - np.sqrt(max(disc, 0.0))
+        if not (disc > 0.0 and t > 0.0):
+            continue
+        t_out[q] = t
+        counts[pr] += 1
+        if not is_earth:
+            L[q] = L_sun
+            continue
+        y0 = o0 + t * d0 + centre[0]
+        y1 = o1 + t * d1 + centre[1]
+        y2 = o2 + t * d2 + centre[2]
+        m0, m1, m2 = (y0 - centre[0]) / radius, (y1 - centre[1]) / radius, (y2 - centre[2]) / radius
+        v0, v1, v2 = sun[0] - y0, sun[1] - y1, sun[2] - y2
+        dsun = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        mu_s = max((m0 * v0 + m1 * v1 + m2 * v2) / dsun, 0.0)
+        lu = 1.0 / np.pi * phi / (four_pi * dsun ** 2) * mu_s
+        if has_vis:
+            lu = lu * vis[pr]
+        L_unit[q] = lu
+        L[q] = lu * (albedo[pr] if albedo.shape[0] > 1 else albedo[0])
+
+
+def _occluder_rays(x, n, off, bi, ds, tmax, mask, centre, R, rows, o32, d32, dists):
+    """Shadow rays from ``x[bi] + n[bi]·off`` along ``ds`` up to ``tmax`` for the rows of
+    ``mask``, against a body's bounding sphere (centre, radius R): :func:`_ray_starts` (culling
+    rays that miss it or end before it) and :func:`_ray_batch32`, with Embree's float32
+    ``dists`` = tmax − t0. Returns how many rays were written."""
+    f32max = 3.4028234663852886e38
+    p = 0
+    for q in range(bi.shape[0]):
+        if not mask[q]:
+            continue
+        i = bi[q]
+        o0 = x[i, 0] + n[i, 0] * off - centre[0]
+        o1 = x[i, 1] + n[i, 1] * off - centre[1]
+        o2 = x[i, 2] + n[i, 2] * off - centre[2]
+        d0, d1, d2 = ds[q, 0], ds[q, 1], ds[q, 2]
+        b = -(o0 * d0 + o1 * d1 + o2 * d2)
+        perp2 = (o0 * o0 + o1 * o1 + o2 * o2) - b * b
+        disc = R * R - perp2
+        sq = np.sqrt(max(disc, 0.0))
+        t0 = max(b - sq, 0.0)
+        if not (disc > 0.0 and b + sq > 0.0 and t0 < tmax[q]):
+            continue
+        rows[p] = q
+        o32[p, 0], o32[p, 1], o32[p, 2] = o0 + t0 * d0, o1 + t0 * d1, o2 + t0 * d2
+        d32[p, 0], d32[p, 1], d32[p, 2] = d0, d1, d2
+        dists[p] = min(max(tmax[q] - t0, 0.0), f32max)
+        p += 1
+    return p
+
+
+def _scatter_beams(bi, ki, om_b, L, L_free, L_unit, has_unit, e, e_free, e_unit):
+    """(B, K) beam irradiances ``value·ω`` at the live beams (bi, ki); zero elsewhere."""
+    for q in range(bi.shape[0]):
+        i, k = bi[q], ki[q]
+        w = om_b[q]
+        e[i, k] = L[q] * w
+        e_free[i, k] = L_free[q] * w
+        if has_unit:
+            e_unit[i, k] = L_unit[q] * w
+
+
 def _jit(fn, **kw):
     """``numba.njit`` with an on-disk cache where one can be written (the package folder or
     numba's user cache), else without: a read-only install must not stop lunarviz."""
@@ -412,15 +614,24 @@ if _NUMBA:
         _beam_angles = _jit(_beam_angles, nogil=True)
         _sphere_refine = _jit(_sphere_refine, nogil=True)
         _hapke_sum = _jit(_hapke_sum, nogil=True)
+        _lambert_sum = _jit(_lambert_sum, nogil=True)
         _basis = _jit(_basis, inline="always")
+        _cap_row = _jit(_cap_row, inline="always")
+        _cap_ring = _jit(_cap_ring, inline="always")
+        _sphere_cap_count = _jit(_sphere_cap_count, nogil=True)
         _sphere_cap_beams = _jit(_sphere_cap_beams, nogil=True)
-        _compact_beams = _jit(_compact_beams, nogil=True)
         _live_beams = _jit(_live_beams, nogil=True)
         _ray_starts = _jit(_ray_starts, nogil=True)
         _ray_batch32 = _jit(_ray_batch32, nogil=True)
         _half_width = _jit(_half_width, inline="always")
         _jac_t = _jit(_jac_t, inline="always")
         _earth_lit_dirs = _jit(_earth_lit_dirs, nogil=True)
+        _live_beam = _jit(_live_beam, inline="always")
+        _beam_rays = _jit(_beam_rays, nogil=True)
+        _cap_beam_rays = _jit(_cap_beam_rays, nogil=True)
+        _source_hits = _jit(_source_hits, nogil=True)
+        _occluder_rays = _jit(_occluder_rays, nogil=True)
+        _scatter_beams = _jit(_scatter_beams, nogil=True)
     except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
         _NUMBA = False
 
@@ -455,6 +666,18 @@ def hapke_radiances(model, mu0, mu, sin_hg, cos_hg, e_beam, e_unit=None, albedo=
                out, out_u)
     return out, (out_u if e_unit is not None else None)
 
+
+def lambert_radiances(model, mu0, e_beam, e_unit=None, albedo=None):
+    """``(Σ_k rf·e_beam, Σ_k rf·e_unit or None)`` per sample for a :class:`lunarviz.brdf.Lambert`
+    ``model`` (compiled only); ``albedo`` (N,) replaces its albedo per sample."""
+    f = np.ascontiguousarray
+    n = mu0.shape[0]
+    out, out_u = np.empty(n), np.empty(n)
+    eu = f(e_unit, dtype=float) if e_unit is not None else np.zeros((1, 1))
+    al = f(albedo, dtype=float).reshape(-1) if albedo is not None else np.zeros(1)
+    _lambert_sum(f(mu0, dtype=float), f(e_beam, dtype=float), eu, al, float(model.albedo), e_unit is not None,
+                 albedo is not None, out, out_u)
+    return out, (out_u if e_unit is not None else None)
 
 def beam_angles(dirs, n, o):
     """``(μ0, sin(g/2), cos(g/2))`` (B, K) of beams ``dirs`` (B, K, 3) at points with normals
@@ -507,22 +730,15 @@ def sphere_cap_beams(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
     B = len(x)
     gx_t, gw_t = _gauss(n_t)
     gx_p, gw_p = _gauss(n_phi)
-    seg = np.zeros((B, 4, 4))
-    nseg = np.zeros(B, dtype=np.int64)
-    # segments: first pass with room for all four, then the rule is cut to the widest row
-    nodes = np.empty((B, 4 * n_t * n_phi, 3))
-    wts = np.empty((B, 4 * n_t * n_phi))
     c = np.asarray(c, dtype=float)
     cu = np.ascontiguousarray(np.broadcast_to(cap_u, (B, 3)), dtype=float)
     cc = np.ascontiguousarray(np.broadcast_to(cap_c, (B,)), dtype=float)
-    _sphere_cap_beams(x, c, float(R), cu, cc, gx_t, gw_t, gx_p, gw_p, nodes, wts, seg, nseg)
-    S = max(int(nseg.max(initial=0)), 1)
-    M = S * n_t * n_phi
-    nodes, wts = nodes[:, :M], wts[:, :M]
-    kmax = max(int((wts > 0).sum(1).max(initial=0)), 1)
+    counts = np.empty(B, np.int64)
+    _sphere_cap_count(x, c, float(R), cu, cc, gx_t, gw_t, gw_p, counts)
+    kmax = max(int(counts.max(initial=0)), 1)
     om = np.empty((B, kmax, 3))
     omega = np.empty((B, kmax))
-    _compact_beams(x, c, float(R), nodes, wts, kmax, om, omega)
+    _sphere_cap_beams(x, c, float(R), cu, cc, gx_t, gw_t, gx_p, gw_p, om, omega)
     return om, omega
 
 
@@ -575,6 +791,115 @@ def ray_batch32(o, d, t0, idx):
     return o32, d32
 
 
+class BeamRays(NamedTuple):
+    """The beams of a (B, K) rule at points x with normals n and their rays toward a source
+    (:func:`beam_rays`, :func:`cap_beam_rays`)."""
+    x: np.ndarray     # (B, 3) lunar points [m]
+    n: np.ndarray     # (B, 3) unit normals
+    off: float        # ray origins x + n·off [m]
+    mu0: np.ndarray   # (B, K) cos incidence of every beam
+    sin_hg: np.ndarray  # (B, K) sine of the half phase angle
+    cos_hg: np.ndarray  # (B, K)
+    bi: np.ndarray    # (M,) row of each live beam (ω > 0, μ0 > 0)
+    ki: np.ndarray    # (M,) its column
+    dirs: np.ndarray  # (M, 3) its unit direction
+    omega: np.ndarray  # (M,) its solid angle [sr]
+    idx: np.ndarray   # (P,) live beams whose ray meets the source's bounding sphere
+    o32: np.ndarray   # (P, 3) float32 ray starts on that sphere, relative to the source's centre
+    d32: np.ndarray   # (P, 3) float32 directions
+
+
+def _beam_arrays(B: int, K: int, M: int):
+    return ((np.empty((B, K)), np.empty((B, K)), np.empty((B, K))),
+            (np.empty(M, np.int64), np.empty(M, np.int64), np.empty((M, 3)), np.empty(M), np.empty(M, np.int64),
+             np.empty((M, 3), np.float32), np.empty((M, 3), np.float32)))
+
+
+def _beam_result(x, n, off, angles, live, m: int, p: int) -> BeamRays:
+    bi, ki, ds, om_b, idx, o32, d32 = live
+    return BeamRays(x, n, off, *angles, bi[:m], ki[:m], ds[:m], om_b[:m], idx[:p], o32[:p], d32[:p])
+
+
+def beam_rays(x, n, o, dirs, omega, off: float, centre, R: float) -> BeamRays:
+    """Beam angles of every beam of ``dirs`` (B, K, 3), ``omega`` (B, K) at points x with normals
+    n seen along o, and the live beams (ω > 0, μ0 > 0) as rays from ``x + n·off`` toward a source
+    of bounding radius R about ``centre``, ready for Embree: ``beam_angles``, ``live_beams``,
+    ``EmbreeBody._prepare`` and ``ray_batch32`` in one compiled pass (numba only)."""
+    f = np.ascontiguousarray
+    dirs, omega = f(dirs, dtype=float), f(omega, dtype=float)
+    x, n = f(x, dtype=float), f(n, dtype=float)
+    B, K = omega.shape
+    angles, live = _beam_arrays(B, K, B * K)
+    m, p = _beam_rays(x, n, f(o, dtype=float), dirs, omega, float(off), f(centre, dtype=float), float(R),
+                      *angles, *live)
+    return _beam_result(x, n, off, angles, live, m, p)
+
+
+def cap_beam_rays(x, n, o, c, R: float, cap_u, cap_c, order: int, off: float, Rb: float) -> BeamRays:
+    """:func:`sphere_cap_beams` (``order`` × ``order`` nodes) then :func:`beam_rays` toward the
+    sphere (c, R) with bounding radius Rb, fused: the beams go straight from the rule to Embree's
+    rays (numba only)."""
+    from .sphere_quadrature import _gauss
+    f = np.ascontiguousarray
+    x, n = f(x, dtype=float), f(n, dtype=float)
+    B = len(x)
+    gx_t, gw_t = _gauss(order)
+    gx_p, gw_p = _gauss(order)
+    c = f(c, dtype=float)
+    cu = f(np.broadcast_to(cap_u, (B, 3)), dtype=float)
+    cc = f(np.broadcast_to(cap_c, (B,)), dtype=float)
+    counts = np.empty(B, np.int64)
+    _sphere_cap_count(x, c, float(R), cu, cc, gx_t, gw_t, gw_p, counts)
+    K = max(int(counts.max(initial=0)), 1)
+    angles, live = _beam_arrays(B, K, int(counts.sum()))
+    m, p = _cap_beam_rays(x, n, f(o, dtype=float), c, float(R), cu, cc, gx_t, gw_t, gx_p, gw_p, float(off), float(Rb),
+                          *angles, *live)
+    return _beam_result(x, n, off, angles, live, m, p)
+
+
+def source_hits(rays: BeamRays, prim_in, radius: float, centre, n_faces: int, *, sun_radiance: float = 0.0,
+                earth=None):
+    """``(t, L, L_unit, counts)`` of the live beams: Embree's facets refined onto the exact
+    sphere (distance t, inf where missed), the radiance each beam brings (the Sun's
+    ``sun_radiance``, or with ``earth = (sun position, Φ, sunlit fraction per facet or None,
+    albedo per facet or (1,))`` the Lambertian Earth's, and the same for albedo 1) and the hits
+    per facet."""
+    M = len(rays.bi)
+    t, L, L_unit = np.empty(M), np.empty(M), np.empty(M)
+    counts = np.zeros(n_faces, np.int64)
+    f = np.ascontiguousarray
+    sun, phi, vis, alb = (np.zeros(3), 0.0, None, np.zeros(1)) if earth is None else earth
+    _source_hits(rays.x, rays.n, float(rays.off), rays.bi, rays.dirs, rays.idx, f(prim_in, dtype=np.int64),
+                 float(radius), f(centre, dtype=float), f(sun, dtype=float), float(phi),
+                 np.zeros(1) if vis is None else f(vis, dtype=float), f(alb, dtype=float).reshape(-1),
+                 vis is not None, t, L, L_unit, earth is not None, float(sun_radiance), counts)
+    return t, L, L_unit, counts
+
+
+def occluder_rays(rays: BeamRays, tmax, mask, centre, R: float):
+    """``(rows, o32, d32, dists)``: the shadow rays ``EmbreeBody.occluded`` would cast for the
+    live beams in ``mask`` (from their origins, up to ``tmax``) against a body of bounding radius
+    R about ``centre``, gathered and culled in one compiled pass; ``rows`` index the live beams."""
+    n = int(np.count_nonzero(mask))
+    rows = np.empty(n, np.int64)
+    o32, d32, dists = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32)
+    P = _occluder_rays(rays.x, rays.n, float(rays.off), rays.bi, rays.dirs, np.ascontiguousarray(tmax, dtype=float),
+                       np.ascontiguousarray(mask, dtype=np.bool_), np.ascontiguousarray(centre, dtype=float), float(R),
+                       rows, o32, d32, dists)
+    return rows[:P], o32[:P], d32[:P], dists[:P]
+
+
+def scatter_beams(rays: BeamRays, L, L_free, L_unit=None):
+    """(B, K) beam irradiances ``L·ω`` (and ``L_free·ω``, ``L_unit·ω``) at the live beams, 0
+    elsewhere."""
+    shape = rays.mu0.shape
+    e, e_free = np.zeros(shape), np.zeros(shape)
+    e_unit = np.zeros(shape) if L_unit is not None else np.zeros((1, 1))
+    _scatter_beams(rays.bi, rays.ki, rays.omega, L, L_free, L if L_unit is None else L_unit, L_unit is not None,
+                   e, e_free, e_unit)
+    return e, e_free, (e_unit if L_unit is not None else None)
+
+
 def earth_lit_directions(xs, earth, R: float, sun_dir, c_s: float, n_tab: int, r1, r2):
     """Compiled ``TraceScene._earth_lit_directions`` given its two uniforms per sample
     (``r1`` picks the polar angle, ``r2`` the azimuth); ``None`` where numba is off."""
@@ -597,6 +922,7 @@ def warm_up() -> None:
     beam_angles(np.ones((1, 1, 3)), np.ones((1, 3)), np.ones((1, 3)))
     sphere_refine(np.ones((1, 3)), np.ones((1, 3)), 1.0, np.zeros(1, np.int64), np.zeros(3))
     hapke_radiances(make_brdf("dhg"), one, np.ones(1), one, one, one, one, np.ones(1))
+    lambert_radiances(make_brdf("lambert"), one, one, one, np.ones(1))
     x = np.array([[0.0, 0.0, 10.0]])
     sphere_cap_beams(x, np.zeros(3), 1.0, np.array([1.0, 0.0, 0.0]), 0.0, 2, 2)
     live_beams(x, x, np.ones((1, 1, 3)), one, one)

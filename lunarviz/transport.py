@@ -82,6 +82,11 @@ class Transport:
                 return kernels.hapke_radiances(*args, None if a is None else a[:, 0])
             (lo, lo_u), (hi, hi_u) = (kernels.hapke_radiances(*args, w[:, 0]) for w in pair)
             return 0.5 * (lo + hi), None if lo_u is None else 0.5 * (lo_u + hi_u)
+        from .brdf import Lambert
+        if kernels.available() and type(brdf) is Lambert:  # linear in albedo: no pair
+            a = self.sample_albedo(brdf)
+            return kernels.lambert_radiances(brdf, self.mu0, self.e_beam, self.e_beam_unit,
+                                             None if a is None else a[:, 0])
         pair = self._albedo_pair(brdf)
         if pair is not None:
             rf = 0.5 * sum(brdf.radiance_factor(self.mu0, self.mu[:, None], self.sin_hg, self.cos_hg, albedo=w)

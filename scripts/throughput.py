@@ -11,9 +11,11 @@ batches through ``embreex`` alone (``scene.run``), one thread, best of three. Th
   sides), which is also Embree's share of the time;
 * the exclusive time of each stage, measured by wrapping the tracer's functions:
   ray generation (lunar samples, candidates, source beams and their angles, detector
-  geometry), beam assembly (gathering live beams, building each Transport), Embree (inside
-  ``_run``), source look-ups (hit refinement, source radiance), shading (BRDF evaluation) and
-  accumulation (``trace_path``'s own loop: sums and per-facet bincounts).
+  geometry, the compiled passes that write Embree's rays: ``cap_beam_rays``, ``beam_rays``,
+  ``occluder_rays``), beam assembly (gathering live beams, building each Transport,
+  ``scatter_beams``), Embree (inside ``_run``), source look-ups (hit refinement, source
+  radiance: ``source_hits``), shading (BRDF evaluation) and accumulation (``trace_path``'s own
+  loop: sums and per-facet bincounts).
 
 Both cores: the same trace with ``threads=2`` (chunks of lunar samples traced on two threads,
 ``TraceScene.deterministic_transport``) against raw Embree on one thread and on two
@@ -85,7 +87,10 @@ def instrument(timer: StageTimer):
         timer.wrap(TS, name, "ray generation")
     for name in ("source_radiance", "mapped_earth_transport"):
         timer.wrap(TS, name, "source look-ups")
-    timer.wrap(K, "beam_angles", "ray generation")
+    for name in ("beam_angles", "cap_beam_rays", "beam_rays", "occluder_rays"):
+        timer.wrap(K, name, "ray generation")
+    timer.wrap(K, "source_hits", "source look-ups")
+    timer.wrap(K, "scatter_beams", "beam assembly")
     timer.wrap(TS, "beam_transport", "beam assembly")
     timer.wrap(B.EmbreeBody, "_run", "embree")
     timer.wrap(T.Transport, "radiances", "shading")

@@ -233,6 +233,11 @@ def test_lean_mesh_checks_agree_with_trimesh(block, monkeypatch):
     for name, (vv, ff) in {**cases, "dented": (dented, f), "box": (box.vertices, box.faces),
                            "level 4": (unit_icosphere(4).vertices, unit_icosphere(4).faces)}.items():
         assert is_convex(vv, ff) == trimesh.Trimesh(vv, ff, process=False).is_convex, name
+    # is_convex's quick refutation (faces at the vertices nearest the centre against every
+    # vertex) proves the dent non-convex, and never refutes a convex mesh (its verdict is exact)
+    assert meshes._refutes_convexity(np.asarray(dented), np.asarray(f))
+    for vv, ff in ((v, f), (box.vertices, box.faces), (unit_icosphere(4).vertices, unit_icosphere(4).faces)):
+        assert not meshes._refutes_convexity(np.asarray(vv, dtype=float), np.asarray(ff))
     ref = trimesh.Trimesh(v, f, process=False)
     vol, com = volume_and_centroid(v, f)
     assert vol == pytest.approx(ref.volume, rel=1e-12)

@@ -352,6 +352,17 @@ class EmbreeBody:
             out[idx] = res != -1
         return out
 
+    def occluded_beams(self, rays, tmax, mask) -> np.ndarray:
+        """:meth:`occluded` for the live beams of ``rays`` (a :class:`lunarviz.kernels.BeamRays`)
+        in ``mask``, from their origins up to ``tmax``; False outside ``mask``. The same rays,
+        gathered and culled in one compiled pass (numba only)."""
+        from ..kernels import occluder_rays
+        rows, o32, d32, dists = occluder_rays(rays, tmax, mask, self.centre, self.bound * (1.0 + ENTRY_MARGIN))
+        out = np.zeros(len(mask), dtype=bool)
+        if rows.size:
+            out[rows] = self._run(o32, d32, "OCCLUDED", dists) != -1
+        return out
+
 
 _GEOMETRY_CACHE: dict = {}
 
@@ -416,7 +427,7 @@ def _is_convex(mesh: trimesh.Trimesh) -> bool:
     """Convexity by :func:`lunarviz.meshes.is_convex` (trimesh's test without its caches,
     which would take ~3 GB on a 5-million-facet mesh and stay alive with the cached mesh)."""
     from ..meshes import is_convex
-    return is_convex(mesh.vertices, mesh.faces)
+    return is_convex(mesh.vertices, mesh.faces, checked=bool(mesh.metadata.get("lunarviz_validated")))
 
 
 def _crease_corner_normals(faces, normals, areas, n_vertices, crease_deg: float = CREASE_DEG) -> np.ndarray:

@@ -848,6 +848,9 @@ class TraceScene:
         :meth:`mapped_earth_transport` instead."""
         if body == "earth" and self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
             return self.mapped_earth_transport(x, n, o, mu, geom)
+        from .. import kernels
+        if kernels.available() and self._source(body)[2].mode(self.settings.shading) == "exact":
+            return self._fused_beam_transport(x, n, o, mu, geom, body, order)
         from ..kernels import beam_angles, live_beams
         dirs, omega = self.source_nodes(x, n, body, order)
         mu0, sh, ch = beam_angles(dirs, n, o)
@@ -863,6 +866,54 @@ class TraceScene:
         return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=beams(Lb),
                          mu=mu, geom=geom, e_beam_free=beams(Lb_free),
                          e_beam_unit=None if lu is None else beams(lu))
+
+    def _fused_beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
+        """:meth:`beam_transport` toward an exact-sphere source, compiled (issue 13): one pass
+        from the rule to Embree's rays (:func:`lunarviz.kernels.cap_beam_rays` for the Earth's
+        one-cap rule, else :meth:`source_nodes` then ``beam_rays``), one from Embree's facets to
+        each beam's radiance (``source_hits``), one per shadow test (``occluder_rays``) and one
+        into the (B, K) arrays (``scatter_beams``); Python only calls Embree between them. The
+        same rays, counts and numbers as the numpy path (:meth:`source_radiance`) to rounding
+        (tests/test_kernels.py)."""
+        from .. import kernels as K
+        from .bodies import ENTRY_MARGIN
+        sc, s = self.scene, self.settings
+        src = self.sun if body == "sun" else self.earth
+        off, Rb = NORMAL_OFFSET * self.moon.radius, src._outer_bound * (1.0 + ENTRY_MARGIN)
+        c, R, _ = self._source(body)
+        if body == "earth" and not horizon_cuts_source(sc, x, n, body).any():
+            cs = sc.sun - c  # the rule's one cap: the Earth's sunlit hemisphere (as in source_nodes)
+            rays = K.cap_beam_rays(x, n, o, c, R, unit(cs), R / np.linalg.norm(cs), order, off, Rb)
+        else:
+            dirs, omega = self.source_nodes(x, n, body, order)
+            rays = K.beam_rays(x, n, o, dirs, omega, off, c, Rb)
+        self._count(len(rays.bi))
+        prim = src._run(rays.o32, rays.d32, "INTERSECT", scene=src._outer_scene()) if len(rays.idx) \
+            else np.empty(0, np.int64)
+        if body == "sun":
+            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
+                                                 sun_radiance=self.sun_surface_radiance())
+        else:
+            fa = self.earth_facet_albedo()
+            alb = np.array([self.earth_albedo_value()]) if fa is None else fa
+            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
+                                                 earth=(sc.sun, sc.phi, self.sun_visibility_of_earth(), alb))
+        with self._lock:
+            self.source_hits[body] += counts
+        L_free = L.copy()
+        if body == "sun" and s.occlusion:  # the Earth between the Moon and the Sun
+            live = L > 0
+            self._count(int(np.count_nonzero(live)))
+            L[self.earth.occluded_beams(rays, t, live)] = 0.0
+        if self._self_shadows():
+            live = (L > 0) | (L_unit > 0) if body == "earth" else L > 0
+            self._count(int(np.count_nonzero(live)))
+            blocked = self.moon.occluded_beams(rays, t, live)
+            L[blocked] = 0.0
+            L_unit[blocked] = 0.0
+        e, e_free, e_unit = K.scatter_beams(rays, L, L_free, L_unit if body == "earth" else None)
+        return Transport(mu0=np.clip(rays.mu0, 0.0, 1.0), sin_hg=rays.sin_hg, cos_hg=rays.cos_hg, e_beam=e,
+                         mu=mu, geom=geom, e_beam_free=e_free, e_beam_unit=e_unit)
 
     def montecarlo_transport(self, body: str, key):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
