@@ -237,7 +237,7 @@ def _cap_ring(seg, sgi, u, gw, stu, ctu, cc, phi_u):
 
 
 def _sphere_cap_count(x, c, R, cus, ccs, gx_t, gw_t, gw_p, counts):
-    """Beams with a positive weight per row of :func:`_sphere_cap_beams` (no azimuth trig)."""
+    """Beams with a positive weight per row of :func:`_cap_beams` (no azimuth trig)."""
     seg = np.empty((4, 4))
     for i in range(x.shape[0]):
         a0, a1, a2, e10, e11, e12, e20, e21, e22, t_u, phi_u, cc, ns = _cap_row(x, i, c, R, cus, ccs, seg)
@@ -250,44 +250,6 @@ def _sphere_cap_count(x, c, R, cus, ccs, gx_t, gw_t, gw_p, counts):
                     if wt * ((p_hi - p_lo) * gw_p[ip]) > 0.0:
                         q += 1
         counts[i] = q
-
-
-def _sphere_cap_beams(x, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, om, omega):
-    """The sphere-surface rule of :func:`lunarviz.sphere_quadrature.cap_rule` for one
-    constraint cap per row (``cus`` (B, 3), ``ccs`` (B,)), as beams from x
-    (:func:`lunarviz.sources.source_beams`: unit directions ``om`` (B, K, 3) and solid angles
-    dΩ = cos_y R² dω / r² ``omega``): the nodes of positive weight first, in the rule's order,
-    then padding (ω = 0, toward the centre). One row at a time instead of numpy's (B, ...)
-    arrays; tests/test_kernels.py compares the two."""
-    K = omega.shape[1]
-    seg = np.empty((4, 4))
-    for i in range(x.shape[0]):
-        a0, a1, a2, e10, e11, e12, e20, e21, e22, t_u, phi_u, cc, ns = _cap_row(x, i, c, R, cus, ccs, seg)
-        stu, ctu = np.sin(t_u), np.cos(t_u)
-        q = 0
-        for sgi in range(ns):
-            for it in range(gx_t.shape[0]):
-                st, ct, wt, p_lo, p_hi = _cap_ring(seg, sgi, gx_t[it], gw_t[it], stu, ctu, cc, phi_u)
-                for ip in range(gx_p.shape[0]):
-                    w = wt * ((p_hi - p_lo) * gw_p[ip])
-                    if not w > 0.0:
-                        continue
-                    phi = p_lo + (p_hi - p_lo) * gx_p[ip]
-                    sp, cp = np.sin(phi), np.cos(phi)
-                    m0 = ct * a0 + st * (cp * e10 + sp * e20)
-                    m1 = ct * a1 + st * (cp * e11 + sp * e21)
-                    m2 = ct * a2 + st * (cp * e12 + sp * e22)
-                    v0 = c[0] + R * m0 - x[i, 0]
-                    v1 = c[1] + R * m1 - x[i, 1]
-                    v2 = c[2] + R * m2 - x[i, 2]
-                    r = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-                    o0, o1, o2 = v0 / r, v1 / r, v2 / r
-                    om[i, q, 0], om[i, q, 1], om[i, q, 2] = o0, o1, o2
-                    omega[i, q] = max(-(m0 * o0 + m1 * o1 + m2 * o2), 0.0) * R * R * w / r ** 2
-                    q += 1
-        for k in range(q, K):
-            om[i, k, 0], om[i, k, 1], om[i, k, 2] = -a0, -a1, -a2
-            omega[i, k] = 0.0
 
 
 def _live_beams(x, n, dirs, omega, mu0, bi, ki, xs, ns, ds):
@@ -458,21 +420,31 @@ def _beam_rays(x, n, o, dirs, omega, off, c, Rb, mu0, sh, ch, bi, ki, ds, om_b, 
     return m, p
 
 
-def _cap_beam_rays(x, n, o, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, off, Rb,
-                   mu0, sh, ch, bi, ki, ds, om_b, idx, o32, d32):
-    """:func:`_sphere_cap_beams` and :func:`_beam_rays` in one pass: each beam of the one-cap
-    rule goes straight to :func:`_live_beam`, without the (B, K, 3) directions in between."""
-    K = mu0.shape[1]
+def _cap_beams(x, n, o, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, off, Rb, as_rays, om, omega,
+               mu0, sh, ch, bi, ki, ds, om_b, idx, o32, d32):
+    """The sphere-surface rule of :func:`lunarviz.sphere_quadrature.cap_rule` for one
+    constraint cap per row (``cus`` (B, 3), ``ccs`` (B,)), as beams from x
+    (:func:`lunarviz.sources.source_beams`: unit directions and solid angles
+    dΩ = cos_y R² dω / r²), the nodes of positive weight first, in the rule's order, then padding
+    (ω = 0, toward the centre); one row at a time instead of numpy's (B, ...) arrays
+    (tests/test_kernels.py compares the two).
+
+    ``as_rays`` False: the beams into ``om`` (B, K, 3) and ``omega`` (B, K). True: each beam
+    straight to :func:`_live_beam` (angles, live beams, Embree's rays), without the directions
+    in between (:func:`cap_beam_rays`). Returns (live beams, rays) (zeros without rays)."""
+    K = mu0.shape[1] if as_rays else omega.shape[1]
     seg = np.empty((4, 4))
     n_p = gx_p.shape[0]
     sx = 2.0 * gx_p - 1.0
     ca, sa = np.empty(n_p), np.empty(n_p)
     m = 0
     p = 0
+    xo0, xo1, xo2 = 0.0, 0.0, 0.0
     for i in range(x.shape[0]):
         a0, a1, a2, e10, e11, e12, e20, e21, e22, t_u, phi_u, cc, ns = _cap_row(x, i, c, R, cus, ccs, seg)
         stu, ctu = np.sin(t_u), np.cos(t_u)
-        xo0, xo1, xo2 = x[i, 0] + n[i, 0] * off, x[i, 1] + n[i, 1] * off, x[i, 2] + n[i, 2] * off
+        if as_rays:
+            xo0, xo1, xo2 = x[i, 0] + n[i, 0] * off, x[i, 1] + n[i, 1] * off, x[i, 2] + n[i, 2] * off
         cpu, spu = np.cos(phi_u), np.sin(phi_u)
         q = 0
         for sgi in range(ns):
@@ -500,12 +472,20 @@ def _cap_beam_rays(x, n, o, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, off, Rb,
                     inv_r = 1.0 / np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
                     d0, d1, d2 = v0 * inv_r, v1 * inv_r, v2 * inv_r
                     wb = max(-(m0 * d0 + m1 * d1 + m2 * d2), 0.0) * R * R * w * (inv_r * inv_r)
-                    m, p = _live_beam(i, q, d0, d1, d2, wb, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki, ds,
-                                      om_b, idx, o32, d32, m, p)
+                    if as_rays:
+                        m, p = _live_beam(i, q, d0, d1, d2, wb, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki,
+                                          ds, om_b, idx, o32, d32, m, p)
+                    else:
+                        om[i, q, 0], om[i, q, 1], om[i, q, 2] = d0, d1, d2
+                        omega[i, q] = wb
                     q += 1
         for k in range(q, K):  # padding: no light, toward the centre
-            m, p = _live_beam(i, k, -a0, -a1, -a2, 0.0, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki, ds, om_b,
-                              idx, o32, d32, m, p)
+            if as_rays:
+                m, p = _live_beam(i, k, -a0, -a1, -a2, 0.0, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki, ds,
+                                  om_b, idx, o32, d32, m, p)
+            else:
+                om[i, k, 0], om[i, k, 1], om[i, k, 2] = -a0, -a1, -a2
+                omega[i, k] = 0.0
     return m, p
 
 
@@ -619,7 +599,6 @@ if _NUMBA:
         _cap_row = _jit(_cap_row, inline="always")
         _cap_ring = _jit(_cap_ring, inline="always")
         _sphere_cap_count = _jit(_sphere_cap_count, nogil=True)
-        _sphere_cap_beams = _jit(_sphere_cap_beams, nogil=True)
         _live_beams = _jit(_live_beams, nogil=True)
         _ray_starts = _jit(_ray_starts, nogil=True)
         _ray_batch32 = _jit(_ray_batch32, nogil=True)
@@ -628,7 +607,7 @@ if _NUMBA:
         _earth_lit_dirs = _jit(_earth_lit_dirs, nogil=True)
         _live_beam = _jit(_live_beam, inline="always")
         _beam_rays = _jit(_beam_rays, nogil=True)
-        _cap_beam_rays = _jit(_cap_beam_rays, nogil=True)
+        _cap_beams = _jit(_cap_beams, nogil=True)
         _source_hits = _jit(_source_hits, nogil=True)
         _occluder_rays = _jit(_occluder_rays, nogil=True)
         _scatter_beams = _jit(_scatter_beams, nogil=True)
@@ -725,21 +704,28 @@ def sphere_cap_beams(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
     compiled; ``None`` where numba is off."""
     if not _NUMBA:
         return None
+    x, c, rule, counts = _cap_setup(x, c, R, cap_u, cap_c, n_t, n_phi)
+    B, kmax = len(x), max(int(counts.max(initial=0)), 1)
+    om, omega = np.empty((B, kmax, 3)), np.empty((B, kmax))
+    angles, live = _beam_arrays(1, 1, 1)  # (unused without rays)
+    _cap_beams(x, x, x, c, float(R), *rule, 0.0, 0.0, False, om, omega, *angles, *live)
+    return om, omega
+
+
+def _cap_setup(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
+    """Contiguous inputs of :func:`_cap_beams`: x, c, (cap axes, cap cosines, Gauss rules) and
+    the number of beams of each row."""
     from .sphere_quadrature import _gauss
-    x = np.ascontiguousarray(x, dtype=float)
+    f = np.ascontiguousarray
+    x, c = f(x, dtype=float), f(c, dtype=float)
     B = len(x)
     gx_t, gw_t = _gauss(n_t)
     gx_p, gw_p = _gauss(n_phi)
-    c = np.asarray(c, dtype=float)
-    cu = np.ascontiguousarray(np.broadcast_to(cap_u, (B, 3)), dtype=float)
-    cc = np.ascontiguousarray(np.broadcast_to(cap_c, (B,)), dtype=float)
+    cu = f(np.broadcast_to(cap_u, (B, 3)), dtype=float)
+    cc = f(np.broadcast_to(cap_c, (B,)), dtype=float)
     counts = np.empty(B, np.int64)
     _sphere_cap_count(x, c, float(R), cu, cc, gx_t, gw_t, gw_p, counts)
-    kmax = max(int(counts.max(initial=0)), 1)
-    om = np.empty((B, kmax, 3))
-    omega = np.empty((B, kmax))
-    _sphere_cap_beams(x, c, float(R), cu, cc, gx_t, gw_t, gx_p, gw_p, om, omega)
-    return om, omega
+    return x, c, (cu, cc, gx_t, gw_t, gx_p, gw_p), counts
 
 
 def live_beams(x, n, dirs, omega, mu0):
@@ -839,21 +825,11 @@ def cap_beam_rays(x, n, o, c, R: float, cap_u, cap_c, order: int, off: float, Rb
     """:func:`sphere_cap_beams` (``order`` × ``order`` nodes) then :func:`beam_rays` toward the
     sphere (c, R) with bounding radius Rb, fused: the beams go straight from the rule to Embree's
     rays (numba only)."""
-    from .sphere_quadrature import _gauss
-    f = np.ascontiguousarray
-    x, n = f(x, dtype=float), f(n, dtype=float)
-    B = len(x)
-    gx_t, gw_t = _gauss(order)
-    gx_p, gw_p = _gauss(order)
-    c = f(c, dtype=float)
-    cu = f(np.broadcast_to(cap_u, (B, 3)), dtype=float)
-    cc = f(np.broadcast_to(cap_c, (B,)), dtype=float)
-    counts = np.empty(B, np.int64)
-    _sphere_cap_count(x, c, float(R), cu, cc, gx_t, gw_t, gw_p, counts)
-    K = max(int(counts.max(initial=0)), 1)
-    angles, live = _beam_arrays(B, K, int(counts.sum()))
-    m, p = _cap_beam_rays(x, n, f(o, dtype=float), c, float(R), cu, cc, gx_t, gw_t, gx_p, gw_p, float(off), float(Rb),
-                          *angles, *live)
+    x, c, rule, counts = _cap_setup(x, c, R, cap_u, cap_c, order, order)
+    n = np.ascontiguousarray(n, dtype=float)
+    angles, live = _beam_arrays(len(x), max(int(counts.max(initial=0)), 1), int(counts.sum()))
+    m, p = _cap_beams(x, n, np.ascontiguousarray(o, dtype=float), c, float(R), *rule, float(off), float(Rb), True,
+                      np.empty((1, 1, 3)), np.empty((1, 1)), *angles, *live)
     return _beam_result(x, n, off, angles, live, m, p)
 
 
