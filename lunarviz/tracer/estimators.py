@@ -308,11 +308,14 @@ class TraceScene:
         M = self.moon
         c, R, _ = self._source(body)
         x_all, n_all = M.facet_points(self.settings.shading)
+        if M.mode(self.settings.shading) == "interp":
+            M.corner_normals  # noqa: B018 (a cached property: built here, before the blocks' threads)
         F = M.n_faces
         keep = np.zeros(F, dtype=bool)
         kinks = np.zeros(F, dtype=bool)
-        for a in range(0, F, FACET_BLOCK):
-            blk = slice(a, min(F, a + FACET_BLOCK))
+
+        def block(i):
+            blk = slice(i * FACET_BLOCK, min(F, (i + 1) * FACET_BLOCK))
             lit, vis = self._kink_values(x_all[blk], n_all[blk], c, R)
             tri = M.vertices[M.faces[blk]] + M.centre
             vn = self._corner_normals(M, blk)
@@ -324,12 +327,17 @@ class TraceScene:
                 (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
                 (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
             keep[blk] = up & seen
+            return []
+        # blocks on the trace's threads (numpy and Embree release the GIL); each writes its own slice
+        list(self._chunks_in_order(block, -(-F // FACET_BLOCK)))
         cand = np.flatnonzero(keep)
         self._kinks = kinks
         hidden_view = not self.scene.detector_inside("earth") or self.scene.horizon_normal is not None
         if self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view:
-            for a in range(0, len(cand), FACET_BLOCK):
-                self._kinks |= self._shadow_edges(cand[a:a + FACET_BLOCK], c)
+            def edges(i):
+                return [self._shadow_edges(cand[i * FACET_BLOCK:(i + 1) * FACET_BLOCK], c)]
+            for found in self._chunks_in_order(edges, -(-len(cand) // FACET_BLOCK)):
+                self._kinks[found] = True
         self._cand_cache[body] = (cand, self._kinks)
         return cand
 
@@ -340,14 +348,13 @@ class TraceScene:
         ray to the source's centre and one to the detector are traced against the Moon (when it
         shadows itself) and the Earth (toward the source when occlusion is on; toward a
         detector outside the Earth always). A facet whose four points
-        disagree is a kink facet and gets refined like a terminator facet. Returns a mask
-        over all facets.
+        disagree is a kink facet and gets refined like a terminator facet. Returns those
+        facets (indices).
         """
         M = self.moon
         s = self.settings
-        out = np.zeros(M.n_faces, dtype=bool)
         if cand.size == 0:
-            return out
+            return cand
         tri = M.vertices[M.faces[cand]] + M.centre
         pts = np.concatenate([M.centroids[cand][:, None, :], tri], axis=1)  # (F, 4, 3)
         off = M.normals[cand][:, None, :] * (NORMAL_OFFSET * M.radius)
@@ -369,8 +376,7 @@ class TraceScene:
                 self._count(len(p))
             b = blocked.reshape(-1, 4)
             mixed |= b.any(1) & ~b.all(1)
-        out[cand[mixed]] = True
-        return out
+        return cand[mixed]
 
     def _kink_values(self, x, n, c, R):
         """``n·(c - x)/R`` (> 1 source wholly above the horizon, < -1 wholly below, between:
