@@ -72,7 +72,9 @@ def issue13_section() -> list:
                 L.append(f"| {r['facets']:,} | {r['trace_seconds']:.1f} | {r.get('load_seconds', float('nan')):.1f} | "
                          f"{r['peak_rss_GB']:.2f} | {r['rays']:,} | {r['moonshine_W_m2']:.6e} | "
                          f"{r['earthshine_W_m2']:.6e} |")
-    L += ["", "Where the time goes (exclusive time per stage, one instrumented trace of both paths):", ""]
+    L += ["", "Where the time goes (exclusive time per stage, one instrumented trace of both paths; ray generation "
+          "includes the compiled passes that write Embree's rays, `cap_beam_rays`, `beam_rays` and `occluder_rays`, "
+          "and source look-ups the hit refinement and radiance pass, `source_hits`; see scripts/throughput.py):", ""]
     for name in ("paper", "craters"):
         r = sc[name]
         L.append(f"* {name}: " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["stage_shares"].items()) + ".")

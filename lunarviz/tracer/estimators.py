@@ -885,6 +885,7 @@ class TraceScene:
         from .bodies import ENTRY_MARGIN
         sc, s = self.scene, self.settings
         src = self.sun if body == "sun" else self.earth
+        outer = src._outer_scene()  # (built once per body; sets its bounding radius)
         off, Rb = NORMAL_OFFSET * self.moon.radius, src._outer_bound * (1.0 + ENTRY_MARGIN)
         c, R, _ = self._source(body)
         if body == "earth" and not horizon_cuts_source(sc, x, n, body).any():
@@ -894,8 +895,7 @@ class TraceScene:
             dirs, omega = self.source_nodes(x, n, body, order)
             rays = K.beam_rays(x, n, o, dirs, omega, off, c, Rb)
         self._count(len(rays.bi))
-        prim = src._run(rays.o32, rays.d32, "INTERSECT", scene=src._outer_scene()) if len(rays.idx) \
-            else np.empty(0, np.int64)
+        prim = src._run(rays.o32, rays.d32, "INTERSECT", scene=outer) if len(rays.idx) else np.empty(0, np.int64)
         if body == "sun":
             t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
                                                  sun_radiance=self.sun_surface_radiance())
