@@ -252,6 +252,30 @@ def _sphere_cap_count(x, c, R, cus, ccs, gx_t, gw_t, gw_p, counts):
         counts[i] = q
 
 
+def _cone_rule(axis, sin_rho, gx, gw, cphi, sphi, d, w):
+    """:func:`lunarviz.sphere_quadrature.cone_rule` one row at a time: Gauss-Legendre in
+    u = 1 − cos ψ, the midpoint rule in φ (``cphi``, ``sphi``: its cosines and sines)."""
+    n_phi = cphi.shape[0]
+    dphi = 2.0 * np.pi / n_phi
+    for i in range(axis.shape[0]):
+        a0, a1, a2 = axis[i, 0], axis[i, 1], axis[i, 2]
+        s = sin_rho[i]
+        u_max = s * s / (1.0 + np.sqrt(1.0 - s * s))  # 1 - cos ρ without cancellation
+        e10, e11, e12, e20, e21, e22 = _basis(a0, a1, a2)
+        col = 0
+        for ip in range(gx.shape[0]):
+            u = u_max * gx[ip]
+            wu = u_max * gw[ip]
+            cpsi = 1.0 - u
+            spsi = np.sqrt(max(u * (2.0 - u), 0.0))
+            for jp in range(n_phi):
+                c, sn = cphi[jp], sphi[jp]
+                d[i, col, 0] = cpsi * a0 + spsi * (c * e10 + sn * e20)
+                d[i, col, 1] = cpsi * a1 + spsi * (c * e11 + sn * e21)
+                d[i, col, 2] = cpsi * a2 + spsi * (c * e12 + sn * e22)
+                w[i, col] = wu * dphi
+                col += 1
+
 def _live_beams(x, n, dirs, omega, mu0, bi, ki, xs, ns, ds):
     """Gather the live beams (ω > 0 and μ0 > 0), row-major like ``np.nonzero``."""
     B, K = omega.shape
@@ -607,6 +631,7 @@ if _NUMBA:
         _cap_ring = _jit(_cap_ring, inline="always")
         _sphere_cap_count = _jit(_sphere_cap_count, nogil=True)
         _live_beams = _jit(_live_beams, nogil=True)
+        _cone_rule = _jit(_cone_rule, nogil=True)
         _ray_starts = _jit(_ray_starts, nogil=True)
         _ray_batch32 = _jit(_ray_batch32, nogil=True)
         _half_width = _jit(_half_width, inline="always")
@@ -734,6 +759,22 @@ def _cap_setup(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
     _sphere_cap_count(x, c, float(R), cu, cc, gx_t, gw_t, gw_p, counts)
     return x, c, (cu, cc, gx_t, gw_t, gx_p, gw_p), counts
 
+
+def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):
+    """:func:`lunarviz.sphere_quadrature.cone_rule` (directions (B, n_psi·n_phi, 3) and solid
+    angles [sr] filling the cone of half-angle asin(sin_rho) about ``axis``), compiled; the
+    numpy rule where numba is off."""
+    from .sphere_quadrature import _gauss, cone_rule as numpy_rule
+    if not _NUMBA:
+        return numpy_rule(axis, sin_rho, n_psi, n_phi)
+    f = np.ascontiguousarray
+    axis = f(axis, dtype=float)
+    B = len(axis)
+    gx, gw = _gauss(n_psi)
+    phi = (np.arange(n_phi) + 0.5) * (2 * np.pi / n_phi)
+    d, w = np.empty((B, n_psi * n_phi, 3)), np.empty((B, n_psi * n_phi))
+    _cone_rule(axis, f(np.broadcast_to(sin_rho, (B,)), dtype=float), gx, gw, np.cos(phi), np.sin(phi), d, w)
+    return d, w
 
 def live_beams(x, n, dirs, omega, mu0):
     """``(bi, ki, x[bi], n[bi], dirs[bi, ki])`` for the beams with ω > 0 and μ0 > 0."""
@@ -909,6 +950,7 @@ def warm_up() -> None:
     x = np.array([[0.0, 0.0, 10.0]])
     sphere_cap_beams(x, np.zeros(3), 1.0, np.array([1.0, 0.0, 0.0]), 0.0, 2, 2)
     live_beams(x, x, np.ones((1, 1, 3)), one, one)
+    cone_rule(np.array([[0.0, 0.0, 1.0]]), np.array([0.01]))
     ray_starts(x, np.array([[0.0, 0.0, -1.0]]), np.zeros(3), 1.0)
     ray_batch32(x, x, np.zeros(1), np.zeros(1, np.int64))
     earth_lit_directions(x, np.zeros(3), 1.0, np.array([1.0, 0.0, 0.0]), 0.01, 4, np.ones(1) * 0.5, np.ones(1) * 0.5)

@@ -46,11 +46,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from .. import kernels
 from ..errors import LunarvizError
 from ..geometry import angle_between, Scene, half_angle_sin_cos, unit
 from ..meshes import DEFAULT_LEVELS
 from ..sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
-from ..sphere_quadrature import cone_rule, orthonormal_basis
+from ..sphere_quadrature import orthonormal_basis
 from ..surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
 from ..transport import Transport, detector_geometry
 from .bodies import EmbreeBody
@@ -491,7 +492,7 @@ class TraceScene:
             xc = x - c
             dxc = np.linalg.norm(xc, axis=1)
             o = max(order, MESH_SOURCE_ORDER)
-            om, w = cone_rule(-xc / dxc[:, None], np.clip(R / dxc, 0, 1 - 1e-12), o, 2 * o)
+            om, w = kernels.cone_rule(-xc / dxc[:, None], np.clip(R / dxc, 0, 1 - 1e-12), o, 2 * o)
             return om, w
         cut = horizon_cuts_source(sc, x, n, body)
         parts = []
@@ -505,7 +506,7 @@ class TraceScene:
                 ecl = self._earth_crosses_sun(x[rows], dxc) if eclipse else np.zeros(len(rows), dtype=bool)
                 for sub, o_s in ((~ecl, order), (ecl, max(order, ECLIPSE_ORDER))):
                     if sub.any():
-                        om, w = cone_rule(-xc[sub] / dxc[sub, None], R / dxc[sub], o_s, 2 * o_s)
+                        om, w = kernels.cone_rule(-xc[sub] / dxc[sub, None], R / dxc[sub], o_s, 2 * o_s)
                         parts.append((rows[sub], om, w))
                 continue
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
@@ -854,7 +855,6 @@ class TraceScene:
         :meth:`mapped_earth_transport` instead."""
         if body == "earth" and self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
             return self.mapped_earth_transport(x, n, o, mu, geom)
-        from .. import kernels
         if kernels.available() and self._source(body)[2].mode(self.settings.shading) == "exact":
             return self._fused_beam_transport(x, n, o, mu, geom, body, order)
         from ..kernels import beam_angles, live_beams
@@ -881,8 +881,8 @@ class TraceScene:
         into the (B, K) arrays (``scatter_beams``); Python only calls Embree between them. The
         same rays, counts and numbers as the numpy path (:meth:`source_radiance`) to rounding
         (tests/test_kernels.py)."""
-        from .. import kernels as K
         from .bodies import ENTRY_MARGIN
+        K = kernels
         sc, s = self.scene, self.settings
         src = self.sun if body == "sun" else self.earth
         outer = src._outer_scene()  # (built once per body; sets its bounding radius)
@@ -1065,7 +1065,6 @@ class TraceScene:
         sc = self.scene
         N = len(xs)
         R = sc.radii["earth"]
-        from .. import kernels
         us = unit(sc.sun - sc.earth)
         c_s = R / np.linalg.norm(sc.sun - sc.earth)
         if kernels.available():  # compiled, the same two uniforms per sample in the same order
