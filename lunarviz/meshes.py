@@ -117,17 +117,20 @@ def edge_checks(faces: np.ndarray, n_vertices: int) -> tuple[bool, bool]:
     return watertight, consistent
 
 
-def _refutes_convexity(v: np.ndarray, f: np.ndarray, lowest: int = 4) -> bool:
+def _refutes_convexity(v: np.ndarray, f: np.ndarray, lowest: int = 4, faces: int = 32,
+                       depth: float = 1e-3) -> bool:
     """True where some vertex stands above the plane of a face at one of the ``lowest``
-    vertices nearest the centroid by ≥ 1e-5 × the mesh's scale (:func:`is_convex`'s tolerance):
-    a closed convex mesh has every vertex on or below every face's plane, so this proves the
-    mesh non-convex. (trimesh's edge test, with its tolerance, could still pass a surface whose
-    concavity is spread over many edges, each below tolerance: this test then says non-convex,
-    which is the truth and costs only self-shadow rays.) False proves nothing."""
+    vertices nearest the centroid (at most ``faces`` of them) by ≥ ``depth`` × the mesh's scale.
+    A closed convex mesh has every vertex on or below every face's plane, so this proves the
+    mesh non-convex; ``depth`` (a dent 1/1000 of the body's size, 3.5 km on the Moon) is far
+    above rounding, so a convex mesh stored in float32 with sliver faces (4.7e-5 × its scale
+    above a sliver's plane, found in review) is not refuted. A cratered or DEM Moon is (its
+    lowest faces lie 7e-3 to 3e-2 × its scale below the terrain around them). False proves
+    nothing: :func:`is_convex` then runs the full edge test. Memory: (CHECK_BLOCK, ``faces``)."""
     scale = float(np.linalg.norm(np.ptp(v, axis=0)))
     r2 = np.einsum("ij,ij->i", v - v.mean(0), v - v.mean(0))
     low = np.argpartition(r2, min(lowest, len(v) - 1))[:lowest]
-    sel = np.flatnonzero(np.isin(f, low).any(1))
+    sel = np.flatnonzero(np.isin(f, low).any(1))[:faces]  # (a pole may carry hundreds of faces)
     tri = v[f[sel]]
     nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(nrm, axis=1)
@@ -135,7 +138,7 @@ def _refutes_convexity(v: np.ndarray, f: np.ndarray, lowest: int = 4) -> bool:
     nrm, tri = nrm[ok] / length[ok, None], tri[ok]
     off = np.einsum("ij,ij->i", tri[:, 0], nrm)
     for b in _face_blocks(len(v)):
-        if ((v[b] @ nrm.T) - off).max(initial=-np.inf) >= 1e-5 * scale:
+        if ((v[b] @ nrm.T) - off).max(initial=-np.inf) >= depth * scale:
             return True
     return False
 
@@ -150,9 +153,9 @@ def is_convex(vertices: np.ndarray, faces: np.ndarray, checked: bool = False) ->
     passes are then not run again.
 
     First a quick refutation (:func:`_refutes_convexity`): the faces at the vertices nearest the
-    centre (a crater floor, a valley) tested against every vertex, an exact proof of
-    non-convexity where a vertex stands above one of their planes; it spares a cratered or DEM
-    Moon the edge sort (1.3 s of a 1.3 M-facet load)."""
+    centre (a crater floor, a valley) tested against every vertex, a proof of non-convexity
+    where a vertex stands well above (1e-3 × the scale) one of their planes; it spares a cratered
+    or DEM Moon the edge sort (1.3 s of a 1.3 M-facet load)."""
     v = np.asarray(vertices, dtype=float)
     f = np.asarray(faces, dtype=np.int64)
     if len(f) and _refutes_convexity(v, f):
@@ -286,10 +289,15 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     if not np.all(np.isfinite(mesh.vertices)):
         raise MeshError(f"{name}: vertices contain NaN or inf")
     v, f = np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
+    if f.min() < 0 or f.max() >= len(v):
+        bad = int(f.min()) if f.min() < 0 else int(f.max())
+        raise MeshError(f"{name}: face index {bad} out of range for {len(v)} vertices")
     # A file whose faces already close up (PLY, OFF, most OBJ) is used as read. Otherwise merge
     # duplicated vertices (STL stores three per face; an OBJ may split a seam) so watertightness
     # can be judged; positions are not changed. (Merging a closed mesh could only join distinct
-    # vertices at one place: a pinch, refused either way. At 5 M facets the merge is 2.4 s.)
+    # vertices at one place, where the surface touches itself: a pinch between two parts is
+    # refused either way; a body touching itself keeps its two vertex copies, each with its
+    # own smooth normal. At 5 M facets the merge is 2.4 s.)
     edges = edge_checks(f, len(v))
     if not all(edges) or np.bincount(f.reshape(-1), minlength=len(v)).min(initial=1) == 0:
         mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True, validate=False)

@@ -365,3 +365,15 @@ def test_earth_and_sun_meshes_are_traced(tmp_path, lam_dhg):
     assert es_s["lambert"] == pytest.approx(es0["lambert"], rel=5e-3)
     assert es1["lambert"] / es_s["lambert"] == pytest.approx(expected, rel=1e-2)
     assert ts.source_hits["earth"].sum() > 0 and ts.source_hits["sun"].sum() > 0
+
+
+def test_out_of_range_face_index_is_one_line_error(tmp_path):
+    """A PLY whose face names vertex 9 of 4 (trimesh reads it without complaint) is refused
+    with one line naming the index, not an IndexError traceback (review of issue 13)."""
+    path = tmp_path / "bad.ply"
+    lines = ["ply", "format ascii 1.0", "element vertex 4", "property float x", "property float y",
+             "property float z", "element face 4", "property list uchar int vertex_indices", "end_header",
+             "0 0 0", "1.7e6 0 0", "0 1.7e6 0", "0 0 1.7e6", "3 0 2 1", "3 0 1 3", "3 0 3 2", "3 1 2 9"]
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeshError, match="face index 9 out of range for 4 vertices"):
+        load_user_mesh(path, "moon")
