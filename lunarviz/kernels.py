@@ -31,8 +31,8 @@ except ImportError:  # pragma: no cover
     numba = None
     _NUMBA = False
 
-#: phase-function codes
-SHG, DHG_PAPER, DHG_HAPKE2012 = 0, 1, 2
+#: phase-function codes (LAMBERT: no phase function, the Lambert radiance factor)
+SHG, DHG_PAPER, DHG_HAPKE2012, LAMBERT = 0, 1, 2, -1
 #: H-function codes
 H1981, H2002 = 0, 1
 
@@ -83,6 +83,11 @@ def _hapke_sum(mu0, mu, sh, ch, e, e_unit, albedo, w0, h, B0, pcode, p1, p2, hco
                 B = B0 if s_ <= 0.0 else 0.0
             else:
                 B = B0 * num / den
+            if pcode == LAMBERT:  # radiance factor (w/π)·μ0 (Lambert.radiance_factor)
+                rf = w / np.pi * m0
+                acc += rf * ej
+                acc_u += rf * eu
+                continue
             if pcode == 0:  # SHG: p1 = |ξ|, p2 = 1 for a backward lobe (ξ < 0)
                 P = _lobe(p1, s_ if p2 > 0.5 else c_)
             else:  # DHG: p1 = b, p2 = c
@@ -97,25 +102,6 @@ def _hapke_sum(mu0, mu, sh, ch, e, e_unit, albedo, w0, h, B0, pcode, p1, p2, hco
         out[i] = acc
         out_unit[i] = acc_u
 
-
-def _lambert_sum(mu0, e, e_unit, albedo, a0, has_unit, has_albedo, out, out_unit):
-    """Lambert's ``Σ_k (a/π)·clip(μ0)·E`` per sample (:meth:`lunarviz.brdf.Lambert.radiance_factor`),
-    and the same over ``e_unit``."""
-    n, k = mu0.shape
-    for i in range(n):
-        f = (albedo[i] if has_albedo else a0) / np.pi
-        acc = 0.0
-        acc_u = 0.0
-        for j in range(k):
-            ej = e[i, j]
-            eu = e_unit[i, j] if has_unit else 0.0
-            if ej == 0.0 and eu == 0.0:
-                continue
-            rf = f * min(max(mu0[i, j], 0.0), 1.0)
-            acc += rf * ej
-            acc_u += rf * eu
-        out[i] = acc
-        out_unit[i] = acc_u
 
 def _beam_angles(dirs, n, o, mu0_out, sh_out, ch_out):
     """μ0 = dirs·n and the half-angle sine and cosine between dirs and o, per beam
@@ -625,7 +611,6 @@ if _NUMBA:
         _beam_angles = _jit(_beam_angles, nogil=True)
         _sphere_refine = _jit(_sphere_refine, nogil=True)
         _hapke_sum = _jit(_hapke_sum, nogil=True)
-        _lambert_sum = _jit(_lambert_sum, nogil=True)
         _basis = _jit(_basis, inline="always")
         _cap_row = _jit(_cap_row, inline="always")
         _cap_ring = _jit(_cap_ring, inline="always")
@@ -680,15 +665,18 @@ def hapke_radiances(model, mu0, mu, sin_hg, cos_hg, e_beam, e_unit=None, albedo=
 
 def lambert_radiances(model, mu0, e_beam, e_unit=None, albedo=None):
     """``(Σ_k rf·e_beam, Σ_k rf·e_unit or None)`` per sample for a :class:`lunarviz.brdf.Lambert`
-    ``model`` (compiled only); ``albedo`` (N,) replaces its albedo per sample."""
+    ``model`` (compiled only; :func:`_hapke_sum` with the LAMBERT code); ``albedo`` (N,)
+    replaces its albedo per sample."""
     f = np.ascontiguousarray
     n = mu0.shape[0]
     out, out_u = np.empty(n), np.empty(n)
     eu = f(e_unit, dtype=float) if e_unit is not None else np.zeros((1, 1))
     al = f(albedo, dtype=float).reshape(-1) if albedo is not None else np.zeros(1)
-    _lambert_sum(f(mu0, dtype=float), f(e_beam, dtype=float), eu, al, float(model.albedo), e_unit is not None,
-                 albedo is not None, out, out_u)
+    mu0 = f(mu0, dtype=float)
+    _hapke_sum(mu0, np.zeros(n), mu0, mu0, f(e_beam, dtype=float), eu, al, float(model.albedo), 0.0, 0.0, LAMBERT,
+               0.0, 0.0, H1981, e_unit is not None, albedo is not None, out, out_u)
     return out, (out_u if e_unit is not None else None)
+
 
 def beam_angles(dirs, n, o):
     """``(μ0, sin(g/2), cos(g/2))`` (B, K) of beams ``dirs`` (B, K, 3) at points with normals
