@@ -129,10 +129,8 @@ def _sphere_refine(o, d, radius, prim, t_out, point_out, centre):
     for i in range(n):
         if prim[i] < 0:
             continue
-        b = -(o[i, 0] * d[i, 0] + o[i, 1] * d[i, 1] + o[i, 2] * d[i, 2])
-        perp2 = o[i, 0] * o[i, 0] + o[i, 1] * o[i, 1] + o[i, 2] * o[i, 2] - b * b
-        disc = radius * radius - perp2
-        t = b - np.sqrt(max(disc, 0.0))
+        disc, b, sq = _sphere_crossing(o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], radius)
+        t = b - sq
         if disc > 0.0 and t > 0.0:
             t_out[i] = t
             for j in range(3):
@@ -153,6 +151,21 @@ def _basis(a0, a1, a2):
     e10, e11, e12 = e10 / nrm, e11 / nrm, e12 / nrm
     return e10, e11, e12, a1 * e12 - a2 * e11, a2 * e10 - a0 * e12, a0 * e11 - a1 * e10
 
+
+def _on_basis(c, s, cp, sp, a0, a1, a2, e10, e11, e12, e20, e21, e22):
+    """The unit vector at polar angle (cos c, sin s) and azimuth (cos cp, sin sp) about axis a
+    with basis e1, e2: ``c·a + s·(cp·e1 + sp·e2)``."""
+    return (c * a0 + s * (cp * e10 + sp * e20), c * a1 + s * (cp * e11 + sp * e21),
+            c * a2 + s * (cp * e12 + sp * e22))
+
+
+def _sphere_crossing(o0, o1, o2, d0, d1, d2, R):
+    """Ray o + t·d (d unit) against the sphere of radius R about the origin: ``(disc, b, sq)``;
+    it crosses the sphere where disc > 0, at t = b ∓ sq."""
+    b = -(o0 * d0 + o1 * d1 + o2 * d2)
+    perp2 = (o0 * o0 + o1 * o1 + o2 * o2) - b * b
+    disc = R * R - perp2
+    return disc, b, np.sqrt(max(disc, 0.0))
 
 def _cap_row(x, i, c, R, cus, ccs, seg):
     """Row i of the one-cap sphere rule of :func:`lunarviz.sphere_quadrature.cap_rule`: the
@@ -255,10 +268,8 @@ def _cone_rule(axis, sin_rho, gx, gw, cphi, sphi, d, w):
             cpsi = 1.0 - u
             spsi = np.sqrt(max(u * (2.0 - u), 0.0))
             for jp in range(n_phi):
-                c, sn = cphi[jp], sphi[jp]
-                d[i, col, 0] = cpsi * a0 + spsi * (c * e10 + sn * e20)
-                d[i, col, 1] = cpsi * a1 + spsi * (c * e11 + sn * e21)
-                d[i, col, 2] = cpsi * a2 + spsi * (c * e12 + sn * e22)
+                d[i, col, 0], d[i, col, 1], d[i, col, 2] = _on_basis(cpsi, spsi, cphi[jp], sphi[jp], a0, a1, a2,
+                                                                     e10, e11, e12, e20, e21, e22)
                 w[i, col] = wu * dphi
                 col += 1
 
@@ -284,11 +295,7 @@ def _ray_starts(origins, dirs, centre, R, tmax, has_tmax, o_out, t0_out, live):
     for i in range(n):
         o0, o1, o2 = origins[i, 0] - centre[0], origins[i, 1] - centre[1], origins[i, 2] - centre[2]
         o_out[i, 0], o_out[i, 1], o_out[i, 2] = o0, o1, o2
-        d0, d1, d2 = dirs[i, 0], dirs[i, 1], dirs[i, 2]
-        b = -(o0 * d0 + o1 * d1 + o2 * d2)
-        perp2 = (o0 * o0 + o1 * o1 + o2 * o2) - b * b
-        disc = R * R - perp2
-        sq = np.sqrt(max(disc, 0.0))
+        disc, b, sq = _sphere_crossing(o0, o1, o2, dirs[i, 0], dirs[i, 1], dirs[i, 2], R)
         t_exit = b + sq
         t0 = max(b - sq, 0.0)
         t0_out[i] = t0
@@ -361,9 +368,7 @@ def _earth_lit_dirs(xs, earth, R, us, c_s, n_tab, r1, r2, dirs, weight):
         hw = _half_width(ct, st, stu, ctu, c_s)
         phi = phi_u + (2.0 * r2[i] - 1.0) * hw
         cp, sp = np.cos(phi), np.sin(phi)
-        m0 = ct * a0 + st * (cp * e10 + sp * e20)
-        m1 = ct * a1 + st * (cp * e11 + sp * e21)
-        m2 = ct * a2 + st * (cp * e12 + sp * e22)
+        m0, m1, m2 = _on_basis(ct, st, cp, sp, a0, a1, a2, e10, e11, e12, e20, e21, e22)
         w0 = earth[0] + R * m0 - xs[i, 0]
         w1 = earth[1] + R * m1 - xs[i, 1]
         w2 = earth[2] + R * m2 - xs[i, 2]
@@ -410,10 +415,7 @@ def _live_beam(i, q, d0, d1, d2, w, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi,
     ds[m, 0], ds[m, 1], ds[m, 2] = d0, d1, d2
     om_b[m] = w
     r0, r1, r2 = xo0 - c[0], xo1 - c[1], xo2 - c[2]
-    b = -(r0 * d0 + r1 * d1 + r2 * d2)
-    perp2 = (r0 * r0 + r1 * r1 + r2 * r2) - b * b
-    disc = Rb * Rb - perp2
-    sq = np.sqrt(max(disc, 0.0))
+    disc, b, sq = _sphere_crossing(r0, r1, r2, d0, d1, d2, Rb)
     if disc > 0.0 and b + sq > 0.0:
         t = max(b - sq, 0.0)
         idx[p] = m
@@ -480,9 +482,7 @@ def _cap_beams(x, n, o, c, R, cus, ccs, gx_t, gw_t, gx_p, gw_p, off, Rb, as_rays
                     sal = sa[j] if ip == j else -sa[j]
                     cp = cpu * ca[j] - spu * sal
                     sp = spu * ca[j] + cpu * sal
-                    m0 = ct * a0 + st * (cp * e10 + sp * e20)
-                    m1 = ct * a1 + st * (cp * e11 + sp * e21)
-                    m2 = ct * a2 + st * (cp * e12 + sp * e22)
+                    m0, m1, m2 = _on_basis(ct, st, cp, sp, a0, a1, a2, e10, e11, e12, e20, e21, e22)
                     v0 = c[0] + R * m0 - x[i, 0]
                     v1 = c[1] + R * m1 - x[i, 1]
                     v2 = c[2] + R * m2 - x[i, 2]
@@ -528,10 +528,8 @@ def _source_hits(x, n, off, bi, ds, idx, prim_in, radius, centre, sun, phi, vis,
         o1 = x[i, 1] + n[i, 1] * off - centre[1]
         o2 = x[i, 2] + n[i, 2] * off - centre[2]
         d0, d1, d2 = ds[q, 0], ds[q, 1], ds[q, 2]
-        b = -(o0 * d0 + o1 * d1 + o2 * d2)
-        perp2 = o0 * o0 + o1 * o1 + o2 * o2 - b * b
-        disc = radius * radius - perp2
-        t = b - np.sqrt(max(disc, 0.0))
+        disc, b, sq = _sphere_crossing(o0, o1, o2, d0, d1, d2, radius)
+        t = b - sq
         if not (disc > 0.0 and t > 0.0):
             continue
         t_out[q] = t
@@ -568,10 +566,7 @@ def _occluder_rays(x, n, off, bi, ds, tmax, mask, centre, R, rows, o32, d32, dis
         o1 = x[i, 1] + n[i, 1] * off - centre[1]
         o2 = x[i, 2] + n[i, 2] * off - centre[2]
         d0, d1, d2 = ds[q, 0], ds[q, 1], ds[q, 2]
-        b = -(o0 * d0 + o1 * d1 + o2 * d2)
-        perp2 = (o0 * o0 + o1 * o1 + o2 * o2) - b * b
-        disc = R * R - perp2
-        sq = np.sqrt(max(disc, 0.0))
+        disc, b, sq = _sphere_crossing(o0, o1, o2, d0, d1, d2, R)
         t0 = max(b - sq, 0.0)
         if not (disc > 0.0 and b + sq > 0.0 and t0 < tmax[q]):
             continue
@@ -612,6 +607,8 @@ if _NUMBA:
         _sphere_refine = _jit(_sphere_refine, nogil=True)
         _hapke_sum = _jit(_hapke_sum, nogil=True)
         _basis = _jit(_basis, inline="always")
+        _on_basis = _jit(_on_basis, inline="always")
+        _sphere_crossing = _jit(_sphere_crossing, inline="always")
         _cap_row = _jit(_cap_row, inline="always")
         _cap_ring = _jit(_cap_ring, inline="always")
         _sphere_cap_count = _jit(_sphere_cap_count, nogil=True)
