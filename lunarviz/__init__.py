@@ -19,12 +19,12 @@ __all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "study",
 
 def __getattr__(name):
     if name in ("Scene", "sweep", "run", "trace", "render", "view", "image"):
-        from . import api
+        from lunarviz.__init__ import api
         return getattr(api, name)
     if name == "study":
         import importlib
         return importlib.import_module(".study", __name__)
     if name == "LunarvizError":
-        from .errors import LunarvizError
+        from lunarviz.__init__.errors import LunarvizError
         return LunarvizError
     raise AttributeError(f"module 'lunarviz' has no attribute {name!r}")

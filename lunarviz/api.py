@@ -21,9 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .errors import LunarvizError
-from .facets import FacetResult
-from .surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+from lunarviz.errors import LunarvizError
+from lunarviz.outputs.facets import FacetResult
 
 #: options of :class:`Scene` and their defaults (the command line's defaults)
 SCENE_DEFAULTS = {
@@ -47,7 +47,7 @@ THETA_MAX = 360.0
 
 
 def _phases(phases) -> tuple:
-    from .parsing import parse_float_list
+    from lunarviz.parsing import parse_float_list
     if phases is None:
         return tuple(float(p) for p in range(0, 181, 5))
     if isinstance(phases, str):
@@ -67,7 +67,7 @@ def _check_key(sc: "Scene", key):
     if key is None:
         return sc.keys[0]
     if sc.times is not None:
-        from .ephemeris import time_list
+        from lunarviz.sky.ephemeris import time_list
         if not isinstance(key, str):
             raise LunarvizError(f"this scene is dated: give a UTC time, not {key!r}")
         times = time_list(key)
@@ -108,7 +108,7 @@ class Scene:
         ``earth_albedo``, ``earth_law``, ``dhg_convention``, ``h_function``, ``moon_model``
         (``paper`` or ``rolo-fit``), ``params``
         (``{brdf: {name: value}}``), ``estimator``, ``rays``, ``runs``, ``seed``,
-        ``earth_order``, ``sun_order``, ``grid``, ``order``; surfaces (:mod:`lunarviz.surfaces`):
+        ``earth_order``, ``sun_order``, ``grid``, ``order``; surfaces (:mod:`lunarviz.bodies.surfaces`):
         ``moon_albedo_map`` (``"FILE[:MEAN]"`` or ``"synthetic"``), ``earth_surface``
         (``uniform``, ``landocean`` or a map file), ``clouds`` (``none``, ``zonal`` or a map
         file), ``land_albedo``, ``ocean_albedo``, ``cloud_albedo``, ``earth_rotation_deg``
@@ -122,7 +122,7 @@ class Scene:
         unknown = set(options) - set(SCENE_DEFAULTS)
         if unknown:
             raise LunarvizError(f"unknown Scene option {sorted(unknown)[0]!r}; known: {', '.join(SCENE_DEFAULTS)}")
-        from .ephemeris import time_list
+        from lunarviz.sky.ephemeris import time_list
         if phases is not None and (time is not None or time_range is not None):
             raise LunarvizError("give phases (the θ scene) or time/time_range (the real sky), not both")
         if time is not None and not isinstance(time, str):
@@ -152,8 +152,8 @@ class Scene:
         self.settings("raytrace")  # validates everything (raytrace accepts every option)
 
     def settings(self, method: str = "analytic"):
-        """The :class:`~lunarviz.sweeps.SweepSettings` of this scene for ``method``."""
-        from .sweeps import SweepSettings
+        """The :class:`~lunarviz.workflows.sweeps.SweepSettings` of this scene for ``method``."""
+        from lunarviz.workflows.sweeps import SweepSettings
         o = dict(self.options)
         o["brdfs"] = tuple(o["brdfs"])
         o["params"] = o["params"] or {}
@@ -166,7 +166,7 @@ class Scene:
         return list(self.times) if self.times is not None else list(self.phases)
 
     def geometry(self, key=None):
-        """The low-level :class:`~lunarviz.geometry.Scene` (positions [m]) of one task, and its
+        """The low-level :class:`~lunarviz.geometry.scene_geometry.Scene` (positions [m]) of one task, and its
         row fields (time, distances, libration, flags)."""
         return self.settings("raytrace").scene_and_fields(self.keys[0] if key is None else key)
 
@@ -206,7 +206,7 @@ def run(scene: Scene | None = None, method: str = "analytic", workers: int | Non
         ``{"settings", "rows", "bond_albedo", "wall_seconds", ...}``; each row has
         ``moonshine_W_m2``, ``earthshine_W_m2`` [W m-2], angles [deg], ``apparent_albedo``.
     """
-    from .sweeps import run_sweep
+    from lunarviz.workflows.sweeps import run_sweep
     if workers is not None and not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise LunarvizError(f"workers={workers!r} must be a positive integer")
     sc = _scene(scene, scene_options)
@@ -237,7 +237,7 @@ def sweep(scene: Scene | None = None, method: str = "analytic", workers: int | N
         ``bond_albedo`` (per BRDF); units and descriptions in each variable's ``attrs``
         (CF conventions). ``attrs["settings_json"]`` reruns it.
     """
-    from .tables import to_dataset
+    from lunarviz.outputs.tables import to_dataset
     return to_dataset(run(scene, method, workers, progress, executor, scheduler, **scene_options))
 
 
@@ -256,16 +256,16 @@ class Facets(FacetResult):
         Returns
         -------
         pyvista.PolyData or pyvista.MultiBlock
-            Cell arrays as in :mod:`lunarviz.facets` (radiance [W m-2 sr-1], irradiance [W m-2],
+            Cell arrays as in :mod:`lunarviz.outputs.facets` (radiance [W m-2 sr-1], irradiance [W m-2],
             contributions [W m-2], angles [deg], lit fractions).
         """
-        from .viz.meshio import facet_polydata, multiblock
+        from lunarviz.viz.meshio import facet_polydata, multiblock
         return multiblock(self) if bodies else facet_polydata(self)
 
     def save(self, path) -> None:
         """Write ``.vtp``/``.vtk``/``.ply`` (the Moon) or ``.vtm`` (every body), atomically."""
-        from .io import check_output_path
-        from .viz.meshio import check_vtm_target, write_facet_mesh
+        from lunarviz.outputs.writers import check_output_path
+        from lunarviz.viz.meshio import check_vtm_target, write_facet_mesh
         check_output_path(path, (".vtp", ".vtk", ".ply", ".vtm"))
         if str(path).lower().endswith(".vtm"):
             check_vtm_target(path)
@@ -292,7 +292,7 @@ def trace(scene: Scene | None = None, key=None, brdf: str | None = None, **scene
         [W m-2], angles [deg]), ``totals`` (detector irradiance [W m-2]), ``info``;
         ``.to_pyvista()``, ``.save(path)``.
     """
-    from .facets import trace_facets
+    from lunarviz.outputs.facets import trace_facets
     sc = _scene(scene, scene_options)
     settings = sc.settings("raytrace")
     key = _check_key(sc, key)
@@ -324,13 +324,13 @@ def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = 
     numpy.ndarray
         RGB, (height, width, 3), uint8. For radiance images see :func:`image`.
     """
-    from .viz import views
+    from lunarviz.viz import views
     sc = _scene(scene, scene_options)
     if view not in views.VIEWS:
         raise LunarvizError(f"unknown view {view!r}: choose from {', '.join(views.VIEWS)}")
     size = _check_size(size)
     if out is not None:
-        from .io import check_output_path
+        from lunarviz.outputs.writers import check_output_path
         out = check_output_path(out, (".png",))
     settings = replace(sc.settings("raytrace"), brdfs=(brdf,))
     return views.render_image(settings, _check_key(sc, key), brdf, view=view, size=size, out=out)
@@ -369,16 +369,16 @@ def view(scene: Scene | None = None, key=None, brdf: str = "dhg", size=(1600, 90
     if web:
         if not (isinstance(port, (int, np.integer)) and not isinstance(port, bool) and 0 <= port <= 65535):
             raise LunarvizError(f"port {port!r} is not a TCP port (0-65535; 0 picks a free one)")
-        from .viz.web import serve
+        from lunarviz.viz.web import serve
         return serve(settings, key, brdf, host=str(host), port=int(port), size=size)
-    from .viz.viewer import run_viewer
+    from lunarviz.viz.viewer import run_viewer
     return run_viewer(settings, key, brdf, size=size)
 
 
 def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_deg: float = 0.75, pixels=256,
           supersample: int = 4, pointing: str = "moon", psf: str | None = None, halo: str | None = None, out=None,
           gif=None, progress: bool = False, **scene_options):
-    """Synthetic camera images (:mod:`lunarviz.camera`) in radiance [W m-2 sr-1].
+    """Synthetic camera images (:mod:`lunarviz.methods.camera`) in radiance [W m-2 sr-1].
 
     Parameters
     ----------
@@ -386,12 +386,12 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
         Every BRDF of the scene gets a MOONSHINE and an EARTHSHINE plane.
     key : float or str, optional
         One phase θ [deg] or UTC time (default: the scene's first); ``keys`` for several frames.
-    camera : lunarviz.camera.Camera, optional
+    camera : lunarviz.methods.camera.Camera, optional
         Or ``fov_deg`` [deg], ``pixels`` (N or (W, H)), ``supersample`` (K×K rays per pixel),
         ``pointing`` ("moon" or "RA,DEC" [deg]).
     psf, halo : str, optional
         ``gaussian:FWHM_ARCSEC`` or a .npy kernel; ``FRACTION,INDEX[,CORE_ARCSEC]`` power-law wing
-        (:mod:`lunarviz.image_io`).
+        (:mod:`lunarviz.outputs.images`).
     out : path, optional
         ``.fits`` (one HDU per plane, BUNIT, TAN WCS), ``.npy`` or ``.png``; several frames are
         numbered ``FILE_000.ext``.
@@ -400,8 +400,8 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     -------
     ImageResult (one key, no ``out``) or list of ImageResult; with ``out``, the files written.
     """
-    from .camera import Camera, synthesize
-    from .image_io import apply_optics, parse_halo, parse_psf, write_fits, write_npy, write_png
+    from lunarviz.methods.camera import Camera, synthesize
+    from lunarviz.outputs.images import apply_optics, parse_halo, parse_psf, write_fits, write_npy, write_png
     sc = _scene(scene, scene_options)
     if camera is None:
         w, h = (pixels, pixels) if np.isscalar(pixels) else tuple(pixels)
@@ -412,7 +412,7 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     k_psf = parse_psf(psf, pix_arcsec, (camera.height, camera.width))
     k_halo = parse_halo(halo, pix_arcsec, (camera.height, camera.width))
     if out is not None:
-        from .io import check_output_path
+        from lunarviz.outputs.writers import check_output_path
         out = check_output_path(out, (".fits", ".npy", ".png"))
     results, files = [], []
     it = keys
@@ -441,7 +441,7 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
 
         from PIL import Image
 
-        from .io import write_bytes_atomic
+        from lunarviz.outputs.writers import write_bytes_atomic
         frames = []
         for res in results:
             b = next(iter(res.planes["moonshine"]))

@@ -12,8 +12,8 @@ import math
 import sys
 from pathlib import Path
 
-from .errors import LunarvizError
-from .parsing import parse_float_list
+from lunarviz.errors import LunarvizError
+from lunarviz.parsing import parse_float_list
 
 EXIT_USAGE = 2
 
@@ -30,7 +30,7 @@ class _Parser(argparse.ArgumentParser):
 # ---- parsing helpers ---------------------------------------------------------------------
 def parse_params(items, brdfs) -> dict:
     """``--param NAME=VALUE`` or ``BRDF.NAME=VALUE`` → ``{brdf: {name: value}}``."""
-    from .brdf import BRDF_PARAMETERS
+    from lunarviz.photometry.brdf import BRDF_PARAMETERS
     out: dict = {b: {} for b in brdfs}
     for item in items or []:
         if "=" not in item:
@@ -57,7 +57,7 @@ def parse_params(items, brdfs) -> dict:
 
 
 def _brdf_list(text) -> list[str]:
-    from .brdf import BRDF_NAMES
+    from lunarviz.photometry.brdf import BRDF_NAMES
     names = [t.strip().lower() for t in str(text).split(",") if t.strip()]
     if not names:
         raise UsageError("empty --brdf list")
@@ -100,7 +100,7 @@ def _detector(text):
 
 
 def _check_out(path, suffixes):
-    from .io import check_output_path
+    from lunarviz.outputs.writers import check_output_path
     try:
         return check_output_path(path, suffixes)
     except ValueError as exc:
@@ -132,7 +132,7 @@ def _times(a):
     """UTC labels from --time/--time-range, or None for the θ scene."""
     if getattr(a, "time", None) is None and getattr(a, "time_range", None) is None:
         return None
-    from .ephemeris import time_list
+    from lunarviz.sky.ephemeris import time_list
     return time_list(a.time, a.time_range)
 
 
@@ -171,7 +171,7 @@ def _add_trace_options(p):
     g.add_argument("--clouds", default="none", metavar="none|zonal|FILE",
                    help="cloud fraction: none, zonal (zonal means kept in the package) or a map; cloud albedo "
                         "--cloud-albedo")
-    from .surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+    from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
     g.add_argument("--land-albedo", type=float, default=LAND_ALBEDO)
     g.add_argument("--ocean-albedo", type=float, default=OCEAN_ALBEDO)
     g.add_argument("--cloud-albedo", type=float, default=CLOUD_ALBEDO)
@@ -323,7 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _scene(a, phases, times=None):
     """The :class:`lunarviz.Scene` the options describe (the CLI is a thin layer over the API)."""
-    from .api import Scene
+    from lunarviz.api import Scene
     brdfs = _brdf_list(a.brdf)
     return Scene(
         phases=None if times is not None else phases, time=times, observer=getattr(a, "observer", "geocentre"),
@@ -340,9 +340,9 @@ def _scene(a, phases, times=None):
 
 
 def cmd_sweep(a):
-    from . import api
-    from .io import write_results
-    from .sweeps import METHODS
+    from lunarviz import api
+    from lunarviz.outputs.writers import write_results
+    from lunarviz.workflows.sweeps import METHODS
     if a.method not in METHODS:
         raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
     times = _times(a)
@@ -357,7 +357,7 @@ def cmd_sweep(a):
     res = api.run(scene, a.method, workers=a.workers, progress=not a.quiet, executor=a.executor,
                   scheduler=a.scheduler)
     if out.suffix.lower() == ".nc":
-        from .tables import write_netcdf
+        from lunarviz.outputs.tables import write_netcdf
         write_netcdf(out, res)
     else:
         write_results(out, res)
@@ -371,8 +371,8 @@ def cmd_sweep(a):
 def cmd_brdf(a):
     import numpy as np
 
-    from .brdf import brdf_from_angles, half_angle_from_angles, make_brdf
-    from .io import write_results
+    from lunarviz.outputs.writers import write_results
+    from lunarviz.photometry.brdf import brdf_from_angles, half_angle_from_angles, make_brdf
     model_name = _brdf_list(a.model)
     if len(model_name) != 1:
         raise UsageError(f"--model takes one BRDF, got {a.model!r}")
@@ -401,8 +401,8 @@ def cmd_brdf(a):
 
 
 def cmd_trace(a):
-    from . import api
-    from .viz.meshio import check_vtm_target, write_facet_mesh
+    from lunarviz import api
+    from lunarviz.viz.meshio import check_vtm_target, write_facet_mesh
     times = _times(a)
     if times is not None:
         if a.phase is not None:
@@ -420,7 +420,7 @@ def cmd_trace(a):
     if str(out).lower().endswith(".vtm"):
         check_vtm_target(out)
     res = api.trace(_scene(a, [a.phase if a.phase is not None else 0.0], times), key)
-    from .tracer.bodies import release_caches
+    from lunarviz.methods.tracer.embree_bodies import release_caches
     release_caches()  # the meshes and Embree scenes are done with: ~1 GB at 5 M facets before the write
     write_facet_mesh(out, res)
     print(f"moonshine {res.totals['moonshine_W_m2']:.6e} W/m2, earthshine {res.totals['earthshine_W_m2']:.6e} W/m2")
@@ -428,7 +428,7 @@ def cmd_trace(a):
 
 
 def cmd_render(a, interactive=False):
-    from .viz import views
+    from lunarviz.viz import views
     phases = parse_float_list(a.phase or "90", "phase", 0.0, 360.0)
     try:
         w, h = (int(x) for x in a.size.lower().split("x"))
@@ -446,7 +446,7 @@ def cmd_render(a, interactive=False):
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
     scene = _scene(a, phases, times)
     if interactive:
-        from . import api
+        from lunarviz import api
         web = getattr(a, "web", False)
         if times is None and len(phases) > 1:
             raise UsageError("view starts at one phase (its slider moves through the others): give one --phase")
@@ -474,8 +474,8 @@ def cmd_render(a, interactive=False):
 
 
 def cmd_image(a):
-    from . import api
-    from .camera import Camera, parse_pixels
+    from lunarviz import api
+    from lunarviz.methods.camera import Camera, parse_pixels
     times = _times(a)
     if times is not None and a.phase is not None:
         raise UsageError("give --phase (the θ scene) or --time/--time-range (the real sky), not both")
@@ -494,7 +494,7 @@ def cmd_image(a):
 
 
 def cmd_study(a):
-    from . import study
+    from lunarviz.workflows import study
     levels = parse_float_list(a.levels, "level", 0, 8)
     bad = [v for v in levels if v != int(v)]
     if bad:
@@ -504,7 +504,7 @@ def cmd_study(a):
     out = _check_out(a.out, (".json", ".csv"))
     meshes = [m.strip() for m in a.meshes.split(",") if m.strip()] if a.meshes else None
     if meshes is not None:
-        from .meshes import load_user_mesh
+        from lunarviz.bodies.meshes import load_user_mesh
         if len(meshes) < 2:
             raise UsageError("--meshes needs at least two meshes, coarse to fine")
         for m in meshes:
@@ -541,8 +541,8 @@ def _check_axes(text):
 
 
 def cmd_mesh(a):
-    from . import shapes
-    from .meshes import NOMINAL_RADII
+    from lunarviz.bodies import shapes
+    from lunarviz.bodies.meshes import NOMINAL_RADII
     R = NOMINAL_RADII[a.body]
     if a.level > 8:
         raise UsageError(f"--level {a.level} is too fine (at most 8: 1.3 M facets; --patch refines where it matters)")
@@ -576,15 +576,15 @@ def cmd_mesh(a):
         if patch is None:
             raise UsageError("mesh make patch needs --patch LAT,LON,K")
         m = shapes.patch(R, a.level, *patch)
-    from .meshes import validate_mesh
+    from lunarviz.bodies.meshes import validate_mesh
     validate_mesh(m, f"{a.shape} mesh")
     shapes.write_mesh(m, out)
     print(f"wrote {out} ({len(m.faces)} facets, vertices in metres, {a.body} frame)")
 
 
 def cmd_fit(a):
-    from .fit import DEFAULT_FREE, plot_fit, run_fit
-    from .io import write_results
+    from lunarviz.outputs.writers import write_results
+    from lunarviz.photometry.fit import DEFAULT_FREE, plot_fit, run_fit
     brdf = _brdf_list(a.brdf)
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
@@ -593,7 +593,7 @@ def cmd_fit(a):
         raise UsageError(f"--source {a.source!r} is neither rolo nor a CSV file")
     out = _check_out(a.out, (".json",))
     if a.moon_albedo_map is not None:
-        from .surfaces import MoonAlbedoMap
+        from lunarviz.bodies.surfaces import MoonAlbedoMap
         MoonAlbedoMap.parse(a.moon_albedo_map)  # a bad map: one line, before any work
     res = run_fit(brdf[0], a.source, a.band, a.phases, free, dhg_convention=a.dhg_convention,
                   h_function=a.h_function, moon_map=a.moon_albedo_map, order=a.order)
@@ -609,14 +609,14 @@ def cmd_fit(a):
 
 
 def cmd_bench(a):
-    from .bench import run_bench
+    from lunarviz.workflows.bench import run_bench
     out = _check_out(a.out, (".json",))
     run_bench(out, quick=a.quick, progress=not a.quiet)
     print(f"wrote {out}")
 
 
 def cmd_paper(a):
-    from .paper import run_paper
+    from lunarviz.workflows.paper import run_paper
     out = Path(a.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {a.out!r} exists and is not a directory")
@@ -640,7 +640,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 def main(argv=None) -> int:
     import warnings
 
-    from .errors import LunarvizWarning
+    from lunarviz.errors import LunarvizWarning
     shown = warnings.showwarning
     if not sys.warnoptions:
         warnings.filterwarnings("always", category=LunarvizWarning)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .errors import LunarvizError
+from lunarviz.errors import LunarvizError
 
 
 def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | None = None) -> list[float]:

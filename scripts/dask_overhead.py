@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.sweeps import SweepSettings, run_sweep
+from lunarviz.workflows.sweeps import SweepSettings, run_sweep
 
 OUT = Path(__file__).resolve().parent.parent / "benchmarks" / "dask_overhead.json"
 

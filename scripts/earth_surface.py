@@ -29,17 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.ephemeris import time_list
-from lunarviz.io import write_results
-from lunarviz.sweeps import SweepSettings, run_phase, run_sweep
+from lunarviz.outputs.writers import write_results
+from lunarviz.sky.ephemeris import time_list
+from lunarviz.workflows.sweeps import SweepSettings, run_phase, run_sweep
 
 SURFACE = dict(earth_surface="landocean", clouds="zonal")
 
 
 def global_mean(clouds: str) -> float:
     """Area-weighted mean albedo of the Earth's facets (level-6 mesh)."""
-    from lunarviz.geometry import Scene
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings
+    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean", clouds=clouds))
     a = ts.earth_facet_albedo()
     return float((a * ts.earth.areas).sum() / ts.earth.areas.sum())

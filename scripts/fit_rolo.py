@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.fit import DEFAULT_FREE, DiskModel, plot_fit, rolo_irradiance, rolo_reflectance, run_fit
-from lunarviz.io import write_bytes_atomic, write_results
+from lunarviz.outputs.writers import write_bytes_atomic, write_results
+from lunarviz.photometry.fit import DEFAULT_FREE, DiskModel, plot_fit, rolo_irradiance, rolo_reflectance, run_fit
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "rolo_fit"
@@ -44,7 +44,7 @@ ORDER = 48
 
 
 def real_dates(models: list[str]) -> list[dict]:
-    from lunarviz.sweeps import SweepSettings, run_phase
+    from lunarviz.workflows.sweeps import SweepSettings, run_phase
     rows = []
     for iso in DATES:
         for model in models:
@@ -69,7 +69,7 @@ def observers_check() -> list[dict]:
     """``rolo-fit-map`` DHG against ROLO at the real dates for three observers (geocentre, a
     ground site, a 550 km orbit), analytic (default order) and ray traced: rows where the
     Earth hides the Moon are skipped."""
-    from lunarviz.sweeps import SweepSettings, run_phase
+    from lunarviz.workflows.sweeps import SweepSettings, run_phase
     rows = []
     for obs in OBSERVERS:
         for method in ("analytic", "raytrace"):
@@ -89,7 +89,7 @@ def phase_curves(fitted: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lunarviz.brdf import make_brdf
+    from lunarviz.photometry.brdf import make_brdf
     g = np.arange(2.0, 120.1, 2.0)
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.6))
     for wax, style in ((True, "-"), (False, "--")):
@@ -157,10 +157,10 @@ def main() -> int:
     preset = {"models": models,
               "provenance": "scripts/fit_rolo.py: ROLO (Kieffer & Stone 2005, rimopy) disk reflectance, "
                             f"{BAND} nm weighted by the Wehrli spectrum, phase {FIT_PHASES} deg both branches, "
-                            f"zero libration; analytic disk integration (lunarviz.fit, order {ORDER}); "
+                            f"zero libration; analytic disk integration (lunarviz.photometry.fit, order {ORDER}); "
                             "rolo-fit-map on the synthetic lunar albedo map"}
     write_bytes_atomic(ROOT / "lunarviz" / "data" / "moon_models.json", (json.dumps(preset, indent=2) + "\n").encode())
-    from lunarviz.moon_models import _fitted
+    from lunarviz.photometry.presets import _fitted
     _fitted.cache_clear()
     phase_curves(fitted, OUT / "phase_curves.png")
     rows = real_dates(["paper", *PRESETS])

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.camera import Camera, synthesize
-from lunarviz.image_io import apply_optics, parse_halo, parse_psf, write_png
-from lunarviz.sweeps import SweepSettings
+from lunarviz.methods.camera import Camera, synthesize
+from lunarviz.outputs.images import apply_optics, parse_halo, parse_psf, write_png
+from lunarviz.workflows.sweeps import SweepSettings
 
 OUT = Path(__file__).resolve().parent.parent / "benchmarks" / "images"
 

@@ -3,7 +3,7 @@
     python scripts/make_meshes.py
 """
 
-from lunarviz.meshes import write_packaged_meshes
+from lunarviz.bodies.meshes import write_packaged_meshes
 
 if __name__ == "__main__":
     print(write_packaged_meshes({"sun": [5], "earth": [6], "moon": [5, 6]}))

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.ephemeris import time_list
-from lunarviz.io import write_results
-from lunarviz.sweeps import SweepSettings, run_sweep
+from lunarviz.outputs.writers import write_results
+from lunarviz.sky.ephemeris import time_list
+from lunarviz.workflows.sweeps import SweepSettings, run_sweep
 
 OBSERVERS = {"geocentre": "geocentre", "site 34.26N 116.92W 2067 m": "site:34.26,-116.92,2067",
              "LEO 550 km, i 97.6°": "orbit:550,97.6,0,0"}

@@ -44,9 +44,9 @@ print(json.dumps({"mesh_seconds": time.perf_counter() - t0,
 TRACE = """
 import sys, time, json, resource
 from lunarviz import meshes
-from lunarviz.brdf import make_brdf
-from lunarviz.geometry import Scene
-from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
+from lunarviz.photometry.brdf import make_brdf
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
 path, threads = sys.argv[1], int(sys.argv[2])
 load = []
 _load = meshes.load_user_mesh

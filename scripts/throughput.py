@@ -37,12 +37,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.brdf import make_brdf
-from lunarviz.geometry import Scene
-from lunarviz.tracer import bodies as B
-from lunarviz.tracer import estimators as E
-from lunarviz import kernels as K
-from lunarviz import transport as T
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods import transport as T
+from lunarviz.methods.tracer import embree_bodies as B
+from lunarviz.methods.tracer import estimators as E
+from lunarviz.methods.tracer import kernels as K
+from lunarviz.photometry.brdf import make_brdf
 
 MODELS = {b: make_brdf(b) for b in ("lambert", "shg", "dhg")}
 
@@ -100,7 +100,7 @@ def instrument(timer: StageTimer):
 def make_scene(name: str, quick: bool):
     if name == "paper":
         return Scene(90.0), E.TraceSettings(occlusion=True, threads=1), None
-    from lunarviz import shapes
+    from lunarviz.bodies import shapes
     from lunarviz.constants import R_MOON_M
     level = 5 if quick else 6
     mesh = shapes.craters(R_MOON_M, level, 400, 20e3, 300e3, seed=1)
@@ -249,7 +249,7 @@ def measure(name: str, out: Path, quick: bool) -> dict:
 
 
 def _reference(theta: float) -> dict:
-    from lunarviz.reference import ReferenceSettings, reference_irradiance
+    from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
     r = reference_irradiance(Scene(theta), MODELS, ReferenceSettings(32, 12))
     return {k: (v.moonshine_W_m2, v.earthshine_W_m2) for k, v in r.items()}
 
@@ -289,7 +289,8 @@ def montecarlo_phase(target: float = 0.002, quick: bool = False) -> dict:
     path. N per path from a pilot run (σ ∝ N^-1/2), then the best of three timed runs at that N
     with fresh seeds; the σ reported is the pooled within-run estimate of the last one."""
     import math
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
+
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     out = {"target_seconds": 0.2, "target_relative_std": target}
     total = 0.0
     for path, pilot in (("moonshine", 2_000), ("earthshine", 5_000)) if quick else \

@@ -26,11 +26,11 @@ import sky_reference as ref  # noqa: E402
 from test_sky import FLUX_TIMES, GEOMETRY_TIMES, SITE_TIMES, TLE, TLE_TIMES  # noqa: E402
 
 from lunarviz import constants as C  # noqa: E402
-from lunarviz.brdf import make_brdf  # noqa: E402
-from lunarviz.io import write_results  # noqa: E402
-from lunarviz.observers import parse_observer  # noqa: E402
-from lunarviz.sky import sky_scene  # noqa: E402
-from lunarviz.sweeps import SweepSettings, run_phase  # noqa: E402
+from lunarviz.outputs.writers import write_results  # noqa: E402
+from lunarviz.photometry.brdf import make_brdf  # noqa: E402
+from lunarviz.sky.dated_scene import sky_scene  # noqa: E402
+from lunarviz.sky.observers import parse_observer  # noqa: E402
+from lunarviz.workflows.sweeps import SweepSettings, run_phase  # noqa: E402
 
 
 def main(argv=None) -> int:

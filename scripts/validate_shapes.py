@@ -29,7 +29,7 @@ import sys
 import time
 from pathlib import Path
 
-from lunarviz.sweeps import SweepSettings, run_sweep
+from lunarviz.workflows.sweeps import SweepSettings, run_sweep
 
 OUT = Path(os.environ.get("LUNARVIZ_VALIDATION_DIR", "validation_out"))
 

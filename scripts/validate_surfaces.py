@@ -26,8 +26,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import independent as ind  # noqa: E402
 
-from lunarviz.brdf import make_brdf  # noqa: E402
-from lunarviz.sweeps import SweepSettings, run_phase  # noqa: E402
+from lunarviz.photometry.brdf import make_brdf  # noqa: E402
+from lunarviz.workflows.sweeps import SweepSettings, run_phase  # noqa: E402
 
 MODELS = {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
 
@@ -120,7 +120,7 @@ def main(argv=None) -> int:
     lon = -180 + (np.arange(360) + 0.5)
     chk = np.where((np.floor(lat / 30)[:, None] + np.floor(lon / 30)[None, :]) % 2 == 0, 1.5, 0.5)
     np.save(tmp / "chk.npy", chk)
-    from lunarviz.surfaces import map_mean
+    from lunarviz.bodies.surfaces import map_mean
     mc = map_mean(chk)
 
     def chk_f(la, lo):
@@ -136,8 +136,8 @@ def main(argv=None) -> int:
     res["checkerboard_moon_theta90"] = checker
     from global_land_mask import globe
 
-    from lunarviz.geometry import Scene
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings
+    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     w = np.cos(np.radians(globe._lat.astype(float) - 1 / 240))
     f = float(((~globe._mask).mean(axis=1) * w).sum() / w.sum())
     ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean"))

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lunarviz.brdf import make_brdf
+from lunarviz.photometry.brdf import make_brdf
 
 #: Round-off budget of float64 BRDF algebra (a few hundred ulps).
 ROUNDOFF = 1e-12

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from lunarviz import albedo as alb
-from lunarviz.analytic import AnalyticSettings, analytic_irradiance
-from lunarviz.geometry import Scene
-from lunarviz.sweeps import SweepSettings, run_sweep
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
+from lunarviz.photometry import albedo_inversion as alb
+from lunarviz.workflows.sweeps import SweepSettings, run_sweep
 
 
 def test_bond_weights_integrate_the_kernel_exactly():
@@ -23,7 +23,8 @@ def test_bond_weights_integrate_the_kernel_exactly():
 def test_bond_of_linear_apparent_albedo():
     # p*(β) = a + bβ is integrated exactly by the hat-function weights
     from scipy.integrate import quad
-    from lunarviz.earth import lambert_phase_function
+
+    from lunarviz.photometry.earth_phase import lambert_phase_function
     beta = np.arange(0, 181, 10.0)
     p = 0.3 + 0.01 * np.radians(beta)
     exact = 4 / 3 * quad(lambda b: (0.3 + 0.01 * b) * lambert_phase_function(b) * np.sin(b), 0, np.pi)[0]
@@ -46,7 +47,7 @@ def test_inversion_recovers_a_different_true_albedo():
     # Earth: the inversion must return 0.22 (earthshine is linear in the Earth's albedo)
     for theta in (40.0, 100.0, 160.0):
         sc = Scene(theta)
-        lam = {"dhg": __import__("lunarviz.brdf", fromlist=["x"]).make_brdf("dhg")}
+        lam = {"dhg": __import__("lunarviz.photometry.brdf", fromlist=["x"]).make_brdf("dhg")}
         true = analytic_irradiance(sc, lam, AnalyticSettings(earth_albedo=0.22))["dhg"]
         cal = analytic_irradiance(sc, lam)["dhg"]
         terms = alb.lunar_terms(sc, cal.earthshine_W_m2, cal.moonshine_W_m2, 0.3)
@@ -63,11 +64,13 @@ def test_inversion_measures_a_non_spherical_earth():
     import sys
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).parent))
-    import independent as ind
-    from lunarviz import constants as C
-    from lunarviz import shapes
-    from lunarviz.sweeps import run_phase
     import tempfile
+
+    import independent as ind
+
+    from lunarviz import constants as C
+    from lunarviz.bodies import shapes
+    from lunarviz.workflows.sweeps import run_phase
     x, n, w = ind.ellipsoid_surface(0.8, 1.0, 1.0, n=300)
     xs, ns, ws = ind.ellipsoid_surface(1.0, 1.0, 1.0, n=300)
     far = lambda n, w: np.sum(np.clip(n @ [0, 0, -1.0], 0, None) * np.clip(n @ [0, 1.0, 0], 0, None) * w)

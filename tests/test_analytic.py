@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from lunarviz.analytic import AnalyticSettings, analytic_irradiance
-from lunarviz.earth import earth_intensity, lambert_phase_function
-from lunarviz.geometry import Scene, half_angle_sin_cos, unit
+from lunarviz.geometry.scene_geometry import Scene, half_angle_sin_cos, unit
+from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
+from lunarviz.photometry.earth_phase import earth_intensity, lambert_phase_function
 
 
 def brute_force(scene, brdf, path, n_lat=700):
     """Independent check: midpoint rule on a latitude-longitude grid over the *whole* lunar
-    sphere, every factor written out here (no code shared with lunarviz.analytic)."""
+    sphere, every factor written out here (no code shared with lunarviz.methods.analytic)."""
     lat = (np.arange(n_lat) + 0.5) / n_lat * np.pi - np.pi / 2
     lon = (np.arange(2 * n_lat) + 0.5) / (2 * n_lat) * 2 * np.pi
     LA, LO = np.meshgrid(lat, lon, indexing="ij")
@@ -95,7 +95,7 @@ def test_lambert_sphere_far_field_limit(path, paper_brdfs):
 
 def test_paper_grid_truncation_shows():
     # The paper's ±85° grid misses the limb: at θ = 175° the crescent lies beyond 85°
-    lam = {"l": __import__("lunarviz.brdf", fromlist=["x"]).make_brdf("lambert")}
+    lam = {"l": __import__("lunarviz.photometry.brdf", fromlist=["x"]).make_brdf("lambert")}
     sc = Scene(175.0)
     conv = analytic_irradiance(sc, lam)["l"].moonshine_W_m2
     paper = analytic_irradiance(sc, lam, AnalyticSettings(grid="paper"))["l"].moonshine_W_m2

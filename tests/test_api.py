@@ -96,7 +96,7 @@ def test_study_mesh_returns_data_and_draws_nothing(tmp_path, monkeypatch):
 
 def test_scene_rejects_bad_options_in_one_line(tmp_path):
     from lunarviz import constants as C
-    from lunarviz import shapes
+    from lunarviz.bodies import shapes
     mesh = tmp_path / "ell.ply"
     shapes.write_mesh(shapes.ellipsoid(C.R_MOON_M, C.R_MOON_M, 0.9 * C.R_MOON_M, level=2), mesh)
     with pytest.raises(LunarvizError, match="unknown Scene option 'moon_levle'"):
@@ -150,7 +150,8 @@ def test_detector_behind_the_moon_has_no_apparent_albedo(tmp_path):
 def test_main_does_not_disguise_internal_errors(monkeypatch):
     # only lunarviz's own error type becomes a one-line usage error; a ValueError from inside
     # numpy or a bug keeps its traceback
-    from lunarviz import cli, sweeps
+    from lunarviz import cli
+    from lunarviz.workflows import sweeps
 
     def boom(*a, **k):
         raise ValueError("internal numpy-like failure")
@@ -160,7 +161,7 @@ def test_main_does_not_disguise_internal_errors(monkeypatch):
 
 
 def test_core_does_not_import_the_viz_layer():
-    code = ("import sys, lunarviz.facets, lunarviz.sweeps, lunarviz.api, lunarviz.tables; "
+    code = ("import sys, lunarviz.outputs.facets, lunarviz.workflows.sweeps, lunarviz.api, lunarviz.outputs.tables; "
             "print(any(m.startswith('lunarviz.viz') or m == 'pyvista' for m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "False", r.stderr

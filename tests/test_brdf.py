@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import IntegrationWarning, quad
 
-from lunarviz import brdf as B
+from lunarviz.photometry import brdf as B
 
 DEG = np.pi / 180
 

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from lunarviz.sweeps import SweepSettings, run_sweep
+from lunarviz.workflows.sweeps import SweepSettings, run_sweep
 
 pytest.importorskip("distributed")
 
@@ -35,7 +35,7 @@ def test_dask_options_are_checked(tmp_path):
 
 
 def test_dask_mesh_study_gives_identical_rows():
-    from lunarviz import study
+    from lunarviz.workflows import study
     a = study.mesh((1, 2), (90.0,), ("lambert",))
     b = study.mesh((1, 2), (90.0,), ("lambert",), executor="dask", workers=2)
     assert [r["value_W_m2"] for r in a["rows"]] == [r["value_W_m2"] for r in b["rows"]]

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from lunarviz.geometry import Scene, angle_between, half_angle_sin_cos, unit
+from lunarviz.geometry.scene_geometry import Scene, angle_between, half_angle_sin_cos, unit
 
 
 def test_angle_between_is_accurate_near_zero_and_pi():

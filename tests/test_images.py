@@ -13,10 +13,10 @@ import sys
 
 import numpy as np
 import pytest
-
 import sky_reference as ref
-from lunarviz.camera import Camera, synthesize
-from lunarviz.sweeps import SweepSettings, run_phase
+
+from lunarviz.methods.camera import Camera, synthesize
+from lunarviz.workflows.sweeps import SweepSettings, run_phase
 
 
 @pytest.mark.slow
@@ -38,7 +38,7 @@ def test_image_integrates_to_the_sweep(theta):
 
 def test_image_is_traced_by_embree(monkeypatch):
     # no hits from Embree: no Moon in the picture
-    from lunarviz.tracer.bodies import EmbreeBody
+    from lunarviz.methods.tracer.embree_bodies import EmbreeBody
     s = SweepSettings(brdfs=("lambert",), method="raytrace", phases_deg=(90.0,), moon_level=2)
     cam = Camera(width=32, height=32, supersample=1)
     assert synthesize(s, 90.0, cam).integrated("moonshine", "lambert") > 0
@@ -75,7 +75,7 @@ def test_fits_wcs_points_at_the_moon(tmp_path):
 
 
 def test_psf_conserves_flux(tmp_path):
-    from lunarviz.image_io import apply_optics, parse_psf
+    from lunarviz.outputs.images import apply_optics, parse_psf
     s = SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(60.0,), moon_level=3)
     im = synthesize(s, 60.0, Camera(width=128, height=128, supersample=2, fov_deg=1.2))
     plane = im.planes["moonshine"]["dhg"]

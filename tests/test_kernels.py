@@ -1,4 +1,4 @@
-"""The compiled shading kernels (lunarviz.kernels) against the numpy BRDFs (lunarviz.brdf).
+"""The compiled shading kernels (lunarviz.methods.tracer.kernels) against the numpy BRDFs (lunarviz.photometry.brdf).
 
 The numpy implementation is the reference (itself tested against textbook formulas in
 test_brdf.py); the kernel must reproduce it to rounding (1e-13 relative: different summation
@@ -14,8 +14,8 @@ import sys
 import numpy as np
 import pytest
 
-from lunarviz import kernels
-from lunarviz.brdf import make_brdf
+from lunarviz.methods.tracer import kernels
+from lunarviz.photometry.brdf import make_brdf
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not available")
 
@@ -57,8 +57,8 @@ def test_earth_beams_kernel_matches_numpy_rule(theta):
     source_beams(source_sphere_rule(...)): same beams, to rounding (1e-12: sin/cos of two
     libraries), at lunar points all over the Moon, from a gibbous to a crescent Earth, and for
     the Sun cut by the horizon."""
-    from lunarviz.geometry import Scene, unit
-    from lunarviz.sources import source_beams, source_sphere_rule
+    from lunarviz.geometry.scene_geometry import Scene, unit
+    from lunarviz.methods.sources import source_beams, source_sphere_rule
     sc = Scene(theta)
     rng = np.random.default_rng(2)
     n = unit(rng.normal(size=(500, 3)))
@@ -113,7 +113,7 @@ def test_sweep_rows_equal_with_and_without_numba():
     """The whole raytrace pipeline with LUNARVIZ_NUMBA=0 (numpy) gives the same rows to 1e-12
     (the compiled Earth rule calls numba's sin/cos/arccos where numpy calls its own: 1-ulp
     differences in the nodes, ~3e-13 relative at a θ = 172° crescent)."""
-    code = ("import json; from lunarviz.sweeps import SweepSettings, run_phase; "
+    code = ("import json; from lunarviz.workflows.sweeps import SweepSettings, run_phase; "
             "s = SweepSettings(method='raytrace', phases_deg=(120.0,), moon_level=3, moon_albedo_map='synthetic'); "
             "u = SweepSettings(method='raytrace', moon_level=3, occlusion=False); "
             "print(json.dumps([[r['moonshine_W_m2'], r['earthshine_W_m2']] for r in run_phase(s, 120.0) "
@@ -138,7 +138,7 @@ def test_unwritable_numba_cache_does_not_stop_lunarviz():
             "    return orig(*a, **kw)\n"
             "numba.njit = njit\n"
             "from lunarviz import kernels\n"
-            "from lunarviz.brdf import make_brdf\n"
+            "from lunarviz.photometry.brdf import make_brdf\n"
             "import numpy as np\n"
             "f = np.full\n"
             "L, _ = kernels.hapke_radiances(make_brdf('dhg'), f((2, 3), 0.5), f(2, 0.5), f((2, 3), 0.1), "
@@ -154,8 +154,8 @@ def test_monte_carlo_earth_directions_kernel_matches_numpy(theta, monkeypatch):
     """The compiled Monte Carlo Earth sampler against the numpy one, fed the same uniforms
     (same generator state): same directions and weights to rounding (1e-12, sin/cos of two
     libraries; the weight's pdf table is the same piecewise-constant one)."""
-    from lunarviz.geometry import Scene, unit
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings
+    from lunarviz.geometry.scene_geometry import Scene, unit
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     ts = TraceScene(Scene(theta), TraceSettings(moon_level=2))
     rng = np.random.default_rng(4)
     n = unit(rng.normal(size=(3000, 3)))
@@ -198,10 +198,10 @@ def test_fused_beam_transport_matches_numpy_path(theta, tmp_path, monkeypatch):
     1-ulp node differences into ~1e-11 of one facet (9e-12 measured before the fused path, 1.6e-11
     with it, θ = 30°). θ = 176°: the Earth's horizon-cut rows and the Sun's eclipse/penumbra
     groups take the generic beam_rays."""
-    from lunarviz import shapes
+    from lunarviz.bodies import shapes
     from lunarviz.constants import R_MOON_M
-    from lunarviz.geometry import Scene
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
+    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     path = tmp_path / "craters.ply"
     shapes.write_mesh(shapes.craters(R_MOON_M, 4, 60, 50e3, 300e3, seed=3), path)
     models = {b: make_brdf(b) for b in ("lambert", "shg", "dhg")}
@@ -230,7 +230,7 @@ def test_cone_rule_kernel_matches_numpy():
     """kernels.cone_rule (the Sun's cone beams) against sphere_quadrature.cone_rule: the same
     operations in the same order, so the same nodes and weights to 1e-15 (rounding of fused
     multiply-adds at most), for cones from the Sun's 0.27° to a near hemisphere."""
-    from lunarviz.sphere_quadrature import cone_rule
+    from lunarviz.geometry.sphere_quadrature import cone_rule
     rng = np.random.default_rng(6)
     axis = rng.normal(size=(300, 3))
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)

@@ -6,19 +6,18 @@ tracer code) or from a closed form; each tolerance says which error it budgets f
 
 import json
 
+import independent as ind
 import numpy as np
 import pytest
 import trimesh
 
 from lunarviz import constants as C
-from lunarviz import shapes
+from lunarviz.bodies import shapes
+from lunarviz.bodies.meshes import MeshError, load_user_mesh
 from lunarviz.cli import main
-from lunarviz.geometry import Scene
-from lunarviz.meshes import MeshError, load_user_mesh
-from lunarviz.tracer.bodies import EmbreeBody
-from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
-
-import independent as ind
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods.tracer.embree_bodies import EmbreeBody
+from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
 
 R = C.R_MOON_M
 AXES = (1.15 * R, 1.00 * R, 0.85 * R)
@@ -31,7 +30,7 @@ def _write(mesh, path):
 
 @pytest.fixture(scope="module")
 def lam_dhg():
-    from lunarviz.brdf import make_brdf
+    from lunarviz.photometry.brdf import make_brdf
     return {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
 
 
@@ -240,7 +239,7 @@ def test_embree_stub_changes_non_spherical_results(tmp_path, cube_path, lam_dhg,
     def miss(self, o32, d32, query, dists=None, scene=None):
         return np.full(len(o32), -1, dtype=np.int32)
     monkeypatch.setattr(EmbreeBody, "_run", miss)
-    from lunarviz.tracer import bodies
+    from lunarviz.methods.tracer import embree_bodies as bodies
     bodies._GEOMETRY_CACHE.clear()
     for p, (ms0, es0) in before.items():
         ms1, es1, _ = _trace(120.0, p, lam, shading="flat")
@@ -252,7 +251,7 @@ def test_moon_only_stub_changes_a_cratered_moon(tmp_path):
     # Stubbing only the Moon's Embree queries (the Sun and Earth still traced) must change a
     # non-convex Moon: its self-shadowing and self-hiding are Embree's answers. (A convex Moon
     # mesh sends no rays to its own scene, by design: its horizon decides exactly.)
-    from lunarviz.brdf import make_brdf
+    from lunarviz.photometry.brdf import make_brdf
     lam = {"lambert": make_brdf("lambert")}
     p = _write(shapes.craters(R, 5, 25, 80e3, 250e3, seed=3, region=(0.0, -90.0, 25.0)), tmp_path / "c.ply")
     ts = TraceScene(Scene(120.0), TraceSettings(moon_mesh=p))
@@ -267,7 +266,7 @@ def test_sun_mesh_conserves_power(tmp_path):
     # The Sun is a Lambertian emitter of power Φ: a Sun mesh twice the size has a quarter of
     # the radiance and four times the solid angle, so the moonshine is unchanged (to the level-3
     # mesh's ~1e-3 beam/facet error) and the earthshine (point Sun of power Φ) is identical.
-    from lunarviz.brdf import make_brdf
+    from lunarviz.photometry.brdf import make_brdf
     lam = {"lambert": make_brdf("lambert")}
     sun2 = _write(shapes.base_sphere(3).apply_scale(2 * C.R_SUN_M), tmp_path / "sun2.ply")
     base = TraceScene(Scene(60.0), TraceSettings(moon_level=3))

@@ -41,7 +41,7 @@ def test_paper_out_must_be_a_directory(tmp_path, capsys):
 
 
 def test_mesh_study_converges(tmp_path):
-    from lunarviz.study import mesh_study
+    from lunarviz.workflows.study import mesh_study
     res = mesh_study([2, 3, 4], [100.0], ["dhg"], tmp_path / "study.json", shading="flat", refine=False)
     s = [r for r in res["summary"] if r["path"] == "moonshine"]
     assert s[2]["max_abs_relative_error"] < s[0]["max_abs_relative_error"] / 4

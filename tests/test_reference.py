@@ -2,9 +2,9 @@
 
 import pytest
 
-from lunarviz.analytic import analytic_irradiance
-from lunarviz.geometry import Scene
-from lunarviz.reference import ReferenceSettings, reference_irradiance
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods.analytic import analytic_irradiance
+from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 
 
 @pytest.mark.parametrize("theta", [30.0, 150.0])

@@ -1,6 +1,6 @@
 """Hapke's macroscopic roughness (1984) and coherent backscatter (2002): issue 15.
 
-The reference is written here, apart from lunarviz/roughness.py: scalar ``math`` code typed
+The reference is written here, apart from lunarviz/photometry/roughness.py: scalar ``math`` code typed
 from Hapke (1984) Icarus 59, 41, Eqs. 46-51 (= Hapke 2012, Eqs. 12.45-12.55) and Hapke (2002)
 Icarus 157, 523, Eq. 8, taking (i, e, g) and finding the azimuth from the spherical cosine
 law. The two share no code.
@@ -14,8 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from lunarviz.brdf import make_brdf
-from lunarviz.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
+from lunarviz.photometry.brdf import make_brdf
+from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
 
 
 def hapke84(i, e, g, tbar):
@@ -137,7 +137,7 @@ def test_roughness_parameters_are_checked(bad):
 def test_fit_recovers_known_parameters(tmp_path):
     # a table made by the model itself with known (w, c): the fit must return them (a
     # well-posed two-parameter problem; the others fixed at the paper's values)
-    from lunarviz.fit import DiskModel, fit
+    from lunarviz.photometry.fit import DiskModel, fit
     g = np.arange(4.0, 100.0, 8.0)
     truth = make_brdf("dhg", params={"w": 0.42, "c": 0.2, "theta_bar": 15.0})
     a = DiskModel(g).reflectance(truth)
@@ -153,7 +153,7 @@ def test_fit_command_on_a_table(tmp_path):
     import subprocess
     import sys
 
-    from lunarviz.fit import DiskModel
+    from lunarviz.photometry.fit import DiskModel
     g = np.arange(5.0, 95.0, 10.0)
     a = DiskModel(g).reflectance(make_brdf("lambert", params={"albedo": 0.12}))
     table = tmp_path / "t.csv"
@@ -173,7 +173,7 @@ def test_rolo_fit_preset_is_closer_to_rolo_than_the_paper():
     # remainder is ROLO's waxing/waning asymmetry, up to 15 % at 90°, which a uniform sphere
     # cannot have), the paper's DHG is off by > 30 %
     pytest.importorskip("rimopy")
-    from lunarviz.fit import DiskModel, rolo_reflectance
+    from lunarviz.photometry.fit import DiskModel, rolo_reflectance
     g = np.array([5.0, 30.0, 60.0, 90.0])
     dm = DiskModel(g)
     fitted = dm.reflectance(make_brdf("dhg", moon_model="rolo-fit"))
@@ -186,7 +186,7 @@ def test_rolo_fit_preset_is_closer_to_rolo_than_the_paper():
 
 def test_fit_refuses_ill_posed_requests(tmp_path):
     from lunarviz.errors import LunarvizError
-    from lunarviz.fit import fit, read_table
+    from lunarviz.photometry.fit import fit, read_table
     g = np.array([10.0, 50.0])
     with pytest.raises(LunarvizError, match="twice"):
         fit("dhg", np.arange(5.0, 90.0, 10.0), np.ones(9), free=("w", "w"))
@@ -208,8 +208,8 @@ def test_rolo_fit_map_preset_within_5_percent_at_real_dates():
     (rimopy, independent of lunarviz), analytic and ray traced. Measured ≤ 2.7 % (kept in
     benchmarks/rolo_fit/summary.md); the tolerance is the issue's."""
     pytest.importorskip("rimopy")
-    from lunarviz.fit import rolo_irradiance
-    from lunarviz.sweeps import SweepSettings, run_phase
+    from lunarviz.photometry.fit import rolo_irradiance
+    from lunarviz.workflows.sweeps import SweepSettings, run_phase
     checked = 0
     for iso, method in (("2026-06-05T12:00Z", "analytic"), ("2026-06-25T00:00Z", "analytic"),
                         ("2027-03-20T06:00Z", "raytrace"), ("2028-09-12T00:00Z", "analytic")):
@@ -223,10 +223,10 @@ def test_rolo_fit_map_preset_within_5_percent_at_real_dates():
 
 
 def test_disk_geometry_branches_place_the_sun_east_when_waxing():
-    """ROLO's convention (lunarviz.fit): waxing = sub-solar longitude +g at zero libration; the
+    """ROLO's convention (lunarviz.photometry.fit): waxing = sub-solar longitude +g at zero libration; the
     oriented disk scene puts the map's (0°, 0°) toward the observer."""
-    from lunarviz.fit import disk_geometry
-    from lunarviz.surfaces import lat_lon_deg, map_frame
+    from lunarviz.bodies.surfaces import lat_lon_deg, map_frame
+    from lunarviz.photometry.fit import disk_geometry
     for g, wax in ((30.0, True), (30.0, False), (75.0, True)):
         sc = disk_geometry(g, wax)
         R = map_frame(sc, "moon")
@@ -238,7 +238,7 @@ def test_disk_geometry_branches_place_the_sun_east_when_waxing():
 
 
 def test_explicit_map_overrides_the_presets():
-    from lunarviz.sweeps import SweepSettings
+    from lunarviz.workflows.sweeps import SweepSettings
     assert SweepSettings(moon_model="rolo-fit-map", moon_albedo_map="synthetic:0.2").moon_albedo_map == "synthetic:0.2"
     assert SweepSettings(moon_model="rolo-fit").moon_albedo_map is None
     assert SweepSettings(moon_model="rolo-fit-map", moon_albedo_map="none").moon_albedo_map is None

@@ -17,16 +17,16 @@ import subprocess
 import sys
 from dataclasses import replace
 
+import independent as ind
 import numpy as np
 import pytest
-
-import independent as ind
 import sky_reference as ref
+
 from lunarviz import constants as C
-from lunarviz.brdf import make_brdf
-from lunarviz.observers import parse_observer
-from lunarviz.sky import sky_scene
-from lunarviz.sweeps import SweepSettings, run_phase, run_sweep
+from lunarviz.photometry.brdf import make_brdf
+from lunarviz.sky.dated_scene import sky_scene
+from lunarviz.sky.observers import parse_observer
+from lunarviz.workflows.sweeps import SweepSettings, run_phase, run_sweep
 
 HERE = os.path.dirname(__file__)
 TLE = os.path.join(HERE, "data", "leo_2027.tle")  # a synthetic ISS-like orbit, epoch 2027-01-01 (sgp4 exporter)
@@ -84,9 +84,9 @@ def test_irradiance_matches_independent_quadrature(iso):
 def test_general_scene_equals_theta_scene():
     # The θ scene rebuilt from its own position vectors goes through the general code paths
     # (vectors, paper grid about the sub-Earth point); every number must agree to round-off.
-    from lunarviz.analytic import AnalyticSettings, analytic_irradiance
-    from lunarviz.geometry import Scene
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
+    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     models = {k: make_brdf(k) for k in ("lambert", "dhg")}
     for th in (30.0, 120.0):
         a = Scene(th)
@@ -175,9 +175,9 @@ def test_tle_occultation_is_traced_by_embree(monkeypatch):
     # queries answered 'miss' (the Sun's still traced), the occulted LEO observer sees the
     # whole Moon again. Expected: the exact reference for the same positions with its
     # analytic sight-line test switched off (the Moon as if the Earth were transparent).
-    from lunarviz.geometry import Scene
-    from lunarviz.reference import reference_irradiance
-    from lunarviz.tracer.estimators import TraceScene, trace_path
+    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.methods.reference import reference_irradiance
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     iso = "2027-01-01T00:20:00Z"
     s = SweepSettings(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method="raytrace", occlusion=False)
     models = s.brdf_models()
@@ -219,8 +219,8 @@ def test_orbit_epoch_defaults_to_first_time():
 def test_moon_mesh_is_turned_into_moon_me(tmp_path):
     # The facet of a user mesh that faces the observer must be the one at the sub-observer
     # selenographic point: the mesh is placed in MOON_ME at the date, not in scene axes.
-    from lunarviz import shapes
-    from lunarviz.facets import trace_facets
+    from lunarviz.bodies import shapes
+    from lunarviz.outputs.facets import trace_facets
     iso = "2026-06-09T00:00:00Z"  # libration lon -7.8°, lat -2.5° (SPICE)
     mesh = shapes.ellipsoid(C.R_MOON_M * 1.001, C.R_MOON_M, C.R_MOON_M * 0.999, level=5)
     path = str(tmp_path / "ell.ply")
@@ -285,7 +285,7 @@ def test_stale_tle_warns(tmp_path):
 
 # ---- time series ---------------------------------------------------------------------------------
 def test_time_range_and_executor():
-    from lunarviz.ephemeris import time_list
+    from lunarviz.sky.ephemeris import time_list
     assert time_list(time_range="2026-01-01,2026-01-02,6h") == (
         "2026-01-01T00:00:00Z", "2026-01-01T06:00:00Z", "2026-01-01T12:00:00Z", "2026-01-01T18:00:00Z",
         "2026-01-02T00:00:00Z")
@@ -365,8 +365,8 @@ def test_moon_shadow_on_the_earth_matches_disc_overlap():
     penumbra take a 512-beam Sun (ECLIPSE_ORDER); measured mean |error| 2.5e-3 and max 1.9e-2
     per facet (a straight limb across the beams), 5.1e-2 and 0.24 with the default 8 beams,
     which moved the new-Moon earthshine by 0.7 %."""
-    from lunarviz.geometry import Scene
-    from lunarviz.tracer import estimators as E
+    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.methods.tracer import estimators as E
     sc = Scene(179.5)
     ts = E.TraceScene(sc, E.TraceSettings(occlusion=True))
     vis = ts.sun_visibility_of_earth()

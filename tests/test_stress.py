@@ -5,10 +5,10 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from lunarviz import brdf as B
-from lunarviz.analytic import analytic_irradiance
-from lunarviz.geometry import Scene
-from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods.analytic import analytic_irradiance
+from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
+from lunarviz.photometry import brdf as B
 
 
 def test_single_scattering_albedo_limits():
@@ -81,8 +81,8 @@ def test_memory_bounded_for_many_rays(paper_brdfs):
 def test_float32_trap_naive_geocentric_would_fail():
     # The trap NOTES.md describes: casting rays from the Sun's true position in a geocentric
     # float32 frame. Our body-centred frames hit the same facets as an exact float64 answer.
-    from lunarviz.meshes import unit_icosphere
-    from lunarviz.tracer.bodies import EmbreeBody
+    from lunarviz.bodies.meshes import unit_icosphere
+    from lunarviz.methods.tracer.embree_bodies import EmbreeBody
     sc = Scene(60.0)
     moon = EmbreeBody(unit_icosphere(6), sc.moon, scale=sc.r_moon)
     rng = np.random.default_rng(1)

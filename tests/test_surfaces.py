@@ -12,14 +12,14 @@ import json
 import subprocess
 import sys
 
+import independent as ind
 import numpy as np
 import pytest
 
-import independent as ind
-from lunarviz.brdf import make_brdf
-from lunarviz.geometry import Scene
-from lunarviz.surfaces import EarthSurface, map_frame, map_mean, zonal_cloud_table
-from lunarviz.sweeps import SweepSettings, run_phase
+from lunarviz.bodies.surfaces import EarthSurface, map_frame, map_mean, zonal_cloud_table
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.photometry.brdf import make_brdf
+from lunarviz.workflows.sweeps import SweepSettings, run_phase
 
 MODELS = {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
 #: each BRDF's albedo parameter in the paper: Lambert albedo 0.10 (Table 5), Hapke w 0.33 (Table 2)
@@ -104,7 +104,7 @@ def test_landocean_mean_matches_the_mask():
     global-land-mask package's own 30″ mask here (cos-latitude weights per row)."""
     from global_land_mask import globe
 
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     land_rows = (~globe._mask).mean(axis=1)
     w = np.cos(np.radians(globe._lat.astype(float) - 1 / 240))  # row centres
     f = float((land_rows * w).sum() / w.sum())
@@ -123,7 +123,7 @@ def test_zonal_clouds_give_the_documented_mean():
     x = np.linspace(-90, 90, 3601)
     mean_cloud = np.trapezoid(np.interp(x, la, cf) * np.cos(np.radians(x)), x) / 2 * np.pi / 180
     assert mean_cloud == pytest.approx(0.64, abs=0.01)
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean", clouds="zonal"))
     a = ts.earth_facet_albedo()
     assert float((a * ts.earth.areas).sum() / ts.earth.areas.sum()) == pytest.approx(0.30, abs=0.01)
@@ -179,7 +179,7 @@ def test_half_bright_moon_matches_quadrature(tmp_path):
 
 def test_moon_map_frame_faces_the_earth(tmp_path):
     """θ scene: the map's (0°, 0°) faces the Earth (tidal lock), its north pole is +x."""
-    from lunarviz.tracer.estimators import TraceScene, TraceSettings
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     m = np.ones((180, 360))
     m[88:92, 178:182] = 5.0  # a bright spot at (0°, 0°)
     path = _save(tmp_path, "spot.npy", m)
@@ -194,7 +194,7 @@ def test_moon_map_frame_faces_the_earth(tmp_path):
 def test_moon_map_follows_libration_on_dates(tmp_path):
     """Dates: the map lives in MOON_ME, so the facet facing the observer carries the map's value
     at the sub-observer point the ephemeris reports (libration)."""
-    from lunarviz.tracer.estimators import TraceScene
+    from lunarviz.methods.tracer.estimators import TraceScene
     lon = -180 + (np.arange(360) + 0.5)
     lat = 90 - (np.arange(180) + 0.5)
     m = np.cos(np.radians(lat))[:, None] * (1.0 + 0.5 * np.sin(np.radians(lon)))[None, :] + 0.1  # smooth
@@ -323,7 +323,7 @@ def test_maps_refused_where_they_would_mislead(tmp_path):
     with pytest.raises(LunarvizError, match="reference"):
         SweepSettings(method="reference", earth_surface="landocean")
     mesh = tmp_path / "m.ply"
-    from lunarviz import shapes
+    from lunarviz.bodies import shapes
     shapes.write_mesh(shapes.ellipsoid(1.74e6, 1.73e6, 1.72e6, 2), mesh)
     with pytest.raises(LunarvizError, match="needs a date"):
         SweepSettings(method="raytrace", moon_mesh=str(mesh), moon_albedo_map="synthetic")
@@ -333,8 +333,8 @@ def test_images_read_as_linear_values(tmp_path):
     """Palette images by their colours, 16-bit by 65535; 32-bit integer images refused."""
     from PIL import Image
 
+    from lunarviz.bodies.surfaces import read_map
     from lunarviz.errors import LunarvizError
-    from lunarviz.surfaces import read_map
     grey = np.zeros((10, 20), dtype=np.uint8)
     grey[:, 10:] = 200
     im = Image.fromarray(grey).convert("P")

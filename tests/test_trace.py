@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from lunarviz.geometry import Scene, unit
-from lunarviz.meshes import MeshError, load_user_mesh, unit_icosphere, validate_mesh
-from lunarviz.reference import ReferenceSettings, reference_irradiance
-from lunarviz.tracer.bodies import EmbreeBody
-from lunarviz.tracer.estimators import TraceScene, TraceSettings, trace_path
+from lunarviz.bodies.meshes import MeshError, load_user_mesh, unit_icosphere, validate_mesh
+from lunarviz.geometry.scene_geometry import Scene, unit
+from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
+from lunarviz.methods.tracer.embree_bodies import EmbreeBody
+from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
 
 #: Issue 3 bar against the exact quadrature at default settings; we measure ≤ 1.2e-4
 #: (benchmarks/results) and hold the test to 0.1 % (issue 5's accuracy target).
@@ -112,7 +112,7 @@ def test_scale_invariance(scale, paper_brdfs, tmp_path):
     # would show here (trimesh's test idea, 1e-3 … 1e3 around the real 1.5e11 m scene). A
     # triaxial ellipsoid on its facets: Embree decides every hit (an analytic sphere would be
     # shaded on the exact sphere and pass without the tracer).
-    from lunarviz import shapes
+    from lunarviz.bodies import shapes
     path = tmp_path / "ell.ply"
     shapes.write_mesh(shapes.ellipsoid(1.15 * 1.738e6, 1.738e6, 0.85 * 1.738e6, level=4), path)
     dhg = {"dhg": paper_brdfs["dhg"]}
@@ -164,8 +164,8 @@ def test_float32_hits_at_real_scale():
 
 
 def test_facet_sums_equal_totals():
-    from lunarviz.facets import trace_facets
-    from lunarviz.sweeps import SweepSettings
+    from lunarviz.outputs.facets import trace_facets
+    from lunarviz.workflows.sweeps import SweepSettings
     res = trace_facets(SweepSettings(brdfs=("shg",), method="raytrace"), 130.0)
     for path in ("moonshine", "earthshine"):
         assert res.cell_data[f"{path}_contribution_W_m2"].sum() == pytest.approx(res.totals[f"{path}_W_m2"], rel=1e-12)
@@ -199,8 +199,8 @@ def test_lean_mesh_checks_agree_with_trimesh(block, monkeypatch):
     # meshes.edge_checks / volume_and_centroid / body_count replace trimesh's cached properties
     # (which take ~3 GB on a 5 M-facet mesh); trimesh is the independent reference here, on a
     # good mesh and on each defect the checks exist for. Volumes agree to rounding (1e-12).
-    from lunarviz import meshes
-    from lunarviz.meshes import body_count, edge_checks, is_convex, volume_and_centroid
+    from lunarviz.bodies import meshes
+    from lunarviz.bodies.meshes import body_count, edge_checks, is_convex, volume_and_centroid
     monkeypatch.setattr(meshes, "CHECK_BLOCK", block)
     sphere = unit_icosphere(2)
     v, f = sphere.vertices + [0.1, -0.2, 0.3], sphere.faces
@@ -303,11 +303,11 @@ def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
     self-shadowing and occlusion on, cut into ~10 chunks so the threads really interleave, and its
     candidate and shadow-edge passes into blocks of 1000 facets (also traced on the threads);
     blocks do not change the result either (one block of all 5120 facets, below)."""
-    from lunarviz import shapes
-    from lunarviz.brdf import make_brdf
+    from lunarviz.bodies import shapes
     from lunarviz.constants import R_MOON_M
-    from lunarviz.geometry import Scene
-    from lunarviz.tracer import estimators as E
+    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.methods.tracer import estimators as E
+    from lunarviz.photometry.brdf import make_brdf
     path = tmp_path / "craters.ply"
     shapes.write_mesh(shapes.craters(R_MOON_M, 4, 60, 50e3, 300e3, seed=3), path)
     monkeypatch.setattr(E, "CHUNK", 100)

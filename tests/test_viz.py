@@ -11,8 +11,8 @@ import pytest
 pv = pytest.importorskip("pyvista")
 
 from lunarviz.cli import main  # noqa: E402
-from lunarviz.sweeps import SweepSettings  # noqa: E402
 from lunarviz.viz import views  # noqa: E402
+from lunarviz.workflows.sweeps import SweepSettings  # noqa: E402
 
 REF_DIR = os.path.join(os.path.dirname(__file__), "data")
 
@@ -23,7 +23,7 @@ def data120():
 
 
 def test_numbers_shown_equal_numbers_computed(data120):
-    from lunarviz.facets import trace_facets
+    from lunarviz.outputs.facets import trace_facets
     fr = trace_facets(SweepSettings(method="raytrace", brdfs=("dhg",)), 120.0)
     n = data120.numbers
     assert n["moonshine_W_m2"] == fr.totals["moonshine_W_m2"]
@@ -102,7 +102,8 @@ def test_render_rejects_bad_size(tmp_path, capsys):
 
 
 def test_core_does_not_import_pyvista():
-    code = "import sys, lunarviz.sweeps, lunarviz.tracer.estimators, lunarviz.cli; print('pyvista' in sys.modules)"
+    code = ("import sys, lunarviz.workflows.sweeps, lunarviz.methods.tracer.estimators, lunarviz.cli; "
+            "print('pyvista' in sys.modules)")
     r = subprocess.run(["python", "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "False"
 
@@ -129,7 +130,7 @@ def xvfb():
 
 VIEWER_DRIVER = """
 import numpy as np
-from lunarviz.sweeps import SweepSettings
+from lunarviz.workflows.sweeps import SweepSettings
 from lunarviz.viz.viewer import Viewer
 v = Viewer(SweepSettings(method="raytrace"), 90.0, "lambert", size=(1000, 700))
 assert type(v.plotter.render_window).__name__ != "vtkEGLRenderWindow"  # a real X window

@@ -19,7 +19,6 @@ import urllib.request
 
 import numpy as np
 import pytest
-
 from web_browser import Browser, chromium_path
 
 pytestmark = pytest.mark.skipif(chromium_path() is None and not os.environ.get("CI"),

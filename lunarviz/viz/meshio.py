@@ -1,6 +1,6 @@
 """Conversion of lunarviz results to PyVista meshes, and the VTK/PLY writers of per-facet results.
 
-The core (:mod:`lunarviz.facets`) computes the arrays; only this module knows PyVista.
+The core (:mod:`lunarviz.outputs.facets`) computes the arrays; only this module knows PyVista.
 """
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-from ..errors import LunarvizError
+from lunarviz.errors import LunarvizError
 
 
 def facet_polydata(res) -> pv.PolyData:
@@ -91,7 +91,7 @@ def write_facet_mesh(path, res) -> None:
     import json
     from pathlib import Path
 
-    from ..io import atomic_path
+    from lunarviz.outputs.writers import atomic_path
     meta = json.dumps({**res.info, **res.totals})
     if Path(path).suffix.lower() == ".vtm":
         check_vtm_target(path)

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import LunarvizError
-from .views import build_plotter, compute_view_data, populate
+from lunarviz.errors import LunarvizError
+from lunarviz.viz.views import build_plotter, compute_view_data, populate
 
 BRDF_BUTTONS = ("lambert", "shg", "dhg")
 

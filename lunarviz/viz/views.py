@@ -28,9 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 import pyvista as pv
 
-from ..errors import LunarvizError
-from ..facets import FacetResult, sample_ray_paths, trace_facets
-from .meshio import facet_polydata
+from lunarviz.errors import LunarvizError
+from lunarviz.outputs.facets import FacetResult, sample_ray_paths, trace_facets
+from lunarviz.viz.meshio import facet_polydata
 
 VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
 #: Dynamic range of the logarithmic colour scales (max / floor).
@@ -48,8 +48,8 @@ def compute_view_data(settings, theta: float, brdf: str) -> ViewData:
     """Trace one phase and collect everything a view shows."""
     from dataclasses import replace
 
-    from .. import albedo as alb
-    from ..analytic import analytic_irradiance
+    from lunarviz.methods.analytic import analytic_irradiance
+    from lunarviz.photometry import albedo_inversion as alb
     settings = replace(settings, brdfs=(brdf,))
     fr = trace_facets(settings, theta, brdf)
     sc, fields = settings.scene_and_fields(theta)
@@ -349,7 +349,7 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
 def render_image(settings, key, brdf, view="composite", size=(1600, 900), out=None) -> np.ndarray:
     """One offscreen picture (RGB, height × width × 3) of phase θ or UTC time ``key``; also
     written as PNG to ``out`` (atomically) when given."""
-    from ..io import write_bytes_atomic
+    from lunarviz.outputs.writers import write_bytes_atomic
     data = compute_view_data(settings, key, brdf)
     pl = build_plotter(data, view, size, off_screen=True)
     pl.render()
@@ -365,7 +365,7 @@ def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900
     """Render one PNG per phase (``out`` itself for one phase, else ``out_000.png`` …)."""
     from pathlib import Path
 
-    from ..io import write_bytes_atomic
+    from lunarviz.outputs.writers import write_bytes_atomic
     out = Path(out)
     files: list = []
     it = phases

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .views import build_plotter, compute_view_data, numbers_text, populate
+from lunarviz.viz.views import build_plotter, compute_view_data, numbers_text, populate
 
 BRDFS = ("lambert", "shg", "dhg")
 

@@ -6,12 +6,11 @@ Writes validation_out/crater_moon.ply (binary little-endian, float64 vertices) a
 validation_out/craters.json (crater list).
 """
 import json
+import os as _os
 import sys
 
 import numpy as np
 import trimesh
-
-import os as _os
 
 #: where meshes and reference results go (``LUNARVIZ_VALIDATION_DIR``, default validation_out/)
 OUT = _os.environ.get("LUNARVIZ_VALIDATION_DIR", "validation_out")

@@ -1,6 +1,6 @@
 """Independent moonshine reference (Sun -> Moon -> detector) for a Moon mesh, flat facets.
 
-Only lunarviz.brdf.make_brdf(...).brdf and lunarviz.constants are used from lunarviz.
+Only lunarviz.photometry.brdf.make_brdf(...).brdf and lunarviz.constants are used from lunarviz.
 
 For every facet: K*K sub-triangle centroids (uniform barycentric subdivision), each with weight A/K^2.
 Each sample P:
@@ -15,6 +15,7 @@ Variants: shadows+occlusion (full), no shadows at all, sun-shadow only, detector
 """
 import argparse
 import json
+import os as _os
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -24,14 +25,12 @@ import trimesh
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-import os as _os
-
 #: where meshes and reference results go (``LUNARVIZ_VALIDATION_DIR``, default validation_out/)
 OUT = _os.environ.get("LUNARVIZ_VALIDATION_DIR", "validation_out")
 _os.makedirs(OUT, exist_ok=True)
 
 from lunarviz import constants as C  # noqa: E402
-from lunarviz.brdf import make_brdf  # noqa: E402
+from lunarviz.photometry.brdf import make_brdf  # noqa: E402
 
 OFFSET_M = 1.0
 L_SUN = C.PHI_SUN_W / (4 * np.pi**2 * C.R_SUN_M**2)

@@ -23,18 +23,17 @@ Method (all deterministic product Gauss rules):
 from __future__ import annotations
 
 import json
+import os as _os
 import sys
 import time
 
 import numpy as np
 
-import os as _os
-
 #: where meshes and reference results go (``LUNARVIZ_VALIDATION_DIR``, default validation_out/)
 OUT = _os.environ.get("LUNARVIZ_VALIDATION_DIR", "validation_out")
 _os.makedirs(OUT, exist_ok=True)
 
-from lunarviz.brdf import make_brdf
+from lunarviz.photometry.brdf import make_brdf
 
 # ---- constants (values as in lunarviz/constants.py; copied, not imported) -------------------
 D_SE, D_EM = 1.496e11, 3.800e8

@@ -1,0 +1,1 @@
+"""Scene geometry: body positions and angles (paper Eq. 3) and quadrature on spheres."""

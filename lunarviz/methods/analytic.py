@@ -1,0 +1,182 @@
+"""The paper's finite-element analytic method (Sec. 2.2, Eqs. 4-11), with point sources.
+
+The Sun is a point of power Φ (Eq. 6-7), the Earth a point source with the Lambert-sphere
+intensity of :mod:`lunarviz.photometry.earth_phase` (Eq. 8 corrected, NOTES.md item 1), the Moon a sphere whose
+surface elements see both at their true finite distances. The detector irradiance is the sum
+over surface elements of BRDF · μ0 · E · μ · cosδ · dA / d² (Eqs. 10-11).
+
+Two surface rules:
+
+* ``grid="converged"`` (default): product Gauss rules over the part of the lunar sphere seen by
+  the detector, cut at the lit boundary (:mod:`lunarviz.geometry.sphere_quadrature`); converged to
+  < 1e-6 relative at ``order=24`` (tests/test_analytic.py shows the convergence).
+* ``grid="paper"``: the paper's grid of Eq. 4, latitude φ and longitude δ in
+  [-85°, 85°] about the sub-Earth point at ``paper_step_deg`` spacing; it misses the limb
+  zones beyond 85°, which is its truncation error (shown by ``lunarviz sweep --grid paper``).
+
+Neglected physics: occlusion between bodies (the paper ignores it; see the ray tracer),
+the Sun's and Earth's angular extent (see :mod:`lunarviz.methods.reference`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+from lunarviz.geometry.scene_geometry import Scene, angle_between, half_angle_sin_cos, unit
+from lunarviz.geometry.sphere_quadrature import cap_rule, compact
+from lunarviz.methods.transport import Transport, detector_geometry
+from lunarviz.photometry.earth_phase import earth_intensity
+
+GRIDS = ("converged", "paper")
+
+
+@dataclass(frozen=True)
+class AnalyticSettings:
+    grid: str = "converged"
+    order: int = 24
+    paper_step_deg: float = 1.0
+    earth_law: str = "lambert"
+    earth_albedo: float = 0.3
+    #: lunar albedo map and Earth surface (:class:`lunarviz.bodies.surfaces.Surfaces`), read at the
+    #: lunar nodes; the point Earth takes the albedo its lit face shows the Moon's centre
+    surfaces: object = None
+
+    def __post_init__(self):
+        if self.grid not in GRIDS:
+            raise LunarvizError(f"analytic grid {self.grid!r} is not one of {', '.join(GRIDS)}")
+        if not (isinstance(self.order, (int, np.integer)) and 2 <= self.order <= 512):
+            raise LunarvizError(f"analytic order={self.order!r} must be an integer in [2, 512]")
+        if not (0 < self.paper_step_deg <= 85):
+            raise LunarvizError(f"paper grid step {self.paper_step_deg!r} deg must be in (0, 85]")
+        if not (isinstance(self.earth_albedo, (int, float, np.number)) and 0 <= self.earth_albedo <= 1):
+            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be a number in [0, 1]")
+        from lunarviz.photometry.earth_phase import EARTH_LAWS
+        if self.earth_law not in EARTH_LAWS:
+            raise LunarvizError(f"Earth law {self.earth_law!r} is not one of {', '.join(EARTH_LAWS)}")
+
+
+def lunar_surface_rule(scene: Scene, source: np.ndarray, source_radius: float = 0.0,
+                       order: int = 24):
+    """Points, normals and areas [m²] on the lunar sphere: seen by the detector, lit by a source.
+
+    For ``source_radius = 0`` the region is cut at ``n·(S - M) > R_M`` (lit by a point); for an
+    extended source the rule extends to ``R_M - ρ`` and is split at ``R_M + ρ`` (the edges of
+    the band where the source is partly below the horizon).
+    """
+    M, R = scene.moon, scene.radii["moon"]
+    to_det = scene.det - M
+    d_det = np.linalg.norm(to_det)
+    if d_det <= R:
+        raise LunarvizError("the detector is inside the Moon")
+    to_src = source - M
+    d_src = np.linalg.norm(to_src)
+    u = to_src / d_src
+    if source_radius > 0:
+        caps_u = np.array([[u, u]])
+        caps_c = np.array([[(R - source_radius) / d_src, (R + source_radius) / d_src]])
+        split = np.array([[False, True]])
+    else:
+        caps_u, caps_c, split = np.array([[u]]), np.array([[R / d_src]]), None
+    nodes, w = cap_rule(unit(to_det)[None, :], [R / d_det], caps_u, caps_c, split, order, order)
+    n, w = compact(nodes[0], w[0])
+    return M + R * n, n, w * R * R
+
+
+def paper_grid(scene: Scene, step_deg: float = 1.0):
+    """The paper's surface elements, Eq. 4: φ, δ ∈ [-85°, 85°] about the sub-Earth point.
+
+    Element area R² cos φ Δφ Δδ (a full-weight rectangle rule; the paper does not say more).
+    """
+    R = scene.radii["moon"]
+    th = np.radians(scene.theta_deg)
+    ang = np.radians(np.arange(-85.0, 85.0 + 1e-9, step_deg))
+    phi, delta = np.meshgrid(ang, ang, indexing="ij")
+    phi, delta = phi.ravel(), delta.ravel()
+    if scene.general:
+        # the same grid about the sub-Earth point: φ across and δ along the Sun-Earth-Moon plane
+        u = unit(scene.moon - scene.earth)
+        x = np.cross(scene.sun - scene.earth, u)
+        x = unit(x) if np.linalg.norm(x) > 0 else unit(np.cross(u, [0.0, 0.0, 1.0]))
+        v = np.cross(u, x)
+        c = np.cos(phi)[:, None]
+        n = -(np.sin(phi)[:, None] * x + c * (np.cos(delta)[:, None] * u + np.sin(delta)[:, None] * v))
+    else:
+        n = -np.stack([np.sin(phi), np.cos(phi) * np.sin(th + delta), np.cos(phi) * np.cos(th + delta)], axis=1)
+    dA = R * R * np.cos(phi) * np.radians(step_deg) ** 2
+    return scene.moon + R * n, n, dA
+
+
+def _point_source_transport(scene, x, n, dA, source, e_normal) -> Transport:
+    v = source[None, :] - x
+    s = unit(v)
+    mu0 = np.einsum("ij,ij->i", n, s)
+    mu, geom, o = detector_geometry(x, n, dA, scene.det, scene.det_normal)
+    geom = np.where(scene.sight_lines_clear(x), geom, 0.0)  # the Earth occulting the Moon (real sky)
+    sh, ch = half_angle_sin_cos(s, o)
+    lit = mu0 > 0
+    return Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],
+                     e_beam=np.where(lit, e_normal, 0.0)[:, None], mu=mu, geom=geom)
+
+
+def moonshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
+    """Sun → Moon → detector with a point Sun (paper Eq. 6, 10, 11)."""
+    if settings.grid == "paper":
+        x, n, dA = paper_grid(scene, settings.paper_step_deg)
+    else:
+        x, n, dA = lunar_surface_rule(scene, scene.sun, 0.0, settings.order)
+    tr = _point_source_transport(scene, x, n, dA, scene.sun, scene.solar_irradiance_at(x))
+    return _with_moon_map(tr, scene, x, settings)
+
+
+def _with_moon_map(tr: Transport, scene, x, settings) -> Transport:
+    sf = settings.surfaces
+    if sf is not None and sf.moon_map is not None:
+        tr.albedo = sf.moon_values_at(scene, x)
+        tr.albedo_absolute = sf.moon_map.absolute
+    return tr
+
+
+def earthshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
+    """Sun → Earth → Moon → detector with a point Earth of Lambert-sphere intensity (Eq. 7-9)."""
+    if settings.grid == "paper":
+        x, n, dA = paper_grid(scene, settings.paper_step_deg)
+    else:
+        x, n, dA = lunar_surface_rule(scene, scene.earth, 0.0, settings.order)
+    E = scene.earth
+    d2 = np.sum((x - E) ** 2, axis=1)
+    beta = angle_between(x - E, np.broadcast_to(scene.sun - E, x.shape))  # Kahan: exact near π
+    e_in = scene.phi / (4 * np.pi * scene.d_se_actual**2)  # Eq. 7
+    unit_intensity = earth_intensity(beta, 1.0, scene.radii["earth"], e_in, settings.earth_law)
+    sf = settings.surfaces
+    albedo = settings.earth_albedo if sf is None else sf.earth_albedo_toward(scene, scene.moon)
+    tr = _point_source_transport(scene, x, n, dA, E, albedo * unit_intensity / d2)
+    tr.e_beam_unit = np.where(tr.mu0 > 0, (unit_intensity / d2)[:, None], 0.0)  # lit: μ0 > 0, as e_beam
+    return _with_moon_map(tr, scene, x, settings)
+
+
+@dataclass(frozen=True)
+class DetectorIrradiance:
+    """Moonshine and earthshine irradiance at the detector [W m⁻²]."""
+
+    moonshine_W_m2: float
+    earthshine_W_m2: float
+    #: earthshine for an Earth of albedo 1 [W m⁻²] (the weights of ``earth_visible_lit_albedo``)
+    earthshine_unit_W_m2: float | None = None
+
+    @property
+    def earth_visible_lit_albedo(self) -> float:
+        """The Earth's albedo as the earthshine weights it: earthshine over its unit-albedo value."""
+        u = self.earthshine_unit_W_m2
+        return self.earthshine_W_m2 / u if u else float("nan")
+
+
+def analytic_irradiance(scene: Scene, brdfs: dict, settings: AnalyticSettings = AnalyticSettings()
+                        ) -> dict[str, DetectorIrradiance]:
+    """Moonshine and earthshine at the detector for each named BRDF (one transport each)."""
+    ms = moonshine_transport(scene, settings)
+    es = earthshine_transport(scene, settings)
+    return {k: DetectorIrradiance(ms.detector_irradiance(b), *es.detector_irradiances(b))
+            for k, b in brdfs.items()}

@@ -1,0 +1,72 @@
+"""The Sun and the Earth as extended sources seen from lunar surface points.
+
+Shared by the exact reference (:mod:`lunarviz.methods.reference`) and the deterministic ray tracer
+(:mod:`lunarviz.methods.tracer.estimators`): the product Gauss rule over the part of a source's sphere
+that a lunar point sees above its horizon (and, for the Earth, that the Sun lights), and the
+beams (directions, solid angles) toward its nodes. Regions are caps (scripts/derivations.md §1).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.geometry.scene_geometry import Scene, unit
+from lunarviz.geometry.sphere_quadrature import cap_rule
+
+
+def sun_radiance(scene: Scene) -> float:
+    """Radiance of the Sun's surface [W m⁻² sr⁻¹]: exitance Φ/(4πR²) = πL."""
+    return scene.phi / (4 * np.pi**2 * scene.radii["sun"] ** 2)
+
+
+def source_centre(scene: Scene, body: str) -> tuple[np.ndarray, float]:
+    return {"sun": scene.sun, "earth": scene.earth}[body], scene.radii[body]
+
+
+def horizon_cuts_source(scene: Scene, x, n, body: str) -> np.ndarray:
+    """True where the tangent plane at x (normal n) intersects the source sphere."""
+    c, R = source_centre(scene, body)
+    return np.einsum("ij,ij->i", c - x, n) < R
+
+
+def source_sphere_rule(scene: Scene, x, n, body: str, order: int, horizon: bool = True):
+    """Nodes m (B, K, 3) on the unit sphere of ``body`` and their solid-angle weights (B, K)
+    over the part seen from x (B, 3) — above x's horizon when ``horizon`` (pass False where
+    the horizon does not cut the source: the rule is then smaller) and, for the Earth, lit by
+    the (point) Sun. Zero-weight nodes are dropped (rows padded to the longest)."""
+    c, R = source_centre(scene, body)
+    xc = x - c
+    dxc = np.linalg.norm(xc, axis=1)
+    caps_u, caps_c = [], []
+    if horizon:
+        caps_u.append(n)
+        caps_c.append(np.einsum("ij,ij->i", xc, n) / R)
+    if body == "earth":
+        caps_u.append(np.broadcast_to(unit(scene.sun - c), n.shape))
+        caps_c.append(np.full(len(n), R / np.linalg.norm(scene.sun - c)))
+    m, w = cap_rule(xc / dxc[:, None], R / dxc, np.stack(caps_u, 1) if caps_u else None,
+                    np.stack(caps_c, 1) if caps_c else None, n_t=order, n_phi=order)
+    nz = w > 0
+    kmax = max(int(nz.sum(1).max(initial=0)), 1)
+    sel = np.argsort(~nz, axis=1, kind="stable")[:, :kmax]
+    return np.take_along_axis(m, sel[..., None], 1), np.take_along_axis(w, sel, 1)
+
+
+def source_beams(scene: Scene, x, body: str, m, w):
+    """Source points y (B, K, 3), unit directions from x (B, K, 3) and the beams' solid angles
+    seen from x [sr] (B, K): dΩ = cos_y R² dω / r² for a node of weight dω on the unit sphere."""
+    c, R = source_centre(scene, body)
+    y = c + R * m
+    v = y - x[:, None, :]
+    r = np.linalg.norm(v, axis=2)
+    om = v / r[..., None]
+    cos_y = np.clip(-np.einsum("bkj,bkj->bk", m, om), 0.0, None)
+    return y, om, cos_y * R * R * w / r**2
+
+
+def earth_radiance(scene: Scene, y, m, albedo: float) -> np.ndarray:
+    """Radiance of the Lambertian Earth at points y with unit normals m, lit by a point Sun."""
+    vs = scene.sun - y
+    ds = np.linalg.norm(vs, axis=-1)
+    mu_s = np.clip(np.einsum("...j,...j->...", m, vs) / ds, 0.0, None)
+    return albedo / np.pi * scene.phi / (4 * np.pi * ds**2) * mu_s

@@ -1,0 +1,1 @@
+"""What lunarviz writes: atomic writers, tables (JSON/CSV/NetCDF), per-facet results, images."""

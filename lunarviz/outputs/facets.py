@@ -1,0 +1,195 @@
+"""Per-facet results on the lunar mesh (cell data) for one phase and one BRDF.
+
+Arrays (one value per lunar facet, zero where a facet is dark or unseen):
+
+* ``solar_irradiance_W_m2``, ``earth_irradiance_W_m2`` — irradiance on the facet;
+* ``moonshine_radiance_W_m2_sr``, ``earthshine_radiance_W_m2_sr`` — radiance toward the
+  detector;
+* ``moonshine_contribution_W_m2``, ``earthshine_contribution_W_m2`` — each facet's share of the
+  detector irradiance (they sum to the totals exactly);
+* ``incidence_deg``, ``emission_deg``, ``phase_deg`` — at the centroid, for the Sun's centre
+  and the detector; ``earth_incidence_deg``, ``earth_phase_deg`` for the Earth's centre;
+* ``brdf_per_sr``, ``reflectance_factor`` — the BRDF at those angles (sunlight), and
+  ``earth_brdf_per_sr`` (earthlight);
+* ``moonshine_rays``, ``earthshine_rays`` — beams traced per facet (rays that carried light);
+* ``albedo_parameter`` — the BRDF's albedo parameter on the facet (Lambert albedo or Hapke w:
+  the scalar, or the lunar albedo map's area average, :mod:`lunarviz.bodies.surfaces`).
+
+Earth facets carry ``albedo`` (their Lambert albedo: uniform, or the land/ocean/cloud surface
+averaged by area) and ``radiance_toward_moon_W_m2_sr``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lunarviz.geometry.scene_geometry import angle_between, half_angle_sin_cos, unit
+
+
+@dataclass
+class FacetResult:
+    vertices: np.ndarray  # (nv, 3) Moon-centred [m], the Moon's body frame (MOON_ME on dates)
+    faces: np.ndarray  # (nf, 3)
+    cell_data: dict
+    totals: dict
+    info: dict
+    #: the other bodies: ``{"earth": (vertices, faces, cell_data), "sun": ...}``, vertices
+    #: centred on each body [m]; centres in ``info["<body>_m"]``
+    bodies: dict = field(default_factory=dict)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+
+def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None) -> FacetResult:
+    """Ray trace one phase θ [deg] (or UTC time, with ``settings.times``) with ``settings``
+    (a :class:`~lunarviz.workflows.sweeps.SweepSettings`).
+
+    The unsuffixed radiance/contribution arrays are for ``brdf_name`` (default: the first
+    BRDF); ``<path>_radiance_W_m2_sr_<brdf>`` holds every BRDF of ``settings``. Moon facets
+    also carry ``solar_lit_fraction`` and ``earth_lit_fraction``: the share of the incident
+    irradiance that survives shadowing by the Moon itself and by the other bodies (1 on a
+    facet no shadow touches; 0 where the facet is not lit at all). Earth facets carry
+    ``radiance_toward_moon_W_m2_sr`` (Lambertian: the same in every direction),
+    ``sun_visibility`` (the Moon's shadow) and ``earthshine_beam_hits``; Sun facets
+    ``moonshine_beam_hits``.
+    """
+    from lunarviz.methods.tracer.estimators import FACET_BLOCK, TraceScene, trace_path
+    brdf_name = brdf_name or settings.brdfs[0]
+    models = settings.brdf_models()
+    sc, fields = settings.scene_and_fields(theta)
+    ts = trace_scene or TraceScene(sc, settings.trace_settings())
+    M = ts.moon
+    ms = trace_path(ts, "moonshine", models, keep_facets=True)
+    es = trace_path(ts, "earthshine", models, keep_facets=True)
+    cd = {}
+    f = {**ms.facets, **es.facets}
+    for path in ("moonshine", "earthshine"):
+        geom = f[f"{path}_geom"]
+        for k in models:
+            contrib = f[f"{path}_contribution_{k}"]
+            cd[f"{path}_radiance_W_m2_sr_{k}"] = np.where(geom > 0, contrib / np.where(geom > 0, geom, 1), 0.0)
+        cd[f"{path}_contribution_W_m2"] = f[f"{path}_contribution_{brdf_name}"]
+        cd[f"{path}_radiance_W_m2_sr"] = cd[f"{path}_radiance_W_m2_sr_{brdf_name}"]
+        cd[f"{path}_rays"] = f[f"{path}_rays"]
+    cd["solar_irradiance_W_m2"] = f["moonshine_irradiance"]
+    cd["earth_irradiance_W_m2"] = f["earthshine_irradiance"]
+    for path, name in (("moonshine", "solar_lit_fraction"), ("earthshine", "earth_lit_fraction")):
+        lit, free = f[f"{path}_lit_sum"], f[f"{path}_free_sum"]
+        cd[name] = np.where(free > 0, lit / np.where(free > 0, free, 1), 0.0)
+    model = models[brdf_name]
+    amap, values = ts.settings.moon_map(), ts.moon_facet_albedo()
+    if values is None:
+        alb = None
+        cd["albedo_parameter"] = np.full(M.n_faces, model.albedo_parameter)
+    else:
+        from lunarviz.bodies.surfaces import map_scale
+        alb = values * map_scale(amap.absolute, model)
+        cd["albedo_parameter"] = alb
+    # per-facet geometry and BRDF, in blocks of facets (a few dozen (F, 3) temporaries took
+    # 1 GB at 5 M facets, issue 13)
+    names = ("incidence_deg", "emission_deg", "phase_deg", "earth_incidence_deg", "earth_phase_deg",
+             "brdf_per_sr", "earth_brdf_per_sr")
+    for name in names:
+        cd[name] = np.empty(M.n_faces)
+    normals = M.normals_for(ts.settings.shading)
+    for a in range(0, M.n_faces, FACET_BLOCK):
+        b = slice(a, min(M.n_faces, a + FACET_BLOCK))
+        x = M.centroids_local[b] + M.centre
+        n = normals[b]
+        s_dir, e_dir, o_dir = unit(sc.sun - x), unit(sc.earth - x), unit(sc.det - x)
+        cd["incidence_deg"][b] = np.degrees(angle_between(n, s_dir))
+        cd["emission_deg"][b] = np.degrees(angle_between(n, o_dir))
+        cd["phase_deg"][b] = np.degrees(angle_between(s_dir, o_dir))
+        cd["earth_incidence_deg"][b] = np.degrees(angle_between(n, e_dir))
+        cd["earth_phase_deg"][b] = np.degrees(angle_between(e_dir, o_dir))
+        ab = None if alb is None else alb[b]
+        mu0 = np.clip(np.einsum("ij,ij->i", n, s_dir), 0, 1)
+        mu = np.clip(np.einsum("ij,ij->i", n, o_dir), 0, 1)
+        sh, ch = half_angle_sin_cos(s_dir, o_dir)
+        cd["brdf_per_sr"][b] = np.where((mu0 > 0) & (mu > 0), model.brdf(mu0, mu, sh, ch, albedo=ab), 0.0)
+        mu0e = np.clip(np.einsum("ij,ij->i", n, e_dir), 0, 1)
+        she, che = half_angle_sin_cos(e_dir, o_dir)
+        cd["earth_brdf_per_sr"][b] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che, albedo=ab), 0.0)
+    cd["reflectance_factor"] = np.pi * cd["brdf_per_sr"]
+    totals = {"moonshine_W_m2": ms.mean[brdf_name], "earthshine_W_m2": es.mean[brdf_name],
+              "rays": ms.rays + es.rays, "seconds": ms.seconds + es.seconds}
+    for k in models:
+        totals[f"moonshine_W_m2_{k}"] = ms.mean[k]
+        totals[f"earthshine_W_m2_{k}"] = es.mean[k]
+    u = es.mean_unit.get(brdf_name, 0.0)
+    totals["earthshine_unit_W_m2"] = u  # the same transport for an Earth of albedo 1
+    totals["earth_visible_lit_albedo"] = es.mean[brdf_name] / u if u else float("nan")
+    info = {**fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
+            "brdf": brdf_name, "brdfs": list(models), "moon_centre_m": sc.moon.tolist(),
+            "detector_m": sc.det.tolist(), "sun_m": sc.sun.tolist(), "earth_m": sc.earth.tolist(),
+            "estimator": ts.settings.estimator, "occlusion": ts.settings.occlusion,
+            "self_shadow": ts.settings.self_shadow, "shading": ts.settings.shading,
+            "moon_shading_mode": M.mode(ts.settings.shading),
+            "moon_albedo_map": ts.settings.moon_albedo_map, "earth_surface": ts.settings.earth_surface,
+            "clouds": ts.settings.clouds}
+    E, S = ts.earth, ts.sun
+    from lunarviz.methods.sources import earth_radiance
+    xe, ne = E.facet_points(ts.settings.shading)
+    vis = ts.sun_visibility_of_earth()
+    fa = ts.earth_facet_albedo()
+    fa = np.full(E.n_faces, ts.earth_albedo_value()) if fa is None else fa
+    earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, 1.0) * fa * vis,
+                "albedo": fa, "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}
+    L_sun = ts.sun_surface_radiance()
+    sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, L_sun),
+              "moonshine_beam_hits": ts.source_hits["sun"].copy()}
+    bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd),
+              "sun": (S.vertices.copy(), S.faces.copy(), sun_cd)}
+    # the Moon's mesh is returned in its own body frame (MOON_ME on dates; the scene axes in
+    # the θ scene), so it lines up with the user's mesh and maps; the rotation to the scene
+    # is kept in ``info`` (the .vtm multiblock applies it)
+    rot = sc.rotation("moon")
+    verts = M.vertices.copy() if rot is None else M.vertices @ rot
+    if rot is not None:
+        info["moon_rotation_body_to_scene"] = rot.tolist()
+    return FacetResult(verts, M.faces.copy(), cd, totals, info, bodies)
+
+
+def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict:
+    """A few representative light paths as polylines (world coordinates [m]).
+
+    ``moonshine``: Sun surface → lunar point → detector; ``earthshine``: Sun → Earth surface
+    → lunar point → detector. Lunar points are drawn among lit, visible facets ∝ area.
+    """
+    from lunarviz.methods.tracer.estimators import TraceScene
+    rng = np.random.default_rng(seed)
+    sc = settings.scene(theta)
+    ts = TraceScene(sc, settings.trace_settings())
+    M = ts.moon
+    out = {}
+    for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
+        cand = ts.candidates(body)
+        c = {"sun": sc.sun, "earth": sc.earth}[body]
+        x = M.centroids[cand]
+        lit = np.einsum("ij,ij->i", M.normals_for(settings.shading)[cand], unit(c - x)) > 0
+        cand = cand[lit]
+        if cand.size == 0:
+            out[path] = []
+            continue
+        pick = rng.choice(cand, size=min(n, cand.size), replace=False, p=M.areas[cand] / M.areas[cand].sum())
+        lines = []
+        for fidx in pick:
+            xm = M.centroids[fidx]
+            if body == "sun":
+                src = sc.sun + sc.radii["sun"] * unit(xm - sc.sun + rng.normal(size=3) * sc.radii["sun"] * 0.3)
+                lines.append(np.array([src, xm, sc.det]))
+            else:
+                # a point on the Earth's lit, visible side, then the Sun behind it
+                for _ in range(50):
+                    m = unit(xm - sc.earth + rng.normal(size=3) * sc.radii["earth"] * 1.5)
+                    y = sc.earth + sc.radii["earth"] * m
+                    if np.dot(m, unit(sc.sun - y)) > 0 and np.dot(m, unit(xm - y)) > 0:
+                        break
+                src = sc.sun + sc.radii["sun"] * unit(y - sc.sun)
+                lines.append(np.array([src, y, xm, sc.det]))
+        out[path] = lines
+    return out

@@ -1,0 +1,180 @@
+"""Instrument effects and files for synthetic images: PSF, scattered-light halo, FITS/NPY/PNG.
+
+PSF (``--psf``): ``none``; ``gaussian:FWHM_ARCSEC``; or a ``.npy`` kernel (2-D, odd sides, finite,
+non-negative, at most the image's size; normalised to unit sum). The scattered-light wing
+(``--halo FRACTION,INDEX[,CORE_ARCSEC]``) is a power law ``(1 + (r/r_c)²)^(-INDEX/2)`` (r the
+angular distance, r_c the core radius, default one pixel) carrying FRACTION of the light; it is
+tabulated out to the frame's diagonal and normalised there, so light it would throw farther is
+not modelled. The total PSF is ``(1 - FRACTION)·core + FRACTION·(core ∗ halo)``. Convolutions
+are FFT-based (scipy); light scattered off the frame leaves it (flux is conserved to the
+extent the frame holds it).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+
+BUNIT = "W m-2 sr-1"
+
+
+def parse_psf(text: str | None, pixel_arcsec: float, shape) -> np.ndarray | None:
+    """The PSF kernel (unit sum) for ``--psf``, or None."""
+    if text is None or str(text).strip().lower() in ("", "none"):
+        return None
+    t = str(text).strip()
+    if t.lower().startswith("gaussian:"):
+        try:
+            fwhm = float(t.split(":", 1)[1])
+        except ValueError:
+            raise LunarvizError(f"--psf {text!r}: use gaussian:FWHM_ARCSEC") from None
+        if not (np.isfinite(fwhm) and fwhm > 0):
+            raise LunarvizError(f"--psf {text!r}: the FWHM must be a positive number of arcseconds")
+        sig = fwhm / pixel_arcsec / (2 * np.sqrt(2 * np.log(2)))
+        half = int(np.ceil(5 * sig))
+        if 2 * half + 1 > 2 * max(shape):
+            raise LunarvizError(f"--psf {text!r}: wider than the image")
+        y, x = np.mgrid[-half:half + 1, -half:half + 1]
+        k = np.exp(-(x * x + y * y) / (2 * sig * sig))
+        return k / k.sum()
+    p = Path(t)
+    if not p.is_file():
+        raise LunarvizError(f"--psf {text!r} is not none, gaussian:FWHM_ARCSEC or a .npy file")
+    try:
+        k = np.load(p, allow_pickle=False)
+    except Exception as exc:
+        raise LunarvizError(f"--psf {text!r}: unreadable ({type(exc).__name__})") from None
+    if k.dtype.kind not in "fiu":
+        raise LunarvizError(f"--psf {text!r}: kernel values of type {k.dtype} are not real numbers")
+    if k.ndim != 2 or k.shape[0] % 2 == 0 or k.shape[1] % 2 == 0:
+        raise LunarvizError(f"--psf {text!r}: kernel shape {k.shape} must be 2-D with odd sides")
+    if k.shape[0] > shape[0] or k.shape[1] > shape[1]:
+        raise LunarvizError(f"--psf {text!r}: kernel shape {k.shape} is larger than the image {tuple(shape)}")
+    k = np.asarray(k, dtype=float)
+    if not np.all(np.isfinite(k)) or np.any(k < 0) or k.sum() <= 0:
+        raise LunarvizError(f"--psf {text!r}: kernel values must be finite, non-negative, not all zero")
+    return k / k.sum()
+
+
+def parse_halo(text: str | None, pixel_arcsec: float, shape):
+    """``(fraction, kernel)`` for ``--halo FRACTION,INDEX[,CORE_ARCSEC]``, or None."""
+    if text is None or str(text).strip().lower() in ("", "none"):
+        return None
+    try:
+        vals = [float(v) for v in str(text).split(",")]
+    except ValueError:
+        raise LunarvizError(f"--halo {text!r}: use FRACTION,INDEX[,CORE_ARCSEC]") from None
+    if len(vals) not in (2, 3):
+        raise LunarvizError(f"--halo {text!r}: use FRACTION,INDEX[,CORE_ARCSEC]")
+    frac, index = vals[0], vals[1]
+    core = vals[2] if len(vals) == 3 else pixel_arcsec
+    if not (0 <= frac <= 1 and np.isfinite(index) and index > 0 and np.isfinite(core) and core > 0):
+        raise LunarvizError(f"--halo {text!r}: need 0 ≤ FRACTION ≤ 1, INDEX > 0, CORE_ARCSEC > 0")
+    H, W = shape
+    y, x = np.mgrid[-(H - 1):H, -(W - 1):W]
+    r = np.hypot(x, y) * pixel_arcsec
+    k = (1.0 + (r / core) ** 2) ** (-index / 2)
+    return frac, k / k.sum()
+
+
+def apply_optics(plane: np.ndarray, psf, halo) -> np.ndarray:
+    from scipy.signal import fftconvolve
+    out = plane
+    if psf is not None:
+        out = fftconvolve(out, psf, mode="same")
+    if halo is not None:
+        frac, k = halo
+        out = (1 - frac) * out + frac * fftconvolve(out, k, mode="same")
+    return np.clip(out, 0.0, None) if (psf is not None or halo is not None) else out
+
+
+def plane_names(planes: dict) -> list[tuple[str, str, str]]:
+    """``(EXTNAME, component, brdf)`` in file order; one BRDF keeps the bare names."""
+    brdfs = list(planes["moonshine"])
+    out = []
+    for b in brdfs:
+        for comp in ("moonshine", "earthshine"):
+            out.append((comp.upper() if len(brdfs) == 1 else f"{comp.upper()}_{b.upper()}", comp, b))
+    return out
+
+
+def write_fits(path, res, planes, extra: dict) -> None:
+    from astropy.io import fits
+
+    from lunarviz.outputs.writers import atomic_path
+    cam = res.camera
+    H, W = cam.height, cam.width
+    scale_deg = float(np.degrees(cam.scale_rad))
+    prim = fits.PrimaryHDU()
+    hdr = prim.header
+    hdr["ORIGIN"] = "lunarviz"
+    for k, v in (("DATE-OBS", res.info.get("time_utc")), ("OBSERVER", res.info.get("observer")),
+                 ("THETA", res.info.get("theta_deg")), ("PHASEANG", res.info.get("alpha_deg")),
+                 ("BETA", res.info.get("beta_deg")), ("FOV", cam.fov_deg), ("SUPERSAM", cam.supersample),
+                 ("POINTING", cam.pointing), ("MOON_RA", res.info["moon_ra_deg"]),
+                 ("MOON_DEC", res.info["moon_dec_deg"]), ("LITFRAC", res.lit_fraction),
+                 ("PSF", extra.get("psf") or "none"), ("HALO", extra.get("halo") or "none")):
+        if v is not None:
+            hdr[k] = v
+    hdr["FRAME"] = res.info["frame"][:68]
+    hdr["COMMENT"] = "lunarviz synthetic image: radiance planes per component, pinhole TAN camera at the detector"
+    hdr["COMMENT"] = "settings: " + json.dumps(extra.get("settings", {}))[:2000]
+    hdus = [prim]
+    for ext, comp, b in plane_names(planes):
+        h = fits.ImageHDU(np.asarray(planes[comp][b], dtype=np.float64), name=ext)
+        hh = h.header
+        hh["BUNIT"] = BUNIT
+        hh["BRDF"] = b
+        hh["COMPONEN"] = comp
+        hh["WCSAXES"] = 2
+        hh["CTYPE1"], hh["CTYPE2"] = "RA---TAN", "DEC--TAN"
+        hh["CUNIT1"], hh["CUNIT2"] = "deg", "deg"
+        hh["CRPIX1"], hh["CRPIX2"] = (W + 1) / 2.0, (H + 1) / 2.0
+        hh["CRVAL1"], hh["CRVAL2"] = res.info["boresight_ra_deg"], res.info["boresight_dec_deg"]
+        hh["CDELT1"], hh["CDELT2"] = -scale_deg, scale_deg
+        hh["RADESYS"] = "ICRS"
+        hh["INTEGRAT"] = (float(np.sum(planes[comp][b] * res.pixel_solid_angle)), "sum L*Omega [W m-2]")
+        hdus.append(h)
+    with atomic_path(path) as tmp:
+        fits.HDUList(hdus).writeto(tmp, overwrite=True)
+
+
+def write_npy(path, planes) -> None:
+    import io
+
+    from lunarviz.outputs.writers import write_bytes_atomic
+    buf = io.BytesIO()
+    np.save(buf, np.stack([planes[c][b] for _, c, b in plane_names(planes)]))
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def write_png(path, res, planes, title: str = "") -> None:
+    """The first BRDF's moonshine + earthshine with an asinh stretch and a colour bar."""
+    import io
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import AsinhNorm
+
+    from lunarviz.outputs.writers import write_bytes_atomic
+    b = next(iter(planes["moonshine"]))
+    tot = planes["moonshine"][b] + planes["earthshine"][b]
+    pos = tot[tot > 0]
+    lin = float(np.percentile(pos, 5)) if pos.size else 1.0
+    fig, ax = plt.subplots(figsize=(6.4, 5.4))
+    im = ax.imshow(tot, origin="lower", cmap="gray", norm=AsinhNorm(linear_width=max(lin, 1e-30), vmin=0.0))
+    cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    cb.set_label(f"radiance [{BUNIT}] (asinh stretch)")
+    ax.set_xlabel("pixel (east ←)")
+    ax.set_ylabel("pixel (north ↑)")
+    ax.set_title(title or f"{b}: moonshine + earthshine", fontsize=9)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())

@@ -1,0 +1,135 @@
+"""Sweep results as an ``xarray.Dataset`` (dims brdf × phase or brdf × time) and NetCDF files.
+
+Variables carry CF-style attributes (``units`` in UDUNITS spelling, ``long_name``); the
+values are the JSON rows' values, unrounded (float64). Rows' per-task geometry (angles,
+distances, libration, flags) becomes 1-D over phase or time; per-BRDF results are 2-D.
+Booleans become int8 flags (NetCDF has no boolean) with ``flag_values``/``flag_meanings``;
+undefined values (JSON ``null``) are NaN.
+"""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime
+
+import numpy as np
+
+from lunarviz.outputs.writers import atomic_path
+
+#: fields that depend on the task (phase or time) only, not on the BRDF
+PER_TASK = ("theta_deg", "alpha_deg", "beta_deg", "phase_angle_deg", "observer_moon_distance_m",
+            "sun_moon_distance_m", "sub_observer_lat_deg", "sub_observer_lon_deg", "sub_solar_lat_deg",
+            "sub_solar_lon_deg", "moon_altitude_deg", "moon_occulted", "observer_in_shadow",
+            "observer_x_m", "observer_y_m", "observer_z_m", "tle_epoch_age_days")
+#: row field → (variable name, units, long name)
+DESCRIPTIONS = {
+    "moonshine_W_m2": ("moonshine", "W m-2", "irradiance at the detector from sunlight reflected by the Moon"),
+    "earthshine_W_m2": ("earthshine", "W m-2", "irradiance at the detector from earthlight reflected by the Moon"),
+    "moonshine_std_W_m2": ("moonshine_std", "W m-2", "standard deviation of one Monte Carlo run (pooled), moonshine"),
+    "earthshine_std_W_m2": ("earthshine_std", "W m-2", "std. deviation of one Monte Carlo run (pooled), earthshine"),
+    "moonshine_sem_W_m2": ("moonshine_sem", "W m-2", "standard deviation of the mean over runs, moonshine"),
+    "earthshine_sem_W_m2": ("earthshine_sem", "W m-2", "standard deviation of the mean over runs, earthshine"),
+    "earthshine_point_source_W_m2": ("earthshine_point_source", "W m-2",
+                                     "earthshine with a point Earth (paper's analytic method)"),
+    "ratio_earthshine_moonshine": ("ratio_earthshine_moonshine", "1", "earthshine / moonshine"),
+    "geometric_albedo_term": ("geometric_albedo_term", "1", "p_E f_E(beta), paper Eq. 15"),
+    "apparent_albedo": ("apparent_albedo", "1", "apparent albedo p*(beta) of the Earth, paper Eq. 16"),
+    "apparent_albedo_point_source_inversion": ("apparent_albedo_point_source_inversion", "1",
+                                               "p*(beta) inverted with the paper's point-source lunar terms"),
+    "extended_over_point_earthshine": ("extended_over_point_earthshine", "1",
+                                       "earthshine with an extended Earth over that with a point Earth"),
+    "rays": ("rays", "1", "rays submitted to Embree for this row's phase (both paths)"),
+    "runs": ("runs", "1", "Monte Carlo runs"),
+    "rays_per_run": ("rays_per_run", "1", "Monte Carlo rays per run and path"),
+    "seconds": ("seconds", "s", "run time of this row (the task's time shared among its BRDFs)"),
+    "theta_deg": ("theta", "degree", "orbital angle theta: 180 deg minus the Sun-Earth-Moon angle (paper Eq. 3)"),
+    "alpha_deg": ("alpha", "degree", "lunar phase angle: Sun-Moon-detector angle"),
+    "beta_deg": ("beta", "degree", "Earth's phase angle seen from the Moon: Sun-Earth-Moon angle"),
+    "phase_angle_deg": ("phase_angle", "degree", "Sun-Moon-observer angle"),
+    "observer_moon_distance_m": ("observer_moon_distance", "m", "observer to Moon centre distance"),
+    "sun_moon_distance_m": ("sun_moon_distance", "m", "Sun centre to Moon centre distance"),
+    "sub_observer_lat_deg": ("sub_observer_lat", "degree", "selenographic lat., sub-observer point (MOON_ME)"),
+    "sub_observer_lon_deg": ("sub_observer_lon", "degree", "selenographic lon., sub-observer point (MOON_ME)"),
+    "sub_solar_lat_deg": ("sub_solar_lat", "degree", "selenographic latitude of the sub-solar point (MOON_ME)"),
+    "sub_solar_lon_deg": ("sub_solar_lon", "degree", "selenographic longitude of the sub-solar point (MOON_ME)"),
+    "moon_altitude_deg": ("moon_altitude", "degree", "geometric altitude of the Moon's centre at the site"),
+    "moon_occulted": ("moon_occulted", "1", "the Earth hides the Moon's centre from the observer"),
+    "observer_in_shadow": ("observer_in_shadow", "1", "the Earth hides the Sun's centre from the observer"),
+    "tle_epoch_age_days": ("tle_epoch_age", "day", "time from the TLE's epoch (SGP4 accuracy degrades with it)"),
+    "observer_x_m": ("observer_x", "m", "observer position, geocentric ICRF x"),
+    "observer_y_m": ("observer_y", "m", "observer position, geocentric ICRF y"),
+    "observer_z_m": ("observer_z", "m", "observer position, geocentric ICRF z"),
+}
+SKIP = ("brdf", "method", "estimator", "time_utc", "observer")
+
+
+def _num(v):
+    return np.nan if v is None else v
+
+
+def to_dataset(result: dict):
+    """An ``xarray.Dataset`` from :func:`lunarviz.workflows.sweeps.run_sweep`'s result."""
+    import xarray as xr
+    rows = result["rows"]
+    settings = result["settings"]
+    brdfs = list(dict.fromkeys(r["brdf"] for r in rows))
+    timed = "time_utc" in rows[0]
+    keys = list(dict.fromkeys(r["time_utc"] if timed else r["theta_deg"] for r in rows))
+    index = {(r["brdf"], r["time_utc"] if timed else r["theta_deg"]): r for r in rows}
+    dim = "time" if timed else "phase"
+    if timed:
+        coord = np.array([np.datetime64(datetime.fromisoformat(k.replace("Z", "")), "ns") for k in keys])
+        coords = {"brdf": brdfs, "time": coord}
+    else:
+        coords = {"brdf": brdfs, "phase": np.asarray(keys, dtype=float)}
+    fields = list(dict.fromkeys(k for r in rows for k in r if k not in SKIP))
+    data = {}
+    for f in fields:
+        name, units, long_name = DESCRIPTIONS.get(f, (f, None, None))
+        values = np.array([[_num(index[(b, k)].get(f)) for k in keys] for b in brdfs])
+        is_bool = values.dtype == bool or all(isinstance(index[(b, k)].get(f), bool) for b in brdfs for k in keys)
+        if f in PER_TASK:
+            values, dims = values[0], (dim,)
+        else:
+            dims = ("brdf", dim)
+        attrs = {}
+        if units:
+            attrs["units"] = units
+        if long_name:
+            attrs["long_name"] = long_name
+        if is_bool:
+            values = values.astype(np.int8)
+            attrs.update({"flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "false true"})
+            attrs.pop("units", None)
+        else:
+            values = values.astype(float)
+        data[name] = (dims, values, attrs)
+    ds = xr.Dataset(data, coords=coords)
+    ds["brdf"].attrs["long_name"] = "lunar BRDF"
+    if timed:
+        ds["time"].attrs["long_name"] = "UTC time of the row"
+        ds["time"].attrs["standard_name"] = "time"
+    else:
+        ds["phase"].attrs.update({"units": "degree", "long_name": "orbital angle theta of the paper's scene (Eq. 3)"})
+    bond = result.get("bond_albedo", {})
+    method = settings.get("method")
+    ds["bond_albedo"] = (("brdf",), np.array([_num(bond.get(b, {}).get(method)) for b in brdfs], dtype=float),
+                         {"units": "1", "long_name": "Bond albedo of the Earth from apparent albedo, corrected Eq. 17"})
+    ds.attrs.update({
+        "Conventions": "CF-1.10",
+        "title": f"lunarviz sweep ({method})",
+        "institution": "lunarviz",
+        "source": "lunarviz (earthshine and moonshine: analytic, exact reference, or Embree ray tracing)",
+        "method": str(method),
+        "observer": str(settings.get("observer", "geocentre")),
+        "settings_json": json.dumps(settings),
+        "wall_seconds": float(result.get("wall_seconds", np.nan)),
+    })
+    return ds
+
+
+def write_netcdf(path, result: dict) -> None:
+    """Write the Dataset of ``result`` as NetCDF-4 (h5netcdf), atomically."""
+    ds = to_dataset(result)
+    with atomic_path(path) as tmp:
+        ds.to_netcdf(tmp, engine="h5netcdf")

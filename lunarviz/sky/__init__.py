@@ -1,0 +1,1 @@
+"""The real sky: ephemerides, observers and the scene at a UTC time."""

@@ -1,1 +1,0 @@
-"""Embree ray tracing of the Sun-Earth-Moon scene (see :mod:`lunarviz.tracer.estimators`)."""

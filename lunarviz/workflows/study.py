@@ -1,0 +1,277 @@
+"""Mesh-resolution studies: facets, run time, error, observed order of convergence.
+
+``mesh_study(levels, phases, brdfs, out, body="moon")`` traces every phase with ``body`` at
+every level (deterministic estimator, no occlusion, source beams converged: Earth order 12,
+Sun order 4) and writes a table (.json or .csv) and a
+log-log plot beside it. The body's mesh at each level is
+
+* ``shape="sphere"``: the packaged icosphere (the exact-sphere fast path with ``auto`` or
+  ``smooth`` shading, the facets with ``flat``); error against the exact reference;
+* ``shape="ellipsoid"`` (semi-axes ``axes`` in body radii) or ``"craters"`` (a seeded cratered
+  body, :mod:`lunarviz.bodies.shapes`): generated at each level and traced on its facets;
+* ``meshes=[f1, f2, ...]``: the user's meshes, coarse to fine (``levels`` is then their index).
+
+Without an exact reference (every shape but the sphere) the error is measured against the
+finest mesh of the study and the observed order from successive differences,
+``p = log2(|v_{L-1} - v_{L-2}| / |v_L - v_{L-1}|)``; the table says which. With the exact
+reference, ``p = log2(e_{L-1} / e_L)`` (the facet size halves per level).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
+from lunarviz.photometry.brdf import make_brdf
+
+STUDY_SHAPES = ("sphere", "ellipsoid", "craters")
+
+
+def _study_meshes(body, shape, levels, axes, meshes, tmp):
+    """Mesh path (or None for the packaged sphere) per level."""
+    from lunarviz.bodies import shapes
+    from lunarviz.bodies.meshes import NOMINAL_RADII
+    if meshes:
+        return {i: str(m) for i, m in enumerate(meshes)}
+    if shape == "sphere":
+        return {lv: None for lv in levels}
+    R = NOMINAL_RADII[body]
+    out = {}
+    for lv in levels:
+        if shape == "ellipsoid":
+            m = shapes.ellipsoid(*(a * R for a in axes), level=int(lv))
+        else:  # same craters at every level (seeded), so only the resolution changes
+            m = shapes.craters(R, int(lv), 20, 0.06 * R, 0.2 * R, seed=0)
+        p = Path(tmp) / f"{body}_{shape}_L{lv}.ply"
+        shapes.write_mesh(m, p)
+        out[lv] = str(p)
+    return out
+
+
+class _Means:
+    def __init__(self, mean, rays):
+        self.mean, self.rays = mean, rays
+
+
+def _study_task(task):
+    """One (mesh, phase) of a study: ``(seconds, facets, moonshine means, earthshine means, rays)``.
+    Module-level and fed only settings, so a Dask worker can run it (meshes must be readable
+    there: generated shapes live in a local temporary folder, so remote clusters need ``meshes``
+    on a shared file system)."""
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
+    st, th, body, brdfs = task
+    models = {b: make_brdf(b) for b in brdfs}
+    t0 = time.perf_counter()
+    ts = TraceScene(Scene(th), st)
+    ms = trace_path(ts, "moonshine", models)
+    es = trace_path(ts, "earthshine", models)
+    return time.perf_counter() - t0, int(getattr(ts, body).n_faces), ms.mean, es.mean, (ms.rays, es.rays)
+
+
+def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: bool = True,
+               progress: bool = False, body: str = "moon", shape: str = "sphere",
+               axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m", executor: str = "local",
+               scheduler: str | None = None, workers: int | None = None) -> dict:
+    from lunarviz.methods.tracer.estimators import TraceSettings
+    if body not in ("moon", "earth", "sun"):
+        raise LunarvizError(f"unknown body {body!r}: choose from moon, earth, sun")
+    if shape not in STUDY_SHAPES:
+        raise LunarvizError(f"unknown study shape {shape!r}: choose from {', '.join(STUDY_SHAPES)}")
+    if meshes:
+        levels = list(range(len(meshes)))
+    if body != "moon" and shape == "sphere" and not meshes and shading == "auto":
+        # the packaged Earth and Sun are shaded on the exact sphere, where their level only picks
+        # the facet a beam meets: a resolution study of them is a study of their facets
+        shading = "flat"
+    models = {b: make_brdf(b) for b in brdfs}
+    exact = shape == "sphere" and not meshes
+    refs = {th: reference_irradiance(Scene(th), models, ReferenceSettings(32, 12)) for th in phases} if exact else {}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = _study_meshes(body, shape, levels, axes, meshes, tmp)
+        it = [(lv, th) for lv in levels for th in phases]
+        # ``shading`` applies to the studied body only; the others keep their defaults
+        # the source beams are converged (Earth order 12, Sun order 4) so the study sees the
+        # mesh's error, not the beams' (~8e-6 at the default Earth order 6)
+        base = TraceSettings(occlusion=False, refine=refine, body_shading=((body, shading),),
+                             mesh_units=mesh_units if meshes else "m", earth_order=12, sun_order=4)
+        tasks = [(replace(base, **{f"{body}_mesh": paths[lv]}) if paths[lv] else
+                  replace(base, **{f"{body}_level": int(lv)}), float(th), body, tuple(brdfs)) for lv, th in it]
+        if executor == "dask":
+            from lunarviz.workflows.sweeps import _dask_client
+            client, cluster = _dask_client(scheduler, workers)
+            try:
+                outs = client.gather(client.map(_study_task, tasks, pure=False))
+            finally:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+        else:
+            run_list = tasks
+            if progress:
+                from tqdm import tqdm
+                run_list = tqdm(tasks, desc="mesh study", unit="run", leave=False)
+            outs = [_study_task(t) for t in run_list]
+        for (lv, th), (dt, facets, ms_mean, es_mean, n_rays) in zip([(lv, th) for lv in levels for th in phases],
+                                                                   outs):
+            ms = _Means(ms_mean, n_rays[0])
+            es = _Means(es_mean, n_rays[1])
+            for b in brdfs:
+                for path, res in (("moonshine", ms), ("earthshine", es)):
+                    ref = getattr(refs[th][b], f"{path}_W_m2") if exact else None
+                    rows.append({"level": int(lv), "facets": facets, "theta_deg": float(th),
+                                 "brdf": b, "path": path, "value_W_m2": res.mean[b], "reference_W_m2": ref,
+                                 "relative_error": res.mean[b] / ref - 1 if exact else None, "seconds": dt,
+                                 "rays": ms.rays + es.rays, "shading": shading, "refine": refine})
+    if not exact:  # error against the finest mesh; order from successive differences
+        finest = max(levels)
+        for r in rows:
+            ref = next(q["value_W_m2"] for q in rows if q["level"] == finest and q["theta_deg"] == r["theta_deg"]
+                       and q["brdf"] == r["brdf"] and q["path"] == r["path"])
+            r["reference_W_m2"] = ref
+            r["relative_error"] = r["value_W_m2"] / ref - 1
+    summary = []
+    for path in ("moonshine", "earthshine"):
+        prev = None
+        vals = []
+        for lv in levels:
+            sel = [r for r in rows if r["level"] == lv and r["path"] == path]
+            secs = np.mean([r["seconds"] for r in rows if r["level"] == lv])
+            e = float(max(abs(r["relative_error"]) for r in sel))
+            v = np.array([r["value_W_m2"] for r in sel])
+            if exact:
+                order = float(np.log2(prev / e)) if prev and e > 0 else None
+            else:
+                order = None
+                if len(vals) >= 2:
+                    d1 = np.max(np.abs(vals[-1] / vals[-2] - 1))
+                    d2 = np.max(np.abs(v / vals[-1] - 1))
+                    order = float(np.log2(d1 / d2)) if d1 > 0 and d2 > 0 else None
+            vals.append(v)
+            summary.append({"path": path, "level": int(lv), "facets": sel[0]["facets"],
+                            "max_abs_relative_error": e, "observed_order": order,
+                            "mean_seconds_per_phase": float(secs)})
+            prev = e
+    res = {"settings": {"levels": list(levels), "phases_deg": list(phases), "brdfs": list(brdfs),
+                        "body": body, "shape": shape if not meshes else "user meshes",
+                        "meshes": [str(m) for m in meshes] if meshes else None,
+                        "shading": shading, "refine": refine, "earth_order": 12, "sun_order": 4,
+                        "reference": "exact reference ReferenceSettings(32, 12)" if exact else
+                        "finest mesh of the study; order from successive differences"},
+           "rows": rows, "summary": summary}
+    if out is not None:
+        from lunarviz.outputs.writers import write_results
+        out = Path(out)
+        write_results(out, res)
+        plot_study(res, out.with_suffix(".png"))
+    return res
+
+
+def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg", "dhg"), *, body: str = "moon",
+         shape: str = "sphere", axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m", shading: str = "auto",
+         refine: bool = True, out=None, plot=None, progress: bool = False, executor: str = "local",
+         scheduler: str | None = None, workers: int | None = None) -> dict:
+    """Mesh-resolution study (the Python face of ``lunarviz study mesh``).
+
+    Parameters
+    ----------
+    levels : sequence of int
+        Icosphere levels of ``body``'s mesh, increasing (ignored with ``meshes``).
+    phases : sequence of float
+        Phases θ [deg] in [0, 180].
+    brdfs : sequence of str
+        Lunar BRDFs.
+    body : {"moon", "earth", "sun"}
+        The body whose mesh varies; ``shape`` sphere, ellipsoid (semi-axes ``axes`` in body
+        radii) or craters; ``meshes`` the user's meshes coarse to fine (in ``mesh_units``).
+    shading, refine
+        Ray-tracing options (see :class:`lunarviz.methods.tracer.estimators.TraceSettings`).
+    executor, scheduler, workers
+        ``"local"`` (this process) or ``"dask"`` (each level and phase a task; see
+        :func:`lunarviz.run`).
+    out : path, optional
+        Write the table (.json or .csv).
+    plot : path, optional
+        Draw the convergence plot (.png).
+
+    Returns
+    -------
+    dict
+        ``{"settings", "rows", "summary"}``: per level the facets, the relative error (against
+        the exact reference for the sphere, else the finest mesh), the observed order and the
+        run time [s]. Nothing is written or drawn unless asked.
+    """
+    from lunarviz.bodies.meshes import MAX_LEVEL
+    from lunarviz.outputs.writers import check_output_path
+    from lunarviz.photometry.brdf import BRDF_NAMES
+    levels = list(levels)
+    if meshes is None:
+        if not levels or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= MAX_LEVEL
+                                 for v in levels):
+            raise LunarvizError(f"levels {tuple(levels)!r} must be integers in [0, {MAX_LEVEL}]")
+        if any(b <= a for a, b in zip(levels, levels[1:])):
+            raise LunarvizError(f"levels {tuple(levels)!r} must increase (coarse to fine)")
+    elif len(meshes) < 2:
+        raise LunarvizError("meshes needs at least two meshes, coarse to fine")
+    try:
+        phases = [float(p) for p in phases]
+    except (TypeError, ValueError):
+        raise LunarvizError(f"phases {phases!r} must be numbers θ [deg]") from None
+    if not phases or not all(np.isfinite(p) and 0 <= p <= 180 for p in phases):
+        raise LunarvizError(f"phases {tuple(phases)!r} must be angles θ in [0, 180] deg")
+    for b in brdfs:
+        if b not in BRDF_NAMES:
+            raise LunarvizError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
+    if body not in ("moon", "earth", "sun"):
+        raise LunarvizError(f"body {body!r} is not moon, earth or sun")
+    if shape not in STUDY_SHAPES:
+        raise LunarvizError(f"shape {shape!r} is not one of {', '.join(STUDY_SHAPES)}")
+    if out is not None:
+        out = check_output_path(out)
+    if plot is not None:
+        plot = check_output_path(plot, (".png",))
+    if executor not in ("local", "dask"):
+        raise LunarvizError(f"unknown executor {executor!r}: choose from local, dask")
+    res = mesh_study(list(levels), list(phases), list(brdfs), None, shading=shading, refine=refine,
+                     progress=progress, body=body, shape=shape, axes=tuple(axes), meshes=meshes,
+                     mesh_units=mesh_units, executor=executor, scheduler=scheduler, workers=workers)
+    if out is not None:
+        from lunarviz.outputs.writers import write_results
+        write_results(out, res)
+    if plot is not None:
+        plot_study(res, plot)
+    return res
+
+
+def plot_study(res: dict, path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for path_name, ax in zip(("moonshine", "earthshine"), axes):
+        s = [r for r in res["summary"] if r["path"] == path_name]
+        facets = [r["facets"] for r in s]
+        ax.loglog(facets, [max(r["max_abs_relative_error"], 1e-12) for r in s], "o-",
+                  label="max |error| over phases, BRDFs")
+        for x, r in zip(facets, s):
+            if r["observed_order"] is not None:
+                ax.annotate(f"p={r['observed_order']:.1f}", (x, r["max_abs_relative_error"]), fontsize=7,
+                            textcoords="offset points", xytext=(4, 4))
+        ax.axhline(1e-3, color="k", ls="--", lw=0.8, label="0.1 % target")
+        ax.set_xlabel(f"{res['settings'].get('body', 'moon')} facets")
+        ax.set_ylabel("relative error vs " + ("exact reference" if "exact" in res["settings"]["reference"]
+                                              else "finest mesh"))
+        ax.set_title(f"{path_name}: {res['settings'].get('body', 'moon')} {res['settings'].get('shape', 'sphere')}, "
+                     f"{res['settings']['shading']} shading")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,474 @@
+"""Phase sweeps: one independent, picklable task per phase, mapped through an executor.
+
+Every task computes the BRDF-independent transport once and shades every requested BRDF,
+so a sweep over three BRDFs costs one trace per phase. Tasks run in local worker processes
+(``workers``) so a distributed executor (e.g. Dask's ``Client.map``) can take the same
+:func:`run_phase` calls when a study outgrows one machine.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+from lunarviz.errors import LunarvizError
+from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
+from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
+from lunarviz.photometry import albedo_inversion as alb
+from lunarviz.photometry.brdf import BRDF_NAMES, make_brdf
+
+METHODS = ("analytic", "raytrace", "reference")
+#: beyond this many days from a TLE's epoch a sweep warns (SGP4 errors of km grow within weeks)
+TLE_MAX_AGE_DAYS = 30.0
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """Everything needed to rerun a sweep (written to the output's ``settings``)."""
+
+    brdfs: tuple = ("lambert", "shg", "dhg")
+    phases_deg: tuple = tuple(float(p) for p in range(0, 181, 5))
+    method: str = "analytic"
+    dhg_convention: str = "paper"
+    h_function: str = "hapke1981"
+    #: BRDF parameter preset: ``paper`` (Table 2) or a fitted one such as ``rolo-fit``
+    moon_model: str = "paper"
+    params: dict = field(default_factory=dict)  # {brdf: {name: value}}
+    detector: tuple | None = None
+    earth_albedo: float = 0.3
+    earth_law: str = "lambert"
+    grid: str = "converged"
+    #: analytic Gauss order; ``None``: 24, or 96 with a lunar albedo map (read at the nodes,
+    #: first order at the map's edges: 24 is off by up to 2.7 % on the synthetic map)
+    order: int | None = None
+    paper_step_deg: float = 1.0
+    estimator: str = "deterministic"
+    rays: int = 50_000
+    runs: int = 1
+    seed: int = 0
+    moon_level: int | None = None
+    earth_level: int | None = None
+    sun_level: int | None = None
+    occlusion: bool = True
+    self_shadow: bool = True
+    shading: str = "auto"
+    earth_order: int = 6
+    sun_order: int = 2
+    moon_mesh: str | None = None
+    earth_mesh: str | None = None
+    sun_mesh: str | None = None
+    mesh_units: str = "m"
+    reference_outer: int = 24
+    reference_inner: int = 8
+    #: UTC times (ISO 8601): when given, one task per time on the real sky, not per phase θ
+    times: tuple | None = None
+    #: ``--observer``: geocentre, site:LAT,LON[,H], tle:FILE, orbit:ALT,INC,RAAN,ARGLAT[,EPOCH]
+    observer: str = "geocentre"
+    #: surfaces (:mod:`lunarviz.bodies.surfaces`): ``--moon-albedo-map FILE[:MEAN]``, ``--earth-surface
+    #: uniform|landocean|FILE``, ``--clouds none|zonal|FILE``, their albedos, and the θ scene's
+    #: sub-solar longitude ``--earth-rotation-deg`` (``None``: 0; dates turn the Earth themselves)
+    moon_albedo_map: str | None = None
+    earth_surface: str = "uniform"
+    clouds: str = "none"
+    land_albedo: float = LAND_ALBEDO
+    ocean_albedo: float = OCEAN_ALBEDO
+    cloud_albedo: float = CLOUD_ALBEDO
+    earth_rotation_deg: float | None = None
+    #: ``facets`` (default) or ``beams``: see :class:`lunarviz.methods.tracer.estimators.TraceSettings`
+    mapped_earth: str = "facets"
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise LunarvizError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
+        if not self.brdfs:
+            raise LunarvizError("no BRDF given")
+        for b in self.brdfs:
+            if b not in BRDF_NAMES:
+                raise LunarvizError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
+        if not self.phases_deg:
+            raise LunarvizError("no phase given")
+        if self.times is None and len(set(self.phases_deg)) != len(self.phases_deg):
+            dup = next(p for p in self.phases_deg if list(self.phases_deg).count(p) > 1)
+            raise LunarvizError(f"phase {dup:g} is listed twice")
+        if not isinstance(self.params, dict) or not all(isinstance(v, dict) for v in self.params.values()):
+            raise LunarvizError(f"params {self.params!r} must be {{brdf: {{name: value}}}}")
+        for b in self.params:
+            if b not in self.brdfs:
+                raise LunarvizError(f"params name BRDF {b!r}, which is not in this run ({', '.join(self.brdfs)})")
+        if self.times is not None:
+            from lunarviz.sky.ephemeris import time_list
+            if not self.times:
+                raise LunarvizError("no time given")
+            object.__setattr__(self, "times", time_list(",".join(self.times)))  # canonical labels, checked
+            if len(set(self.times)) != len(self.times):
+                dup = next(t for t in self.times if self.times.count(t) > 1)
+                raise LunarvizError(f"time {dup} is listed twice")
+            if self.detector is not None:
+                raise LunarvizError("--detector places a detector in the θ scene; with --time use --observer")
+        if self.detector is not None and self.times is None:
+            for th in self.phases_deg:  # a detector inside the Sun or the Moon, before any work
+                Scene(float(th), detector=self.detector)
+        obs = self.observer_model()  # validates (reads a TLE file) before any work
+        if obs.kind != "geocentre" and self.times is None:
+            raise LunarvizError(f"--observer {self.observer} needs a date: give --time or --time-range")
+        if obs.kind == "tle":
+            age = max(abs(obs.epoch_age_days(t)) for t in (self.times[0], self.times[-1]))
+            if age > TLE_MAX_AGE_DAYS:
+                import warnings
+
+                from lunarviz.errors import LunarvizWarning
+                warnings.warn(f"TLE {self.observer!r} is propagated {age:.0f} days from its epoch; SGP4 errors grow "
+                              f"to many km within weeks (rows carry tle_epoch_age_days)", LunarvizWarning,
+                              stacklevel=2)
+        if self.method != "raytrace":
+            for value, default, flag in (
+                    (self.mesh_units, "m", "--mesh-units"), (self.moon_level, None, "--mesh-level"),
+                    (self.earth_level, None, "--earth-level"), (self.sun_level, None, "--sun-level"),
+                    (self.shading, "auto", "--shading"), (self.self_shadow, True, "--no-self-shadow")):
+                if value != default:
+                    raise LunarvizError(f"{flag} cannot be used with --method {self.method}, which has no meshes; "
+                                     f"use --method raytrace")
+            for body in ("moon", "earth", "sun"):
+                if getattr(self, f"{body}_mesh") is not None:
+                    raise LunarvizError(f"--{body}-mesh cannot be used with --method {self.method}, which assumes "
+                                     f"exact spheres; use --method raytrace")
+        if self.times is not None and self.earth_rotation_deg is not None:
+            raise LunarvizError("--earth-rotation-deg turns the Earth of the θ scene; on dates (--time) the "
+                                "Earth turns with the date")
+        if self.moon_albedo_map is None and self.moon_model != "paper":
+            from lunarviz.photometry.presets import moon_model_map
+            preset_map = moon_model_map(self.moon_model)  # a preset fitted on a mapped Moon brings its map
+            if preset_map is not None:
+                object.__setattr__(self, "moon_albedo_map", preset_map)
+        if isinstance(self.moon_albedo_map, str) and self.moon_albedo_map.strip().lower() == "none":
+            object.__setattr__(self, "moon_albedo_map", None)  # --moon-albedo-map none: no map, even a preset's
+        models = self.brdf_models()  # validates parameters early
+        sf = self.surfaces()  # reads and checks the maps before any work
+        if sf is not None and sf.moon_map is not None:
+            sf.moon_map.check_brdfs(models)
+            if self.h_function == "exact" and any(b != "lambert" for b in self.brdfs):
+                raise LunarvizError(f"--h-function exact takes one w, not a per-facet map ({self.moon_albedo_map}, "
+                                    f"from --moon-albedo-map or --moon-model {self.moon_model}): use hapke1981 or "
+                                    f"hapke2002, or --moon-albedo-map none")
+        if sf is not None and self.method == "reference":
+            raise LunarvizError("--method reference integrates the paper's uniform bodies (a check, exact only "
+                                "there): with surface maps use --method raytrace (or analytic)")
+        if self.times is None and ((sf is not None and sf.moon_map is not None and self.moon_mesh is not None)
+                                   or (not self.earth_uniform and self.earth_mesh is not None)):
+            raise LunarvizError("a surface map on a user mesh needs a date (--time): in the θ scene a mesh keeps the "
+                                "scene's axes while maps take the tidal/sub-solar frame")
+        if not self.earth_uniform:
+            from lunarviz.bodies.surfaces import EarthSurface
+            EarthSurface(self.earth_surface, self.clouds).clear_map()  # the land mask, once, before workers
+        ts = self.trace_settings()
+        if self.method == "raytrace":  # read and check user meshes once, before any work
+            from lunarviz.bodies.meshes import NOMINAL_RADII
+            from lunarviz.methods.tracer.estimators import body_mesh_m
+            for body in ("moon", "earth", "sun"):
+                path = getattr(self, f"{body}_mesh")
+                if path is not None:  # same arguments as TraceScene's call: the cached mesh is reused
+                    body_mesh_m(body, getattr(ts, f"{body}_level"), path, self.mesh_units, NOMINAL_RADII[body])
+        self.analytic_settings()
+
+    def brdf_models(self) -> dict:
+        return {b: make_brdf(b, dhg_convention=self.dhg_convention, h_function=self.h_function,
+                             params=self.params.get(b, {}), moon_model=self.moon_model) for b in self.brdfs}
+
+    def surfaces(self, model_earth: bool = False):
+        """The scene's :class:`~lunarviz.bodies.surfaces.Surfaces`; ``model_earth``: with the uniform
+        Earth of ``earth_albedo`` (what an inversion assumes), the lunar map kept; ``None`` when
+        both are the paper's."""
+        from lunarviz.bodies.surfaces import EarthSurface, MoonAlbedoMap, Surfaces
+        earth = EarthSurface(albedo=self.earth_albedo) if model_earth else EarthSurface(
+            self.earth_surface, self.clouds, self.earth_albedo, self.land_albedo, self.ocean_albedo, self.cloud_albedo)
+        moon = None if self.moon_albedo_map is None else MoonAlbedoMap.parse(self.moon_albedo_map)
+        if moon is None and earth.uniform:
+            return None
+        return Surfaces(moon, earth, self.earth_rotation_deg or 0.0)
+
+    @property
+    def earth_uniform(self) -> bool:
+        return self.earth_surface == "uniform" and self.clouds == "none"
+
+    def analytic_settings(self, model_earth: bool = False) -> AnalyticSettings:
+        order = self.order
+        if order is None:  # 96 for a lunar map with any contrast (a uniform map is the scalar)
+            order = 24
+            if self.moon_albedo_map not in (None, "none"):
+                from lunarviz.bodies.surfaces import MoonAlbedoMap
+                if np.ptp(MoonAlbedoMap.parse(self.moon_albedo_map).values()) > 0:
+                    order = 96
+        return AnalyticSettings(grid=self.grid, order=order, paper_step_deg=self.paper_step_deg,
+                                earth_law=self.earth_law, earth_albedo=self.earth_albedo,
+                                surfaces=self.surfaces(model_earth))
+
+    def trace_settings(self, threads: int | None = None):
+        """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
+        over several worker processes pass 1). Results do not depend on it."""
+        from lunarviz.bodies.meshes import DEFAULT_LEVELS
+        from lunarviz.methods.tracer.estimators import TraceSettings
+        return TraceSettings(
+            estimator=self.estimator,
+            moon_level=DEFAULT_LEVELS["moon"] if self.moon_level is None else self.moon_level,
+            earth_level=DEFAULT_LEVELS["earth"] if self.earth_level is None else self.earth_level,
+            sun_level=DEFAULT_LEVELS["sun"] if self.sun_level is None else self.sun_level,
+            sun_order=self.sun_order, earth_order=self.earth_order, rays=self.rays,
+            runs=self.runs, seed=self.seed, occlusion=self.occlusion, self_shadow=self.self_shadow,
+            shading=self.shading, earth_albedo=self.earth_albedo, threads=threads, moon_mesh=self.moon_mesh,
+            earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units,
+            moon_albedo_map=self.moon_albedo_map, earth_surface=self.earth_surface, clouds=self.clouds,
+            land_albedo=self.land_albedo, ocean_albedo=self.ocean_albedo, cloud_albedo=self.cloud_albedo,
+            earth_rotation_deg=self.earth_rotation_deg or 0.0, mapped_earth=self.mapped_earth)
+
+    def observer_model(self):
+        """The parsed observer (an orbit's epoch defaults to the first time)."""
+        from lunarviz.sky.observers import parse_observer
+        obs = parse_observer(self.observer)
+        return obs.with_epoch(self.times[0]) if self.times else obs
+
+    def tasks(self) -> list:
+        """One key per independent task: UTC labels with ``times``, else the phases θ [deg]."""
+        return list(self.times) if self.times is not None else [float(p) for p in self.phases_deg]
+
+    def scene(self, key) -> Scene:
+        return self.scene_and_fields(key)[0]
+
+    def scene_and_fields(self, key) -> tuple[Scene, dict]:
+        """The scene of one task and the geometry fields its rows start with."""
+        if self.times is not None:
+            from lunarviz.sky.dated_scene import sky_scene
+            return sky_scene(str(key), self.observer_model())
+        sc = Scene(float(key), detector=self.detector)
+        return sc, {"theta_deg": float(key)}
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["brdfs"] = list(self.brdfs)
+        d["phases_deg"] = list(self.phases_deg)
+        if self.times is not None:
+            d["times"] = list(self.times)
+            d.pop("phases_deg")
+        return d
+
+
+def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[dict]:
+    """All rows (one per BRDF) for one task: a phase θ [deg], or a UTC time with ``times``.
+    Pure function of its arguments (``threads``, the trace's threads, changes no number)."""
+    sc, fields = settings.scene_and_fields(key)
+    brdfs = settings.brdf_models()
+    base = {**fields, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
+    t0 = time.perf_counter()
+    rows = []
+    # point-source calibration (lunar terms of Eq. 15, and the point-vs-extended comparison):
+    # converged grid, correct Lambert-sphere Earth law
+    # (an inversion assumes a uniform Earth of earth_albedo: a mapped Earth never calibrates its
+    # own inversion; the lunar map, which an observer knows, stays)
+    a0 = settings.earth_albedo
+    uniform = settings.earth_uniform
+
+    def model_es(es, es_unit):
+        """Earthshine of the model Earth (uniform albedo a0) on the same transport."""
+        return es if uniform else a0 * es_unit
+    cal_settings = replace(settings.analytic_settings(), grid="converged", earth_law="lambert")
+    point = analytic_irradiance(sc, brdfs, cal_settings)
+    if settings.method == "analytic":
+        res = point if settings.analytic_settings() == cal_settings else \
+            analytic_irradiance(sc, brdfs, settings.analytic_settings())
+        for k, v in res.items():
+            cal = point[k]
+            rows.append({**base, "brdf": k, "method": "analytic",
+                         "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
+                         "earth_visible_lit_albedo": v.earth_visible_lit_albedo,
+                         "_terms": alb.lunar_terms(sc, model_es(cal.earthshine_W_m2, cal.earthshine_unit_W_m2),
+                                                   cal.moonshine_W_m2, a0)})
+    elif settings.method == "reference":
+        res = reference_irradiance(sc, brdfs, ReferenceSettings(settings.reference_outer, settings.reference_inner,
+                                                                settings.earth_albedo, surfaces=settings.surfaces()))
+        for k, v in res.items():
+            pt = point[k]
+            rows.append({**base, "brdf": k, "method": "reference",
+                         "moonshine_W_m2": v.moonshine_W_m2, "earthshine_W_m2": v.earthshine_W_m2,
+                         "earth_visible_lit_albedo": v.earth_visible_lit_albedo,
+                         "earthshine_point_source_W_m2": pt.earthshine_W_m2,
+                         "_terms": alb.lunar_terms(sc, model_es(v.earthshine_W_m2, v.earthshine_unit_W_m2),
+                                                   v.moonshine_W_m2, a0),
+                         "_terms_point": alb.lunar_terms(sc, model_es(pt.earthshine_W_m2, pt.earthshine_unit_W_m2),
+                                                         pt.moonshine_W_m2, a0)})
+    else:
+        from lunarviz.methods.tracer.estimators import TraceScene, trace_path
+        ts_set = settings.trace_settings(threads)
+        ts = TraceScene(sc, ts_set)
+        ms = trace_path(ts, "moonshine", brdfs)
+        es = trace_path(ts, "earthshine", brdfs)
+        if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
+            cal_ms = ms.mean
+            cal_es = {k: model_es(es.mean[k], es.mean_unit[k]) for k in brdfs}
+        else:
+            # lunar terms from a deterministic transport of the same scene with the *model*
+            # Earth (the nominal Lambert sphere): the Earth is what the inversion measures, so a
+            # user's Earth mesh must not calibrate its own inversion (that is an identity)
+            dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
+                                         earth_surface="uniform", clouds="none"))
+            cal_ms = trace_path(dts, "moonshine", brdfs).mean
+            cal_es = trace_path(dts, "earthshine", brdfs).mean
+        for k in brdfs:
+            row = {**base, "brdf": k, "method": "raytrace", "estimator": ts_set.estimator,
+                   "moonshine_W_m2": ms.mean[k], "earthshine_W_m2": es.mean[k],
+                   "earth_visible_lit_albedo": es.mean[k] / es.mean_unit[k] if es.mean_unit[k] else float("nan"),
+                   "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
+                   "_terms": alb.lunar_terms(sc, cal_es[k], cal_ms[k], settings.earth_albedo),
+                   "_terms_point": alb.lunar_terms(sc, model_es(point[k].earthshine_W_m2,
+                                                                point[k].earthshine_unit_W_m2),
+                                                   point[k].moonshine_W_m2, a0),
+                   "rays": ms.rays + es.rays}
+            if ts_set.estimator == "montecarlo":
+                row["moonshine_std_W_m2"] = ms.std[k]
+                row["earthshine_std_W_m2"] = es.std[k]
+                row["moonshine_sem_W_m2"] = ms.sem[k]
+                row["earthshine_sem_W_m2"] = es.sem[k]
+                row["runs"] = ts_set.runs
+                row["rays_per_run"] = ts_set.rays
+            rows.append(row)
+    dt = time.perf_counter() - t0
+    for r in rows:
+        es_, ms_ = r["earthshine_W_m2"], r["moonshine_W_m2"]
+        # a ratio of round-off (no measurable sunlit Moon: new Moon, eclipse, occultation) is no ratio
+        measurable = ms_ > 0 and alb.lunar_terms(sc, 0.0, ms_, settings.earth_albedo).pb_fb > alb.MIN_LUNAR_TERM
+        r["ratio_earthshine_moonshine"] = es_ / ms_ if measurable else float("nan")
+        pe = alb.geometric_albedo_term(sc, es_, ms_, r.pop("_terms"))
+        r["geometric_albedo_term"] = pe
+        r["apparent_albedo"] = alb.apparent_albedo(sc.beta_deg, pe)
+        if "_terms_point" in r:
+            pp = alb.geometric_albedo_term(sc, es_, ms_, r.pop("_terms_point"))
+            r["apparent_albedo_point_source_inversion"] = alb.apparent_albedo(sc.beta_deg, pp)
+            pt_es = r["earthshine_point_source_W_m2"]
+            pt_terms = alb.lunar_terms(sc, pt_es, ms_, settings.earth_albedo)
+            r["extended_over_point_earthshine"] = es_ / pt_es \
+                if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
+        r["seconds"] = dt / len(rows)
+    return rows
+
+
+def _run_phase_star(args):
+    return run_phase(*args, threads=1)  # one of several worker processes: one thread each
+
+
+def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
+    """``{brdf: {method: Bond albedo}}`` from rows' apparent albedo (corrected Eq. 17)."""
+    out: dict = {}
+    groups: dict = {}
+    for r in rows:
+        if key in r:
+            groups.setdefault((r["brdf"], r["method"]), []).append(r)
+    for (b, m), rs in groups.items():
+        beta = np.array([r["beta_deg"] for r in rs])
+        ps = np.array([np.nan if r[key] is None else r[key] for r in rs], dtype=float)
+        out.setdefault(b, {})[m] = alb.bond_albedo(beta, ps)
+    return out
+
+
+EXECUTORS = ("local", "dask")
+
+
+def _dask_client(scheduler: str | None, workers: int | None):
+    """A Dask client: to ``scheduler`` (an address such as tcp://host:8786), or to a new local
+    cluster of ``workers`` single-threaded processes (closed with the client)."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise LunarvizError("--executor dask needs the optional packages dask and distributed: "
+                            "pip install 'lunarviz[dask]'") from None
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except (OSError, TimeoutError) as exc:
+            raise LunarvizError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
+    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                           dashboard_address=None)
+    return Client(cluster), cluster
+
+
+def run_sweep(settings: SweepSettings, workers: int | None = None, progress: bool = False,
+              executor: str = "local", scheduler: str | None = None) -> dict:
+    """Run every phase or time; returns ``{"settings", "rows", "bond_albedo", ...}``.
+
+    ``executor="local"``: worker processes of this machine (``workers``). ``"dask"``: the same
+    :func:`run_phase` tasks on a Dask distributed cluster (``scheduler`` address, or a local
+    cluster of ``workers``). Tasks carry only the settings and the key; each worker builds its
+    Embree scenes itself and caches them (``tracer.bodies``), nothing Embree is pickled. The
+    rows are identical whichever executor runs them.
+    """
+    if executor not in EXECUTORS:
+        raise LunarvizError(f"unknown executor {executor!r}: choose from {', '.join(EXECUTORS)}")
+    if scheduler is not None and executor != "dask":
+        raise LunarvizError("--scheduler goes with --executor dask")
+    phases = settings.tasks()
+    t0 = time.perf_counter()
+    if executor == "dask":
+        client, cluster = _dask_client(scheduler, workers)
+        try:
+            futures = client.map(run_phase, [settings] * len(phases), phases, threads=1, pure=False)
+            results = client.gather(futures)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        return _assemble(settings, results, t0)
+    if workers is None:
+        workers = 1 if settings.method == "analytic" else min(len(phases), os.cpu_count() or 1)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(phases), desc=f"{settings.method} sweep", unit="time" if settings.times else "phase",
+                   leave=False)
+    results = []
+    if workers <= 1:
+        for th in phases:
+            results.append(run_phase(settings, th))
+            if bar:
+                bar.update()
+    else:
+        _warm_before_fork(settings)
+        # the costliest phases first (thin crescents, θ near 180°, refine their lune) so that no
+        # worker is left with one at the end; rows come back in the sweep's order
+        order = list(range(len(phases)))
+        if not settings.times:
+            order.sort(key=lambda i: abs(float(phases[i]) - 180.0))  # (θ in [0, 360]: both crescents)
+        results = [None] * len(phases)
+        with ProcessPoolExecutor(workers) as ex:
+            for i, res in zip(order, ex.map(_run_phase_star, [(settings, phases[i]) for i in order])):
+                results[i] = res
+                if bar:
+                    bar.update()
+    if bar:
+        bar.close()
+    return _assemble(settings, results, t0)
+
+
+def _warm_before_fork(settings: SweepSettings) -> None:
+    """Import the tracer and load the compiled kernels in this process before the worker
+    pool starts: forked workers inherit both instead of each paying ~1.5 s for them (a third
+    of a 2-worker paper sweep's start-up; no Embree object is made here, so nothing
+    thread-bound crosses the fork). Harmless where workers are spawned instead."""
+    if settings.method != "raytrace":
+        return
+    from lunarviz.methods.tracer import (
+        estimators,  # noqa: F401 (the import is the warm-up)
+        kernels,
+    )
+    kernels.warm_up()
+
+
+def _assemble(settings: SweepSettings, results: list, t0: float) -> dict:
+    rows = [r for res in results for r in res]
+    out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
+           "wall_seconds": time.perf_counter() - t0}
+    if any("apparent_albedo_point_source_inversion" in r for r in rows):
+        out["bond_albedo_point_source_inversion"] = bond_table(rows, "apparent_albedo_point_source_inversion")
+    return out
