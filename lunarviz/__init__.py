@@ -1,13 +1,14 @@
 """lunarviz: real-scale ray-traced earthshine and moonshine (Sun, Earth and Moon meshes, Embree).
 
-The Python API (see :mod:`lunarviz.api` and README.md, "Python"):
+The Python API (see :mod:`lunarviz.api` and the documentation's user guide):
 
 * :class:`Scene` — the paper's θ scene or dates and an observer, bodies, meshes, BRDFs;
 * :func:`sweep` — an ``xarray.Dataset`` of moonshine, earthshine and albedo (brdf × phase|time);
 * :func:`trace` — per-facet results with ``.to_pyvista()``;
 * :func:`render`, :func:`view` — pictures and the interactive viewer (``web=True``: trame);
 * :func:`image` — synthetic camera images in radiance units (FITS with a TAN WCS);
-* :func:`lunarviz.study.mesh` — mesh-resolution studies.
+* :func:`lunarviz.study.mesh <lunarviz.workflows.study.mesh>` — mesh-resolution studies
+  (``lunarviz.study`` is :mod:`lunarviz.workflows.study`).
 
 Attributes are imported on first use, so ``import lunarviz`` stays light.
 """
@@ -19,12 +20,12 @@ __all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "study",
 
 def __getattr__(name):
     if name in ("Scene", "sweep", "run", "trace", "render", "view", "image"):
-        from lunarviz.__init__ import api
+        from lunarviz import api
         return getattr(api, name)
     if name == "study":
         import importlib
-        return importlib.import_module(".study", __name__)
+        return importlib.import_module("lunarviz.workflows.study")
     if name == "LunarvizError":
-        from lunarviz.__init__.errors import LunarvizError
+        from lunarviz.errors import LunarvizError
         return LunarvizError
     raise AttributeError(f"module 'lunarviz' has no attribute {name!r}")

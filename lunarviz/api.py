@@ -21,23 +21,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
 from lunarviz.errors import LunarvizError
+from lunarviz.options import BY_NAME, OPTIONS, defaults, numpydoc_parameters
 from lunarviz.outputs.facets import FacetResult
 
-#: options of :class:`Scene` and their defaults (the command line's defaults)
-SCENE_DEFAULTS = {
-    "brdfs": ("lambert", "shg", "dhg"), "observer": "geocentre", "detector": None,
-    "moon_mesh": None, "earth_mesh": None, "sun_mesh": None, "mesh_units": "m",
-    "moon_level": None, "earth_level": None, "sun_level": None,
-    "occlusion": True, "self_shadow": True, "shading": "auto",
-    "earth_albedo": 0.3, "earth_law": "lambert", "dhg_convention": "paper", "h_function": "hapke1981",
-    "moon_model": "paper",
-    "params": None, "estimator": "deterministic", "rays": 50_000, "runs": 1, "seed": 0,
-    "earth_order": 6, "sun_order": 2, "grid": "converged", "order": None,
-    "moon_albedo_map": None, "earth_surface": "uniform", "clouds": "none", "land_albedo": LAND_ALBEDO,
-    "ocean_albedo": OCEAN_ALBEDO, "cloud_albedo": CLOUD_ALBEDO, "earth_rotation_deg": None,
-}
+#: options of :class:`Scene` and their defaults (the command line's defaults), from the schema
+SCENE_DEFAULTS = defaults()
 
 
 #: θ in [0, 180] is the paper's half orbit (waxing: the Moon east of the Sun, full Moon at 0,
@@ -99,20 +88,11 @@ class Scene:
     observer : str
         ``geocentre`` (default), ``site:LAT,LON[,HEIGHT_M]``, ``tle:FILE`` or
         ``orbit:ALT_KM,INC_DEG,RAAN_DEG,ARGLAT_DEG[,EPOCH]``; needs a time.
-    brdfs : sequence of str
-        Lunar BRDFs among ``lambert``, ``shg``, ``dhg``.
     **options
-        Every other option of the command line, by its Python name: ``detector`` (x, y, z) [m],
-        ``moon_mesh``/``earth_mesh``/``sun_mesh`` (paths), ``mesh_units``, ``moon_level``,
-        ``earth_level``, ``sun_level``, ``occlusion``, ``self_shadow``, ``shading``,
-        ``earth_albedo``, ``earth_law``, ``dhg_convention``, ``h_function``, ``moon_model``
-        (``paper`` or ``rolo-fit``), ``params``
-        (``{brdf: {name: value}}``), ``estimator``, ``rays``, ``runs``, ``seed``,
-        ``earth_order``, ``sun_order``, ``grid``, ``order``; surfaces (:mod:`lunarviz.bodies.surfaces`):
-        ``moon_albedo_map`` (``"FILE[:MEAN]"`` or ``"synthetic"``), ``earth_surface``
-        (``uniform``, ``landocean`` or a map file), ``clouds`` (``none``, ``zonal`` or a map
-        file), ``land_albedo``, ``ocean_albedo``, ``cloud_albedo``, ``earth_rotation_deg``
-        (the θ scene's sub-solar longitude [deg]) (see :data:`SCENE_DEFAULTS`).
+        Every other option, by its Python name (the command line's flag with ``-`` as ``_``;
+        :mod:`lunarviz.options` declares them all):
+
+{options}
 
     Everything is checked when the scene is made (meshes are read, dates and observers
     parsed); a bad value raises :class:`~lunarviz.errors.LunarvizError` naming it.
@@ -132,24 +112,11 @@ class Scene:
         self.times = None if time is None and time_range is None else time_list(time, time_range)
         self.phases = _phases(phases)
         self.options = {**SCENE_DEFAULTS, **options, "observer": observer}
-        b = self.options["brdfs"]
-        if isinstance(b, str):
-            b = tuple(x.strip() for x in b.split(","))
-        if not isinstance(b, (list, tuple)) or not all(isinstance(x, str) for x in b):
-            raise LunarvizError(f"brdfs {self.options['brdfs']!r} must be names such as ('lambert', 'dhg')")
-        self.options["brdfs"] = tuple(b)
-        if self.options["params"] is not None and not isinstance(self.options["params"], dict):
-            raise LunarvizError(f"params {self.options['params']!r} must be {{brdf: {{name: value}}}}")
-        det = self.options["detector"]
-        if det is not None:
-            try:
-                det = tuple(float(c) for c in det)
-            except (TypeError, ValueError):
-                raise LunarvizError(f"detector {det!r} must be three numbers x, y, z [m]") from None
-            if len(det) != 3:
-                raise LunarvizError(f"detector {det!r} must be three numbers x, y, z [m]")
-            self.options["detector"] = det
+        for name in ("brdfs", "params", "detector"):  # normalised here; the rest by the settings
+            self.options[name] = BY_NAME[name].check(self.options[name])
         self.settings("raytrace")  # validates everything (raytrace accepts every option)
+
+    __doc__ = __doc__.format(options=numpydoc_parameters([o for o in OPTIONS if o.name != "observer"], "        "))
 
     def settings(self, method: str = "analytic"):
         """The :class:`~lunarviz.workflows.sweeps.SweepSettings` of this scene for ``method``."""

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from lunarviz.errors import LunarvizError
+from lunarviz.options import BODIES, EXECUTORS, add_arguments, scene_options
 from lunarviz.parsing import parse_float_list
 
 EXIT_USAGE = 2
@@ -108,24 +109,25 @@ def _check_out(path, suffixes):
 
 
 # ---- sub-commands ------------------------------------------------------------------------
-def _add_physics_options(p):
-    p.add_argument("--dhg-convention", default="paper", choices=["paper", "hapke2012"])
-    p.add_argument("--h-function", default="hapke1981", choices=["hapke1981", "hapke2002", "exact"])
-    p.add_argument("--moon-model", default="paper",
-                   help="BRDF parameter preset: paper (Table 2, default), rolo-fit (fitted to ROLO, 400-750 nm) or "
-                        "rolo-fit-map (fitted on the synthetic lunar albedo map, which it brings)")
-    p.add_argument("--param", action="append", metavar="[BRDF.]NAME=VALUE",
-                   help="override a BRDF parameter (w, h, B0, xi, b, c, albedo; Hapke: theta_bar [deg], Bc0, hc)")
+#: the option groups (:mod:`lunarviz.options`) of the commands that run a scene; sweep adds ``analytic``
+SCENE_GROUPS = ("photometry", "earth", "geometry", "sky", "meshes", "surfaces", "trace")
+#: out of the schema's photometry group: ``brdf`` names its model with ``--model``
+BRDF_TABLE_OPTIONS = ("dhg_convention", "h_function", "moon_model", "params")
 
 
-def _add_sky_options(p):
+def _add_time_options(p):
     p.add_argument("--time", default=None, metavar="ISO[,ISO...]",
                    help="UTC times (ISO 8601, e.g. 2025-03-14T06:58Z): the real sky from DE421, replacing θ")
     p.add_argument("--time-range", default=None, metavar="START,STOP,STEP",
                    help="UTC times from START to STOP by STEP (30s, 10min, 1h, 1d)")
-    p.add_argument("--observer", default="geocentre",
-                   help="with --time: geocentre | site:LAT,LON[,HEIGHT_M] (WGS84) | tle:FILE | "
-                        "orbit:ALT_KM,INC_DEG,RAAN_DEG,ARGLAT_DEG[,EPOCH]")
+
+
+def _add_scene_command(sub, name, helptext, groups=SCENE_GROUPS, brdfs=None):
+    """A sub-command that runs a scene: every option of ``groups`` from the schema, and dates."""
+    p = sub.add_parser(name, help=helptext)
+    add_arguments(p, groups, defaults=None if brdfs is None else {"brdfs": brdfs})
+    _add_time_options(p)
+    return p
 
 
 def _times(a):
@@ -136,95 +138,49 @@ def _times(a):
     return time_list(a.time, a.time_range)
 
 
-def _add_trace_options(p):
-    p.add_argument("--estimator", default="deterministic", choices=["deterministic", "montecarlo"])
-    p.add_argument("--rays", type=_positive_int("--rays"), default=50_000, help="Monte Carlo rays per path and run")
-    p.add_argument("--runs", type=_positive_int("--runs"), default=1, help="Monte Carlo runs per phase")
-    p.add_argument("--seed", type=_nonneg_int("--seed"), default=0)
-    p.add_argument("--mesh-level", type=_nonneg_int("--mesh-level"), default=None, help="Moon icosphere level")
-    p.add_argument("--earth-level", type=_nonneg_int("--earth-level"), default=None)
-    p.add_argument("--sun-level", type=_nonneg_int("--sun-level"), default=None)
-    for body in ("moon", "earth", "sun"):
-        p.add_argument(f"--{body}-mesh", default=None,
-                       help=f"a closed mesh for the {body.capitalize()} (PLY, OBJ, STL, OFF, GLB/GLTF): body-fixed "
-                            "frame, centred on its centre, in --mesh-units; never rescaled")
-    p.add_argument("--mesh-units", default="m", choices=["m", "km", "radius"],
-                   help="units of --*-mesh vertices (radius: multiples of the body's nominal radius)")
-    p.add_argument("--no-occlusion", action="store_true", help="the paper's assumption: bodies never shade each other")
-    p.add_argument("--no-self-shadow", action="store_true",
-                   help="a non-convex body does not shadow itself (independent of --no-occlusion)")
-    p.add_argument("--shading", default="auto", choices=["auto", "smooth", "flat"],
-                   help="auto: exact sphere for the packaged icospheres, facet normals for user meshes; smooth: "
-                        "crease-limited interpolated normals on user meshes; flat: facets everywhere")
-    p.add_argument("--earth-order", type=_positive_int("--earth-order"), default=6)
-    p.add_argument("--sun-order", type=_positive_int("--sun-order"), default=2)
-    p.add_argument("--detector", default=None, help="detector position x,y,z [m] (default: Earth's centre)")
-    p.add_argument("--earth-albedo", type=float, default=0.3,
-                   help="the uniform Earth's Lambert albedo, and the model Earth of every inversion")
-    g = p.add_argument_group("surfaces (equirectangular maps in the body frame: .npy, .png, .tif)")
-    g.add_argument("--moon-albedo-map", default=None, metavar="FILE[:MEAN]",
-                   help="per-facet lunar albedo: FILE scales each BRDF's albedo/w by map/mean; FILE:MEAN makes the map "
-                        "the albedo/w itself with area-weighted mean MEAN; 'synthetic' is the shipped demo map")
-    g.add_argument("--earth-surface", default="uniform", metavar="uniform|landocean|FILE",
-                   help="uniform (--earth-albedo), landocean (global-land-mask, --land-albedo/--ocean-albedo) or a "
-                        "clear-sky albedo map")
-    g.add_argument("--clouds", default="none", metavar="none|zonal|FILE",
-                   help="cloud fraction: none, zonal (zonal means kept in the package) or a map; cloud albedo "
-                        "--cloud-albedo")
-    from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
-    g.add_argument("--land-albedo", type=float, default=LAND_ALBEDO)
-    g.add_argument("--ocean-albedo", type=float, default=OCEAN_ALBEDO)
-    g.add_argument("--cloud-albedo", type=float, default=CLOUD_ALBEDO)
-    g.add_argument("--earth-rotation-deg", type=float, default=None,
-                   help="θ scene only: the Earth's sub-solar longitude [deg] (default 0); dates turn the Earth")
-
-
-def build_parser() -> argparse.ArgumentParser:
-    ap = _Parser(prog="lunarviz", description="Real-scale ray-traced earthshine and moonshine.")
-    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
-
-    p = sub.add_parser("sweep", help="moonshine, earthshine and albedo over phases")
-    p.add_argument("--brdf", default="lambert,shg,dhg")
-    p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
-    p.add_argument("--method", default="analytic", help="analytic | raytrace | reference")
-    p.add_argument("--grid", default="converged", choices=["converged", "paper"], help="analytic surface grid")
-    p.add_argument("--order", type=_positive_int("--order"), default=None,
-                   help="analytic Gauss order (default 24; 96 with a lunar albedo map, which it reads at its nodes)")
-    p.add_argument("--earth-law", default="lambert", choices=["lambert", "paper_eq8"])
-    p.add_argument("--workers", type=_positive_int("--workers"), default=None)
-    p.add_argument("--executor", default="local", choices=["local", "dask"],
+def _add_executor_options(p, workers_help="local worker processes"):
+    p.add_argument("--executor", default="local", choices=list(EXECUTORS),
                    help="local worker processes, or a Dask distributed cluster")
     p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address (tcp://host:8786); "
                                                       "default a local cluster of --workers processes")
+    p.add_argument("--workers", type=_positive_int("--workers"), default=None, help=workers_help)
+
+
+def _parser_sweep(sub):
+    from lunarviz.workflows.sweeps import METHODS
+    p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases", SCENE_GROUPS + ("analytic",))
+    p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
+    p.add_argument("--method", default="analytic", help=" | ".join(METHODS))
+    _add_executor_options(p)
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out", required=True, help=".json, .csv or .nc (NetCDF-4 through xarray)")
-    _add_physics_options(p)
-    _add_trace_options(p)
-    _add_sky_options(p)
 
+
+def _parser_brdf(sub):
+    from lunarviz.options import BRDF_NAMES
     p = sub.add_parser("brdf", help="tabulate a lunar BRDF")
-    p.add_argument("--model", required=True, help="lambert | shg | dhg")
+    p.add_argument("--model", required=True, help=" | ".join(BRDF_NAMES))
     p.add_argument("--incidence", required=True, help="incidence angles [deg]")
     p.add_argument("--emission", required=True, help="emission angles [deg]")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")
     p.add_argument("--out", required=True)
-    _add_physics_options(p)
+    add_arguments(p, names=BRDF_TABLE_OPTIONS)
 
-    p = sub.add_parser("trace", help="ray trace one phase; write the lunar mesh with per-facet arrays")
+
+def _parser_trace(sub):
+    p = _add_scene_command(sub, "trace", "ray trace one phase; write the lunar mesh with per-facet arrays",
+                           brdfs="dhg")
     p.add_argument("--phase", type=float, default=None, help="θ [deg] (or give --time)")
-    p.add_argument("--brdf", default="dhg", help="BRDFs (the first is the unsuffixed arrays)")
     p.add_argument("--out", required=True,
                    help="the Moon with per-facet arrays (.vtp, .vtk, .ply), or every body (.vtm multiblock: "
                         "moon, earth, sun in scene coordinates [m])")
-    _add_physics_options(p)
-    _add_trace_options(p)
-    _add_sky_options(p)
 
+
+def _parser_pictures(sub):
     for name, helptext in (("render", "offscreen picture of a phase"), ("view", "interactive desktop viewer")):
-        p = sub.add_parser(name, help=helptext)
+        p = _add_scene_command(sub, name, helptext, brdfs="dhg")
         p.add_argument("--phase", default=None,
                        help="θ [deg] (default 90); render accepts a list for numbered frames")
-        p.add_argument("--brdf", default="dhg")
         p.add_argument("--view", default="composite", help="composite | moon | rays | maps | surfaces")
         p.add_argument("--size", default="1600x900", help="WxH pixels")
         if name == "render":
@@ -236,13 +192,12 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--port", type=int, default=None, help="with --web: TCP port (default: a free one)")
             p.add_argument("--host", default=None, help="with --web: interface to bind (default 127.0.0.1)")
         p.add_argument("--quiet", action="store_true")
-        _add_physics_options(p)
-        _add_trace_options(p)
-        _add_sky_options(p)
 
-    p = sub.add_parser("image", help="synthetic camera image in radiance units (FITS, NPY or PNG)")
+
+def _parser_image(sub):
+    p = _add_scene_command(sub, "image", "synthetic camera image in radiance units (FITS, NPY or PNG)",
+                           brdfs="dhg")
     p.add_argument("--phase", default=None, help="θ [deg] (default 90); a list writes numbered frames")
-    p.add_argument("--brdf", default="dhg", help="BRDFs: one plane pair (MOONSHINE, EARTHSHINE) each")
     p.add_argument("--fov-deg", type=float, default=0.75, help="field of view across the width [deg]")
     p.add_argument("--pixels", default="256", help="N or WxH")
     p.add_argument("--supersample", type=int, default=4, help="K: K×K stratified rays per pixel")
@@ -253,32 +208,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help=".fits, .npy or .png; several phases/times: FILE_000.ext …")
     p.add_argument("--gif", default=None, help="with several frames: also an animated GIF of the PNG stretch")
     p.add_argument("--quiet", action="store_true")
-    _add_physics_options(p)
-    _add_trace_options(p)
-    _add_sky_options(p)
 
+
+def _parser_study(sub):
     p = sub.add_parser("study", help="mesh-resolution study")
     p.add_argument("kind", choices=["mesh"])
     p.add_argument("--levels", default="2:6:1", help="icosphere levels (integers)")
     p.add_argument("--phases", default="30,90,150")
-    p.add_argument("--brdf", default="lambert,shg,dhg")
-    p.add_argument("--body", default="moon", choices=["moon", "earth", "sun"], help="the body whose mesh varies")
+    p.add_argument("--body", default="moon", choices=list(BODIES), help="the body whose mesh varies")
     p.add_argument("--shape", default="sphere", choices=["sphere", "ellipsoid", "craters"])
     p.add_argument("--axes", default="1.15,1.0,0.85", help="ellipsoid semi-axes in body radii")
     p.add_argument("--meshes", default=None, help="user meshes F1,F2,... coarse to fine (replaces --levels)")
-    p.add_argument("--mesh-units", default="m", choices=["m", "km", "radius"])
-    p.add_argument("--shading", default="auto", choices=["auto", "smooth", "flat"])
-    p.add_argument("--executor", default="local", choices=["local", "dask"])
-    p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address")
-    p.add_argument("--workers", type=_positive_int("--workers"), default=None,
-                   help="with --executor dask and no scheduler: local cluster processes")
+    add_arguments(p, names=("brdfs", "mesh_units", "shading"))
+    _add_executor_options(p, "with --executor dask and no scheduler: local cluster processes")
     p.add_argument("--out", required=True, help=".json or .csv (a .png plot is written beside it)")
     p.add_argument("--quiet", action="store_true")
 
+
+def _parser_mesh(sub):
     p = sub.add_parser("mesh", help="make a body mesh (ellipsoid, DEM, craters, patch) for --moon-mesh etc.")
     p.add_argument("action", choices=["make"])
     p.add_argument("shape", choices=["sphere", "ellipsoid", "dem", "craters", "patch"])
-    p.add_argument("--body", default="moon", choices=["moon", "earth", "sun"],
+    p.add_argument("--body", default="moon", choices=list(BODIES),
                    help="sets the nominal radius (R) the other options scale with")
     p.add_argument("--level", type=_nonneg_int("--level"), default=6,
                    help="icosphere subdivision level (20·4^L facets)")
@@ -288,10 +239,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--count", type=_nonneg_int("--count"), default=40, help="number of craters")
     p.add_argument("--diameters-km", default="60:300", help="crater diameter range min:max [km]")
     p.add_argument("--region", default=None, help="craters only in the cap LAT,LON,RADIUS_DEG")
-    p.add_argument("--seed", type=_nonneg_int("--seed"), default=0)
+    p.add_argument("--seed", type=_nonneg_int("--seed"), default=0, help="seed of the crater draw")
     p.add_argument("--patch", default=None, help="refine toward LAT,LON by a conformal zoom factor K: LAT,LON,K")
     p.add_argument("--out", required=True, help=".ply (float64), .obj, .stl, .off or .glb; vertices in metres")
 
+
+def _parser_fit(sub):
     p = sub.add_parser("fit", help="fit a BRDF to disk-integrated lunar reflectance (ROLO or a table)")
     p.add_argument("--brdf", default="dhg", help="one of lambert, shg, dhg")
     p.add_argument("--source", default="rolo",
@@ -300,43 +253,40 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--band", default="400-750", help="ROLO wavelength [nm] or band LO-HI (the paper's 400-750)")
     p.add_argument("--phases", default="2:96:2", help="ROLO phase angles [deg] (each waxing and waning)")
     p.add_argument("--free", default=None, help="parameters to fit, e.g. w,b,c,B0,h,theta_bar (default per BRDF)")
-    p.add_argument("--dhg-convention", default="paper", choices=["paper", "hapke2012"])
-    p.add_argument("--h-function", default="hapke1981", choices=["hapke1981", "hapke2002", "exact"])
-    p.add_argument("--moon-albedo-map", default=None, metavar="FILE[:MEAN]",
-                   help="fit on a Moon carrying this albedo map (e.g. synthetic): waxing and waning then differ")
-    p.add_argument("--order", type=_positive_int("--order"), default=24, help="analytic Gauss order of the disk")
+    add_arguments(p, names=("dhg_convention", "h_function", "moon_albedo_map", "order"), defaults={"order": 24})
     p.add_argument("--out", required=True, help=".json (a residual plot .png is written beside it)")
 
+
+def _parser_bench_paper(sub):
     p = sub.add_parser("bench", help="run time against error for every method")
     p.add_argument("--quick", action="store_true")
     p.add_argument("--out", required=True, help=".json (a .csv table and a .png Pareto plot beside it)")
     p.add_argument("--quiet", action="store_true")
-
     p = sub.add_parser("paper", help="reproduce the paper end to end")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--quick", action="store_true", help="reduced run for CI and a first look")
-    p.add_argument("--executor", default="local", choices=["local", "dask"])
+    p.add_argument("--executor", default="local", choices=list(EXECUTORS))
     p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address")
     p.add_argument("--quiet", action="store_true")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``lunarviz`` command's parser: scene options come from :mod:`lunarviz.options`."""
+    ap = _Parser(prog="lunarviz", description="Real-scale ray-traced earthshine and moonshine.")
+    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add in (_parser_sweep, _parser_brdf, _parser_trace, _parser_pictures, _parser_image, _parser_study,
+                _parser_mesh, _parser_fit, _parser_bench_paper):
+        add(sub)
     return ap
 
 
 def _scene(a, phases, times=None):
     """The :class:`lunarviz.Scene` the options describe (the CLI is a thin layer over the API)."""
     from lunarviz.api import Scene
-    brdfs = _brdf_list(a.brdf)
-    return Scene(
-        phases=None if times is not None else phases, time=times, observer=getattr(a, "observer", "geocentre"),
-        brdfs=tuple(brdfs), dhg_convention=a.dhg_convention, h_function=a.h_function, moon_model=a.moon_model,
-        params=parse_params(a.param, brdfs), detector=_detector(a.detector), earth_albedo=a.earth_albedo,
-        earth_law=getattr(a, "earth_law", "lambert"), grid=getattr(a, "grid", "converged"),
-        order=getattr(a, "order", None), estimator=a.estimator, rays=a.rays, runs=a.runs, seed=a.seed,
-        moon_level=a.mesh_level, earth_level=a.earth_level, sun_level=a.sun_level,
-        occlusion=not a.no_occlusion, self_shadow=not a.no_self_shadow, shading=a.shading,
-        earth_order=a.earth_order, sun_order=a.sun_order, moon_mesh=a.moon_mesh, earth_mesh=a.earth_mesh,
-        sun_mesh=a.sun_mesh, mesh_units=a.mesh_units, moon_albedo_map=a.moon_albedo_map,
-        earth_surface=a.earth_surface, clouds=a.clouds, land_albedo=a.land_albedo, ocean_albedo=a.ocean_albedo,
-        cloud_albedo=a.cloud_albedo, earth_rotation_deg=a.earth_rotation_deg)
+    opts = scene_options(a, {"brdfs": lambda text, _: tuple(_brdf_list(text)),
+                             "params": lambda items, args: parse_params(items, _brdf_list(args.brdf)),
+                             "detector": lambda text, _: _detector(text)})
+    return Scene(phases=None if times is not None else phases, time=times, **opts)
 
 
 def cmd_sweep(a):
@@ -420,7 +370,7 @@ def cmd_trace(a):
     if str(out).lower().endswith(".vtm"):
         check_vtm_target(out)
     res = api.trace(_scene(a, [a.phase if a.phase is not None else 0.0], times), key)
-    from lunarviz.methods.tracer.embree_bodies import release_caches
+    from lunarviz.caches import release_caches
     release_caches()  # the meshes and Embree scenes are done with: ~1 GB at 5 M facets before the write
     write_facet_mesh(out, res)
     print(f"moonshine {res.totals['moonshine_W_m2']:.6e} W/m2, earthshine {res.totals['earthshine_W_m2']:.6e} W/m2")

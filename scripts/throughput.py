@@ -92,7 +92,7 @@ def instrument(timer: StageTimer):
     timer.wrap(K, "source_hits", "source look-ups")
     timer.wrap(K, "scatter_beams", "beam assembly")
     timer.wrap(TS, "beam_transport", "beam assembly")
-    timer.wrap(B.EmbreeBody, "_run", "embree")
+    timer.wrap(B.EmbreeBody, "run_rays", "embree")
     timer.wrap(T.Transport, "radiances", "shading")
     timer.wrap(E, "trace_path", "accumulation")
 
@@ -164,14 +164,14 @@ def save_npz(path: Path, ts, batches):
     arrays = {}
     names = {id(ts.moon._scene): "moon", id(ts.earth._scene): "earth", id(ts.sun._scene): "sun"}
     for body in (ts.moon, ts.earth, ts.sun):
-        geo = body._geo
+        geo = body.geometry
         if geo.get("outer") is not None:
             names[id(geo["outer"])] = f"{'moon' if body is ts.moon else 'earth' if body is ts.earth else 'sun'}_outer"
     meshes = {"moon": ts.moon, "earth": ts.earth, "sun": ts.sun}
     for n, b in meshes.items():
         arrays[f"{n}_vertices"] = b.vertices.astype(np.float32)
         arrays[f"{n}_faces"] = b.faces.astype(np.int32)
-        if b._geo.get("outer") is not None:
+        if b.geometry.get("outer") is not None:
             plane = np.einsum("ij,ij->i", b.normals, b.vertices[b.faces[:, 0]])
             k = b.radius / float(plane.min()) * (1.0 + 1e-9)
             arrays[f"{n}_outer_vertices"] = (b.vertices * k).astype(np.float32)

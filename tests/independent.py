@@ -268,7 +268,7 @@ def eclipse_moonshine(surface, model, sun, moon, det=None):
 # maps (issue 11): a Moon and an Earth whose albedo varies with longitude, integrated in each
 # body's own latitude/longitude so that the albedo's edges (meridians) are integration limits
 # ----------------------------------------------------------------------------------------------
-def _gauss(lo, hi, n):
+def gauss_legendre(lo, hi, n):
     x, w = np.polynomial.legendre.leggauss(n)
     return lo + 0.5 * (hi - lo) * (x + 1), 0.5 * (hi - lo) * w
 
@@ -278,14 +278,14 @@ def _lonlat_rule(lon_edges_deg, n_lon, n_lat, lat_edges_deg=(-90.0, 90.0)):
     longitude edges and the latitude edges (each segment its own Gauss rule)."""
     las, wlas = [], []
     for a, b in zip(lat_edges_deg[:-1], lat_edges_deg[1:]):
-        x, w = _gauss(np.radians(a), np.radians(b), n_lat)
+        x, w = gauss_legendre(np.radians(a), np.radians(b), n_lat)
         las.append(x)
         wlas.append(w)
     la, wla = np.concatenate(las), np.concatenate(wlas)
     lons, wlos = [], []
     for a, b in zip(lon_edges_deg[:-1], lon_edges_deg[1:]):
         if b > a:
-            lo, wl = _gauss(np.radians(a), np.radians(b), n_lon)
+            lo, wl = gauss_legendre(np.radians(a), np.radians(b), n_lon)
             lons.append(lo)
             wlos.append(wl)
     lo, wlo = np.concatenate(lons), np.concatenate(wlos)

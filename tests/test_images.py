@@ -42,7 +42,7 @@ def test_image_is_traced_by_embree(monkeypatch):
     s = SweepSettings(brdfs=("lambert",), method="raytrace", phases_deg=(90.0,), moon_level=2)
     cam = Camera(width=32, height=32, supersample=1)
     assert synthesize(s, 90.0, cam).integrated("moonshine", "lambert") > 0
-    monkeypatch.setattr(EmbreeBody, "_run", lambda self, o32, d32, query, dists=None, scene=None:
+    monkeypatch.setattr(EmbreeBody, "run_rays", lambda self, o32, d32, query, dists=None, scene=None:
                         np.full(len(o32), -1, dtype=np.int32))
     assert synthesize(s, 90.0, cam).integrated("moonshine", "lambert") == 0.0
 

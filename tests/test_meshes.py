@@ -44,7 +44,7 @@ def stub_embree(monkeypatch):
     """Embree's query replaced by 'every ray misses, nothing is occluded'."""
     def miss(self, o32, d32, query, dists=None, scene=None):
         return np.full(len(o32), -1, dtype=np.int32)
-    monkeypatch.setattr(EmbreeBody, "_run", miss)
+    monkeypatch.setattr(EmbreeBody, "run_rays", miss)
 
 
 # ---- a triaxial ellipsoid -----------------------------------------------------------------
@@ -238,7 +238,7 @@ def test_embree_stub_changes_non_spherical_results(tmp_path, cube_path, lam_dhg,
 
     def miss(self, o32, d32, query, dists=None, scene=None):
         return np.full(len(o32), -1, dtype=np.int32)
-    monkeypatch.setattr(EmbreeBody, "_run", miss)
+    monkeypatch.setattr(EmbreeBody, "run_rays", miss)
     from lunarviz.methods.tracer import embree_bodies as bodies
     bodies._GEOMETRY_CACHE.clear()
     for p, (ms0, es0) in before.items():

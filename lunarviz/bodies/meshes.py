@@ -18,13 +18,13 @@ import numpy as np
 import trimesh
 
 from lunarviz.errors import LunarvizError
+from lunarviz.options import BODIES, MAX_LEVEL, MESH_UNITS
 from lunarviz.resources import MESH_DIR
 
-BODIES = ("sun", "earth", "moon")
+
 #: Default subdivision levels, chosen from the mesh-resolution study
 #: (benchmarks/mesh_study.json; README "Choosing the mesh levels").
 DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}
-MAX_LEVEL = 8
 
 
 def _nominal_radii() -> dict:
@@ -247,7 +247,6 @@ def _check_arrays(v: np.ndarray, f: np.ndarray, name: str, edges: tuple | None =
 
 
 #: ``--mesh-units``: what one unit of a user mesh's coordinates is.
-MESH_UNITS = ("m", "km", "radius")
 #: A mesh's mean vertex distance from the body's centre must lie within this factor range of
 #: the body's nominal radius (the 2 R cube reaches √3 R; a cratered or triaxial body ~1 R).
 PLAUSIBLE_SIZE = (0.3, 3.0)

@@ -25,12 +25,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
+from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.resources import DATA_DIR
 
 MAP_SUFFIXES = (".npy", ".png", ".tif", ".tiff")
@@ -205,8 +206,7 @@ def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None
     (body-centred): stratified and jittered, so a map's pattern cannot line up with the mesh's
     (the sub-triangles' centroids of an icosphere sit on its symmetry circles and bias a banded
     map by up to 1e-3). ``rng`` ``None``: the centroids."""
-    from lunarviz.methods.tracer.embree_bodies import _sub_barycentric
-    cen, corners = _sub_barycentric(k)
+    cen, corners = sub_barycentric(k)
     if rng is None:
         return np.einsum("sk,fkj->fsj", cen, vertices[faces])
     F, S = len(faces), len(cen)
@@ -296,7 +296,7 @@ class MoonAlbedoMap:
                                     f"give a smaller :MEAN or a smaller {pname}")
 
 
-@lru_cache(maxsize=8)
+@memoize(maxsize=8)
 def _moon_map_values(path: str, mean: float | None) -> np.ndarray:
     m = read_map(path, "Moon albedo map")
     mu = map_mean(m)
@@ -330,7 +330,7 @@ def land_fraction_map() -> np.ndarray:
     return _land_fraction()
 
 
-@lru_cache(maxsize=1)
+@memoize(maxsize=1)
 def _land_fraction() -> np.ndarray:
     cache = Path(os.environ.get("LUNARVIZ_CACHE", Path.home() / ".cache" / "lunarviz"))
     f = cache / "land_fraction_0.1deg_v1.npy"
@@ -366,7 +366,7 @@ def _land_fraction() -> np.ndarray:
     return counts.astype(float) / _LAND_BLOCK**2
 
 
-@lru_cache(maxsize=1)
+@memoize(maxsize=1)
 def zonal_cloud_table() -> tuple[np.ndarray, np.ndarray]:
     """Zonal-mean total cloud fraction: latitudes [deg] and fractions (lunarviz/data/zonal_clouds.csv)."""
     rows = [ln.split(",") for ln in (DATA / "zonal_clouds.csv").read_text().splitlines()
@@ -395,6 +395,12 @@ class EarthSurface:
             self.clear_map()  # a file: read and check now
         if self.clouds not in CLOUDS:
             self.cloud_map()
+
+    @classmethod
+    def from_options(cls, o) -> "EarthSurface":
+        """The Earth surface that settings ``o`` (any object with the ``surfaces`` options of
+        :mod:`lunarviz.options` and ``earth_albedo``) describe."""
+        return cls(o.earth_surface, o.clouds, o.earth_albedo, o.land_albedo, o.ocean_albedo, o.cloud_albedo)
 
     @property
     def uniform(self) -> bool:
@@ -433,7 +439,7 @@ class EarthSurface:
         the body's cached geometry (a θ sweep's Earth keeps one frame: computed once)."""
         if self.uniform:
             return np.full(body.n_faces, float(self.albedo))
-        memo = body._geo.setdefault("surface_albedo", {})
+        memo = body.geometry.setdefault("surface_albedo", {})
         key = (self, np.asarray(frame, dtype=float).tobytes())
         if key not in memo:
             if len(memo) > 8:
@@ -448,7 +454,7 @@ class EarthSurface:
         return facet_average(lambda d: self.albedo_at(d @ frame), body.vertices, body.faces, k)
 
 
-@lru_cache(maxsize=8)
+@memoize(maxsize=8)
 def _earth_map(path: str, what: str) -> np.ndarray:
     m = read_map(path, what)
     check_range(m, f"{what} {path!r}")

@@ -26,7 +26,8 @@ def orthonormal_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, e2
 
 
-def _gauss(n: int):
+def gauss_legendre(n: int):
+    """Gauss-Legendre nodes and weights of order ``n`` on [0, 1]."""
     x, w = np.polynomial.legendre.leggauss(n)
     return 0.5 * (x + 1.0), 0.5 * w
 
@@ -96,7 +97,7 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     # integral has a square-root singularity there; the substitution t - t* ∝ u² at such ends
     # (smoothstep 3u² - 2u³ when both ends are tangent) makes it analytic in u. Ends that are
     # not tangent keep plain Gauss-Legendre (exact for polynomials of degree 2n - 1).
-    u, gw = _gauss(n_t)
+    u, gw = gauss_legendre(n_t)
     f_both, j_both = u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u)
     f_lo, j_lo = u * u, 2.0 * u
     f_hi, j_hi = 1.0 - (1.0 - u) ** 2, 2.0 * (1.0 - u)
@@ -117,7 +118,7 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     hw = np.arccos(np.clip(q, -1.0, 1.0))  # half-width of the arc inside each cap (π: whole ring)
     pu = phi_u[:, None, :]
     R = t.shape[1]
-    fx, fw = _gauss(n_phi)
+    fx, fw = gauss_legendre(n_phi)
     if k <= 1 and not split_only.any():
         # fast path: the region of a ring is one arc centred on the cap's azimuth
         if k == 0:
@@ -170,7 +171,7 @@ def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):
     axis = np.asarray(axis, dtype=float)
     sin_rho = np.asarray(sin_rho, dtype=float)
     u_max = sin_rho**2 / (1.0 + np.sqrt(1.0 - sin_rho**2))  # 1 - cos ρ without cancellation
-    gx, gw = _gauss(n_psi)
+    gx, gw = gauss_legendre(n_psi)
     u = u_max[:, None] * gx  # (B, n_psi)
     wu = u_max[:, None] * gw
     cpsi = 1.0 - u

@@ -28,9 +28,8 @@ from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import Scene, angle_between, half_angle_sin_cos, unit
 from lunarviz.geometry.sphere_quadrature import cap_rule, compact
 from lunarviz.methods.transport import Transport, detector_geometry
+from lunarviz.options import GRIDS
 from lunarviz.photometry.earth_phase import earth_intensity
-
-GRIDS = ("converged", "paper")
 
 
 @dataclass(frozen=True)

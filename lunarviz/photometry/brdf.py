@@ -25,16 +25,14 @@ Chandrasekhar, S. (1960) Radiative Transfer, Ch. V (exact H-function for isotrop
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 
 from lunarviz import constants as C
+from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
+from lunarviz.options import BRDF_NAMES, DHG_CONVENTIONS, H_FUNCTIONS
 
-H_FUNCTIONS = ("hapke1981", "hapke2002", "exact")
-DHG_CONVENTIONS = ("paper", "hapke2012")
-BRDF_NAMES = ("lambert", "shg", "dhg")
 #: parameters each named BRDF accepts (``--param``)
 BRDF_PARAMETERS = {"lambert": ("albedo",),
                    "shg": ("w", "h", "B0", "xi", "theta_bar", "Bc0", "hc"),
@@ -165,7 +163,7 @@ def h_hapke2002(x, w: float):
     return 1.0 / (1.0 - w * (r0 * x + 0.5 * (1.0 - 2.0 * r0 * x) * xlog))
 
 
-@lru_cache(maxsize=64)
+@memoize(maxsize=64)
 def _chandrasekhar_nodes(w: float, n: int = 96):
     """Gauss-Legendre nodes x_k ∈ (0, 1), weights and converged H(x_k) for albedo w.
 

@@ -14,8 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-
-EARTH_LAWS = ("lambert", "paper_eq8")
+from lunarviz.options import EARTH_LAWS
 
 
 def lambert_phase_function(beta) -> np.ndarray:

@@ -14,15 +14,15 @@
 from __future__ import annotations
 
 import json
-from functools import lru_cache
 
+from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.resources import DATA_DIR
 
 DATA = DATA_DIR / "moon_models.json"
 
 
-@lru_cache(maxsize=1)
+@memoize(maxsize=1)
 def _fitted() -> dict:
     if not DATA.exists():
         return {}

@@ -20,16 +20,15 @@ There is no atmosphere: no refraction, extinction or umbral red light in eclipse
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
+from lunarviz.caches import memoize
 from lunarviz.geometry.scene_geometry import Scene, angle_between, unit
 from lunarviz.sky.ephemeris import selenographic, sky_state
 from lunarviz.sky.observers import Observer
 
 
-@lru_cache(maxsize=256)
+@memoize(maxsize=256)
 def sky_scene(label: str, observer: Observer = Observer()) -> tuple[Scene, dict]:
     """The scene at UTC ``label`` seen by ``observer``, and the row fields that describe it."""
     st = sky_state(label)

@@ -30,10 +30,10 @@ import re
 import warnings
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
-from functools import lru_cache
 
 import numpy as np
 
+from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
 
 #: first and last instants [UTC] covered by both DE421 and the lunar PCK (the PCK is shorter)
@@ -53,7 +53,7 @@ def _package_dir(name: str) -> str:
     return list(spec.submodule_search_locations)[0]
 
 
-@lru_cache(maxsize=1)
+@memoize(maxsize=1)
 def kernels():
     """``(timescale, de421, moon_me_frame)``, loaded once per process from packaged files."""
     from skyfield.api import Loader

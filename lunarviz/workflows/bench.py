@@ -101,7 +101,7 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
         t = time.perf_counter()
         for b, (scene, query, o, d, dists) in batches:
             b.threads = threads
-            b._run(o, d, query, dists, scene=scene)
+            b.run_rays(o, d, query, dists, scene=scene)
         return time.perf_counter() - t
 
     raw1 = min(replay(1) for _ in range(3))

@@ -105,8 +105,8 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
         tasks = [(replace(base, **{f"{body}_mesh": paths[lv]}) if paths[lv] else
                   replace(base, **{f"{body}_level": int(lv)}), float(th), body, tuple(brdfs)) for lv, th in it]
         if executor == "dask":
-            from lunarviz.workflows.sweeps import _dask_client
-            client, cluster = _dask_client(scheduler, workers)
+            from lunarviz.workflows.sweeps import dask_client
+            client, cluster = dask_client(scheduler, workers)
             try:
                 outs = client.gather(client.map(_study_task, tasks, pure=False))
             finally:

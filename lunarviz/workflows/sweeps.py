@@ -15,13 +15,13 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import Scene
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
+from lunarviz.options import GROUPS, compose, from_settings_dict, group, validate
 from lunarviz.photometry import albedo_inversion as alb
-from lunarviz.photometry.brdf import BRDF_NAMES, make_brdf
+from lunarviz.photometry.brdf import make_brdf
 
 METHODS = ("analytic", "raytrace", "reference")
 #: beyond this many days from a TLE's epoch a sweep warns (SGP4 errors of km grow within weeks)
@@ -29,75 +29,38 @@ TLE_MAX_AGE_DAYS = 30.0
 
 
 @dataclass(frozen=True)
+@compose(*GROUPS)
 class SweepSettings:
-    """Everything needed to rerun a sweep (written to the output's ``settings``)."""
+    """Everything needed to rerun a sweep (written to the output's ``settings``).
 
-    brdfs: tuple = ("lambert", "shg", "dhg")
+    Its fields are every option of :mod:`lunarviz.options` (the :class:`lunarviz.Scene`
+    keywords) and the method's own settings below. :meth:`from_dict` rereads :meth:`to_dict`.
+    """
+
     phases_deg: tuple = tuple(float(p) for p in range(0, 181, 5))
     method: str = "analytic"
-    dhg_convention: str = "paper"
-    h_function: str = "hapke1981"
-    #: BRDF parameter preset: ``paper`` (Table 2) or a fitted one such as ``rolo-fit``
-    moon_model: str = "paper"
-    params: dict = field(default_factory=dict)  # {brdf: {name: value}}
-    detector: tuple | None = None
-    earth_albedo: float = 0.3
-    earth_law: str = "lambert"
-    grid: str = "converged"
-    #: analytic Gauss order; ``None``: 24, or 96 with a lunar albedo map (read at the nodes,
-    #: first order at the map's edges: 24 is off by up to 2.7 % on the synthetic map)
-    order: int | None = None
+    params: dict = field(default_factory=dict)  # {brdf: {name: value}}; the schema's None is {}
+    #: the paper grid's step [deg] (``grid="paper"``)
     paper_step_deg: float = 1.0
-    estimator: str = "deterministic"
-    rays: int = 50_000
-    runs: int = 1
-    seed: int = 0
-    moon_level: int | None = None
-    earth_level: int | None = None
-    sun_level: int | None = None
-    occlusion: bool = True
-    self_shadow: bool = True
-    shading: str = "auto"
-    earth_order: int = 6
-    sun_order: int = 2
-    moon_mesh: str | None = None
-    earth_mesh: str | None = None
-    sun_mesh: str | None = None
-    mesh_units: str = "m"
+    #: the exact reference's outer and inner Gauss orders
     reference_outer: int = 24
     reference_inner: int = 8
     #: UTC times (ISO 8601): when given, one task per time on the real sky, not per phase θ
     times: tuple | None = None
-    #: ``--observer``: geocentre, site:LAT,LON[,H], tle:FILE, orbit:ALT,INC,RAAN,ARGLAT[,EPOCH]
-    observer: str = "geocentre"
-    #: surfaces (:mod:`lunarviz.bodies.surfaces`): ``--moon-albedo-map FILE[:MEAN]``, ``--earth-surface
-    #: uniform|landocean|FILE``, ``--clouds none|zonal|FILE``, their albedos, and the θ scene's
-    #: sub-solar longitude ``--earth-rotation-deg`` (``None``: 0; dates turn the Earth themselves)
-    moon_albedo_map: str | None = None
-    earth_surface: str = "uniform"
-    clouds: str = "none"
-    land_albedo: float = LAND_ALBEDO
-    ocean_albedo: float = OCEAN_ALBEDO
-    cloud_albedo: float = CLOUD_ALBEDO
-    earth_rotation_deg: float | None = None
     #: ``facets`` (default) or ``beams``: see :class:`lunarviz.methods.tracer.estimators.TraceSettings`
     mapped_earth: str = "facets"
 
     def __post_init__(self):
+        validate(self)
+        if self.params is None:
+            object.__setattr__(self, "params", {})
         if self.method not in METHODS:
             raise LunarvizError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
-        if not self.brdfs:
-            raise LunarvizError("no BRDF given")
-        for b in self.brdfs:
-            if b not in BRDF_NAMES:
-                raise LunarvizError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
         if not self.phases_deg:
             raise LunarvizError("no phase given")
         if self.times is None and len(set(self.phases_deg)) != len(self.phases_deg):
             dup = next(p for p in self.phases_deg if list(self.phases_deg).count(p) > 1)
             raise LunarvizError(f"phase {dup:g} is listed twice")
-        if not isinstance(self.params, dict) or not all(isinstance(v, dict) for v in self.params.values()):
-            raise LunarvizError(f"params {self.params!r} must be {{brdf: {{name: value}}}}")
         for b in self.params:
             if b not in self.brdfs:
                 raise LunarvizError(f"params name BRDF {b!r}, which is not in this run ({', '.join(self.brdfs)})")
@@ -185,8 +148,7 @@ class SweepSettings:
         Earth of ``earth_albedo`` (what an inversion assumes), the lunar map kept; ``None`` when
         both are the paper's."""
         from lunarviz.bodies.surfaces import EarthSurface, MoonAlbedoMap, Surfaces
-        earth = EarthSurface(albedo=self.earth_albedo) if model_earth else EarthSurface(
-            self.earth_surface, self.clouds, self.earth_albedo, self.land_albedo, self.ocean_albedo, self.cloud_albedo)
+        earth = EarthSurface(albedo=self.earth_albedo) if model_earth else EarthSurface.from_options(self)
         moon = None if self.moon_albedo_map is None else MoonAlbedoMap.parse(self.moon_albedo_map)
         if moon is None and earth.uniform:
             return None
@@ -211,20 +173,9 @@ class SweepSettings:
     def trace_settings(self, threads: int | None = None):
         """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
         over several worker processes pass 1). Results do not depend on it."""
-        from lunarviz.bodies.meshes import DEFAULT_LEVELS
         from lunarviz.methods.tracer.estimators import TraceSettings
-        return TraceSettings(
-            estimator=self.estimator,
-            moon_level=DEFAULT_LEVELS["moon"] if self.moon_level is None else self.moon_level,
-            earth_level=DEFAULT_LEVELS["earth"] if self.earth_level is None else self.earth_level,
-            sun_level=DEFAULT_LEVELS["sun"] if self.sun_level is None else self.sun_level,
-            sun_order=self.sun_order, earth_order=self.earth_order, rays=self.rays,
-            runs=self.runs, seed=self.seed, occlusion=self.occlusion, self_shadow=self.self_shadow,
-            shading=self.shading, earth_albedo=self.earth_albedo, threads=threads, moon_mesh=self.moon_mesh,
-            earth_mesh=self.earth_mesh, sun_mesh=self.sun_mesh, mesh_units=self.mesh_units,
-            moon_albedo_map=self.moon_albedo_map, earth_surface=self.earth_surface, clouds=self.clouds,
-            land_albedo=self.land_albedo, ocean_albedo=self.ocean_albedo, cloud_albedo=self.cloud_albedo,
-            earth_rotation_deg=self.earth_rotation_deg or 0.0, mapped_earth=self.mapped_earth)
+        return TraceSettings(threads=threads, mapped_earth=self.mapped_earth,
+                             **{o.name: getattr(self, o.name) for o in group(*TraceSettings.GROUPS)})
 
     def observer_model(self):
         """The parsed observer (an orbit's epoch defaults to the first time)."""
@@ -246,6 +197,12 @@ class SweepSettings:
             return sky_scene(str(key), self.observer_model())
         sc = Scene(float(key), detector=self.detector)
         return sc, {"theta_deg": float(key)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "SweepSettings":
+        """The settings a :meth:`to_dict` (an output's ``settings``, a Dataset's
+        ``attrs["settings_json"]``) describes."""
+        return from_settings_dict(cls, d)
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -376,7 +333,7 @@ def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
 EXECUTORS = ("local", "dask")
 
 
-def _dask_client(scheduler: str | None, workers: int | None):
+def dask_client(scheduler: str | None, workers: int | None):
     """A Dask client: to ``scheduler`` (an address such as tcp://host:8786), or to a new local
     cluster of ``workers`` single-threaded processes (closed with the client)."""
     try:
@@ -411,7 +368,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
     phases = settings.tasks()
     t0 = time.perf_counter()
     if executor == "dask":
-        client, cluster = _dask_client(scheduler, workers)
+        client, cluster = dask_client(scheduler, workers)
         try:
             futures = client.map(run_phase, [settings] * len(phases), phases, threads=1, pure=False)
             results = client.gather(futures)

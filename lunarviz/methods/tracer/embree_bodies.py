@@ -25,6 +25,8 @@ import trimesh
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
+from lunarviz.caches import BoundedCache, array_digest
+from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.methods.tracer.kernels import ray_batch32
 
 #: Embree's coordinate type.
@@ -86,7 +88,7 @@ class EmbreeBody:
         #: body-to-scene rotation (``None``: mesh axes are scene axes); vertices below are turned
         self.rotation = None if rotation is None else np.asarray(rotation, dtype=float)
         geo = _body_geometry(mesh, float(scale), self.rotation)
-        self._geo = geo
+        self.geometry = geo
         self.vertices, self.faces = geo["vertices"], geo["faces"]  # body frame [m]
         self.bound, self.areas, self.normals = geo["bound"], geo["areas"], geo["normals"]
         self.centroids_local = geo["centroids_local"]
@@ -119,7 +121,7 @@ class EmbreeBody:
     @property
     def corner_normals(self) -> np.ndarray:
         """(F, 3, 3) unit shading normals at each face's corners, crease-limited."""
-        geo = self._geo
+        geo = self.geometry
         if geo.get("corner_normals") is None:
             geo["corner_normals"] = _crease_corner_normals(self.faces, self.normals, self.areas, len(self.vertices))
         return geo["corner_normals"]
@@ -189,13 +191,13 @@ class EmbreeBody:
         mode = self.mode(shading)
         tri = self.vertices[self.faces[faces]]  # (F, 3, 3) body frame
         if mode == "flat":
-            cen_b, _ = _sub_barycentric(sub)
+            cen_b, _ = sub_barycentric(sub)
             ns = len(cen_b)
             pts = np.einsum("sk,fkj->fsj", cen_b, tri).reshape(-1, 3)
             owner = np.repeat(faces, ns)
             area = np.repeat(self.areas[faces] / ns, ns)
             return pts + self.centre, np.repeat(self.normals[faces], ns, axis=0), area, owner
-        _, tri_b = _sub_barycentric(sub)
+        _, tri_b = sub_barycentric(sub)
         nsub = len(tri_b)
         pts_b = np.einsum("pv,svk->spk", _STRANG_FIX3, tri_b).reshape(-1, 3)  # (nsub·3, 3)
         owner = np.repeat(faces, 3 * nsub)
@@ -219,11 +221,11 @@ class EmbreeBody:
         nrm = self.shading_normals(owner, pts + self.centre)
         return pts + self.centre, nrm, area, owner
 
-    def _outer_scene(self):
+    def outer_scene(self):
         """Embree scene of the mesh scaled to circumscribe its sphere (every facet plane at
         distance ≥ R from the centre), so every ray that meets the sphere meets this mesh.
         Built once per mesh and radius (cached with the body's geometry)."""
-        geo = self._geo
+        geo = self.geometry
         if geo.get("outer") is None:
             plane_dist = np.einsum("ij,ij->i", self.normals, self.vertices[self.faces[:, 0]])
             k = self.radius / float(plane_dist.min()) * (1.0 + 1e-9)
@@ -231,7 +233,7 @@ class EmbreeBody:
             TriangleMesh(scene=outer, vertices=(self.vertices * k).astype(EMBREE_DTYPE),
                          indices=self.faces.astype(np.int32))
             geo["outer"], geo["outer_bound"] = outer, self.bound * k
-        self._outer_bound = geo["outer_bound"]
+        self.outer_bound = geo["outer_bound"]
         return geo["outer"]
 
     def sphere_hits(self, origins, dirs) -> Hits:
@@ -243,13 +245,13 @@ class EmbreeBody:
         level-6 mesh, and a crescent Earth's light lives exactly there: the circumscribed
         copy keeps them (README, "Meshes").
         """
-        scene = self._outer_scene()
-        o, d, t0, live = self._prepare(origins, dirs, None, bound=self._outer_bound)
+        scene = self.outer_scene()
+        o, d, t0, live = self._prepare(origins, dirs, None, bound=self.outer_bound)
         n = len(o)
         prim = np.full(n, -1, dtype=np.int64)
         idx = np.flatnonzero(live)
         if idx.size:
-            prim[idx] = self._run(*ray_batch32(o, d, t0, idx), "INTERSECT", scene=scene)
+            prim[idx] = self.run_rays(*ray_batch32(o, d, t0, idx), "INTERSECT", scene=scene)
         from lunarviz.methods.tracer.kernels import sphere_refine
         prim, tt, point = sphere_refine(o, d, self.radius, prim, self.centre)
         return Hits(prim >= 0, prim, tt, point)
@@ -284,7 +286,7 @@ class EmbreeBody:
         o, t0, live = ray_starts(origins, d, self.centre, R, tmax)
         return o, d, t0, live
 
-    def _run(self, o32, d32, query, dists=None, scene=None):
+    def run_rays(self, o32, d32, query, dists=None, scene=None):
         """Embree ``run`` on float32 rays against ``scene`` (the body's mesh by default),
         batched and split over the thread pool."""
         scene = self._scene if scene is None else scene
@@ -317,7 +319,7 @@ class EmbreeBody:
         prim = np.full(n, -1, dtype=np.int64)
         idx = np.flatnonzero(live)
         if idx.size:
-            prim[idx] = self._run(*ray_batch32(o, d, t0, idx), "INTERSECT")
+            prim[idx] = self.run_rays(*ray_batch32(o, d, t0, idx), "INTERSECT")
         hit = prim >= 0
         t = np.full(n, np.inf)
         point = np.full((n, 3), np.nan)
@@ -348,7 +350,7 @@ class EmbreeBody:
             if tmax is not None:
                 tm = np.broadcast_to(np.asarray(tmax, dtype=float), (n,))[idx] - t0[idx]
                 dists = np.clip(tm, 0.0, np.finfo(np.float32).max).astype(EMBREE_DTYPE)
-            res = self._run(*ray_batch32(o, d, t0, idx), "OCCLUDED", dists)
+            res = self.run_rays(*ray_batch32(o, d, t0, idx), "OCCLUDED", dists)
             out[idx] = res != -1
         return out
 
@@ -360,23 +362,16 @@ class EmbreeBody:
         rows, o32, d32, dists = occluder_rays(rays, tmax, mask, self.centre, self.bound * (1.0 + ENTRY_MARGIN))
         out = np.zeros(len(mask), dtype=bool)
         if rows.size:
-            out[rows] = self._run(o32, d32, "OCCLUDED", dists) != -1
+            out[rows] = self.run_rays(o32, d32, "OCCLUDED", dists) != -1
         return out
 
 
-_GEOMETRY_CACHE: dict = {}
-
-
-def release_caches() -> None:
-    """Drop every cached body geometry, Embree scene and loaded mesh (their memory returns once
-    nothing else holds them): for one-shot commands that go on to write large outputs."""
-    _GEOMETRY_CACHE.clear()
-    from lunarviz.methods.tracer.estimators import body_mesh_m
-    body_mesh_m.cache_clear()
-    import gc
-    gc.collect()
-#: body geometries kept (insertion-ordered; the oldest is dropped first)
+#: body geometries kept (insertion-ordered; the oldest is dropped first): a θ sweep needs three
+#: entries (one per body), a dated sweep turns the Moon and the Earth at every time and never
+#: reuses them (each Earth at level 6 holds ~100 MB with its Embree scenes: 16 entries made dated
+#: sweeps take 3 GB)
 GEOMETRY_CACHE_SIZE = 6
+_GEOMETRY_CACHE = BoundedCache(GEOMETRY_CACHE_SIZE)
 
 
 def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | None = None) -> dict:
@@ -385,11 +380,13 @@ def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | N
 
     Body-centred frames make them independent of where the body is, so a θ sweep builds each
     scene once per process, not once per phase (a dated sweep turns the Moon, so once per
-    time). Keyed by the mesh object (kept alive in the entry), the scale and the rotation.
+    time). Keyed by the mesh's content (vertices, faces, analytic tag), the scale and the rotation.
     """
-    key = (id(mesh), float(scale), None if rotation is None else rotation.tobytes())
+    tag = mesh.metadata.get("lunarviz_analytic") if mesh.metadata else None
+    key = (array_digest(mesh.vertices, mesh.faces), repr(tag), float(scale),
+           None if rotation is None else rotation.tobytes())
     hit = _GEOMETRY_CACHE.get(key)
-    if hit is not None and hit["mesh"] is mesh:
+    if hit is not None:
         return hit
     vertices = np.asarray(mesh.vertices, dtype=float) * scale
     if rotation is not None:
@@ -405,7 +402,6 @@ def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | N
         normals[b] = cross / (2.0 * areas[b, None])
         centroids[b] = tri.mean(axis=1)
     rad = np.linalg.norm(vertices, axis=1)
-    tag = mesh.metadata.get("lunarviz_analytic") if mesh.metadata else None
     sphere_radius = float(tag["radius"]) * scale if tag and tag.get("shape") == "sphere" else None
     convex = bool(tag is not None or _is_convex(mesh))
     scene = rtcore_scene.EmbreeScene()
@@ -414,11 +410,6 @@ def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | N
            "areas": areas, "normals": normals, "centroids_local": centroids,
            "convex": convex, "mean_radius": float(rad.mean()),
            "sphere_radius": sphere_radius, "scene": scene, "outer": None, "corner_normals": None}
-    # least recently built first out: a θ sweep needs three entries (one per body), a dated
-    # sweep turns the Moon and the Earth at every time and never reuses them (each Earth at
-    # level 6 holds ~100 MB with its Embree scenes: 16 entries made dated sweeps take 3 GB)
-    while len(_GEOMETRY_CACHE) >= GEOMETRY_CACHE_SIZE:
-        _GEOMETRY_CACHE.pop(next(iter(_GEOMETRY_CACHE)))
     _GEOMETRY_CACHE[key] = geo
     return geo
 
@@ -459,21 +450,3 @@ def _crease_corner_normals(faces, normals, areas, n_vertices, crease_deg: float 
 _STRANG_FIX3 = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
 
 
-_SUB_CACHE: dict = {}
-
-
-def _sub_barycentric(k: int):
-    """Barycentric centroids (k², 3) and corners (k², 3, 3) of a triangle split k×k."""
-    if k in _SUB_CACHE:
-        return _SUB_CACHE[k]
-    cen, cor = [], []
-    for i in range(k):
-        for j in range(k - i):
-            up = [(i, j), (i + 1, j), (i, j + 1)]
-            cor.append(up)
-            if i + j <= k - 2:
-                cor.append([(i + 1, j), (i + 1, j + 1), (i, j + 1)])
-    corners = np.array([[[1 - (a + b) / k, a / k, b / k] for a, b in t] for t in cor])
-    cen = corners.mean(axis=1)
-    _SUB_CACHE[k] = (cen, corners)
-    return cen, corners

@@ -42,25 +42,22 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass, field
-from functools import lru_cache
+from typing import ClassVar
 
 import numpy as np
 
 from lunarviz.bodies.meshes import DEFAULT_LEVELS
-from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import Scene, angle_between, half_angle_sin_cos, unit
 from lunarviz.geometry.sphere_quadrature import orthonormal_basis
+from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.methods.sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
 from lunarviz.methods.tracer import kernels
 from lunarviz.methods.tracer.embree_bodies import EmbreeBody
 from lunarviz.methods.transport import Transport, detector_geometry
+from lunarviz.options import SHADINGS, compose, validate
 
-ESTIMATORS = ("deterministic", "montecarlo")
-#: ``auto`` (default): the exact sphere for analytic spheres (the packaged icospheres, a
-#: documented fast path), the facets for every other mesh; ``smooth``: exact sphere, or
-#: crease-limited interpolated normals on other meshes; ``flat``: the facets everywhere.
-SHADINGS = ("auto", "smooth", "flat")
 #: Shadow-ray origins are offset along the normal by this fraction of the body radius
 #: (0.17 m on the Moon: above float32's 0.125 m step at the lunar radius, far below any facet).
 NORMAL_OFFSET = 1e-7
@@ -95,37 +92,20 @@ EARTH_CELLS = 24
 
 
 @dataclass(frozen=True)
+@compose("earth", "meshes", "trace", "surfaces")
 class TraceSettings:
-    estimator: str = "deterministic"
-    moon_level: int = DEFAULT_LEVELS["moon"]
-    earth_level: int = DEFAULT_LEVELS["earth"]
-    sun_level: int = DEFAULT_LEVELS["sun"]
-    sun_order: int = 2
-    earth_order: int = 6
+    """The ray tracer's settings: the options of the ``earth``, ``meshes``, ``trace`` and
+    ``surfaces`` groups of :mod:`lunarviz.options` (icosphere levels ``None`` resolve to
+    :data:`~lunarviz.bodies.meshes.DEFAULT_LEVELS`, the Earth's rotation ``None`` to 0), and:"""
+
+    #: the option groups whose fields this class takes from the schema
+    GROUPS: ClassVar[tuple] = ("earth", "meshes", "trace", "surfaces")
+    #: split facets that a terminator, limb, penumbra or cast-shadow edge crosses (lune refinement)
     refine: bool = True
-    rays: int = 50_000
-    runs: int = 1
-    seed: int = 0
-    occlusion: bool = True
-    self_shadow: bool = True  # a non-convex body shadows itself (independent of ``occlusion``)
-    shading: str = "auto"
-    earth_albedo: float = 0.3
+    #: threads per trace (``None``: the machine's cores); no number depends on it
     threads: int | None = None
-    moon_mesh: str | None = None  # paths of user meshes (body frame, ``mesh_units``)
-    earth_mesh: str | None = None
-    sun_mesh: str | None = None
-    mesh_units: str = "m"
     #: per-body shading overriding ``shading``, e.g. ``(("earth", "flat"),)`` (mesh studies)
     body_shading: tuple = ()
-    #: surfaces (:mod:`lunarviz.bodies.surfaces`): ``--moon-albedo-map FILE[:MEAN]``, the Earth's
-    #: ``--earth-surface``/``--clouds`` and their albedos, and the θ scene's sub-solar longitude
-    moon_albedo_map: str | None = None
-    earth_surface: str = "uniform"
-    clouds: str = "none"
-    land_albedo: float = LAND_ALBEDO
-    ocean_albedo: float = OCEAN_ALBEDO
-    cloud_albedo: float = CLOUD_ALBEDO
-    earth_rotation_deg: float = 0.0
     #: a mapped Earth's earthlight: ``facets`` (default: summed per facet into disc cells,
     #: :meth:`TraceScene.mapped_earth_transport`) or ``beams`` (the uniform Earth's Gauss beams
     #: with each hit facet's albedo: ~2 % off at a map's edges; a diagnostic for comparisons)
@@ -141,48 +121,27 @@ class TraceSettings:
     def surface(self):
         """The Earth's :class:`~lunarviz.bodies.surfaces.EarthSurface`."""
         from lunarviz.bodies.surfaces import EarthSurface
-        return EarthSurface(self.earth_surface, self.clouds, self.earth_albedo, self.land_albedo,
-                            self.ocean_albedo, self.cloud_albedo)
+        return EarthSurface.from_options(self)
 
     def __post_init__(self):
-        if self.estimator not in ESTIMATORS:
-            raise LunarvizError(f"estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}")
-        if self.shading not in SHADINGS:
-            raise LunarvizError(f"shading {self.shading!r} is not one of {', '.join(SHADINGS)}")
+        for body in ("moon", "earth", "sun"):  # None: the mesh study's default level
+            if getattr(self, f"{body}_level") is None:
+                object.__setattr__(self, f"{body}_level", DEFAULT_LEVELS[body])
+        if self.earth_rotation_deg is None:
+            object.__setattr__(self, "earth_rotation_deg", 0.0)
+        validate(self)
         for body, mode in self.body_shading:
             if body not in ("moon", "earth", "sun") or mode not in SHADINGS:
                 raise LunarvizError(f"body shading {body}={mode} is not valid")
-        for name in ("sun_order", "earth_order"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, np.integer)) and 1 <= v <= 64):
-                raise LunarvizError(f"{name}={v!r} must be an integer in [1, 64]")
-        for name in ("rays", "runs"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, np.integer)) and v >= 1):
-                raise LunarvizError(f"{name}={v!r} must be a positive integer")
-        if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
-            raise LunarvizError(f"seed={self.seed!r} must be a non-negative integer")
-        if not (isinstance(self.earth_albedo, (int, float, np.number)) and 0 <= self.earth_albedo <= 1):
-            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be a number in [0, 1]")
-        if not (isinstance(self.earth_rotation_deg, (int, float, np.number)) and np.isfinite(self.earth_rotation_deg)):
-            raise LunarvizError(f"Earth rotation {self.earth_rotation_deg!r} deg must be a finite number")
+        if not isinstance(self.refine, (bool, np.bool_)):
+            raise LunarvizError(f"refine={self.refine!r} must be True or False")
         self.surface()
         self.moon_map()
         if self.mapped_earth not in ("facets", "beams"):
             raise LunarvizError(f"mapped_earth {self.mapped_earth!r} is not one of facets, beams")
-        from lunarviz.bodies.meshes import MAX_LEVEL, MESH_UNITS
-        for name in ("moon_level", "earth_level", "sun_level"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= MAX_LEVEL):
-                raise LunarvizError(f"{name}={v!r} must be an integer icosphere level in [0, {MAX_LEVEL}]")
-        if self.mesh_units not in MESH_UNITS:
-            raise LunarvizError(f"mesh units {self.mesh_units!r} are not one of {', '.join(MESH_UNITS)}")
-        for name in ("occlusion", "self_shadow", "refine"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise LunarvizError(f"{name}={getattr(self, name)!r} must be True or False")
 
 
-@lru_cache(maxsize=16)
+@memoize(maxsize=16)
 def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None = None):
     """The mesh of ``body`` in metres, body frame: a user mesh (``path``, read in ``units``)
     or the packaged icosphere at ``level`` tagged as an analytic sphere of ``radius``."""
@@ -419,9 +378,8 @@ class TraceScene:
             mean, sd = (a[faces] for a in self.moon_facet_albedo(spread=True))
         else:
             from lunarviz.bodies.surfaces import map_frame, moon_facet_values
-            from lunarviz.methods.tracer.embree_bodies import _sub_barycentric
             M = self.moon
-            _, tri_b = _sub_barycentric(sub)
+            _, tri_b = sub_barycentric(sub)
             corners = np.einsum("svk,fkj->fsvj", tri_b, M.vertices[M.faces[np.asarray(faces, dtype=np.int64)]])
             verts = corners.reshape(-1, 3)
             mean, sd = moon_facet_values(amap, M, map_frame(self.scene, "moon"),
@@ -700,7 +658,7 @@ class TraceScene:
         self.moon_facet_albedo()
         for b in (self.sun, self.earth):
             if b.mode(self.settings.shading) == "exact":
-                b._outer_scene()
+                b.outer_scene()
             elif b.mode(self.settings.shading) == "interp":
                 b.corner_normals  # noqa: B018 (a cached property: built here, once)
 
@@ -885,8 +843,8 @@ class TraceScene:
         K = kernels
         sc, s = self.scene, self.settings
         src = self.sun if body == "sun" else self.earth
-        outer = src._outer_scene()  # (built once per body; sets its bounding radius)
-        off, Rb = NORMAL_OFFSET * self.moon.radius, src._outer_bound * (1.0 + ENTRY_MARGIN)
+        outer = src.outer_scene()  # (built once per body; sets its bounding radius)
+        off, Rb = NORMAL_OFFSET * self.moon.radius, src.outer_bound * (1.0 + ENTRY_MARGIN)
         c, R, _ = self._source(body)
         if body == "earth" and not horizon_cuts_source(sc, x, n, body).any():
             cs = sc.sun - c  # the rule's one cap: the Earth's sunlit hemisphere (as in source_nodes)
@@ -895,7 +853,7 @@ class TraceScene:
             dirs, omega = self.source_nodes(x, n, body, order)
             rays = K.beam_rays(x, n, o, dirs, omega, off, c, Rb)
         self._count(len(rays.bi))
-        prim = src._run(rays.o32, rays.d32, "INTERSECT", scene=outer) if len(rays.idx) else np.empty(0, np.int64)
+        prim = src.run_rays(rays.o32, rays.d32, "INTERSECT", scene=outer) if len(rays.idx) else np.empty(0, np.int64)
         if body == "sun":
             t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
                                                  sun_radiance=self.sun_surface_radiance())

@@ -732,12 +732,12 @@ def sphere_cap_beams(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
 def _cap_setup(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
     """Contiguous inputs of :func:`_cap_beams`: x, c, (cap axes, cap cosines, Gauss rules) and
     the number of beams of each row."""
-    from lunarviz.geometry.sphere_quadrature import _gauss
+    from lunarviz.geometry.sphere_quadrature import gauss_legendre
     f = np.ascontiguousarray
     x, c = f(x, dtype=float), f(c, dtype=float)
     B = len(x)
-    gx_t, gw_t = _gauss(n_t)
-    gx_p, gw_p = _gauss(n_phi)
+    gx_t, gw_t = gauss_legendre(n_t)
+    gx_p, gw_p = gauss_legendre(n_phi)
     cu = f(np.broadcast_to(cap_u, (B, 3)), dtype=float)
     cc = f(np.broadcast_to(cap_c, (B,)), dtype=float)
     counts = np.empty(B, np.int64)
@@ -749,14 +749,14 @@ def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):
     """:func:`lunarviz.geometry.sphere_quadrature.cone_rule` (directions (B, n_psi·n_phi, 3) and solid
     angles [sr] filling the cone of half-angle asin(sin_rho) about ``axis``), compiled; the
     numpy rule where numba is off."""
-    from lunarviz.geometry.sphere_quadrature import _gauss
+    from lunarviz.geometry.sphere_quadrature import gauss_legendre
     from lunarviz.geometry.sphere_quadrature import cone_rule as numpy_rule
     if not _NUMBA:
         return numpy_rule(axis, sin_rho, n_psi, n_phi)
     f = np.ascontiguousarray
     axis = f(axis, dtype=float)
     B = len(axis)
-    gx, gw = _gauss(n_psi)
+    gx, gw = gauss_legendre(n_psi)
     phi = (np.arange(n_phi) + 0.5) * (2 * np.pi / n_phi)
     d, w = np.empty((B, n_psi * n_phi, 3)), np.empty((B, n_psi * n_phi))
     _cone_rule(axis, f(np.broadcast_to(sin_rho, (B,)), dtype=float), gx, gw, np.cos(phi), np.sin(phi), d, w)

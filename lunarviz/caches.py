@@ -1,0 +1,73 @@
+"""One registry of lunarviz's in-process caches; :func:`release_caches` empties every one.
+
+Caches are keyed by content, never by object identity: function arguments (hashable values:
+paths, levels, names, numbers) for :func:`memoize`, and explicit content keys (a digest of a
+mesh's vertices and faces, :func:`array_digest`) for :class:`BoundedCache`.
+"""
+
+from __future__ import annotations
+
+import functools
+import gc
+import hashlib
+from collections import OrderedDict
+from typing import Callable
+
+import numpy as np
+
+#: the ``clear`` of every registered cache
+_CLEARERS: list[Callable[[], None]] = []
+
+
+def memoize(maxsize: int):
+    """:func:`functools.lru_cache` of ``maxsize`` entries, registered for :func:`release_caches`."""
+
+    def deco(fn):
+        cached = functools.lru_cache(maxsize=maxsize)(fn)
+        _CLEARERS.append(cached.cache_clear)
+        return cached
+
+    return deco
+
+
+class BoundedCache:
+    """An insertion-ordered mapping of at most ``maxsize`` entries (the oldest is dropped
+    first), registered for :func:`release_caches`."""
+
+    def __init__(self, maxsize: int):
+        self.maxsize = maxsize
+        self._data: OrderedDict = OrderedDict()
+        _CLEARERS.append(self._data.clear)
+
+    def get(self, key, default=None):
+        return self._data.get(key, default)
+
+    def __contains__(self, key) -> bool:
+        return key in self._data
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __setitem__(self, key, value) -> None:
+        while len(self._data) >= self.maxsize:
+            self._data.popitem(last=False)
+        self._data[key] = value
+
+
+def array_digest(*arrays: np.ndarray) -> str:
+    """A content key of arrays: BLAKE2b of their dtypes, shapes and bytes."""
+    h = hashlib.blake2b(digest_size=16)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.view(np.uint8).reshape(-1) if a.size else b"")
+    return h.hexdigest()
+
+
+def release_caches() -> None:
+    """Empty every registered cache (meshes, Embree scenes, maps, ephemerides, BRDF tables);
+    their memory returns once nothing else holds them. For one-shot commands that go on to
+    write large outputs, and for tests that need a cold start."""
+    for clear in _CLEARERS:
+        clear()
+    gc.collect()

@@ -1,0 +1,377 @@
+"""The option schema: every scene and method option of lunarviz, declared once.
+
+Each :class:`Option` gives an option's Python name (the :class:`lunarviz.Scene` keyword and the
+settings field), its type, default, unit, one-line doc, allowed values or range, command-line
+flag and group. Everything else is derived from :data:`OPTIONS`:
+
+* the command line's flags (:func:`add_arguments`) and the keywords they give a Scene
+  (:func:`scene_options`);
+* :class:`lunarviz.Scene`'s keywords, their defaults (:func:`defaults`) and its docstring
+  (:func:`numpydoc_parameters`);
+* the method settings, whose fields are the options of their groups (:func:`compose`), their
+  validation (:func:`validate`) and their JSON round trip (:func:`from_settings_dict`).
+
+Adding an option is one :class:`Option` here plus the code that uses it.
+
+Groups: ``photometry`` (the lunar BRDFs), ``earth`` (the Earth's reflectance), ``geometry``
+(where the detector is), ``sky`` (dates and observers), ``meshes`` (bodies and their shapes),
+``surfaces`` (albedo maps), ``trace`` (the ray tracer's estimator and source rules) and
+``analytic`` (the paper's quadrature).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any, Callable
+
+from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+from lunarviz.errors import LunarvizError
+
+# ---- allowed values (each declared once, here; the modules that implement them import them) ----
+#: lunar BRDFs: Lambert, Hapke with a single or double Henyey-Greenstein phase function
+BRDF_NAMES = ("lambert", "shg", "dhg")
+#: Hapke's H-function: the 1981 approximation (the paper's), the 2002 one, or the exact integral
+H_FUNCTIONS = ("hapke1981", "hapke2002", "exact")
+#: sign convention of the double Henyey-Greenstein function: as the paper prints it, or Hapke 2012
+DHG_CONVENTIONS = ("paper", "hapke2012")
+#: the Earth's intensity law in the analytic method: a Lambert sphere, or the paper's printed Eq. 8
+EARTH_LAWS = ("lambert", "paper_eq8")
+#: the analytic method's lunar surface grid: converged Gauss, or the paper's 1° grid
+GRIDS = ("converged", "paper")
+#: the ray tracer's estimators
+ESTIMATORS = ("deterministic", "montecarlo")
+#: ``auto``: the exact sphere for analytic spheres (the packaged icospheres, a documented fast
+#: path), the facets for every other mesh; ``smooth``: crease-limited interpolated normals on
+#: user meshes; ``flat``: the facets everywhere
+SHADINGS = ("auto", "smooth", "flat")
+#: units of a user mesh's vertices (``radius``: multiples of the body's nominal radius)
+MESH_UNITS = ("m", "km", "radius")
+#: the bodies of the scene
+BODIES = ("sun", "earth", "moon")
+#: where sweeps and studies run their tasks: local worker processes or a Dask cluster
+EXECUTORS = ("local", "dask")
+#: the finest packaged-icosphere level a scene may ask for (20·4^8 = 1.3 M facets)
+MAX_LEVEL = 8
+#: group names, in the order the documentation lists them
+GROUPS = ("photometry", "earth", "geometry", "sky", "meshes", "surfaces", "trace", "analytic")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option: its name, type, default, unit, doc, allowed values, flag and group.
+
+    ``kind`` is one of ``int``, ``float``, ``str``, ``bool``, ``path``, ``names`` (a tuple of
+    names), ``xyz`` (three floats), ``params`` (``{brdf: {name: value}}``). ``None`` is allowed
+    where the default is ``None``. A ``bool`` option whose default is ``True`` takes the flag
+    ``--no-…`` on the command line.
+    """
+
+    name: str
+    kind: str
+    default: Any
+    doc: str
+    group: str
+    unit: str | None = None
+    choices: tuple | None = None
+    lo: float | None = None
+    hi: float | None = None
+    flag: str | None = None
+    metavar: str | None = None
+    label: str | None = None
+
+    @property
+    def cli_flag(self) -> str:
+        """The command-line flag (``--no-occlusion`` for ``occlusion``)."""
+        if self.flag:
+            return self.flag
+        stem = self.name.replace("_", "-")
+        return f"--no-{stem}" if self.kind == "bool" and self.default is True else f"--{stem}"
+
+    @property
+    def dest(self) -> str:
+        """The attribute argparse stores the flag under."""
+        return self.cli_flag[2:].replace("-", "_")
+
+    @property
+    def what(self) -> str:
+        """How error messages name the option."""
+        return self.label or self.name.replace("_", " ")
+
+    def check(self, value) -> Any:
+        """``value`` if it is valid for this option (tuples normalised), else a one-line
+        :class:`~lunarviz.errors.LunarvizError` that names it."""
+        if value is None and self.default is None:
+            return None
+        k = self.kind
+        if k == "bool":
+            if not isinstance(value, bool) and type(value).__name__ != "bool_":
+                raise LunarvizError(f"{self.name}={value!r} must be True or False")
+            return bool(value)
+        if k == "int":
+            if isinstance(value, bool) or not isinstance(value, int) and type(value).__module__ != "numpy" \
+                    or not float(value).is_integer() or not self._in_range(value):
+                raise LunarvizError(f"{self.name}={value!r} must be an integer{self._range_text()}")
+            return value
+        if k == "float":
+            if isinstance(value, bool) or not isinstance(value, (int, float)) and type(value).__module__ != "numpy" \
+                    or not math.isfinite(float(value)) or not self._in_range(value):
+                raise LunarvizError(f"{self.what} {value!r} must be a finite number{self._range_text()}")
+            return value
+        if k in ("str", "path"):
+            if not isinstance(value, str):
+                raise LunarvizError(f"{self.what} {value!r} must be a string")
+            if self.choices is not None and value not in self.choices:
+                raise LunarvizError(f"{self.what} {value!r} is not one of {', '.join(self.choices)}")
+            return value
+        if k == "names":
+            if isinstance(value, str):
+                value = tuple(x.strip() for x in value.split(","))
+            if not isinstance(value, (list, tuple)) or not value or not all(isinstance(x, str) for x in value):
+                raise LunarvizError(f"{self.name} {value!r} must be names such as ('lambert', 'dhg')")
+            for x in value:
+                if self.choices is not None and x not in self.choices:
+                    raise LunarvizError(f"unknown BRDF {x!r}: choose from {', '.join(self.choices)}")
+            return tuple(value)
+        if k == "xyz":
+            try:
+                v = tuple(float(c) for c in value)
+            except (TypeError, ValueError):
+                raise LunarvizError(f"{self.name} {value!r} must be three numbers x, y, z [{self.unit}]") from None
+            if len(v) != 3 or not all(math.isfinite(c) for c in v):
+                raise LunarvizError(f"{self.name} {value!r} must be three finite numbers x, y, z [{self.unit}]")
+            return v
+        if k == "params":
+            if not isinstance(value, dict) or not all(isinstance(v, dict) for v in value.values()):
+                raise LunarvizError(f"params {value!r} must be {{brdf: {{name: value}}}}")
+            return value
+        raise AssertionError(f"option {self.name}: unknown kind {k!r}")  # a schema bug, not user input
+
+    def _in_range(self, v) -> bool:
+        return (self.lo is None or v >= self.lo) and (self.hi is None or v <= self.hi)
+
+    def _range_text(self) -> str:
+        if self.lo is not None and self.hi is not None:
+            return f" in [{self.lo:g}, {self.hi:g}]"
+        if self.lo is not None:
+            return " ≥ 1" if self.lo == 1 else f" ≥ {self.lo:g}"
+        return ""
+
+
+def _o(name, kind, default, doc, group, **kw) -> Option:
+    return Option(name, kind, default, doc, group, **kw)
+
+
+#: Every scene and method option (the :class:`lunarviz.Scene` keywords), in documentation order.
+OPTIONS: tuple[Option, ...] = (
+    # photometry: the lunar BRDFs
+    _o("brdfs", "names", BRDF_NAMES, "lunar BRDFs: lambert, shg (Hapke, single HG), dhg (Hapke, double HG)",
+       "photometry", choices=BRDF_NAMES, flag="--brdf", metavar="NAME[,NAME...]"),
+    _o("dhg_convention", "str", "paper", "sign convention of the double Henyey-Greenstein function",
+       "photometry", choices=DHG_CONVENTIONS, label="DHG convention"),
+    _o("h_function", "str", "hapke1981", "Hapke's H-function (the paper uses Hapke 1981)", "photometry",
+       choices=H_FUNCTIONS, label="H-function"),
+    _o("moon_model", "str", "paper", "BRDF parameter preset: paper (Table 2), rolo-fit (fitted to ROLO, "
+       "400-750 nm) or rolo-fit-map (fitted on the synthetic lunar albedo map, which it brings)", "photometry",
+       label="moon model"),
+    _o("params", "params", None, "BRDF parameter overrides {brdf: {name: value}}: w, h, B0, xi, b, c, albedo; "
+       "Hapke: theta_bar [deg], Bc0, hc (command line: --param [BRDF.]NAME=VALUE, repeated)", "photometry",
+       flag="--param", metavar="[BRDF.]NAME=VALUE"),
+    # the Earth
+    _o("earth_albedo", "float", 0.3, "the uniform Earth's Lambert albedo, and the model Earth of every inversion",
+       "earth", unit="1", lo=0.0, hi=1.0, label="Earth albedo"),
+    _o("earth_law", "str", "lambert", "the analytic method's Earth intensity law: a Lambert sphere, or the "
+       "paper's printed Eq. 8 (which drops a factor 2/3)", "analytic", choices=EARTH_LAWS, label="Earth law"),
+    # geometry and sky
+    _o("detector", "xyz", None, "detector position x,y,z in the θ scene (default: the Earth's centre)",
+       "geometry", unit="m", metavar="X,Y,Z"),
+    _o("observer", "str", "geocentre", "with a date: geocentre | site:LAT,LON[,HEIGHT_M] (WGS84) | tle:FILE | "
+       "orbit:ALT_KM,INC_DEG,RAAN_DEG,ARGLAT_DEG[,EPOCH]", "sky"),
+    # meshes
+    _o("moon_mesh", "path", None, "a closed mesh for the Moon (PLY, OBJ, STL, OFF, GLB/GLTF): body-fixed frame, "
+       "centred on its centre, in mesh_units; never rescaled", "meshes", metavar="FILE"),
+    _o("earth_mesh", "path", None, "a closed mesh for the Earth (as moon_mesh)", "meshes", metavar="FILE"),
+    _o("sun_mesh", "path", None, "a closed mesh for the Sun (as moon_mesh)", "meshes", metavar="FILE"),
+    _o("mesh_units", "str", "m", "units of the mesh files' vertices (radius: multiples of the body's nominal "
+       "radius)", "meshes", choices=MESH_UNITS, label="mesh units"),
+    _o("moon_level", "int", None, "the Moon's icosphere level (default 4, from the mesh study)", "meshes",
+       lo=0, hi=MAX_LEVEL, flag="--mesh-level"),
+    _o("earth_level", "int", None, "the Earth's icosphere level (default 6)", "meshes", lo=0, hi=MAX_LEVEL),
+    _o("sun_level", "int", None, "the Sun's icosphere level (default 5)", "meshes", lo=0, hi=MAX_LEVEL),
+    _o("occlusion", "bool", True, "bodies shade and hide each other (off: the paper's assumption)", "meshes"),
+    _o("self_shadow", "bool", True, "a non-convex body shadows itself (independent of occlusion)", "meshes"),
+    _o("shading", "str", "auto", "auto: exact sphere for the packaged icospheres, facet normals for user meshes; "
+       "smooth: crease-limited interpolated normals on user meshes; flat: facets everywhere", "meshes",
+       choices=SHADINGS),
+    # the ray tracer
+    _o("estimator", "str", "deterministic", "the ray tracer's estimator: deterministic beams or Monte Carlo",
+       "trace", choices=ESTIMATORS),
+    _o("rays", "int", 50_000, "Monte Carlo rays per path and run (the paper's 50,000)", "trace", lo=1),
+    _o("runs", "int", 1, "Monte Carlo runs per phase (their spread gives the standard deviations)", "trace", lo=1),
+    _o("seed", "int", 0, "Monte Carlo seed (runs and chunks draw from (seed, run, path, chunk))", "trace", lo=0),
+    _o("earth_order", "int", 6, "Gauss order of the Earth's beams seen from each lunar sample", "trace",
+       lo=1, hi=64),
+    _o("sun_order", "int", 2, "Gauss order of the Sun's beams seen from each lunar sample", "trace", lo=1, hi=64),
+    # the analytic method
+    _o("grid", "str", "converged", "the analytic method's lunar surface grid: converged Gauss or the paper's",
+       "analytic", choices=GRIDS),
+    _o("order", "int", None, "the analytic method's Gauss order (default 24; 96 with a lunar albedo map, which "
+       "it reads at its nodes)", "analytic", lo=1),
+    # surfaces
+    _o("moon_albedo_map", "path", None, "per-facet lunar albedo: FILE scales each BRDF's albedo/w by map/mean; "
+       "FILE:MEAN makes the map the albedo/w itself with area-weighted mean MEAN; 'synthetic' is the shipped "
+       "demo map; 'none' drops a preset's map", "surfaces", metavar="FILE[:MEAN]"),
+    _o("earth_surface", "str", "uniform", "uniform (earth_albedo), landocean (a land mask with land_albedo and "
+       "ocean_albedo) or a clear-sky albedo map FILE", "surfaces", metavar="uniform|landocean|FILE"),
+    _o("clouds", "str", "none", "cloud fraction: none, zonal (zonal means shipped with the package) or a map "
+       "FILE; clouds reflect with cloud_albedo", "surfaces", metavar="none|zonal|FILE"),
+    _o("land_albedo", "float", LAND_ALBEDO, "Lambert albedo of clear land (earth_surface landocean)", "surfaces",
+       unit="1", lo=0.0, hi=1.0, label="land albedo"),
+    _o("ocean_albedo", "float", OCEAN_ALBEDO, "Lambert albedo of clear ocean (earth_surface landocean)",
+       "surfaces", unit="1", lo=0.0, hi=1.0, label="ocean albedo"),
+    _o("cloud_albedo", "float", CLOUD_ALBEDO, "Lambert albedo of clouds (with clouds)", "surfaces", unit="1",
+       lo=0.0, hi=1.0, label="cloud albedo"),
+    _o("earth_rotation_deg", "float", None, "θ scene only: the Earth's sub-solar longitude (default 0); dates "
+       "turn the Earth themselves", "surfaces", unit="deg", label="Earth rotation"),
+)
+
+BY_NAME: dict[str, Option] = {o.name: o for o in OPTIONS}
+
+
+def group(*names: str) -> tuple[Option, ...]:
+    """The options of the named groups, in schema order."""
+    unknown = set(names) - set(GROUPS)
+    if unknown:
+        raise AssertionError(f"unknown option group {sorted(unknown)[0]!r}")  # a programming error
+    return tuple(o for o in OPTIONS if o.group in names)
+
+
+def defaults(*groups: str) -> dict:
+    """``{name: default}`` of every option (or of the named groups)."""
+    return {o.name: o.default for o in (group(*groups) if groups else OPTIONS)}
+
+
+def validate(obj, options=OPTIONS) -> None:
+    """Check the attributes of ``obj`` named by ``options`` (those it has); normalised values
+    (tuples for names and positions) are written back onto frozen dataclasses."""
+    for o in options:
+        if hasattr(obj, o.name):
+            v = getattr(obj, o.name)
+            checked = o.check(v)
+            if checked is not v:
+                object.__setattr__(obj, o.name, checked)
+
+
+def compose(*groups: str):
+    """Class decorator (apply before ``@dataclass``): the fields of the named option groups,
+    with the schema's types and defaults, ahead of the class's own fields."""
+
+    def deco(cls):
+        own = dict(cls.__dict__.get("__annotations__", {}))
+        ann = {}
+        for o in group(*groups):
+            if o.name in own:
+                continue  # the class declares its own (e.g. a resolved default)
+            ann[o.name] = "Any"
+            if o.kind == "params":
+                setattr(cls, o.name, field(default_factory=dict))
+            else:
+                setattr(cls, o.name, o.default)
+        ann.update(own)
+        cls.__annotations__ = ann
+        return cls
+
+    return deco
+
+
+def from_settings_dict(cls, d: dict, **extra):
+    """Rebuild a settings dataclass from its JSON form (lists back to tuples)."""
+    names = {f.name for f in fields(cls)}
+    kw = {}
+    for k, v in {**d, **extra}.items():
+        if k not in names:
+            continue
+        kw[k] = tuple(v) if isinstance(v, list) else v
+    return cls(**kw)
+
+
+# ---- the command line ---------------------------------------------------------------------------
+def _cli_type(o: Option) -> Callable | None:
+    if o.kind == "int":
+        def conv(text):
+            try:
+                return int(text)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"{o.cli_flag} {text!r} is not an integer") from None
+        return conv
+    if o.kind == "float":
+        def convf(text):
+            try:
+                return float(text)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"{o.cli_flag} {text!r} is not a number") from None
+        return convf
+    return None
+
+
+def add_arguments(parser, groups: tuple[str, ...] = (), names: tuple[str, ...] = (),
+                  exclude: tuple[str, ...] = (), defaults: dict | None = None) -> None:
+    """Add the flags of the options in ``groups`` (and those in ``names``, less ``exclude``)
+    to an argparse ``parser``; ``defaults`` overrides a default for this command (e.g.
+    ``{"brdfs": "dhg"}``)."""
+    defaults = defaults or {}
+    for o in OPTIONS:
+        if (o.group not in groups and o.name not in names) or o.name in exclude:
+            continue
+        help_text = o.doc + (f" [{o.unit}]" if o.unit and o.unit != "1" else "")
+        if o.kind == "bool":
+            parser.add_argument(o.cli_flag, dest=o.dest, action="store_true", help=help_text)
+            continue
+        default = defaults.get(o.name, o.default)
+        if o.kind in ("names",) and isinstance(default, tuple):
+            default = ",".join(default)
+        kw: dict[str, Any] = {"dest": o.dest, "default": default, "help": help_text}
+        if o.kind == "params":
+            kw.update(action="append", default=None)
+        if o.choices is not None and o.kind == "str":
+            kw["choices"] = list(o.choices)
+        elif o.metavar:
+            kw["metavar"] = o.metavar
+        t = _cli_type(o)
+        if t is not None:
+            kw["type"] = t
+        parser.add_argument(o.cli_flag, **kw)
+
+
+def scene_options(args, parse_value: dict[str, Callable] | None = None) -> dict:
+    """The Scene keywords that the parsed command line ``args`` give (flags it has).
+
+    ``parse_value`` maps an option's name to a function of ``(text, args)`` for options whose
+    command-line text needs parsing (``params``, ``detector``)."""
+    parse_value = parse_value or {}
+    out = {}
+    for o in OPTIONS:
+        if not hasattr(args, o.dest):
+            continue
+        v = getattr(args, o.dest)
+        if o.kind == "bool" and o.default is True:
+            v = not v
+        if o.name in parse_value:
+            v = parse_value[o.name](v, args)
+        out[o.name] = v
+    return out
+
+
+def numpydoc_parameters(options=OPTIONS, indent: str = "    ") -> str:
+    """The numpydoc ``Parameters`` entries of ``options`` (for :class:`lunarviz.Scene`)."""
+    kinds = {"names": "sequence of str", "xyz": "tuple of 3 float", "params": "dict", "path": "str"}
+    lines = []
+    for o in options:
+        t = kinds.get(o.kind, o.kind) + (", optional" if o.default is None else "")
+        unit = f" [{o.unit}]" if o.unit else ""
+        choices = f" One of {', '.join(map(repr, o.choices))}." if o.choices and o.kind == "str" else ""
+        lines.append(f"{indent}{o.name} : {t}")
+        lines.append(f"{indent}    {o.doc[0].upper()}{o.doc[1:]}{unit}.{choices} Default ``{o.default!r}``; "
+                     f"command line ``{o.cli_flag}``.")
+    return "\n".join(lines)
