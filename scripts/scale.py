@@ -23,7 +23,7 @@ from pathlib import Path
 
 BUILD = """
 import sys, time, json, resource
-from lunarviz import shapes
+from lunarviz.bodies import shapes
 from lunarviz.constants import R_MOON_M
 level = int(sys.argv[1]); path = sys.argv[2]
 t0 = time.perf_counter()
@@ -43,7 +43,7 @@ print(json.dumps({"mesh_seconds": time.perf_counter() - t0,
 #: The measured run, in a fresh process: read and check the mesh file, then one phase, both paths.
 TRACE = """
 import sys, time, json, resource
-from lunarviz import meshes
+from lunarviz.bodies import meshes
 from lunarviz.photometry.brdf import make_brdf
 from lunarviz.geometry.scene_geometry import Scene
 from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path

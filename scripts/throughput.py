@@ -41,7 +41,7 @@ from lunarviz.geometry.scene_geometry import Scene
 from lunarviz.methods import transport as T
 from lunarviz.methods.tracer import embree_bodies as B
 from lunarviz.methods.tracer import estimators as E
-from lunarviz.methods.tracer import kernels as K
+from lunarviz.methods.tracer import ray_kernels as K
 from lunarviz.photometry.brdf import make_brdf
 
 MODELS = {b: make_brdf(b) for b in ("lambert", "shg", "dhg")}

@@ -1,4 +1,4 @@
-"""The compiled shading kernels (lunarviz.methods.tracer.kernels) against the numpy BRDFs (lunarviz.photometry.brdf).
+"""The compiled kernels (shading and ray kernels) against the numpy BRDFs (lunarviz.photometry.brdf)
 
 The numpy implementation is the reference (itself tested against textbook formulas in
 test_brdf.py); the kernel must reproduce it to rounding (1e-13 relative: different summation
@@ -14,10 +14,12 @@ import sys
 import numpy as np
 import pytest
 
-from lunarviz.methods.tracer import kernels
+from lunarviz.methods.tracer import ray_kernels
+from lunarviz.photometry import shading_kernels
 from lunarviz.photometry.brdf import make_brdf
 
-pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not available")
+pytestmark = pytest.mark.skipif(not (ray_kernels.available() and shading_kernels.available()),
+                                reason="numba not available")
 
 MODELS = [("dhg", {}), ("shg", {}), ("dhg", {"h_function": "hapke2002"}), ("dhg", {"dhg_convention": "hapke2012"}),
           ("shg", {"params": {"xi": 0.3}}), ("dhg", {"params": {"h": 0.0}})]
@@ -40,15 +42,15 @@ def test_kernel_matches_numpy(name, kw):
     for albedo in (None, al):
         a2 = None if albedo is None else albedo[:, None]
         rf = m.radiance_factor(np.clip(mu0, 0, 1), mu[:, None], sh, ch, albedo=a2)
-        L, Lu = kernels.hapke_radiances(m, mu0, mu, sh, ch, e, eu, albedo)
+        L, Lu = shading_kernels.hapke_radiances(m, mu0, mu, sh, ch, e, eu, albedo)
         np.testing.assert_allclose(L, (rf * e).sum(1), rtol=1e-13, atol=0)
         np.testing.assert_allclose(Lu, (rf * eu).sum(1), rtol=1e-13, atol=0)
 
 
 def test_models_the_kernel_leaves_to_numpy():
-    assert kernels.hapke_codes(make_brdf("lambert")) is None
-    assert kernels.hapke_codes(make_brdf("dhg", h_function="exact")) is None
-    assert kernels.hapke_codes(make_brdf("dhg", params={"theta_bar": 20.0})) is None
+    assert shading_kernels.hapke_codes(make_brdf("lambert")) is None
+    assert shading_kernels.hapke_codes(make_brdf("dhg", h_function="exact")) is None
+    assert shading_kernels.hapke_codes(make_brdf("dhg", params={"theta_bar": 20.0})) is None
 
 
 @pytest.mark.parametrize("theta", [2.0, 60.0, 120.0, 178.0])
@@ -67,7 +69,7 @@ def test_earth_beams_kernel_matches_numpy_rule(theta):
     _, om_ref, omega_ref = source_beams(sc, x, "earth", m, w)
     R = sc.radii["earth"]
     cs = sc.sun - sc.earth
-    om, omega = kernels.sphere_cap_beams(x, sc.earth, R, unit(cs), R / np.linalg.norm(cs), 6, 6)
+    om, omega = ray_kernels.sphere_cap_beams(x, sc.earth, R, unit(cs), R / np.linalg.norm(cs), 6, 6)
     assert omega.shape == omega_ref.shape
     np.testing.assert_allclose(omega, omega_ref, rtol=1e-12, atol=1e-12 * omega_ref.max())
     live = omega_ref > 0
@@ -78,7 +80,7 @@ def test_earth_beams_kernel_matches_numpy_rule(theta):
     m, w = source_sphere_rule(sc, xs, ns, "sun", 6, horizon=True)
     _, om_ref, omega_ref = source_beams(sc, xs, "sun", m, w)
     Rs = sc.radii["sun"]
-    om, omega = kernels.sphere_cap_beams(xs, sc.sun, Rs, ns, np.einsum("ij,ij->i", xs - sc.sun, ns) / Rs, 6, 6)
+    om, omega = ray_kernels.sphere_cap_beams(xs, sc.sun, Rs, ns, np.einsum("ij,ij->i", xs - sc.sun, ns) / Rs, 6, 6)
     assert omega.shape == omega_ref.shape
     np.testing.assert_allclose(omega, omega_ref, rtol=1e-12, atol=1e-12 * omega_ref.max())
 
@@ -90,18 +92,18 @@ def test_ray_kernels_match_numpy():
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     c = np.array([0.1, 0.2, -0.3])
     tmax = rng.uniform(0, 6, 400)
-    ob, t0, live = kernels.ray_starts(o, d, c, 1.5, tmax)
+    ob, t0, live = ray_kernels.ray_starts(o, d, c, 1.5, tmax)
     b = -np.einsum("ij,ij->i", o - c, d)
     disc = 1.5**2 - (np.einsum("ij,ij->i", o - c, o - c) - b * b)
     t0_ref = np.clip(b - np.sqrt(np.clip(disc, 0, None)), 0, None)
     np.testing.assert_allclose(t0, t0_ref, rtol=1e-14, atol=1e-14)
     np.testing.assert_array_equal(live, (disc > 0) & (b + np.sqrt(np.clip(disc, 0, None)) > 0) & (t0_ref < tmax))
     idx = np.flatnonzero(live)
-    o32, d32 = kernels.ray_batch32(ob, d, t0, idx)
+    o32, d32 = ray_kernels.ray_batch32(ob, d, t0, idx)
     np.testing.assert_array_equal(o32, ((o - c)[idx] + t0[idx, None] * d[idx]).astype(np.float32))
     om = rng.normal(size=(40, 7, 3))
     omega, mu0 = rng.uniform(-1, 1, (40, 7)), rng.uniform(-1, 1, (40, 7))
-    bi, ki, xs, ns, ds = kernels.live_beams(o[:40], d[:40], om, omega, mu0)
+    bi, ki, xs, ns, ds = ray_kernels.live_beams(o[:40], d[:40], om, omega, mu0)
     rb, rk = np.nonzero((omega > 0) & (mu0 > 0))
     np.testing.assert_array_equal(bi, rb)
     np.testing.assert_array_equal(ki, rk)
@@ -137,13 +139,13 @@ def test_unwritable_numba_cache_does_not_stop_lunarviz():
             "        raise RuntimeError('cannot cache function: no locator available')\n"
             "    return orig(*a, **kw)\n"
             "numba.njit = njit\n"
-            "from lunarviz import kernels\n"
+            "from lunarviz.photometry import shading_kernels\n"
             "from lunarviz.photometry.brdf import make_brdf\n"
             "import numpy as np\n"
             "f = np.full\n"
-            "L, _ = kernels.hapke_radiances(make_brdf('dhg'), f((2, 3), 0.5), f(2, 0.5), f((2, 3), 0.1), "
+            "L, _ = shading_kernels.hapke_radiances(make_brdf('dhg'), f((2, 3), 0.5), f(2, 0.5), f((2, 3), 0.1), "
             "f((2, 3), 0.99), np.ones((2, 3)))\n"
-            "print(kernels.available(), bool(np.all(L > 0)))\n")
+            "print(shading_kernels.available(), bool(np.all(L > 0)))\n")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     assert p.stdout.split() == ["True", "True"]
@@ -161,11 +163,22 @@ def test_monte_carlo_earth_directions_kernel_matches_numpy(theta, monkeypatch):
     n = unit(rng.normal(size=(3000, 3)))
     xs = ts.scene.moon + ts.scene.radii["moon"] * n
     d_fast, w_fast = ts._earth_lit_directions(xs, np.random.default_rng(9))
-    monkeypatch.setattr(kernels, "_NUMBA", False)
+    monkeypatch.setattr(ray_kernels, "_NUMBA", False)
     d_ref, w_ref = ts._earth_lit_directions(xs, np.random.default_rng(9))
-    np.testing.assert_allclose(w_fast, w_ref, rtol=1e-10, atol=1e-12 * w_ref.max())
-    np.testing.assert_allclose(d_fast, d_ref, rtol=0, atol=1e-12)
     assert np.all(np.isfinite(d_fast)) and np.all(w_fast >= 0)
+    # Each path's choice of table cell (u against the cdf) and of "lit" (hw > 0) is a branch on
+    # sums the two compute in different orders, so a sample on a branch's edge may land in the
+    # neighbouring cell on one CPU and not on another (seen at θ = 3°, where the lit sliver makes
+    # the table nearly flat: 16 of 3000). Each path stays unbiased (its weight uses the cell it
+    # sampled); the comparison must not hinge on those flips. So: every other sample agrees to
+    # rounding, flips are rare (< 2 %), and both estimates of the lit solid angle agree within
+    # 4 standard errors of their difference.
+    same = np.isclose(w_fast, w_ref, rtol=1e-10, atol=1e-12 * w_ref.max()) & \
+        np.all(np.isclose(d_fast, d_ref, rtol=0, atol=1e-12), axis=1)
+    assert same.mean() > 0.98, f"{np.count_nonzero(~same)} of {len(same)} samples differ"
+    np.testing.assert_allclose(w_fast[same], w_ref[same], rtol=1e-10, atol=1e-12 * w_ref.max())
+    diff = w_fast - w_ref
+    assert abs(diff.mean()) <= 4 * diff.std() / np.sqrt(len(diff)) + 1e-12 * w_ref.max()
 
 
 
@@ -181,7 +194,7 @@ def test_lambert_kernel_matches_numpy():
     m = make_brdf("lambert")
     for albedo in (None, al):
         rf = m.radiance_factor(mu0, 1.0, 0.0, 1.0, albedo=None if albedo is None else albedo[:, None])
-        L, Lu = kernels.lambert_radiances(m, mu0, e, eu, albedo)
+        L, Lu = shading_kernels.lambert_radiances(m, mu0, e, eu, albedo)
         np.testing.assert_allclose(L, (rf * e).sum(1), rtol=1e-13, atol=0)
         np.testing.assert_allclose(Lu, (rf * eu).sum(1), rtol=1e-13, atol=0)
 
@@ -212,7 +225,8 @@ def test_fused_beam_transport_matches_numpy_path(theta, tmp_path, monkeypatch):
         return ts, res
     ts_f, fused = run()
     assert ts_f._self_shadows()
-    monkeypatch.setattr(kernels, "_NUMBA", False)
+    monkeypatch.setattr(ray_kernels, "_NUMBA", False)
+    monkeypatch.setattr(shading_kernels, "_NUMBA", False)
     ts_n, ref = run()
     assert ts_f.rays_cast == ts_n.rays_cast
     for b in ("sun", "earth"):
@@ -237,7 +251,7 @@ def test_cone_rule_kernel_matches_numpy():
     axis[0] = [1.0, 0.0, 0.0]  # the basis helper's switch at |a_x| = 0.9
     sin_rho = np.concatenate([[4.65e-3, 0.999999], rng.uniform(1e-4, 0.99, 298)])
     for n_psi, n_phi in ((2, 4), (8, 16)):
-        d, w = kernels.cone_rule(axis, sin_rho, n_psi, n_phi)
+        d, w = ray_kernels.cone_rule(axis, sin_rho, n_psi, n_phi)
         d_ref, w_ref = cone_rule(axis, sin_rho, n_psi, n_phi)
         np.testing.assert_allclose(w, w_ref, rtol=1e-15, atol=0)
         np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-15)

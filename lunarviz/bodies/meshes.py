@@ -21,7 +21,6 @@ from lunarviz.errors import LunarvizError
 from lunarviz.options import BODIES, MAX_LEVEL, MESH_UNITS
 from lunarviz.resources import MESH_DIR
 
-
 #: Default subdivision levels, chosen from the mesh-resolution study
 #: (benchmarks/mesh_study.json; README "Choosing the mesh levels").
 DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}

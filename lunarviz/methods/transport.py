@@ -72,20 +72,20 @@ class Transport:
     def radiances(self, brdf) -> tuple[np.ndarray, np.ndarray | None]:
         """Radiance toward the detector [W m⁻² sr⁻¹] and, for earthshine, the same for an
         Earth of albedo 1 (``None`` without ``e_beam_unit``); one BRDF evaluation for both."""
-        from lunarviz.methods.tracer import kernels
-        if kernels.available() and kernels.hapke_codes(brdf) is not None:
-            # compiled: one pass over the beams, no (N, K) temporaries (lunarviz.methods.tracer.kernels)
+        from lunarviz.photometry import shading_kernels
+        if shading_kernels.available() and shading_kernels.hapke_codes(brdf) is not None:
+            # compiled: one pass over the beams, no (N, K) temporaries (lunarviz.photometry.shading_kernels)
             args = (brdf, self.mu0, self.mu, self.sin_hg, self.cos_hg, self.e_beam, self.e_beam_unit)
             pair = self._albedo_pair(brdf)
             if pair is None:
                 a = self.sample_albedo(brdf)
-                return kernels.hapke_radiances(*args, None if a is None else a[:, 0])
-            (lo, lo_u), (hi, hi_u) = (kernels.hapke_radiances(*args, w[:, 0]) for w in pair)
+                return shading_kernels.hapke_radiances(*args, None if a is None else a[:, 0])
+            (lo, lo_u), (hi, hi_u) = (shading_kernels.hapke_radiances(*args, w[:, 0]) for w in pair)
             return 0.5 * (lo + hi), None if lo_u is None else 0.5 * (lo_u + hi_u)
         from lunarviz.photometry.brdf import Lambert
-        if kernels.available() and type(brdf) is Lambert:  # linear in albedo: no pair
+        if shading_kernels.available() and type(brdf) is Lambert:  # linear in albedo: no pair
             a = self.sample_albedo(brdf)
-            return kernels.lambert_radiances(brdf, self.mu0, self.e_beam, self.e_beam_unit,
+            return shading_kernels.lambert_radiances(brdf, self.mu0, self.e_beam, self.e_beam_unit,
                                              None if a is None else a[:, 0])
         pair = self._albedo_pair(brdf)
         if pair is not None:

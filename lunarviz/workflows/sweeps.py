@@ -415,11 +415,8 @@ def _warm_before_fork(settings: SweepSettings) -> None:
     thread-bound crosses the fork). Harmless where workers are spawned instead."""
     if settings.method != "raytrace":
         return
-    from lunarviz.methods.tracer import (
-        estimators,  # noqa: F401 (the import is the warm-up)
-        kernels,
-    )
-    kernels.warm_up()
+    from lunarviz.methods.tracer import estimators, ray_kernels  # noqa: F401 (the import is the warm-up)
+    ray_kernels.warm_up()
 
 
 def _assemble(settings: SweepSettings, results: list, t0: float) -> dict:

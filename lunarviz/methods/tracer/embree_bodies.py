@@ -27,7 +27,7 @@ from embreex.mesh_construction import TriangleMesh
 
 from lunarviz.caches import BoundedCache, array_digest
 from lunarviz.geometry.subdivision import sub_barycentric
-from lunarviz.methods.tracer.kernels import ray_batch32
+from lunarviz.methods.tracer.ray_kernels import ray_batch32
 
 #: Embree's coordinate type.
 EMBREE_DTYPE = np.float32
@@ -252,7 +252,7 @@ class EmbreeBody:
         idx = np.flatnonzero(live)
         if idx.size:
             prim[idx] = self.run_rays(*ray_batch32(o, d, t0, idx), "INTERSECT", scene=scene)
-        from lunarviz.methods.tracer.kernels import sphere_refine
+        from lunarviz.methods.tracer.ray_kernels import sphere_refine
         prim, tt, point = sphere_refine(o, d, self.radius, prim, self.centre)
         return Hits(prim >= 0, prim, tt, point)
 
@@ -280,7 +280,7 @@ class EmbreeBody:
     def _prepare(self, origins, dirs, tmax, bound=None):
         """Body-frame float64 origins advanced to the bounding sphere (radius ``bound``, the
         mesh's by default); culled rays flagged."""
-        from lunarviz.methods.tracer.kernels import ray_starts
+        from lunarviz.methods.tracer.ray_kernels import ray_starts
         d = np.asarray(dirs, dtype=float)
         R = (self.bound if bound is None else bound) * (1.0 + ENTRY_MARGIN)
         o, t0, live = ray_starts(origins, d, self.centre, R, tmax)
@@ -355,10 +355,10 @@ class EmbreeBody:
         return out
 
     def occluded_beams(self, rays, tmax, mask) -> np.ndarray:
-        """:meth:`occluded` for the live beams of ``rays`` (a :class:`lunarviz.methods.tracer.kernels.BeamRays`)
+        """:meth:`occluded` for the live beams of ``rays`` (a :class:`lunarviz.methods.tracer.ray_kernels.BeamRays`)
         in ``mask``, from their origins up to ``tmax``; False outside ``mask``. The same rays,
         gathered and culled in one compiled pass (numba only)."""
-        from lunarviz.methods.tracer.kernels import occluder_rays
+        from lunarviz.methods.tracer.ray_kernels import occluder_rays
         rows, o32, d32, dists = occluder_rays(rays, tmax, mask, self.centre, self.bound * (1.0 + ENTRY_MARGIN))
         out = np.zeros(len(mask), dtype=bool)
         if rows.size:

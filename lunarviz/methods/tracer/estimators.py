@@ -53,7 +53,7 @@ from lunarviz.geometry.scene_geometry import Scene, angle_between, half_angle_si
 from lunarviz.geometry.sphere_quadrature import orthonormal_basis
 from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.methods.sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
-from lunarviz.methods.tracer import kernels
+from lunarviz.methods.tracer import ray_kernels
 from lunarviz.methods.tracer.embree_bodies import EmbreeBody
 from lunarviz.methods.transport import Transport, detector_geometry
 from lunarviz.options import SHADINGS, compose, validate
@@ -450,7 +450,7 @@ class TraceScene:
             xc = x - c
             dxc = np.linalg.norm(xc, axis=1)
             o = max(order, MESH_SOURCE_ORDER)
-            om, w = kernels.cone_rule(-xc / dxc[:, None], np.clip(R / dxc, 0, 1 - 1e-12), o, 2 * o)
+            om, w = ray_kernels.cone_rule(-xc / dxc[:, None], np.clip(R / dxc, 0, 1 - 1e-12), o, 2 * o)
             return om, w
         cut = horizon_cuts_source(sc, x, n, body)
         parts = []
@@ -464,7 +464,7 @@ class TraceScene:
                 ecl = self._earth_crosses_sun(x[rows], dxc) if eclipse else np.zeros(len(rows), dtype=bool)
                 for sub, o_s in ((~ecl, order), (ecl, max(order, ECLIPSE_ORDER))):
                     if sub.any():
-                        om, w = kernels.cone_rule(-xc[sub] / dxc[sub, None], R / dxc[sub], o_s, 2 * o_s)
+                        om, w = ray_kernels.cone_rule(-xc[sub] / dxc[sub, None], R / dxc[sub], o_s, 2 * o_s)
                         parts.append((rows[sub], om, w))
                 continue
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
@@ -473,7 +473,7 @@ class TraceScene:
             if (body == "earth" and not with_horizon) or (body == "sun" and with_horizon):
                 # rules with one cap (compiled): the Earth's terminator where the horizon does not
                 # cut the Earth (nearly every lunar point), the horizon across the Sun (penumbra)
-                from lunarviz.methods.tracer.kernels import sphere_cap_beams
+                from lunarviz.methods.tracer.ray_kernels import sphere_cap_beams
                 if body == "earth":
                     cs = sc.sun - c
                     cap = unit(cs), R / np.linalg.norm(cs)
@@ -813,9 +813,9 @@ class TraceScene:
         :meth:`mapped_earth_transport` instead."""
         if body == "earth" and self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
             return self.mapped_earth_transport(x, n, o, mu, geom)
-        if kernels.available() and self._source(body)[2].mode(self.settings.shading) == "exact":
+        if ray_kernels.available() and self._source(body)[2].mode(self.settings.shading) == "exact":
             return self._fused_beam_transport(x, n, o, mu, geom, body, order)
-        from lunarviz.methods.tracer.kernels import beam_angles, live_beams
+        from lunarviz.methods.tracer.ray_kernels import beam_angles, live_beams
         dirs, omega = self.source_nodes(x, n, body, order)
         mu0, sh, ch = beam_angles(dirs, n, o)
         bi, ki, xb, nb, db = live_beams(x, n, dirs, omega, mu0)
@@ -833,14 +833,14 @@ class TraceScene:
 
     def _fused_beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
         """:meth:`beam_transport` toward an exact-sphere source, compiled (issue 13): one pass
-        from the rule to Embree's rays (:func:`lunarviz.methods.tracer.kernels.cap_beam_rays` for the Earth's
+        from the rule to Embree's rays (:func:`lunarviz.methods.tracer.ray_kernels.cap_beam_rays` for the Earth's
         one-cap rule, else :meth:`source_nodes` then ``beam_rays``), one from Embree's facets to
         each beam's radiance (``source_hits``), one per shadow test (``occluder_rays``) and one
         into the (B, K) arrays (``scatter_beams``); Python only calls Embree between them. The
         same rays, counts and numbers as the numpy path (:meth:`source_radiance`) to rounding
-        (tests/test_kernels.py)."""
+        (the kernel tests)."""
         from lunarviz.methods.tracer.embree_bodies import ENTRY_MARGIN
-        K = kernels
+        K = ray_kernels
         sc, s = self.scene, self.settings
         src = self.sun if body == "sun" else self.earth
         outer = src.outer_scene()  # (built once per body; sets its bounding radius)
@@ -1025,8 +1025,8 @@ class TraceScene:
         R = sc.radii["earth"]
         us = unit(sc.sun - sc.earth)
         c_s = R / np.linalg.norm(sc.sun - sc.earth)
-        if kernels.available():  # compiled, the same two uniforms per sample in the same order
-            return kernels.earth_lit_directions(xs, sc.earth, R, us, c_s, n_tab, rng.random(N), rng.random(N))
+        if ray_kernels.available():  # compiled, the same two uniforms per sample in the same order
+            return ray_kernels.earth_lit_directions(xs, sc.earth, R, us, c_s, n_tab, rng.random(N), rng.random(N))
         v = xs - sc.earth
         d = np.linalg.norm(v, axis=1)
         a = v / d[:, None]

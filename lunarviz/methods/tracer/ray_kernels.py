@@ -1,106 +1,27 @@
-"""Compiled shading kernels (numba): the Hapke radiance of paper Eq. 10 summed over beams.
+"""Compiled ray kernels (numba) of the tracer: source rules to Embree's rays and back.
 
-The ray tracer's shading evaluates, for N lunar samples and K beams each,
-``L_n = Σ_k BRDF(μ0_nk, μ_n, g_nk)·μ0_nk·E_nk`` for every BRDF (paper Eqs. 10, 12-14). In numpy
-that is a dozen (N, K) temporaries per BRDF; here it is one pass over the beams per sample,
-without temporaries, and the unit-albedo earthshine (``e_beam_unit``) rides along for free.
-
-Same formulas as :mod:`lunarviz.photometry.brdf` (the reference implementation, kept and tested against
-these to 1e-13 relative in tests/test_kernels.py): the smooth Hapke model with SHG or DHG (both
-conventions) and the Hapke 1981 or 2002 H-functions. Everything else (roughness, coherent
-backscatter, the exact H-function, Lambert) stays on the numpy path.
-
-numba is a dependency, but the kernels are optional at run time: ``LUNARVIZ_NUMBA=0`` or a
-failed import falls back to numpy, with the same numbers to rounding. Compiled code is cached
-on disk (``cache=True``), so worker processes load it instead of compiling.
+The one-cap and cone source rules, the live beams above a sample's horizon, ray starts on a
+body's bounding sphere, float32 ray batches for Embree, the refinement of hits onto an exact
+sphere, the Monte Carlo Earth-direction sampler, and the fused pass from a rule to Embree's rays
+(``cap_beam_rays``/``beam_rays``), the source hits and their radiance (``source_hits``), the
+shadow rays (``occluder_rays``) and the scatter of beams back to samples (``scatter_beams``).
+Every kernel has a numpy twin that serves where numba is off (``LUNARVIZ_NUMBA=0``), with the
+same numbers to rounding (checked in the test suite).
 """
 
 from __future__ import annotations
 
-import os
 from typing import NamedTuple
 
 import numpy as np
 
-try:  # pragma: no cover - exercised through available()
-    if os.environ.get("LUNARVIZ_NUMBA", "1") == "0":
-        raise ImportError("disabled by LUNARVIZ_NUMBA=0")
-    import numba
-    _NUMBA = True
-except ImportError:  # pragma: no cover
-    numba = None
-    _NUMBA = False
-
-#: phase-function codes (LAMBERT: no phase function, the Lambert radiance factor)
-SHG, DHG_PAPER, DHG_HAPKE2012, LAMBERT = 0, 1, 2, -1
-#: H-function codes
-H1981, H2002 = 0, 1
+from lunarviz import compiled
+from lunarviz.photometry import shading_kernels
 
 
 def available() -> bool:
-    """Whether the compiled kernels are in use."""
+    """Whether the compiled ray kernels are in use."""
     return _NUMBA
-
-
-def _lobe(x, t):
-    q = (1.0 - x) ** 2 + 4.0 * x * t * t
-    return (1.0 - x * x) / (q * np.sqrt(q))  # q**1.5 (a pow call costs ~3x a sqrt)
-
-
-def _h(x, w, hcode):
-    g = np.sqrt(1.0 - w)
-    if hcode == 0:
-        return (1.0 + 2.0 * x) / (1.0 + 2.0 * g * x)
-    r0 = (1.0 - g) / (1.0 + g)
-    xlog = x * (np.log1p(x) - np.log(x)) if x > 0.0 else 0.0
-    return 1.0 / (1.0 - w * (r0 * x + 0.5 * (1.0 - 2.0 * r0 * x) * xlog))
-
-
-def _hapke_sum(mu0, mu, sh, ch, e, e_unit, albedo, w0, h, B0, pcode, p1, p2, hcode, has_unit, has_albedo,
-               out, out_unit):
-    n, k = mu0.shape
-    four_pi = 4.0 * np.pi
-    for i in range(n):
-        w = albedo[i] if has_albedo else w0
-        m = min(max(mu[i], 0.0), 1.0)
-        hm = _h(m, w, hcode)
-        acc = 0.0
-        acc_u = 0.0
-        for j in range(k):
-            ej = e[i, j]
-            eu = e_unit[i, j] if has_unit else 0.0
-            if ej == 0.0 and eu == 0.0:
-                continue
-            m0 = min(max(mu0[i, j], 0.0), 1.0)
-            s = m0 + m
-            if s <= 0.0:
-                continue
-            s_ = sh[i, j]
-            c_ = ch[i, j]
-            num = h * c_
-            den = num + s_
-            if den <= 0.0:
-                B = B0 if s_ <= 0.0 else 0.0
-            else:
-                B = B0 * num / den
-            if pcode == LAMBERT:  # radiance factor (w/π)·μ0 (Lambert.radiance_factor)
-                rf = w / np.pi * m0
-                acc += rf * ej
-                acc_u += rf * eu
-                continue
-            if pcode == 0:  # SHG: p1 = |ξ|, p2 = 1 for a backward lobe (ξ < 0)
-                P = _lobe(p1, s_ if p2 > 0.5 else c_)
-            else:  # DHG: p1 = b, p2 = c
-                fwd = _lobe(p1, c_)
-                bwd = _lobe(p1, s_)
-                wp = 0.5 * (1.0 + p2)
-                wm = 0.5 * (1.0 - p2)
-                P = wp * fwd + wm * bwd if pcode == 1 else wp * bwd + wm * fwd
-            rf = w / four_pi * (m0 / s) * ((1.0 + B) * P + _h(m0, w, hcode) * hm - 1.0)
-            acc += rf * ej
-            acc_u += rf * eu
-        out[i] = acc
-        out_unit[i] = acc_u
 
 
 def _beam_angles(dirs, n, o, mu0_out, sh_out, ch_out):
@@ -589,90 +510,33 @@ def _scatter_beams(bi, ki, om_b, L, L_free, L_unit, has_unit, e, e_free, e_unit)
             e_unit[i, k] = L_unit[q] * w
 
 
-def _jit(fn, **kw):
-    """``numba.njit`` with an on-disk cache where one can be written (the package folder or
-    numba's user cache), else without: a read-only install must not stop lunarviz."""
-    kw.setdefault("error_model", "numpy")  # x/0 gives inf/NaN as in numpy, never raises
-    try:
-        return numba.njit(cache=True, **kw)(fn)
-    except Exception:  # noqa: BLE001 (numba raises RuntimeError "no locator available")
-        return numba.njit(cache=False, **kw)(fn)
 
-
+_NUMBA = compiled.available()
 if _NUMBA:
     try:
-        _lobe = _jit(_lobe, inline="always")
-        _h = _jit(_h, inline="always")
-        _beam_angles = _jit(_beam_angles, nogil=True)
-        _sphere_refine = _jit(_sphere_refine, nogil=True)
-        _hapke_sum = _jit(_hapke_sum, nogil=True)
-        _basis = _jit(_basis, inline="always")
-        _on_basis = _jit(_on_basis, inline="always")
-        _sphere_crossing = _jit(_sphere_crossing, inline="always")
-        _cap_row = _jit(_cap_row, inline="always")
-        _cap_ring = _jit(_cap_ring, inline="always")
-        _sphere_cap_count = _jit(_sphere_cap_count, nogil=True)
-        _live_beams = _jit(_live_beams, nogil=True)
-        _cone_rule = _jit(_cone_rule, nogil=True)
-        _ray_starts = _jit(_ray_starts, nogil=True)
-        _ray_batch32 = _jit(_ray_batch32, nogil=True)
-        _half_width = _jit(_half_width, inline="always")
-        _jac_t = _jit(_jac_t, inline="always")
-        _earth_lit_dirs = _jit(_earth_lit_dirs, nogil=True)
-        _live_beam = _jit(_live_beam, inline="always")
-        _beam_rays = _jit(_beam_rays, nogil=True)
-        _cap_beams = _jit(_cap_beams, nogil=True)
-        _source_hits = _jit(_source_hits, nogil=True)
-        _occluder_rays = _jit(_occluder_rays, nogil=True)
-        _scatter_beams = _jit(_scatter_beams, nogil=True)
+        _beam_angles = compiled.jit(_beam_angles, nogil=True)
+        _sphere_refine = compiled.jit(_sphere_refine, nogil=True)
+        _basis = compiled.jit(_basis, inline="always")
+        _on_basis = compiled.jit(_on_basis, inline="always")
+        _sphere_crossing = compiled.jit(_sphere_crossing, inline="always")
+        _cap_row = compiled.jit(_cap_row, inline="always")
+        _cap_ring = compiled.jit(_cap_ring, inline="always")
+        _sphere_cap_count = compiled.jit(_sphere_cap_count, nogil=True)
+        _live_beams = compiled.jit(_live_beams, nogil=True)
+        _cone_rule = compiled.jit(_cone_rule, nogil=True)
+        _ray_starts = compiled.jit(_ray_starts, nogil=True)
+        _ray_batch32 = compiled.jit(_ray_batch32, nogil=True)
+        _half_width = compiled.jit(_half_width, inline="always")
+        _jac_t = compiled.jit(_jac_t, inline="always")
+        _earth_lit_dirs = compiled.jit(_earth_lit_dirs, nogil=True)
+        _live_beam = compiled.jit(_live_beam, inline="always")
+        _beam_rays = compiled.jit(_beam_rays, nogil=True)
+        _cap_beams = compiled.jit(_cap_beams, nogil=True)
+        _source_hits = compiled.jit(_source_hits, nogil=True)
+        _occluder_rays = compiled.jit(_occluder_rays, nogil=True)
+        _scatter_beams = compiled.jit(_scatter_beams, nogil=True)
     except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
         _NUMBA = False
-
-
-def hapke_codes(model) -> tuple[int, float, float, int] | None:
-    """(phase code, p1, p2, H code) for a smooth Hapke model the kernel handles, else ``None``."""
-    from lunarviz.photometry.brdf import DoubleHG, Hapke, SingleHG
-    if not isinstance(model, Hapke) or model.rough or model.h_function not in ("hapke1981", "hapke2002"):
-        return None
-    hcode = H1981 if model.h_function == "hapke1981" else H2002
-    ph = model.phase
-    if isinstance(ph, SingleHG):
-        return SHG, abs(ph.xi), 1.0 if ph.xi < 0 else 0.0, hcode
-    if isinstance(ph, DoubleHG):
-        return (DHG_PAPER if ph.convention == "paper" else DHG_HAPKE2012), ph.b, ph.c, hcode
-    return None
-
-
-def hapke_radiances(model, mu0, mu, sin_hg, cos_hg, e_beam, e_unit=None, albedo=None):
-    """``(Σ_k rf·e_beam, Σ_k rf·e_unit or None)`` per sample for a smooth Hapke ``model``
-    (``hapke_codes`` not ``None``); ``albedo`` (N,) replaces w per sample."""
-    pcode, p1, p2, hcode = hapke_codes(model)
-    n = mu0.shape[0]
-    out = np.empty(n)
-    out_u = np.empty(n)
-    f = np.ascontiguousarray
-    eu = f(e_unit, dtype=float) if e_unit is not None else np.zeros((1, 1))
-    al = f(albedo, dtype=float).reshape(-1) if albedo is not None else np.zeros(1)
-    _hapke_sum(f(mu0, dtype=float), f(np.broadcast_to(mu, (n,)), dtype=float), f(sin_hg, dtype=float),
-               f(cos_hg, dtype=float), f(e_beam, dtype=float), eu, al, float(model.w), float(model.h),
-               float(model.B0), pcode, float(p1), float(p2), hcode, e_unit is not None, albedo is not None,
-               out, out_u)
-    return out, (out_u if e_unit is not None else None)
-
-
-def lambert_radiances(model, mu0, e_beam, e_unit=None, albedo=None):
-    """``(Σ_k rf·e_beam, Σ_k rf·e_unit or None)`` per sample for a :class:`lunarviz.photometry.brdf.Lambert`
-    ``model`` (compiled only; :func:`_hapke_sum` with the LAMBERT code); ``albedo`` (N,)
-    replaces its albedo per sample."""
-    f = np.ascontiguousarray
-    n = mu0.shape[0]
-    out, out_u = np.empty(n), np.empty(n)
-    eu = f(e_unit, dtype=float) if e_unit is not None else np.zeros((1, 1))
-    al = f(albedo, dtype=float).reshape(-1) if albedo is not None else np.zeros(1)
-    mu0 = f(mu0, dtype=float)
-    _hapke_sum(mu0, np.zeros(n), mu0, mu0, f(e_beam, dtype=float), eu, al, float(model.albedo), 0.0, 0.0, LAMBERT,
-               0.0, 0.0, H1981, e_unit is not None, albedo is not None, out, out_u)
-    return out, (out_u if e_unit is not None else None)
 
 
 def beam_angles(dirs, n, o):
@@ -749,8 +613,8 @@ def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):
     """:func:`lunarviz.geometry.sphere_quadrature.cone_rule` (directions (B, n_psi·n_phi, 3) and solid
     angles [sr] filling the cone of half-angle asin(sin_rho) about ``axis``), compiled; the
     numpy rule where numba is off."""
-    from lunarviz.geometry.sphere_quadrature import gauss_legendre
     from lunarviz.geometry.sphere_quadrature import cone_rule as numpy_rule
+    from lunarviz.geometry.sphere_quadrature import gauss_legendre
     if not _NUMBA:
         return numpy_rule(axis, sin_rho, n_psi, n_phi)
     f = np.ascontiguousarray
@@ -927,12 +791,10 @@ def warm_up() -> None:
     """Load (or compile) every kernel once on tiny inputs, e.g. before forking workers."""
     if not _NUMBA:
         return
-    from lunarviz.photometry.brdf import make_brdf
+    shading_kernels.warm_up()
     one = np.ones((1, 1))
     beam_angles(np.ones((1, 1, 3)), np.ones((1, 3)), np.ones((1, 3)))
     sphere_refine(np.ones((1, 3)), np.ones((1, 3)), 1.0, np.zeros(1, np.int64), np.zeros(3))
-    hapke_radiances(make_brdf("dhg"), one, np.ones(1), one, one, one, one, np.ones(1))
-    lambert_radiances(make_brdf("lambert"), one, one, one, np.ones(1))
     x = np.array([[0.0, 0.0, 10.0]])
     sphere_cap_beams(x, np.zeros(3), 1.0, np.array([1.0, 0.0, 0.0]), 0.0, 2, 2)
     live_beams(x, x, np.ones((1, 1, 3)), one, one)
