@@ -367,12 +367,13 @@ def test_moon_shadow_on_the_earth_matches_disc_overlap():
     which moved the new-Moon earthshine by 0.7 %."""
     from lunarviz.geometry.scene_geometry import Scene
     from lunarviz.methods.tracer import estimators as E
+    from lunarviz.methods.tracer.settings import NORMAL_OFFSET
     sc = Scene(179.5)
     ts = E.TraceScene(sc, E.TraceSettings(occlusion=True))
     vis = ts.sun_visibility_of_earth()
     Eb = ts.earth
     n = Eb.normals_for("auto")
-    xo = Eb.centroids + n * (E.NORMAL_OFFSET * Eb.radius)
+    xo = Eb.centroids + n * (NORMAL_OFFSET * Eb.radius)
     vs, vm = sc.sun - xo, sc.moon - xo
     ds, dm = np.linalg.norm(vs, axis=1), np.linalg.norm(vm, axis=1)
     gam = np.arccos(np.clip(np.einsum("ij,ij->i", vs, vm) / (ds * dm), -1, 1))

@@ -64,15 +64,32 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     split_only = np.broadcast_to(np.asarray(split_only, dtype=bool), (B, k))
     e1, e2 = orthonormal_basis(axis)
     t_max = np.arccos(np.clip(cos_max, -1.0, 1.0))
-
     # cap geometry in the polar frame
     ua = np.einsum("bkj,bj->bk", caps_u, axis)
     u1 = np.einsum("bkj,bj->bk", caps_u, e1)
     u2 = np.einsum("bkj,bj->bk", caps_u, e2)
     t_u = np.arctan2(np.hypot(u1, u2), ua)  # (B, k)
     phi_u = np.arctan2(u2, u1)
-    a = np.arccos(np.clip(caps_c, -1.0, 1.0))
+    t, wt = _cap_rings(t_u, caps_c, t_max, n_t)
+    st, ct = np.sin(t), np.cos(t)
+    p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only)
+    fx, fw = gauss_legendre(n_phi)
+    phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
+    wphi = ((p_hi - p_lo) * inside)[..., None] * fw
+    w = wt[:, :, None, None] * wphi
+    sphi, cphi = np.sin(phi), np.cos(phi)
+    stt = st[:, :, None, None]
+    nodes = (ct[:, :, None, None, None] * axis[:, None, None, None, :]
+             + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
+                                 + sphi[..., None] * e2[:, None, None, None, :]))
+    return nodes.reshape(B, -1, 3), w.reshape(B, -1)
 
+
+def _cap_rings(t_u, caps_c, t_max, n_t: int):
+    """Polar rings t (B, R) of :func:`cap_rule` and their weights ``dt·sin t`` (B, R): Gauss
+    segments between the polar radii where a ring becomes tangent to a cap boundary."""
+    B = t_u.shape[0]
+    a = np.arccos(np.clip(caps_c, -1.0, 1.0))
     # t segments: split where a ring becomes tangent to a cap boundary
     cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
     real = np.tile((caps_c > -1.0) & (caps_c < 1.0), 3)  # a cap with |c| >= 1 has no boundary
@@ -105,10 +122,14 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     jac = np.where(s_lo & s_hi, j_both, np.where(s_lo, j_lo, np.where(s_hi, j_hi, 1.0)))
     t = t_lo[:, :, None] + (t_hi - t_lo)[:, :, None] * f  # (B, S, n_t)
     wt = (t_hi - t_lo)[:, :, None] * gw * jac * np.sin(t)
-    t = t.reshape(B, -1)
-    wt = wt.reshape(B, -1)  # (B, R) rings
-    st, ct = np.sin(t), np.cos(t)
+    return t.reshape(B, -1), wt.reshape(B, -1)  # (B, R) rings
 
+
+def _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only):
+    """φ-intervals ``(p_lo, p_hi, inside)`` (B, R, I) of every ring of :func:`cap_rule`: the
+    ring cut at every cap's boundary, ``inside`` where an interval lies in every constraint cap."""
+    B, R = st.shape
+    k = caps_c.shape[1]
     # φ breakpoints on every ring for every cap
     stu, ctu = np.sin(t_u)[:, None, :], np.cos(t_u)[:, None, :]
     den = st[:, :, None] * stu
@@ -117,46 +138,33 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
         q = np.where(np.abs(den) > 1e-300, num / den, np.where(num < 0, -np.inf, np.inf))
     hw = np.arccos(np.clip(q, -1.0, 1.0))  # half-width of the arc inside each cap (π: whole ring)
     pu = phi_u[:, None, :]
-    R = t.shape[1]
-    fx, fw = gauss_legendre(n_phi)
     if k <= 1 and not split_only.any():
         # fast path: the region of a ring is one arc centred on the cap's azimuth
         if k == 0:
             p_lo, p_hi = np.zeros((B, R, 1)), np.full((B, R, 1), 2 * np.pi)
         else:
             p_lo, p_hi = pu - hw, pu + hw
-        inside = np.ones(p_lo.shape, dtype=bool)
-    else:
-        partial = (q > -1.0) & (q < 1.0)
-        b_lo = np.where(partial, np.mod(pu - hw, 2 * np.pi), 0.0)
-        b_hi = np.where(partial, np.mod(pu + hw, 2 * np.pi), 0.0)
-        pb = np.concatenate([np.zeros((B, R, 1)), b_lo, b_hi, np.full((B, R, 1), 2 * np.pi)], axis=2)
-        pb = np.sort(pb, axis=2)
-        p_lo, p_hi = pb[:, :, :-1], pb[:, :, 1:]  # (B, R, 2k+1)
-        # which φ-intervals lie inside every constraint cap: test the interval midpoints
-        pm = 0.5 * (p_lo + p_hi)
-        inside = np.ones(pm.shape, dtype=bool)
-        for j in range(k):
-            ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + \
-                st[:, :, None] * stu[:, :, j:j + 1] * np.cos(pm - pu[:, :, j:j + 1])
-            ok = ndotu > caps_c[:, None, j:j + 1]
-            inside &= ok | split_only[:, None, j:j + 1]
-        # keep only intervals that are inside somewhere (and non-empty)
-        inside &= p_hi > p_lo
-        keep = max(int(inside.sum(2).max(initial=0)), 1)
-        sel = np.argsort(~inside, axis=2, kind="stable")[:, :, :keep]
-        p_lo, p_hi = np.take_along_axis(p_lo, sel, 2), np.take_along_axis(p_hi, sel, 2)
-        inside = np.take_along_axis(inside, sel, 2)
-
-    phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
-    wphi = ((p_hi - p_lo) * inside)[..., None] * fw
-    w = wt[:, :, None, None] * wphi
-    sphi, cphi = np.sin(phi), np.cos(phi)
-    stt = st[:, :, None, None]
-    nodes = (ct[:, :, None, None, None] * axis[:, None, None, None, :]
-             + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
-                                 + sphi[..., None] * e2[:, None, None, None, :]))
-    return nodes.reshape(B, -1, 3), w.reshape(B, -1)
+        return p_lo, p_hi, np.ones(p_lo.shape, dtype=bool)
+    partial = (q > -1.0) & (q < 1.0)
+    b_lo = np.where(partial, np.mod(pu - hw, 2 * np.pi), 0.0)
+    b_hi = np.where(partial, np.mod(pu + hw, 2 * np.pi), 0.0)
+    pb = np.concatenate([np.zeros((B, R, 1)), b_lo, b_hi, np.full((B, R, 1), 2 * np.pi)], axis=2)
+    pb = np.sort(pb, axis=2)
+    p_lo, p_hi = pb[:, :, :-1], pb[:, :, 1:]  # (B, R, 2k+1)
+    # which φ-intervals lie inside every constraint cap: test the interval midpoints
+    pm = 0.5 * (p_lo + p_hi)
+    inside = np.ones(pm.shape, dtype=bool)
+    for j in range(k):
+        ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + \
+            st[:, :, None] * stu[:, :, j:j + 1] * np.cos(pm - pu[:, :, j:j + 1])
+        ok = ndotu > caps_c[:, None, j:j + 1]
+        inside &= ok | split_only[:, None, j:j + 1]
+    # keep only intervals that are inside somewhere (and non-empty)
+    inside &= p_hi > p_lo
+    keep = max(int(inside.sum(2).max(initial=0)), 1)
+    sel = np.argsort(~inside, axis=2, kind="stable")[:, :, :keep]
+    p_lo, p_hi = np.take_along_axis(p_lo, sel, 2), np.take_along_axis(p_hi, sel, 2)
+    return p_lo, p_hi, np.take_along_axis(inside, sel, 2)
 
 
 def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):

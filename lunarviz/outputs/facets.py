@@ -57,7 +57,7 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
     ``sun_visibility`` (the Moon's shadow) and ``earthshine_beam_hits``; Sun facets
     ``moonshine_beam_hits``.
     """
-    from lunarviz.methods.tracer.estimators import FACET_BLOCK, TraceScene, trace_path
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     brdf_name = brdf_name or settings.brdfs[0]
     models = settings.brdf_models()
     sc, fields = settings.scene_and_fields(theta)
@@ -89,8 +89,42 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
         from lunarviz.bodies.surfaces import map_scale
         alb = values * map_scale(amap.absolute, model)
         cd["albedo_parameter"] = alb
-    # per-facet geometry and BRDF, in blocks of facets (a few dozen (F, 3) temporaries took
-    # 1 GB at 5 M facets, issue 13)
+    cd.update(_facet_angles_and_brdf(ts, sc, model, alb))
+    cd["reflectance_factor"] = np.pi * cd["brdf_per_sr"]
+    totals = {"moonshine_W_m2": ms.mean[brdf_name], "earthshine_W_m2": es.mean[brdf_name],
+              "rays": ms.rays + es.rays, "seconds": ms.seconds + es.seconds}
+    for k in models:
+        totals[f"moonshine_W_m2_{k}"] = ms.mean[k]
+        totals[f"earthshine_W_m2_{k}"] = es.mean[k]
+    u = es.mean_unit.get(brdf_name, 0.0)
+    totals["earthshine_unit_W_m2"] = u  # the same transport for an Earth of albedo 1
+    totals["earth_visible_lit_albedo"] = es.mean[brdf_name] / u if u else float("nan")
+    info = {**fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
+            "brdf": brdf_name, "brdfs": list(models), "moon_centre_m": sc.moon.tolist(),
+            "detector_m": sc.det.tolist(), "sun_m": sc.sun.tolist(), "earth_m": sc.earth.tolist(),
+            "estimator": ts.settings.estimator, "occlusion": ts.settings.occlusion,
+            "self_shadow": ts.settings.self_shadow, "shading": ts.settings.shading,
+            "moon_shading_mode": M.mode(ts.settings.shading),
+            "moon_albedo_map": ts.settings.moon_albedo_map, "earth_surface": ts.settings.earth_surface,
+            "clouds": ts.settings.clouds}
+    bodies = _other_bodies(ts, sc)
+    # the Moon's mesh is returned in its own body frame (MOON_ME on dates; the scene axes in
+    # the θ scene), so it lines up with the user's mesh and maps; the rotation to the scene
+    # is kept in ``info`` (the .vtm multiblock applies it)
+    rot = sc.rotation("moon")
+    verts = M.vertices.copy() if rot is None else M.vertices @ rot
+    if rot is not None:
+        info["moon_rotation_body_to_scene"] = rot.tolist()
+    return FacetResult(verts, M.faces.copy(), cd, totals, info, bodies)
+
+
+def _facet_angles_and_brdf(ts, sc, model, alb) -> dict:
+    """Per-facet angles at the centroid [deg] and the BRDF there [sr⁻¹] for sunlight and
+    earthlight, computed in blocks of facets (a few dozen (F, 3) temporaries took 1 GB at 5 M
+    facets)."""
+    from lunarviz.methods.tracer.settings import FACET_BLOCK
+    M = ts.moon
+    cd = {}
     names = ("incidence_deg", "emission_deg", "phase_deg", "earth_incidence_deg", "earth_phase_deg",
              "brdf_per_sr", "earth_brdf_per_sr")
     for name in names:
@@ -114,25 +148,13 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
         mu0e = np.clip(np.einsum("ij,ij->i", n, e_dir), 0, 1)
         she, che = half_angle_sin_cos(e_dir, o_dir)
         cd["earth_brdf_per_sr"][b] = np.where((mu0e > 0) & (mu > 0), model.brdf(mu0e, mu, she, che, albedo=ab), 0.0)
-    cd["reflectance_factor"] = np.pi * cd["brdf_per_sr"]
-    totals = {"moonshine_W_m2": ms.mean[brdf_name], "earthshine_W_m2": es.mean[brdf_name],
-              "rays": ms.rays + es.rays, "seconds": ms.seconds + es.seconds}
-    for k in models:
-        totals[f"moonshine_W_m2_{k}"] = ms.mean[k]
-        totals[f"earthshine_W_m2_{k}"] = es.mean[k]
-    u = es.mean_unit.get(brdf_name, 0.0)
-    totals["earthshine_unit_W_m2"] = u  # the same transport for an Earth of albedo 1
-    totals["earth_visible_lit_albedo"] = es.mean[brdf_name] / u if u else float("nan")
-    info = {**fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg,
-            "brdf": brdf_name, "brdfs": list(models), "moon_centre_m": sc.moon.tolist(),
-            "detector_m": sc.det.tolist(), "sun_m": sc.sun.tolist(), "earth_m": sc.earth.tolist(),
-            "estimator": ts.settings.estimator, "occlusion": ts.settings.occlusion,
-            "self_shadow": ts.settings.self_shadow, "shading": ts.settings.shading,
-            "moon_shading_mode": M.mode(ts.settings.shading),
-            "moon_albedo_map": ts.settings.moon_albedo_map, "earth_surface": ts.settings.earth_surface,
-            "clouds": ts.settings.clouds}
-    E, S = ts.earth, ts.sun
+    return cd
+
+
+def _other_bodies(ts, sc) -> dict:
+    """The Earth's and the Sun's meshes with their per-facet arrays."""
     from lunarviz.methods.sources import earth_radiance
+    E, S = ts.earth, ts.sun
     xe, ne = E.facet_points(ts.settings.shading)
     vis = ts.sun_visibility_of_earth()
     fa = ts.earth_facet_albedo()
@@ -144,14 +166,7 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
               "moonshine_beam_hits": ts.source_hits["sun"].copy()}
     bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd),
               "sun": (S.vertices.copy(), S.faces.copy(), sun_cd)}
-    # the Moon's mesh is returned in its own body frame (MOON_ME on dates; the scene axes in
-    # the θ scene), so it lines up with the user's mesh and maps; the rotation to the scene
-    # is kept in ``info`` (the .vtm multiblock applies it)
-    rot = sc.rotation("moon")
-    verts = M.vertices.copy() if rot is None else M.vertices @ rot
-    if rot is not None:
-        info["moon_rotation_body_to_scene"] = rot.tolist()
-    return FacetResult(verts, M.faces.copy(), cd, totals, info, bodies)
+    return bodies
 
 
 def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict:

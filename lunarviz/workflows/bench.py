@@ -42,16 +42,36 @@ def _err(values: dict, ref: dict, path: str) -> float:
 
 
 def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
-    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
+    """Run time against error for every method (rows), throughput against raw Embree, the
+    skips with their savings, the speed targets and the picture timings; writes ``out`` (.json)
+    with a .csv table and a .png Pareto plot beside it."""
     out = Path(out)
     models = {b: make_brdf(b) for b in BRDFS}
     phases = (60.0, 150.0) if quick else (30.0, 90.0, 150.0)
     t_all = time.perf_counter()
     refs = {th: reference_irradiance(Scene(th), models, ReferenceSettings(32, 12)) for th in phases}
     limit = {th: analytic_irradiance(Scene(th), models, AnalyticSettings(order=96)) for th in phases}
-    rows = []
+    rows = _bench_analytic(models, phases, refs, limit, quick) + _bench_deterministic(models, phases, refs, quick) \
+        + _bench_montecarlo(models, phases, refs, quick)
+    throughput = _bench_throughput(models)
+    skips = _bench_skips(models)
+    targets = _bench_targets(models, quick)
+    render = _bench_render()
+    res = {"quick": quick, "phases_deg": list(phases), "rows": rows, "throughput": throughput, "render": render,
+           "skips": skips, "targets": targets, "seconds_total": time.perf_counter() - t_all,
+           "machine": {"cpus": os.cpu_count()}}
+    from lunarviz.outputs.writers import json_safe, write_bytes_atomic, write_results
+    write_bytes_atomic(out, json.dumps(json_safe(res), indent=1, allow_nan=False).encode())
+    write_results(out.with_suffix(".csv"), {"rows": rows})
+    plot_pareto(res, out.with_suffix(".png"))
+    return res
 
-    # ---- analytic: Gauss order ---------------------------------------------------------------
+
+
+
+def _bench_analytic(models, phases, refs, limit, quick) -> list[dict]:
+    """Analytic method: error against the Gauss order."""
+    rows = []
     for order in ((4, 8, 16, 24) if quick else (4, 6, 8, 12, 16, 24, 32)):
         for th in phases:
             res, dt = _timed(lambda: analytic_irradiance(Scene(th), models, AnalyticSettings(order=order)), 3)
@@ -61,7 +81,13 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
                              "seconds": dt, "rays": 0, "error_vs_reference": _err(v, refs[th], path),
                              "error_vs_own_limit": _err(v, limit[th], path)})
 
-    # ---- deterministic ray tracing: mesh level and source orders --------------------------------
+    return rows
+
+
+def _bench_deterministic(models, phases, refs, quick) -> list[dict]:
+    """Deterministic ray tracing: error against the mesh level and the source orders."""
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
+    rows = []
     det_cases = [(3, 4, 1), (4, 4, 2), (5, 6, 2), (6, 6, 2)] if quick else \
         [(3, 4, 1), (4, 4, 2), (4, 6, 2), (5, 4, 2), (5, 6, 2), (6, 6, 2), (6, 8, 3)]
     for lv, eo, so in det_cases:
@@ -73,7 +99,13 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
                              "theta_deg": th, "path": path, "seconds": r.seconds, "rays": r.rays,
                              "error_vs_reference": _err(r.mean, refs[th], path)})
 
-    # ---- Monte Carlo: ray count ---------------------------------------------------------------------
+    return rows
+
+
+def _bench_montecarlo(models, phases, refs, quick) -> list[dict]:
+    """Monte Carlo: error and spread against the ray count."""
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
+    rows = []
     for n in ((1000, 10_000, 50_000) if quick else (1000, 10_000, 50_000, 200_000)):
         for th in phases:
             ts = TraceScene(Scene(th), TraceSettings(estimator="montecarlo", rays=n, runs=1, occlusion=False, seed=11))
@@ -84,7 +116,12 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
                              "seconds": r.seconds, "rays": r.rays, "error_vs_reference": _err(r.mean, refs[th], path),
                              "relative_std_one_run": rel_std})
 
-    # ---- throughput against raw Embree on the same rays, and threads ---------------------------
+    return rows
+
+
+def _bench_throughput(models) -> dict:
+    """End-to-end rays per second against raw Embree on the same rays, one and two threads."""
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     # warm-up (first traces pay one-time costs: allocation, mesh loading, Embree builds)
     trace_path(TraceScene(Scene(90.0), TraceSettings(occlusion=True, threads=1)), "earthshine", models)
     ts = TraceScene(Scene(90.0), TraceSettings(occlusion=True, threads=1))
@@ -139,7 +176,12 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     throughput["sweep_speedup_2_processes"] = {"seconds_1_worker": t_w1, "seconds_2_workers": t_w2,
                                                "speedup": t_w1 / t_w2, "phases": 6}
 
-    # ---- skips, each with its saving -------------------------------------------------------------
+    return throughput
+
+
+def _bench_skips(models) -> dict:
+    """Work the tracer skips, each with its saving."""
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     skips = {}
     one = {"dhg": models["dhg"]}
     ts = TraceScene(Scene(90.0), TraceSettings(occlusion=False))
@@ -168,7 +210,13 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
         "rays_refined": rf_on.rays, "rays_unrefined": rf_off.rays,
         "error_refined": rf_on.mean["dhg"] / ref170 - 1, "error_unrefined": rf_off.mean["dhg"] / ref170 - 1}
 
-    # ---- targets (issue 5) ---------------------------------------------------------------------
+    return skips
+
+
+def _bench_targets(models, quick) -> dict:
+    """The speed targets: the paper sweep, the analytic sweep, Monte Carlo at 0.2 %."""
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
+    from lunarviz.workflows.sweeps import SweepSettings, run_sweep
     targets = {}
     if not quick:
         sw = SweepSettings(method="raytrace", occlusion=False)
@@ -195,7 +243,11 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     mc["seconds_per_phase_at_0.2pct"] = mc["moonshine_50000_rays"]["seconds"] + mc["earthshine_120000_rays"]["seconds"]
     targets["montecarlo_one_phase_theta90"] = mc
 
-    # ---- pictures (issue 4): a frame once the data is computed, and a cold-start render -------
+    return targets
+
+
+def _bench_render() -> dict:
+    """Pictures: a frame once the data is computed, and a cold-start render."""
     render = {}
     try:
         import subprocess
@@ -203,8 +255,8 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
         import tempfile
 
         from lunarviz.viz import views
-        from lunarviz.workflows.sweeps import SweepSettings as _S
-        data, t_data = _timed(lambda: views.compute_view_data(_S(method="raytrace"), 90.0, "dhg"))
+        from lunarviz.workflows.sweeps import SweepSettings
+        data, t_data = _timed(lambda: views.compute_view_data(SweepSettings(method="raytrace"), 90.0, "dhg"))
 
         def frame():
             pl = views.build_plotter(data, "composite", (1024, 768))
@@ -224,14 +276,7 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     except ImportError as exc:  # pictures are optional extras
         render = {"skipped": f"{exc}"}
 
-    res = {"quick": quick, "phases_deg": list(phases), "rows": rows, "throughput": throughput, "render": render,
-           "skips": skips, "targets": targets, "seconds_total": time.perf_counter() - t_all,
-           "machine": {"cpus": os.cpu_count()}}
-    from lunarviz.outputs.writers import json_safe, write_bytes_atomic, write_results
-    write_bytes_atomic(out, json.dumps(json_safe(res), indent=1, allow_nan=False).encode())
-    write_results(out.with_suffix(".csv"), {"rows": rows})
-    plot_pareto(res, out.with_suffix(".png"))
-    return res
+    return render
 
 
 def plot_pareto(res: dict, path) -> None:

@@ -260,26 +260,7 @@ def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "
     table5_point = {b: {"raytrace": mc["bond_albedo_point_source_inversion"][b]["raytrace"],
                         "raytrace_deterministic": det["bond_albedo_point_source_inversion"][b]["raytrace"]}
                     for b in BRDFS}
-    mc_rel_std = [r["moonshine_std_W_m2"] / r["moonshine_W_m2"] for r in mc["rows"]
-                  if r["moonshine_W_m2"] > 0 and 5 <= r["theta_deg"] <= 175]
-    es_rel_std = [r["earthshine_std_W_m2"] / r["earthshine_W_m2"] for r in mc["rows"]
-                  if r["earthshine_W_m2"] > 0 and 5 <= r["theta_deg"] <= 175]
-    accuracy = {
-        "deterministic_vs_reference_max_rel": {
-            "moonshine": _max_rel(det, sweeps["reference"], "moonshine_W_m2"),
-            "earthshine": _max_rel(det, sweeps["reference"], "earthshine_W_m2")},
-        "montecarlo_vs_reference_max_rel": {
-            "moonshine": _max_rel(mc, sweeps["reference"], "moonshine_W_m2"),
-            "earthshine": _max_rel(mc, sweeps["reference"], "earthshine_W_m2")},
-        "montecarlo_vs_reference_max_sigma": {
-            "moonshine": _max_sigma(mc, sweeps["reference"], "moonshine"),
-            "earthshine": _max_sigma(mc, sweeps["reference"], "earthshine")},
-        "analytic_vs_reference_max_rel": {
-            "moonshine": _max_rel(sweeps["analytic"], sweeps["reference"], "moonshine_W_m2"),
-            "earthshine": _max_rel(sweeps["analytic"], sweeps["reference"], "earthshine_W_m2")},
-        "montecarlo_relative_std_one_run": {"moonshine_median": float(np.median(mc_rel_std)),
-                                            "earthshine_median": float(np.median(es_rel_std))},
-    }
+    accuracy = _accuracy(sweeps)
     eclipse = {r["brdf"]: r["moonshine_W_m2"] for r in sweeps["occluded"]["rows"] if r["theta_deg"] == 0.0}
     results = {
         "quick": quick,
@@ -309,10 +290,36 @@ def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "
     return results
 
 
-def make_report(r: dict) -> str:
+def _accuracy(sweeps: dict) -> dict:
+    """Largest deviations of each method from the exact reference over 5-175°, and the Monte
+    Carlo spread of one run."""
+    mc, det = sweeps["montecarlo"], sweeps["deterministic"]
+    mc_rel_std = [r["moonshine_std_W_m2"] / r["moonshine_W_m2"] for r in mc["rows"]
+                  if r["moonshine_W_m2"] > 0 and 5 <= r["theta_deg"] <= 175]
+    es_rel_std = [r["earthshine_std_W_m2"] / r["earthshine_W_m2"] for r in mc["rows"]
+                  if r["earthshine_W_m2"] > 0 and 5 <= r["theta_deg"] <= 175]
+    accuracy = {
+        "deterministic_vs_reference_max_rel": {
+            "moonshine": _max_rel(det, sweeps["reference"], "moonshine_W_m2"),
+            "earthshine": _max_rel(det, sweeps["reference"], "earthshine_W_m2")},
+        "montecarlo_vs_reference_max_rel": {
+            "moonshine": _max_rel(mc, sweeps["reference"], "moonshine_W_m2"),
+            "earthshine": _max_rel(mc, sweeps["reference"], "earthshine_W_m2")},
+        "montecarlo_vs_reference_max_sigma": {
+            "moonshine": _max_sigma(mc, sweeps["reference"], "moonshine"),
+            "earthshine": _max_sigma(mc, sweeps["reference"], "earthshine")},
+        "analytic_vs_reference_max_rel": {
+            "moonshine": _max_rel(sweeps["analytic"], sweeps["reference"], "moonshine_W_m2"),
+            "earthshine": _max_rel(sweeps["analytic"], sweeps["reference"], "earthshine_W_m2")},
+        "montecarlo_relative_std_one_run": {"moonshine_median": float(np.median(mc_rel_std)),
+                                            "earthshine_median": float(np.median(es_rel_std))},
+    }
+    return accuracy
+
+
+def _report_table5(r: dict) -> list[str]:
     t5, t5p, t5d, paper = r["table5"], r["table5_point_source_inversion"], r["table5_raytrace_deterministic"], r["table5_paper"]
     acc = r["accuracy"]
-    bt = r["brdf_test"]
     lines = [
         "# lunarviz reproduction of the earthshine IRT paper",
         "",
@@ -333,7 +340,7 @@ def make_report(r: dict) -> str:
         "Why ours differ from the paper's:",
         "",
         "* **Eq. 8's factor.** The printed Eq. 8 omits the 2/3 of a Lambert sphere's intensity "
-        "(NOTES.md item 1). We use the correct law; with the printed one the same inversion returns "
+        "(a Lambert sphere: Russell 1916; Lester et al. 1979). We use the correct law; with the printed one the same inversion returns "
         "0.45 (`lunarviz sweep --earth-law paper_eq8`, tested). The paper's inversion evidently "
         "compensated somewhere not stated; its residuals (0.3009…0.3057) are its quadrature and "
         "sampling errors, which we remove: our analytic rule is converged to 1e-6 and Eq. 17 is "
@@ -368,6 +375,13 @@ def make_report(r: dict) -> str:
         "earthshine, drawing directions only over the Earth's lit part make the difference "
         "(`lunarviz bench`: 0.2 % per phase for both paths in under a second).",
         "",
+    ]
+    return lines
+
+
+def _report_accuracy(r: dict) -> list[str]:
+    acc = r["accuracy"]
+    return [
         "## Accuracy against the exact reference (extended Sun and Earth, converged quadrature)",
         "",
         "Maximum relative difference over θ = 5…175°, all three BRDFs (no occlusion):",
@@ -389,6 +403,12 @@ def make_report(r: dict) -> str:
         "removed: what remains is physics (extended sources; the Hapke surge across the Earth's "
         "disk for earthshine).",
         "",
+    ]
+
+
+def _report_brdf_test(r: dict) -> list[str]:
+    bt = r["brdf_test"]
+    lines = [
         "## Small-scale BRDF test (Sec. 3.1, Fig. 4)",
         "",
         "| model | max error vs Eq. 12 averaged over footprint and aperture | max difference vs Eq. 12 at nominal angles | paper |",
@@ -404,6 +424,14 @@ def make_report(r: dict) -> str:
         "a finite detector sees the surge averaged. Against the correctly averaged Eq. 12 the ray "
         "tracer agrees to the quadrature's precision.",
         "",
+    ]
+    return lines
+
+
+def make_report(r: dict) -> str:
+    """The paper reproduction's ``report.md``: Table 5, accuracy against the exact reference,
+    the small-scale BRDF test, and the files written."""
+    lines = _report_table5(r) + _report_accuracy(r) + _report_brdf_test(r) + [
         "## Files",
         "",
         "* `fig3_reflectance_factor.png`, `fig4_brdf_test.png`, `fig5_moonshine_earthshine.png`, `fig6_albedo.png`",

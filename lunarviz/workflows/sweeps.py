@@ -132,7 +132,7 @@ class SweepSettings:
         ts = self.trace_settings()
         if self.method == "raytrace":  # read and check user meshes once, before any work
             from lunarviz.bodies.meshes import NOMINAL_RADII
-            from lunarviz.methods.tracer.estimators import body_mesh_m
+            from lunarviz.methods.tracer.settings import body_mesh_m
             for body in ("moon", "earth", "sun"):
                 path = getattr(self, f"{body}_mesh")
                 if path is not None:  # same arguments as TraceScene's call: the cached mesh is reused

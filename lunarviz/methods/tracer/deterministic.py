@@ -1,0 +1,188 @@
+"""The deterministic estimator's transport: lunar samples in chunks (on the trace's threads), rule
+groups, beams through Embree (the fused compiled pass for exact-sphere sources).
+
+A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
+methods use the scene's bodies, settings and caches set up there."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.geometry.scene_geometry import unit
+from lunarviz.methods.sources import horizon_cuts_source
+from lunarviz.methods.tracer import ray_kernels
+from lunarviz.methods.tracer.settings import (
+    CHUNK,
+    NORMAL_OFFSET,
+)
+from lunarviz.methods.transport import Transport
+
+
+class DeterministicTransport:
+    """The deterministic estimator's transport: methods of
+    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+
+    # ---- transports --------------------------------------------------------------------------
+    def deterministic_transport(self, body: str):
+        """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK lunar samples, in order.
+
+        With ``threads`` > 1 the chunks are traced on that many threads, a few ahead of the
+        consumer: Embree and the compiled kernels release the GIL, so one chunk's Embree
+        queries run while another's rules and beams are built (issue 13: "use both cores").
+        The chunks and their order are the same for any thread count, so are the results,
+        bit for bit (tests/test_trace.py)."""
+        s = self.settings
+        x_all, n_all, dA_all, owner_all, alb_all = self.lunar_samples(body)
+        self._warm_shared(body)
+
+        def chunk(a):
+            sl = slice(a, a + CHUNK)
+            x, n, dA, owner = x_all[sl], n_all[sl], dA_all[sl], owner_all[sl]
+            mu, geom, o = self.detector_view(x, n, dA)
+            keep = geom > 0
+            x, n, owner, mu, geom, o = x[keep], n[keep], owner[keep], mu[keep], geom[keep], o[keep]
+            out = []
+            if len(x) == 0:
+                return out
+            order = s.sun_order if body == "sun" else s.earth_order
+            for g in self._rule_groups(x, n, body):
+                tr = self.beam_transport(x[g], n[g], o[g], mu[g], geom[g], body, order)
+                if alb_all is not None:
+                    self.with_moon_albedo(tr, values=(alb_all[0][sl][keep][g], alb_all[1][sl][keep][g]))
+                out.append((tr, owner[g]))
+            return out
+
+        starts = list(range(0, len(x_all), CHUNK))
+        yield from self._chunks_in_order(lambda i: chunk(starts[i]), len(starts))
+
+    def _warm_shared(self, body: str) -> None:
+        """Fill the scene's lazy caches before chunks are traced on several threads."""
+        if body == "earth":
+            self.earth_facet_albedo()
+            self.sun_visibility_of_earth()
+            if self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
+                self._earth_elements()
+        self.moon_facet_albedo()
+        for b in (self.sun, self.earth):
+            if b.mode(self.settings.shading) == "exact":
+                b.outer_scene()
+            elif b.mode(self.settings.shading) == "interp":
+                b.corner_normals  # noqa: B018 (a cached property: built here, once)
+
+    def _rule_groups(self, x, n, body: str) -> list:
+        """Rows of x grouped by the size of their source rule (:meth:`source_nodes`): the few
+        rows whose horizon cuts the source (or, for the Sun, whose view the Earth's limb cuts)
+        take rules of 72-512 beams, the rest 8 (the Sun's cone) or ~60 (the Earth). Transports
+        are padded to their longest row, so tracing the groups apart spares ~10x padded beams
+        in a moonshine chunk. Each group keeps the rows' order; results only change by the
+        order of the sums (rounding)."""
+        c, R, B = self._source(body)
+        if B.mode(self.settings.shading) != "exact" or body == "earth" and self.earth_facet_albedo() is not None \
+                and self.settings.mapped_earth == "facets":
+            return [slice(None)]
+        cut = horizon_cuts_source(self.scene, x, n, body)
+        if body == "sun":
+            ecl = ~cut & self._earth_crosses_sun(x, np.linalg.norm(x - c, axis=1))
+            groups = [~cut & ~ecl, cut, ecl]
+        else:
+            groups = [~cut, cut]
+        return [np.flatnonzero(g) for g in groups if g.any()]
+
+    def beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
+        """The :class:`Transport` of points x (B,3) with normals n, unit directions o to the
+        detector, ``mu`` and ``geom``: ``body``'s deterministic beams (:meth:`source_nodes`),
+        each traced to the source (:meth:`source_radiance`). Shared by the detector transport
+        and the synthetic camera (lunarviz.methods.camera). An Earth with an albedo map takes
+        :meth:`mapped_earth_transport` instead."""
+        if body == "earth" and self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
+            return self.mapped_earth_transport(x, n, o, mu, geom)
+        if ray_kernels.available() and self._source(body)[2].mode(self.settings.shading) == "exact":
+            return self._fused_beam_transport(x, n, o, mu, geom, body, order)
+        from lunarviz.methods.tracer.ray_kernels import beam_angles, live_beams
+        dirs, omega = self.source_nodes(x, n, body, order)
+        mu0, sh, ch = beam_angles(dirs, n, o)
+        bi, ki, xb, nb, db = live_beams(x, n, dirs, omega, mu0)
+        Lb, Lb_free, lu = self.source_radiance(xb, nb, db, body)
+        flat = bi * omega.shape[1] + ki  # scatter through flat indices (2-D fancy indexing is slower)
+        om_b = omega.reshape(-1)[flat]
+
+        def beams(values):
+            e = np.zeros(omega.shape)
+            e.reshape(-1)[flat] = values * om_b
+            return e
+        return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=beams(Lb),
+                         mu=mu, geom=geom, e_beam_free=beams(Lb_free),
+                         e_beam_unit=None if lu is None else beams(lu))
+
+    def _fused_beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
+        """:meth:`beam_transport` toward an exact-sphere source, compiled (issue 13): one pass
+        from the rule to Embree's rays (:func:`lunarviz.methods.tracer.ray_kernels.cap_beam_rays` for the Earth's
+        one-cap rule, else :meth:`source_nodes` then ``beam_rays``), one from Embree's facets to
+        each beam's radiance (``source_hits``), one per shadow test (``occluder_rays``) and one
+        into the (B, K) arrays (``scatter_beams``); Python only calls Embree between them. The
+        same rays, counts and numbers as the numpy path (:meth:`source_radiance`) to rounding
+        (the kernel tests)."""
+        from lunarviz.methods.tracer.embree_bodies import ENTRY_MARGIN
+        K = ray_kernels
+        sc, s = self.scene, self.settings
+        src = self.sun if body == "sun" else self.earth
+        outer = src.outer_scene()  # (built once per body; sets its bounding radius)
+        off, Rb = NORMAL_OFFSET * self.moon.radius, src.outer_bound * (1.0 + ENTRY_MARGIN)
+        c, R, _ = self._source(body)
+        if body == "earth" and not horizon_cuts_source(sc, x, n, body).any():
+            cs = sc.sun - c  # the rule's one cap: the Earth's sunlit hemisphere (as in source_nodes)
+            rays = K.cap_beam_rays(x, n, o, c, R, unit(cs), R / np.linalg.norm(cs), order, off, Rb)
+        else:
+            dirs, omega = self.source_nodes(x, n, body, order)
+            rays = K.beam_rays(x, n, o, dirs, omega, off, c, Rb)
+        self._count(len(rays.bi))
+        prim = src.run_rays(rays.o32, rays.d32, "INTERSECT", scene=outer) if len(rays.idx) else np.empty(0, np.int64)
+        if body == "sun":
+            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
+                                                 sun_radiance=self.sun_surface_radiance())
+        else:
+            fa = self.earth_facet_albedo()
+            alb = np.array([self.earth_albedo_value()]) if fa is None else fa
+            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
+                                                 earth=(sc.sun, sc.phi, self.sun_visibility_of_earth(), alb))
+        with self._lock:
+            self.source_hits[body] += counts
+        L_free = L.copy()
+        if body == "sun" and s.occlusion:  # the Earth between the Moon and the Sun
+            live = L > 0
+            self._count(int(np.count_nonzero(live)))
+            L[self.earth.occluded_beams(rays, t, live)] = 0.0
+        if self._self_shadows():
+            live = (L > 0) | (L_unit > 0) if body == "earth" else L > 0
+            self._count(int(np.count_nonzero(live)))
+            blocked = self.moon.occluded_beams(rays, t, live)
+            L[blocked] = 0.0
+            L_unit[blocked] = 0.0
+        e, e_free, e_unit = K.scatter_beams(rays, L, L_free, L_unit if body == "earth" else None)
+        return Transport(mu0=np.clip(rays.mu0, 0.0, 1.0), sin_hg=rays.sin_hg, cos_hg=rays.cos_hg, e_beam=e,
+                         mu=mu, geom=geom, e_beam_free=e_free, e_beam_unit=e_unit)
+
+    def _chunks_in_order(self, chunk, n: int):
+        """``chunk(0), chunk(1), …`` (each a list of ``(Transport, owner)``), flattened in order;
+        on ``threads`` threads a few ahead of the consumer when there are several."""
+        threads = self.moon.threads
+        if threads <= 1 or n <= 1:
+            for i in range(n):
+                yield from chunk(i)
+            return
+        from collections import deque
+        from concurrent.futures import ThreadPoolExecutor
+
+        from lunarviz.methods.tracer.embree_bodies import serial_embree
+
+        def job(i):
+            with serial_embree():  # the chunks share the cores; Embree calls are not split again
+                return chunk(i)
+        with ThreadPoolExecutor(threads) as ex:
+            ahead = deque()
+            for i in range(n):
+                ahead.append(ex.submit(job, i))
+                if len(ahead) > threads:  # bounded: ≤ threads + 2 chunks in memory (one being consumed)
+                    yield from ahead.popleft().result()
+            while ahead:
+                yield from ahead.popleft().result()

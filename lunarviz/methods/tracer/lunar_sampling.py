@@ -1,0 +1,205 @@
+"""Lunar samples: facets worth tracing, shadow-edge and lune refinement, sample albedo, the
+detector's view.
+
+A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
+methods use the scene's bodies, settings and caches set up there."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.geometry.scene_geometry import unit
+from lunarviz.geometry.subdivision import sub_barycentric
+from lunarviz.methods.tracer.settings import (
+    FACET_BLOCK,
+    KINK_FREE_WIDTH,
+    LUNE_SAMPLES,
+    NORMAL_OFFSET,
+    REFINE,
+)
+from lunarviz.methods.transport import detector_geometry
+
+
+class LunarSampling:
+    """Lunar samples: methods of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+
+    def candidates(self, body: str) -> np.ndarray:
+        """Lunar facets that the detector may see and the source may (partly) light.
+
+        Tested on the facet's corners as well as its centroid, so a facet that a kink crosses
+        is never dropped. Memoised per body (``self._kinks`` follows the last body asked).
+        Computed in blocks of FACET_BLOCK facets, so memory stays bounded on any mesh.
+        """
+        if body in self._cand_cache:
+            cand, self._kinks = self._cand_cache[body]
+            return cand
+        M = self.moon
+        c, R, _ = self._source(body)
+        x_all, n_all = M.facet_points(self.settings.shading)
+        if M.mode(self.settings.shading) == "interp":
+            M.corner_normals  # noqa: B018 (a cached property: built here, before the blocks' threads)
+        F = M.n_faces
+        keep = np.zeros(F, dtype=bool)
+        kinks = np.zeros(F, dtype=bool)
+
+        def block(i):
+            blk = slice(i * FACET_BLOCK, min(F, (i + 1) * FACET_BLOCK))
+            lit, vis = self._kink_values(x_all[blk], n_all[blk], c, R)
+            tri = M.vertices[M.faces[blk]] + M.centre
+            vn = self._corner_normals(M, blk)
+            lit_v, vis_v = self._kink_values(tri.reshape(-1, 3), vn.reshape(-1, 3), c, R)
+            lit_v, vis_v = lit_v.reshape(-1, 3), vis_v.reshape(-1, 3)
+            up = (lit > -1) | (lit_v > -1).any(1)
+            seen = (vis > 0) | (vis_v > 0).any(1)
+            kinks[blk] = (np.sign(lit_v + 1) != np.sign(lit_v[:, :1] + 1)).any(1) | \
+                (np.sign(lit_v - 1) != np.sign(lit_v[:, :1] - 1)).any(1) | \
+                (np.sign(vis_v) != np.sign(vis_v[:, :1])).any(1) | (up & ~(lit > -1)) | (seen & ~(vis > 0))
+            keep[blk] = up & seen
+            return []
+        # blocks on the trace's threads (numpy and Embree release the GIL); each writes its own slice
+        list(self._chunks_in_order(block, -(-F // FACET_BLOCK)))
+        cand = np.flatnonzero(keep)
+        self._kinks = kinks
+        hidden_view = not self.scene.detector_inside("earth") or self.scene.horizon_normal is not None
+        if self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view:
+            def edges(i):
+                return [self._shadow_edges(cand[i * FACET_BLOCK:(i + 1) * FACET_BLOCK], c)]
+            for found in self._chunks_in_order(edges, -(-len(cand) // FACET_BLOCK)):
+                self._kinks[found] = True
+        self._cand_cache[body] = (cand, self._kinks)
+        return cand
+
+    def _shadow_edges(self, cand: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Facets that a cast-shadow or hidden-view boundary crosses, found by ray tracing.
+
+        From each candidate facet's centroid and corners (offset along the facet normal) one
+        ray to the source's centre and one to the detector are traced against the Moon (when it
+        shadows itself) and the Earth (toward the source when occlusion is on; toward a
+        detector outside the Earth always). A facet whose four points
+        disagree is a kink facet and gets refined like a terminator facet. Returns those
+        facets (indices).
+        """
+        M = self.moon
+        s = self.settings
+        if cand.size == 0:
+            return cand
+        tri = M.vertices[M.faces[cand]] + M.centre
+        pts = np.concatenate([M.centroids[cand][:, None, :], tri], axis=1)  # (F, 4, 3)
+        off = M.normals[cand][:, None, :] * (NORMAL_OFFSET * M.radius)
+        p = (pts + off).reshape(-1, 3)
+        mixed = np.zeros(len(cand), dtype=bool)
+        det = self.scene.det
+        for to_det, target in ((False, c), (True, det)):
+            v = target - p
+            dist = np.linalg.norm(v, axis=1)
+            d = v / dist[:, None]
+            blocked = np.zeros(len(p), dtype=bool)
+            if self._self_shadows():
+                blocked |= self.moon.occluded(p, d, dist)
+                self._count(len(p))
+            if to_det and self.scene.horizon_normal is not None:
+                blocked |= ~self.scene.sight_lines_clear(p)
+            elif (to_det and not self.scene.detector_inside("earth")) or (not to_det and s.occlusion):
+                blocked |= self.earth.occluded(p, d, dist)
+                self._count(len(p))
+            b = blocked.reshape(-1, 4)
+            mixed |= b.any(1) & ~b.all(1)
+        return cand[mixed]
+
+    def _kink_values(self, x, n, c, R):
+        """``n·(c - x)/R`` (> 1 source wholly above the horizon, < -1 wholly below, between:
+        penumbra; scripts/derivations.md §1) and μ toward the detector."""
+        lit = np.einsum("ij,ij->i", n, c - x) / R
+        w = self.scene.det - x
+        return lit, np.einsum("ij,ij->i", n, w) / np.linalg.norm(w, axis=1)
+
+    def lunar_refinement(self, body: str) -> int:
+        """Sub-division of every lit-and-visible facet so ≥ LUNE_SAMPLES samples span the lune.
+
+        The lit and visible region is a lune of width w = π - (source-Moon-detector angle);
+        at a thin crescent it is only a few facets wide and the facet rule errs by
+        ~(h/w)² (1 % at θ = 175° on level 6). Powers of two up to 16. Flat facets carry no
+        kink inside (constant normal), so they are never split for this.
+        """
+        M = self.moon
+        if M.mode(self.settings.shading) == "flat":
+            return 1
+        w = self._lune_width(body)
+        h = np.sqrt(np.mean(M.areas)) / M.radius
+        need = LUNE_SAMPLES * h / max(w, 1e-9)
+        return int(min(16, 2 ** int(np.ceil(np.log2(max(need, 1.0))))))
+
+    def _lune_width(self, body: str) -> float:
+        sc = self.scene
+        c, _, _ = self._source(body)
+        return np.pi - float(np.arccos(np.clip(np.dot(unit(c - sc.moon), unit(sc.det - sc.moon)), -1, 1)))
+
+    def sample_albedo(self, faces, sub: int):
+        """The lunar map's value for each sample of ``M.surface_samples(faces, shading, sub)``,
+        in its order: the map's area average over the sample's own sub-triangle (so refined
+        facets, at terminators and limbs, see the map at their finer scale; ``sub = 1`` gives
+        the facet averages of :meth:`moon_facet_albedo`). ``None`` without a map."""
+        amap = self.settings.moon_map()
+        if amap is None:
+            return None
+        if sub == 1 or len(faces) == 0:
+            mean, sd = (a[faces] for a in self.moon_facet_albedo(spread=True))
+        else:
+            from lunarviz.bodies.surfaces import map_frame, moon_facet_values
+            M = self.moon
+            _, tri_b = sub_barycentric(sub)
+            corners = np.einsum("svk,fkj->fsvj", tri_b, M.vertices[M.faces[np.asarray(faces, dtype=np.int64)]])
+            verts = corners.reshape(-1, 3)
+            mean, sd = moon_facet_values(amap, M, map_frame(self.scene, "moon"),
+                                         faces=(verts, np.arange(len(verts)).reshape(-1, 3)))  # (F·sub²,)
+        per = 1 if self.moon.mode(self.settings.shading) == "flat" else 3
+        return np.repeat(mean, per), np.repeat(sd, per)
+
+    def lunar_samples(self, body: str):
+        """Deterministic lunar samples: points, normals, areas, owning facets, and the lunar
+        map's value per sample (``None`` without a map; :meth:`sample_albedo`)."""
+        M = self.moon
+        s = self.settings
+        cand = self.candidates(body)
+        if not s.refine:
+            return (*M.surface_samples(cand, s.shading), self.sample_albedo(cand, 1))
+        sub = self.lunar_refinement(body)
+        kink = self._kinks[cand]
+        if self._lune_width(body) > np.pi - KINK_FREE_WIDTH and M.mode(s.shading) == "exact":
+            # source ≈ detector seen from the Moon (earthshine with the detector on the Earth):
+            # the terminator and the limb coincide and the integrand vanishes quadratically
+            # there (μ0 ≈ μ), so there is no kink to resolve on the smooth sphere.
+            kink = np.zeros_like(kink)
+        a = M.surface_samples(cand[~kink], s.shading, sub=sub)
+        b = M.surface_samples(cand[kink], s.shading, sub=max(REFINE, sub))
+        out = tuple(np.concatenate([u, v]) for u, v in zip(a, b))
+        va, vb = self.sample_albedo(cand[~kink], sub), self.sample_albedo(cand[kink], max(REFINE, sub))
+        return (*out, None if va is None else tuple(np.concatenate([u, v]) for u, v in zip(va, vb)))
+
+    def detector_view(self, x, n, dA):
+        """mu, geom and unit directions to the detector, with the sight line's occlusion (the
+        Earth, for a detector outside it; the Moon itself, with ``self_shadow`` on a non-convex
+        Moon)."""
+        sc = self.scene
+        mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
+        # The Earth between the Moon and the detector always hides it, as in every method
+        # (--no-occlusion removes shadows, i.e. bodies between a source and the Moon; it
+        # does not make the observer's own Earth transparent)
+        horizon = sc.horizon_normal is not None
+        earth_blocks = not sc.detector_inside("earth") and not horizon
+        if horizon:  # a site on the WGS84 Earth: its horizon plane, not the model sphere
+            geom = np.where(sc.sight_lines_clear(x), geom, 0.0)
+        if earth_blocks or self._self_shadows():
+            idx = np.flatnonzero(geom > 0)
+            xo = x[idx] + n[idx] * (NORMAL_OFFSET * self.moon.radius)
+            dist = np.linalg.norm(sc.det - xo, axis=1)
+            blocked = np.zeros(idx.size, dtype=bool)
+            if earth_blocks:
+                blocked |= self.earth.occluded(xo, o[idx], dist)
+                self._count(idx.size)
+            if self._self_shadows():
+                blocked |= self.moon.occluded(xo, o[idx], dist)
+                self._count(idx.size)
+            geom = geom.copy()
+            geom[idx[blocked]] = 0.0
+        return mu, geom, o

@@ -1,0 +1,148 @@
+"""Earthlight from a mapped Earth (land, ocean, clouds): the Earth's facets grouped into cells of
+its disc seen from the Moon, summed per facet.
+
+A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
+methods use the scene's bodies, settings and caches set up there."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.geometry.scene_geometry import half_angle_sin_cos, unit
+from lunarviz.geometry.sphere_quadrature import orthonormal_basis
+from lunarviz.methods.sources import earth_radiance
+from lunarviz.methods.tracer.settings import (
+    EARTH_CELLS,
+    NORMAL_OFFSET,
+    TERMINATOR_SUB,
+)
+from lunarviz.methods.transport import Transport
+
+
+class MappedEarthTransport:
+    """Earthlight from a mapped Earth (land, ocean, clouds): methods of
+    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+
+    def _earth_elements(self):
+        """The mapped Earth as surface elements, one per facet: points y, normals m, areas
+        [m²] (spherical areas on the exact sphere), radiance for albedo 1 (point Sun, the
+        Moon's shadow traced per facet) and the facet's albedo; sorted into the cells of a
+        grid over the Earth's disc seen from the Moon's centre, with each cell's
+        flux-weighted centre point. Elements neither lit nor possibly seen from the Moon are
+        dropped; on a non-convex Earth, those the Earth itself hides from the Moon's centre
+        (traced)."""
+        if getattr(self, "_earth_el", None) is not None:
+            return self._earth_el
+        sc, s, E = self.scene, self.settings, self.earth
+        # three points per facet (the degree-2 rule of surface_samples; on the packaged sphere
+        # they lie on the exact sphere): the terminator crosses facets, and a one-point rule
+        # there costs 6e-4 where the lit part is a thin band (tests/test_surfaces.py)
+        # facets the terminator crosses (corners lit and unlit) are split TERMINATOR_SUB² ways:
+        # the lit edge is a kink the map's light ends at, coherently along the whole terminator
+        corners = E.vertices[E.faces] + E.centre  # (F, 3, 3)
+        cn = self._corner_normals(E)
+        mu_c = np.einsum("fkj,fkj->fk", cn, sc.sun - corners)
+        term = (mu_c > 0).any(1) & (mu_c <= 0).any(1)
+        parts = [E.surface_samples(np.flatnonzero(~term), s.shading),
+                 E.surface_samples(np.flatnonzero(term), s.shading, sub=TERMINATOR_SUB)]
+        y, m, area_f, owner = (np.concatenate([u, v]) for u, v in zip(*parts))
+        L1 = earth_radiance(sc, y, m, 1.0) * self.sun_visibility_of_earth()[owner]
+        a = self.earth_facet_albedo()[owner]
+        rm = sc.radii["moon"]
+        keep = (L1 > 0) & (np.einsum("ij,ij->i", m, sc.moon - y) > -rm)
+        if self.settings.self_shadow and not E.convex:
+            idx = np.flatnonzero(keep)
+            yo = y[idx] + m[idx] * (NORMAL_OFFSET * E.radius)
+            v = sc.moon - yo
+            dist = np.linalg.norm(v, axis=1)
+            hid = E.occluded(yo, v / dist[:, None], dist - rm)
+            self._count(idx.size)
+            keep[idx[hid]] = False
+        idx = np.flatnonzero(keep)
+        y, m, L1A, a = y[idx], m[idx], L1[idx] * area_f[idx], a[idx]
+        axis = unit(sc.moon - sc.earth)
+        e1, e2 = orthonormal_basis(axis[None, :])
+        bound = E.bound if E.mode(s.shading) != "exact" else E.radius
+        g = EARTH_CELLS
+        u = np.clip(((y - sc.earth) @ e1[0] / bound + 1) * 0.5 * g, 0, g - 1).astype(int)
+        w = np.clip(((y - sc.earth) @ e2[0] / bound + 1) * 0.5 * g, 0, g - 1).astype(int)
+        cell = u * g + w
+        order = np.argsort(cell, kind="stable")
+        y, m, L1A, a, cell = y[order], m[order], L1A[order], a[order], cell[order]
+        starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]]) if len(cell) else np.zeros(0, int)
+        # each cell's centre: its elements' mean weighted by their unit flux toward the Moon's centre
+        v = sc.moon - y
+        r = np.linalg.norm(v, axis=1)
+        wt = L1A * np.clip(np.einsum("ij,ij->i", m, v) / r, 1e-12, None) / r**2
+        wsum = np.add.reduceat(wt, starts) if len(starts) else np.zeros(0)
+        centre = (np.add.reduceat(y * wt[:, None], starts, axis=0) / wsum[:, None]) if len(starts) else np.zeros((0, 3))
+        # first-order expansion about the Moon's centre x0 of each cell's sum of
+        # g_f(x) = m_f·(x - y_f)/|x - y_f|³ over the elements x0 sees: g(x0) and ∇g(x0) =
+        # m/r³ - 3 (m·v) v/r⁵; the neglected terms are O((R_M/r)²) ≈ 2e-5 relative, and the
+        # elements within 0.26° of the Earth's limb that a lunar point sees but x0 does not
+        mv = np.einsum("ij,ij->i", m, v)
+        vis0 = mv > 0
+        g0 = np.where(vis0, mv / r**3, 0.0)
+        grad = np.where(vis0[:, None], m / r[:, None] ** 3 - 3 * (mv / r**5)[:, None] * v, 0.0)
+        lin = {}
+        for name, wgt in (("unit", L1A), ("map", L1A * a)):
+            lin[name] = (np.add.reduceat(wgt * g0, starts) if len(starts) else np.zeros(0),
+                         np.add.reduceat(wgt[:, None] * grad, starts, axis=0) if len(starts) else np.zeros((0, 3)))
+        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, lin=lin)
+        return self._earth_el
+
+    def mapped_earth_transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
+        """Earthshine :class:`Transport` at lunar points x from an Earth with an albedo map.
+
+        The earthlight of every Earth facet reaching x is summed exactly per facet,
+        ``a_f · L1_f · A_f · cos_f(x) / r_f(x)²`` (zero below x's horizon or behind the Earth's
+        limb seen from x), and gathered into one beam per cell of the Earth's disc
+        (:data:`EARTH_CELLS`² cells, each ≤ 0.08° across seen from the Moon) along the cell's
+        flux-weighted centre. A map's edges are thus integrated by the facets' area averages
+        (second order), not by a few Gauss beams across the disc, which leave ~1 % errors
+        (tests/test_surfaces.py). The BRDF sees each cell's light from one direction: the
+        error is second order in the cell's angular size. Lunar points whose horizon does not
+        cut the Earth (nearly all) take each cell's sum from its first-order expansion about the
+        Moon's centre (error ~(R_M/D)² ≈ 2e-5); the others sum the elements one by one.
+        Traced with Embree: the Moon's
+        shadow on each facet, a non-convex Earth hiding facets, a non-convex Moon shadowing
+        each beam. Neglected: the Sun's extent lighting the Earth (as for the uniform Earth).
+        """
+        el = self._earth_elements()
+        B, C = len(x), len(el["starts"])
+        e_map, e_unit = np.zeros((B, C)), np.zeros((B, C))
+        if C:
+            y, m, L1A, a, st = el["y"], el["m"], el["L1A"], el["a"], el["starts"]
+            # points whose horizon does not cut the Earth see every element: the cell sums are
+            # smooth in x there and their first-order expansion about the Moon's centre serves
+            cut = np.einsum("ij,ij->i", n, self.scene.earth - x) < self.earth.bound * (1 + 1e-6)
+            far = np.flatnonzero(~cut)
+            dx = x[far] - self.scene.moon
+            for name, out in (("unit", e_unit), ("map", e_map)):
+                s0, s1 = el["lin"][name]
+                out[far] = np.clip(s0[None, :] + dx @ s1.T, 0.0, None)
+            rows = np.flatnonzero(cut)
+            for c0 in range(0, len(rows), chunk):
+                sel = rows[c0:c0 + chunk]
+                xs, ns = x[sel], n[sel]
+                v = xs[:, None, :] - y[None, :, :]  # Earth element → lunar point
+                r2 = np.einsum("bkj,bkj->bk", v, v)
+                r = np.sqrt(r2)
+                cos_y = np.clip(np.einsum("bkj,kj->bk", v, m) / r, 0.0, None)
+                up = np.einsum("bkj,bj->bk", v, ns) < 0.0  # the element above x's horizon
+                f = np.where(up, L1A * cos_y / r2, 0.0)
+                e_unit[sel] = np.add.reduceat(f, st, axis=1)
+                e_map[sel] = np.add.reduceat(f * a, st, axis=1)
+        dirs = unit(el["centre"][None, :, :] - x[:, None, :]) if C else np.zeros((B, 0, 3))
+        mu0 = np.einsum("bkj,bj->bk", dirs, n)
+        e_free = e_map.copy()
+        if self._self_shadows() and C:
+            bi, ki = np.nonzero((e_unit > 0) & (mu0 > 0))
+            xo = x[bi] + n[bi] * (NORMAL_OFFSET * self.moon.radius)
+            blocked = self.moon.occluded(xo, dirs[bi, ki])
+            self._count(bi.size)
+            e_map[bi[blocked], ki[blocked]] = 0.0
+            e_unit[bi[blocked], ki[blocked]] = 0.0
+        sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
+        return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=e_map, mu=mu, geom=geom,
+                         e_beam_free=e_free, e_beam_unit=e_unit)

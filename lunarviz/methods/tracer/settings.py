@@ -1,0 +1,106 @@
+"""The ray tracer's settings (composed of option groups) and its tuning constants, each with its reason."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from lunarviz.bodies.meshes import DEFAULT_LEVELS
+from lunarviz.caches import memoize
+from lunarviz.errors import LunarvizError
+from lunarviz.options import SHADINGS, compose, validate
+
+#: Shadow-ray origins are offset along the normal by this fraction of the body radius
+#: (0.17 m on the Moon: above float32's 0.125 m step at the lunar radius, far below any facet).
+NORMAL_OFFSET = 1e-7
+#: Share of Monte Carlo lunar samples drawn ∝ facet area (defensive mixture).
+UNIFORM_SHARE = 0.1
+#: Facets straddling a kink (terminator, penumbra edge, limb) are split REFINE² ways.
+REFINE = 4
+#: Samples wanted across the width of the lit-and-visible lune (see ``lunar_refinement``).
+LUNE_SAMPLES = 16
+#: Order of the sphere rule for lunar samples that see the Sun partly below the horizon.
+#: Sun-cone Gauss order (radial × 2·order azimuthal) where the Earth's disc overlaps the Sun's
+#: (lunar eclipses): the Earth's limb is a discontinuity inside the cone; order 16 puts
+#: 512 beams across it (the penumbra then agrees with the exact disc overlap to ~1e-3).
+ECLIPSE_ORDER = 16
+PENUMBRA_ORDER = 6
+#: Kink refinement is skipped when the lune is within this angle [rad] of a hemisphere.
+KINK_FREE_WIDTH = 0.05
+PATHS = {"moonshine": "sun", "earthshine": "earth"}
+#: Gauss order (radial; twice that in azimuth) of the beams over the bounding cone of a source
+#: that is a user mesh (not an analytic sphere): its silhouette is resolved by the beams.
+MESH_SOURCE_ORDER = 16
+#: Lunar samples per batch: bounds memory (≈ CHUNK × beams × 30 doubles) for any ray count.
+CHUNK = 1 << 14
+#: Facets per block in the per-facet passes (candidate tests, shadow edges): bounds their
+#: temporaries (≈ 100 doubles per facet) on multi-million-facet meshes.
+FACET_BLOCK = 1 << 18
+#: Facets of a mapped Earth that its terminator crosses are split this many ways per side.
+TERMINATOR_SUB = 8
+#: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
+#: from the Moon (its beams; ``mapped_earth_transport``).
+EARTH_CELLS = 24
+
+
+@dataclass(frozen=True)
+@compose("earth", "meshes", "trace", "surfaces")
+class TraceSettings:
+    """The ray tracer's settings: the options of the ``earth``, ``meshes``, ``trace`` and
+    ``surfaces`` groups of :mod:`lunarviz.options` (icosphere levels ``None`` resolve to
+    :data:`~lunarviz.bodies.meshes.DEFAULT_LEVELS`, the Earth's rotation ``None`` to 0), and:"""
+
+    #: the option groups whose fields this class takes from the schema
+    GROUPS: ClassVar[tuple] = ("earth", "meshes", "trace", "surfaces")
+    #: split facets that a terminator, limb, penumbra or cast-shadow edge crosses (lune refinement)
+    refine: bool = True
+    #: threads per trace (``None``: the machine's cores); no number depends on it
+    threads: int | None = None
+    #: per-body shading overriding ``shading``, e.g. ``(("earth", "flat"),)`` (mesh studies)
+    body_shading: tuple = ()
+    #: a mapped Earth's earthlight: ``facets`` (default: summed per facet into disc cells,
+    #: :meth:`TraceScene.mapped_earth_transport`) or ``beams`` (the uniform Earth's Gauss beams
+    #: with each hit facet's albedo: ~2 % off at a map's edges; a diagnostic for comparisons)
+    mapped_earth: str = "facets"
+
+    def moon_map(self):
+        """The parsed lunar albedo map, or ``None``."""
+        if self.moon_albedo_map is None:
+            return None
+        from lunarviz.bodies.surfaces import MoonAlbedoMap
+        return MoonAlbedoMap.parse(self.moon_albedo_map)
+
+    def surface(self):
+        """The Earth's :class:`~lunarviz.bodies.surfaces.EarthSurface`."""
+        from lunarviz.bodies.surfaces import EarthSurface
+        return EarthSurface.from_options(self)
+
+    def __post_init__(self):
+        for body in ("moon", "earth", "sun"):  # None: the mesh study's default level
+            if getattr(self, f"{body}_level") is None:
+                object.__setattr__(self, f"{body}_level", DEFAULT_LEVELS[body])
+        if self.earth_rotation_deg is None:
+            object.__setattr__(self, "earth_rotation_deg", 0.0)
+        validate(self)
+        for body, mode in self.body_shading:
+            if body not in ("moon", "earth", "sun") or mode not in SHADINGS:
+                raise LunarvizError(f"body shading {body}={mode} is not valid")
+        if not isinstance(self.refine, (bool, np.bool_)):
+            raise LunarvizError(f"refine={self.refine!r} must be True or False")
+        self.surface()
+        self.moon_map()
+        if self.mapped_earth not in ("facets", "beams"):
+            raise LunarvizError(f"mapped_earth {self.mapped_earth!r} is not one of facets, beams")
+
+
+@memoize(maxsize=16)
+def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None = None):
+    """The mesh of ``body`` in metres, body frame: a user mesh (``path``, read in ``units``)
+    or the packaged icosphere at ``level`` tagged as an analytic sphere of ``radius``."""
+    from lunarviz.bodies.meshes import NOMINAL_RADII, analytic_sphere, load_user_mesh
+    nominal = NOMINAL_RADII[body] if radius is None else radius
+    if path is not None:
+        return load_user_mesh(path, body=body, units=units, nominal_radius=nominal)
+    return analytic_sphere(body, level, nominal)
