@@ -76,6 +76,11 @@ def _check_key(sc: "Scene", key):
 class Scene:
     """What to simulate: the geometry (θ or dates and an observer), the bodies, the BRDFs.
 
+    Every option but ``phases``, ``time`` and ``time_range`` is declared in :mod:`lunarviz.options`
+    (the command line's flag is the keyword with ``-`` for ``_``, except where shown). Everything
+    is checked when the scene is made (meshes are read, dates and observers parsed); a bad value
+    raises :class:`~lunarviz.errors.LunarvizError` naming it.
+
     Parameters
     ----------
     phases : float, sequence of float or str, optional
@@ -85,17 +90,7 @@ class Scene:
         UTC times (ISO 8601). The real sky from DE421 replaces θ.
     time_range : str, optional
         ``"START,STOP,STEP"`` with steps like ``30s``, ``10min``, ``1h``, ``1d``.
-    observer : str
-        ``geocentre`` (default), ``site:LAT,LON[,HEIGHT_M]``, ``tle:FILE`` or
-        ``orbit:ALT_KM,INC_DEG,RAAN_DEG,ARGLAT_DEG[,EPOCH]``; needs a time.
-    **options
-        Every other option, by its Python name (the command line's flag with ``-`` as ``_``;
-        :mod:`lunarviz.options` declares them all):
-
 {options}
-
-    Everything is checked when the scene is made (meshes are read, dates and observers
-    parsed); a bad value raises :class:`~lunarviz.errors.LunarvizError` naming it.
     """
 
     def __init__(self, phases=None, *, time=None, time_range=None, observer: str = "geocentre", **options):
@@ -116,7 +111,7 @@ class Scene:
             self.options[name] = BY_NAME[name].check(self.options[name])
         self.settings("raytrace")  # validates everything (raytrace accepts every option)
 
-    __doc__ = __doc__.format(options=numpydoc_parameters([o for o in OPTIONS if o.name != "observer"], "        "))
+    __doc__ = __doc__.format(options=numpydoc_parameters(OPTIONS, "    "))
 
     def settings(self, method: str = "analytic"):
         """The :class:`~lunarviz.workflows.sweeps.SweepSettings` of this scene for ``method``."""

@@ -1,4 +1,4 @@
-"""The ``lunarviz`` command (interface contract: shared/DESIGN.md).
+"""The ``lunarviz`` command: a thin layer over :mod:`lunarviz.api` (its reference is the docs' CLI page).
 
 Every error in the user's input ends with one line ``lunarviz: error: …`` naming the bad value
 and exit status 2, never a traceback, and no output file is left behind (results are written

@@ -1,6 +1,8 @@
 """Physical constants of the paper's scene, in SI units, each with its source.
 
-The paper is ``shared/paper/earthshine_irt_paper.md`` (Sec. 2.1-2.3, Tables 1-2).
+The paper is *Real Scale Ray Tracing Simulation of Space Earthshine Measurement with Improved
+BRDF Model of Lunar Surface* (Sec. 2.1-2.3, Tables 1-2); "paper notes" are the documentation's
+page on how lunarviz reads it (docs/paper_notes.md).
 """
 
 #: Sun-Earth distance [m]; paper Sec. 2.1.2 (D_SE = 1.496e11 m).
@@ -17,9 +19,9 @@ R_SUN_M = 6.957e8
 PHI_SUN_W = 1.626e26
 #: Earth Bond albedo of the Lambertian Earth; paper abstract (0.3).
 EARTH_ALBEDO = 0.3
-#: Albedo of the Lambertian Moon; paper Table 5 header "Lambertian(0.10)" (NOTES.md item 6).
+#: Albedo of the Lambertian Moon; paper Table 5 header "Lambertian(0.10)" (paper notes, item 6).
 MOON_LAMBERT_ALBEDO = 0.10
-#: Monte Carlo rays per run and runs per phase; paper Sec. 3.2 (NOTES.md item 8).
+#: Monte Carlo rays per run and runs per phase; paper Sec. 3.2 (paper notes, item 8).
 PAPER_RAYS = 50_000
 PAPER_RUNS = 10
 #: Phase grid of the paper's sweep [deg]; paper Sec. 3.2 (0..180 in 5 deg steps).

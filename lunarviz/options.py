@@ -372,6 +372,7 @@ def numpydoc_parameters(options=OPTIONS, indent: str = "    ") -> str:
         unit = f" [{o.unit}]" if o.unit else ""
         choices = f" One of {', '.join(map(repr, o.choices))}." if o.choices and o.kind == "str" else ""
         lines.append(f"{indent}{o.name} : {t}")
-        lines.append(f"{indent}    {o.doc[0].upper()}{o.doc[1:]}{unit}.{choices} Default ``{o.default!r}``; "
+        doc = o.doc[0].upper() + o.doc[1:] if o.doc[0].isascii() else o.doc
+        lines.append(f"{indent}    {doc}{unit}.{choices} Default ``{o.default!r}``; "
                      f"command line ``{o.cli_flag}``.")
     return "\n".join(lines)

@@ -101,7 +101,7 @@ def edge_checks(faces: np.ndarray, n_vertices: int) -> tuple[bool, bool]:
     meaningful, and used, only for watertight meshes).
 
     Computed on int64 edge keys (``a·V + b``) instead of trimesh's edge caches, which take
-    ~3 GB on a 5-million-facet mesh (issue 13); tests/test_trace.py checks both against
+    ~3 GB on a 5-million-facet mesh ; tests/test_trace.py checks both against
     trimesh on good and broken meshes."""
     f = np.asarray(faces, dtype=np.int64)
     a = f.reshape(-1)

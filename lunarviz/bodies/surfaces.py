@@ -1,6 +1,6 @@
 """Per-facet surface properties from maps: a lunar albedo map and a land, ocean and cloud Earth.
 
-Maps are equirectangular in the body frame (DESIGN.md, "Maps"): row 0 is latitude +90° (north
+Maps are equirectangular in the body frame (docs: conventions, "Maps"): row 0 is latitude +90° (north
 up), column 0 starts at longitude −180°, east-positive, cells pixel-centred, ``width = 2·height``.
 ``.npy`` arrays hold values directly; ``.png``/``.tif`` images are read as linear values scaled
 to [0, 1] (8- and 16-bit integers by their full range, float images as they are; colour images by
@@ -171,7 +171,7 @@ def map_frame(scene, body: str, earth_rotation_deg: float = 0.0) -> np.ndarray:
     """Rotation ``x_scene = R @ x_map`` of ``body``'s map frame.
 
     Dated scenes: the body's own frame (MOON_ME, ITRS), which is also its mesh's frame. The θ
-    scene (DESIGN.md): north poles along +x; the Moon's map (0°, 0°) toward the Earth (tidally
+    scene (docs: conventions): north poles along +x; the Moon's map (0°, 0°) toward the Earth (tidally
     locked, no libration); the Earth's sub-solar point at longitude ``earth_rotation_deg`` on
     its equator (the Sun lies in the equatorial plane: an equinox).
     """

@@ -37,7 +37,7 @@ def half_angle_sin_cos(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.nda
     """``sin(g/2)`` and ``cos(g/2)`` of the angle g between unit vectors a and b ((..., 3)).
 
     ``|a - b| = 2 sin(g/2)`` and ``|a + b| = 2 cos(g/2)`` exactly, so neither is formed by a
-    cancelling subtraction (NOTES.md, "Numerics of the Hapke model").
+    cancelling subtraction (paper notes, "Numerics of the Hapke model").
     """
     d, p = a - b, a + b
     s2 = np.einsum("...j,...j->...", d, d)

@@ -1,7 +1,7 @@
 """The paper's finite-element analytic method (Sec. 2.2, Eqs. 4-11), with point sources.
 
 The Sun is a point of power Φ (Eq. 6-7), the Earth a point source with the Lambert-sphere
-intensity of :mod:`lunarviz.photometry.earth_phase` (Eq. 8 corrected, NOTES.md item 1), the Moon a sphere whose
+intensity of :mod:`lunarviz.photometry.earth_phase` (Eq. 8 corrected, paper notes item 1), the Moon a sphere whose
 surface elements see both at their true finite distances. The detector irradiance is the sum
 over surface elements of BRDF · μ0 · E · μ · cosδ · dA / d² (Eqs. 10-11).
 

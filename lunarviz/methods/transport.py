@@ -12,7 +12,7 @@ scene to a :class:`Transport`: for N lunar surface samples and K incident beams 
 
 Then the radiance toward the detector is ``L = Σ_k BRDF·μ0·e_beam`` (paper Eq. 10, summed over
 beams) and the detector irradiance ``E = Σ_n L · geom`` (paper Eq. 11). Shading three BRDFs
-costs three cheap evaluations of one transport (DESIGN.md, "data flows one way").
+costs three cheap evaluations of one transport (the docs' architecture page: data flows one way).
 """
 
 from __future__ import annotations

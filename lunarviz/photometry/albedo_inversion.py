@@ -1,14 +1,15 @@
-"""Earth albedo from the earthshine/moonshine ratio: paper Eqs. 15-17 (with NOTES.md item 4).
+"""Earth albedo from the earthshine/moonshine ratio: paper Eqs. 15-17 (Eq. 17 corrected: the
+documentation's paper notes, item 4)::
 
-Eq. 15:  p_E f_E(β) = [p_b f_b(θ) / (p_a f_a(θ0))] · (E_a / E_b) · D_EM² D_SE² / (R_E² D_SM²)
-Eq. 16:  p*(β) = 3 / (2 f_L(β)) · p_E f_E(β)
-Eq. 17 (corrected):  A = (2/3) ∫_{-π}^{π} p* f_L |sin β| dβ = (4/3) ∫_0^π p*(β) f_L(β) sin β dβ
+    Eq. 15:  p_E f_E(β) = [p_b f_b(θ) / (p_a f_a(θ0))] · (E_a / E_b) · D_EM² D_SE² / (R_E² D_SM²)
+    Eq. 16:  p*(β) = 3 / (2 f_L(β)) · p_E f_E(β)
+    Eq. 17 (corrected):  A = (2/3) ∫_{-π}^{π} p* f_L |sin β| dβ = (4/3) ∫_0^π p*(β) f_L(β) sin β dβ
 
 E_a is the earthshine and E_b the moonshine irradiance at the detector. The lunar terms are
 the Moon's disk-integrated reflectance in each geometry, taken from a *calibration* transport
 (see :func:`lunar_terms`): using the same transport that produced the fluxes makes the
 inversion consistent; using the point-source model on extended-Earth fluxes reproduces the
-paper's inversion and its bias (issue 6, ``table5_point_source_inversion``).
+paper's inversion and its bias (``table5_point_source_inversion`` of ``lunarviz paper``).
 """
 
 from __future__ import annotations
@@ -112,7 +113,7 @@ def bond_weights(beta_deg: np.ndarray) -> np.ndarray:
 
 
 def bond_albedo(beta_deg, p_star) -> float:
-    """Bond albedo from sampled apparent albedo, corrected Eq. 17 (NOTES.md item 4).
+    """Bond albedo from sampled apparent albedo, corrected Eq. 17 (paper notes, item 4).
 
     Samples where p* is not finite (0/0 at β = 180°, eclipses) are dropped; the constant
     extension of :func:`bond_weights` covers them (their kernel weight is tiny: K ~ (π-β)³).

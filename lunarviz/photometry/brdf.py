@@ -5,7 +5,7 @@ Every model evaluates ``brdf(mu0, mu, sin_hg, cos_hg)`` [sr⁻¹] where ``mu0 = 
 ``mu = cos e`` and ``sin_hg``, ``cos_hg`` are the sine and cosine of *half* the phase angle g.
 Passing the half-angle (from :func:`lunarviz.geometry.scene_geometry.half_angle_sin_cos` or
 :func:`half_angle_from_angles`) keeps full precision near g = 0, where the opposition surge
-lives, and near g = π, where a forward HG lobe with b → 1 lives (NOTES.md).
+lives, and near g = π, where a forward HG lobe with b → 1 lives (paper notes, "Numerics of the Hapke model").
 
 ``radiance_factor = brdf * mu0`` is finite even where μ0 + μ → 0 (the BRDF diverges there,
 the reflected radiance does not); transport code uses it.
@@ -59,7 +59,7 @@ def _check(name: str, value: float, lo: float, hi: float, lo_open=False, hi_open
 def half_angle_from_angles(i, e, azimuth) -> tuple[np.ndarray, np.ndarray]:
     """sin(g/2), cos(g/2) from incidence i, emission e and azimuth ψ [rad].
 
-    Azimuth 0 puts the viewer on the source's side (g = |i - e|), π on the far side
+    Azimuth 0 puts the viewer on the source's side (``g = |i - e|``), π on the far side
     (g = i + e). Uses the cancellation-free identities
     ``sin²(g/2) = sin²((i-e)/2) + sin i sin e sin²(ψ/2)`` and
     ``cos²(g/2) = cos²((i+e)/2) + sin i sin e cos²(ψ/2)``.
@@ -115,7 +115,7 @@ class DoubleHG:
     ``convention="paper"`` (as printed): weight (1+c)/2 on the lobe ``1 + 2b cos g + b²``,
     which peaks at g = π (forward). ``convention="hapke2012"``: weight (1+c)/2 on the backward
     lobe ``1 - 2b cos g + b²`` (c > 0 backscatters). They are mirror images:
-    ``P_hapke2012(g; b, c) = P_paper(π - g; b, c) = P_paper(g; b, -c)`` (NOTES.md item 2).
+    ``P_hapke2012(g; b, c) = P_paper(π - g; b, c) = P_paper(g; b, -c)`` (paper notes, item 2).
     """
 
     b: float = 0.308
@@ -255,7 +255,9 @@ class Lambert:
 
 @dataclass(frozen=True)
 class Hapke:
-    """Hapke BRDF for a smooth, semi-infinite surface, paper Eq. 12 [sr⁻¹]::
+    """Hapke BRDF for a smooth, semi-infinite surface [sr⁻¹].
+
+    Paper Eq. 12::
 
         BRDF = w/(4π) · 1/(μ0 + μ) · {[1 + B(g)] p(g) + H(μ0) H(μ) - 1}
         B(g) = B0 h / (h + tan(g/2))           (finite as h → 0; B(0) = B0 for h > 0)
@@ -266,7 +268,7 @@ class Hapke:
     h : opposition-surge width, [0, ∞) (h = 0 switches the surge off except at g = 0 exactly)
     B0 : opposition-surge amplitude, [0, ∞)
     phase : :class:`SingleHG` or :class:`DoubleHG`
-    h_function : ``"hapke1981"`` (default, NOTES.md item 3), ``"hapke2002"`` or ``"exact"``
+    h_function : ``"hapke1981"`` (default; paper notes, item 3), ``"hapke2002"`` or ``"exact"``
     """
 
     w: float = 0.33

@@ -6,7 +6,7 @@ p = 2A/3 and intensity toward phase angle β (Russell 1916; Lester et al. 1979):
     I(β) = (2/3) A R² E · [(π - β) cos β + sin β] / π            [W sr⁻¹]
 
 which integrates over all directions to π R² A E (energy conservation). The paper's printed
-Eq. 8 drops the factor 2/3 (NOTES.md item 1); it is available only as ``law="paper_eq8"``.
+Eq. 8 drops the factor 2/3 (paper notes, item 1); it is available only as ``law="paper_eq8"``.
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ def sky_scene(label: str, observer: Observer = Observer()) -> tuple[Scene, dict]
 
 
 def sky_fields(sc: Scene, label: str, observer: Observer) -> dict:
-    """The per-row geometry fields of issue 10 for a general scene."""
+    """The per-row geometry fields of a dated scene (time, distances, libration, flags)."""
     det, M, S = sc.det, sc.moon, sc.sun
     r_me = sc.rotation("moon")
     sub_obs = selenographic(r_me, det - M)

@@ -16,7 +16,7 @@ Panels of the ``composite`` view:
 The ``maps`` view adds the sunlit fraction of every facet: the shadows that a non-convex
 Moon (craters, topography) casts on itself, and the Earth's shadow in an eclipse.
 
-The ``surfaces`` view (issue 11) shows the Moon's albedo parameter per facet (a lunar albedo
+The ``surfaces`` view shows the Moon's albedo parameter per facet (a lunar albedo
 map) seen from the detector, and the Earth seen from the Moon: its per-facet albedo (land,
 ocean, clouds) and its radiance toward the Moon, with the earthshine-weighted albedo.
 """
@@ -31,6 +31,7 @@ import pyvista as pv
 from lunarviz.errors import LunarvizError
 from lunarviz.outputs.facets import FacetResult, sample_ray_paths, trace_facets
 from lunarviz.viz.meshio import facet_polydata
+from lunarviz.viz.render_window import choose_render_window
 
 VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
 #: Dynamic range of the logarithmic colour scales (max / floor).
@@ -263,6 +264,7 @@ def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off
     """A plotter showing ``view`` of ``data``; call ``show()`` or ``screenshot()``."""
     if view not in VIEWS:
         raise LunarvizError(f"unknown view {view!r}: choose from {', '.join(VIEWS)}")
+    choose_render_window()
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
     populate(pl, data, view)
     return pl
@@ -293,7 +295,7 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         seen = poly.cell_data["emission_deg"] < 90
         _moon_panel(pl, poly, "albedo_parameter", "albedo\nor w", "gray", log=False, bar_fmt="%.3f", mask=seen)
         pl.add_text("Moon: albedo parameter per facet", font_size=9, position="upper_left", color="white")
-        # lunar north up: +x in the θ scene (DESIGN.md); the sky's north (ICRF z) on dates
+        # lunar north up: +x in the θ scene (docs: conventions); the sky's north (ICRF z) on dates
         _camera_from_detector(pl, fr, up=(0.0, 0.0, 1.0) if "time_utc" in fr.info else (1.0, 0.0, 0.0))
         pl.subplot(0, 1)
         pl.set_background("black")

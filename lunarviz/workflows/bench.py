@@ -157,7 +157,7 @@ def _bench_throughput(models) -> dict:
         "rays_end_to_end": n_rays, "rays_sent_to_embree": n_raw,
         "end_to_end_seconds_1_thread": e2e1, "end_to_end_seconds_2_threads": e2e2,
         "raw_embree_seconds_1_thread": raw1, "raw_embree_seconds_2_threads": raw2,
-        # both rates over the same rays, those sent to Embree (issue 13: counting every
+        # both rates over the same rays, those sent to Embree (counting every
         # end-to-end ray, culled ones included, on one side only inflated the ratio 4-fold)
         "end_to_end_rays_per_s": n_raw / e2e1,
         "raw_embree_rays_per_s": n_raw / raw1,

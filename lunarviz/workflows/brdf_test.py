@@ -1,4 +1,4 @@
-"""The paper's small-scale BRDF ray-tracing test (Sec. 3.1, NOTES.md item 9), with embreex.
+"""The paper's small-scale BRDF ray-tracing test (Sec. 3.1; paper notes, item 9), with embreex.
 
 A collimated "grid source" of radius 0.5 m at incidence i = 75° lights a circular target plane
 of radius 2.5 m (the target's centre is 10 m from the source); a detector disk of radius 0.5 m
@@ -169,7 +169,7 @@ def expected_brdf(model, e_deg, az_deg, order=24):
 
 
 def run_brdf_test(models: dict, settings: BrdfTestSettings = BrdfTestSettings()) -> dict:
-    """``{name: {"max_relative_error", "rows": [...]}}`` (rows as in issue 6)."""
+    """``{name: {"max_relative_error", "rows": [...]}}`` (rows: one per detector position)."""
     hits, hw, n_rays = trace_beam(settings)
     out = {}
     for name, model in models.items():

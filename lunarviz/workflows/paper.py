@@ -1,4 +1,4 @@
-"""``lunarviz paper``: the paper's whole experiment, end to end (issue 6).
+"""``lunarviz paper``: the paper's whole experiment, end to end.
 
 Writes into the output directory: Fig. 3 (reflectance factors at i = 75°), Fig. 4 (the
 small-scale BRDF ray-tracing test), Fig. 5 (moonshine and earthshine against phase), Fig. 6

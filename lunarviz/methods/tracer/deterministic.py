@@ -28,7 +28,7 @@ class DeterministicTransport:
 
         With ``threads`` > 1 the chunks are traced on that many threads, a few ahead of the
         consumer: Embree and the compiled kernels release the GIL, so one chunk's Embree
-        queries run while another's rules and beams are built (issue 13: "use both cores").
+        queries run while another's rules and beams are built (both cores busy).
         The chunks and their order are the same for any thread count, so are the results,
         bit for bit (tests/test_trace.py)."""
         s = self.settings
@@ -115,7 +115,7 @@ class DeterministicTransport:
                          e_beam_unit=None if lu is None else beams(lu))
 
     def _fused_beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
-        """:meth:`beam_transport` toward an exact-sphere source, compiled (issue 13): one pass
+        """:meth:`beam_transport` toward an exact-sphere source, compiled: one pass
         from the rule to Embree's rays (:func:`lunarviz.methods.tracer.ray_kernels.cap_beam_rays` for the Earth's
         one-cap rule, else :meth:`source_nodes` then ``beam_rays``), one from Embree's facets to
         each beam's radiance (``source_hits``), one per shadow test (``occluder_rays``) and one

@@ -1,7 +1,7 @@
 """A body (mesh at real scale) traced by Embree in its own centred frame.
 
 Embree works in float32: one float32 step is 0.125 m at 1.7e6 m, 32 m at 3.8e8 m and 16 km at
-1.5e11 m (NOTES.md). So every body is a separate Embree scene with vertices relative to its
+1.5e11 m (paper notes, "Embree at real scale"). So every body is a separate Embree scene with vertices relative to its
 own centre; a ray given in float64 world coordinates is translated into that frame in float64,
 and its origin is advanced (in float64) to just outside the body's bounding sphere before the
 float32 cast, so Embree only ever sees numbers of the body's size. Rays that miss the bounding
@@ -184,7 +184,7 @@ class EmbreeBody:
           Jacobian and normalised to the spherical triangle's area (spherical excess, Van
           Oosterom & Strackee 1983, so the areas sum to 4πR² exactly). A centroid rule here
           has an O(h²) bias of the opposite sign to the terminator's, and refinement then
-          exposes it (issue: refinement must never make a result worse).
+          exposes it (refinement must never make a result worse).
         * ``interp``: the same 3-point rule on the flat facets with interpolated normals.
         """
         faces = np.asarray(faces, dtype=np.int64)

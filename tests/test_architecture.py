@@ -1,0 +1,148 @@
+"""The package's layout rules, read from its source with Python's ``ast``.
+
+* no import cycle between lunarviz's modules, function-level imports included (an import of
+  ``pkg.mod`` counts as an edge to ``pkg.mod``; of a name from a module, to that module);
+* no private name (one leading underscore) imported from another module;
+* no function or method longer than 100 lines;
+* an option is declared once: ``cloud_albedo`` (a scene option, as the example) appears in at
+  most 3 modules;
+* README.md is at most 200 lines.
+
+Each check reports what breaks it, so a failure says where to look.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PKG = ROOT / "lunarviz"
+#: the longest function the house allows [lines]
+MAX_FUNCTION_LINES = 100
+
+
+def _modules() -> dict[str, Path]:
+    mods = {}
+    for p in PKG.rglob("*.py"):
+        parts = list(p.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        mods[".".join(parts)] = p
+    return mods
+
+
+MODULES = _modules()
+
+
+def _import_targets(mod: str, node, is_package: bool):
+    """(target module, imported name or None) for each name an import statement brings."""
+    if isinstance(node, ast.Import):
+        return [(a.name, None) for a in node.names]
+    base = mod.split(".") if is_package else mod.split(".")[:-1]
+    if node.level:
+        base = base[:len(base) - (node.level - 1)]
+        target = ".".join(base + ([node.module] if node.module else []))
+    else:
+        target = node.module or ""
+    out = []
+    for a in node.names:
+        full = f"{target}.{a.name}"
+        out.append((full, None) if full in MODULES else (target, a.name))
+    return out
+
+
+def _graph():
+    edges: dict[str, set] = {m: set() for m in MODULES}
+    private = []
+    for mod, path in MODULES.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)):
+                continue
+            for target, name in _import_targets(mod, node, path.name == "__init__.py"):
+                if not (target == "lunarviz" or target.startswith("lunarviz.")):
+                    continue
+                while target not in MODULES and "." in target:
+                    target = target.rsplit(".", 1)[0]
+                if target != mod:
+                    edges[mod].add(target)
+                    if name and name.startswith("_") and not name.startswith("__"):
+                        private.append(f"{mod} imports {name} from {target}")
+    return edges, private
+
+
+def _cycles(edges) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+    counter = [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in edges.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_checker_finds_a_cycle():
+    """The cycle finder itself, on a graph with one cycle and one chain (else a pass means nothing)."""
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycle():
+    edges, _ = _graph()
+    assert sum(len(v) for v in edges.values()) > 100  # the walk sees the package's imports
+    assert _cycles(edges) == []
+
+
+def test_no_private_name_imported_from_another_module():
+    _, private = _graph()
+    assert private == []
+
+
+def test_no_function_over_100_lines():
+    long = []
+    for mod, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long.append(f"{mod}.{node.name}: {n} lines")
+    assert long == []
+
+
+@pytest.mark.parametrize("name", ["cloud_albedo", "earth_order", "moon_albedo_map"])
+def test_an_option_lives_in_few_modules(name):
+    """An option is one schema declaration plus the code that uses it: not restated elsewhere."""
+    where = sorted(m for m, p in MODULES.items() if name in p.read_text(encoding="utf-8"))
+    assert "lunarviz.options" in where
+    assert len(where) <= 3 if name == "cloud_albedo" else len(where) <= 8, where
+
+
+def test_readme_is_short():
+    n = len((ROOT / "README.md").read_text(encoding="utf-8").splitlines())
+    assert n <= 200, f"README.md has {n} lines; the user guide lives in docs/"
