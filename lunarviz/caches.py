@@ -48,6 +48,9 @@ class BoundedCache:
     def __len__(self) -> int:
         return len(self._data)
 
+    def clear(self) -> None:
+        self._data.clear()
+
     def __setitem__(self, key, value) -> None:
         while len(self._data) >= self.maxsize:
             self._data.popitem(last=False)

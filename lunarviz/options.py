@@ -112,7 +112,7 @@ class Option:
         if k == "int":
             if isinstance(value, bool) or not isinstance(value, int) and type(value).__module__ != "numpy" \
                     or not float(value).is_integer() or not self._in_range(value):
-                raise LunarvizError(f"{self.name}={value!r} must be an integer{self._range_text()}")
+                raise LunarvizError(f"{self.name}={value!r} must be {self._integer_phrase()}")
             return value
         if k == "float":
             if isinstance(value, bool) or not isinstance(value, (int, float)) and type(value).__module__ != "numpy" \
@@ -150,6 +150,19 @@ class Option:
 
     def _in_range(self, v) -> bool:
         return (self.lo is None or v >= self.lo) and (self.hi is None or v <= self.hi)
+
+    def range_phrase(self) -> str:
+        """``positive``, ``non-negative``, ``in [lo, hi]`` or ``≥ lo``: what a value must be."""
+        if self.lo == 1 and self.hi is None:
+            return "positive"
+        if self.lo == 0 and self.hi is None:
+            return "non-negative"
+        return self._range_text().strip()
+
+    def _integer_phrase(self) -> str:
+        if self.hi is None and self.lo in (0, 1):
+            return f"a {self.range_phrase()} integer"
+        return f"an integer{self._range_text()}"
 
     def _range_text(self) -> str:
         if self.lo is not None and self.hi is not None:
@@ -301,9 +314,12 @@ def _cli_type(o: Option) -> Callable | None:
     if o.kind == "int":
         def conv(text):
             try:
-                return int(text)
+                v = int(text)
             except ValueError:
                 raise argparse.ArgumentTypeError(f"{o.cli_flag} {text!r} is not an integer") from None
+            if not o._in_range(v):
+                raise argparse.ArgumentTypeError(f"{o.cli_flag} {v} must be {o.range_phrase()}")
+            return v
         return conv
     if o.kind == "float":
         def convf(text):

@@ -3,7 +3,7 @@
     python scripts/throughput.py [--out benchmarks/throughput] [--quick]
 
 Issue 13, item 1. Rays are counted the same way on both sides: the rays *submitted to Embree*
-(every float32 batch :meth:`EmbreeBody._run` sends, recorded). The end-to-end time is one
+(every float32 batch :meth:`EmbreeBody.run_rays` sends, recorded). The end-to-end time is one
 deterministic trace of both paths (three BRDFs), one thread; the raw time replays the recorded
 batches through ``embreex`` alone (``scene.run``), one thread, best of three. Then
 
@@ -13,7 +13,7 @@ batches through ``embreex`` alone (``scene.run``), one thread, best of three. Th
   ray generation (lunar samples, candidates, source beams and their angles, detector
   geometry, the compiled passes that write Embree's rays: ``cap_beam_rays``, ``beam_rays``,
   ``occluder_rays``), beam assembly (gathering live beams, building each Transport,
-  ``scatter_beams``), Embree (inside ``_run``), source look-ups (hit refinement, source
+  ``scatter_beams``), Embree (inside ``run_rays``), source look-ups (hit refinement, source
   radiance: ``source_hits``), shading (BRDF evaluation) and accumulation (``trace_path``'s own
   loop: sums and per-facet bincounts).
 

@@ -185,7 +185,7 @@ def test_tle_occultation_is_traced_by_embree(monkeypatch):
         ts = TraceScene(s.scene(iso), replace(s.trace_settings(), occlusion=occ))
         assert trace_path(ts, "moonshine", models).mean["lambert"] == 0.0
     ts = TraceScene(s.scene(iso), s.trace_settings())
-    ts.earth._run = lambda o32, d32, query, dists=None, scene=None: np.full(len(o32), -1, dtype=np.int32)
+    ts.earth.run_rays = lambda o32, d32, query, dists=None, scene=None: np.full(len(o32), -1, dtype=np.int32)
     monkeypatch.setattr(Scene, "sight_lines_clear", lambda self, p: np.ones(len(p), dtype=bool))
     want = reference_irradiance(s.scene(iso), models)["lambert"].moonshine_W_m2
     assert want > 1e-4
