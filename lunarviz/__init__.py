@@ -13,19 +13,23 @@ The Python API (see :mod:`lunarviz.api` and the documentation's user guide):
 Attributes are imported on first use, so ``import lunarviz`` stays light.
 """
 
+import importlib
+
 __version__ = "0.1.0"
 
 __all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "study", "LunarvizError", "__version__"]
 
 
+#: where each public name lives (imported on first use, so ``import lunarviz`` stays light and
+#: the package's ``__init__`` imports none of its modules)
+_PUBLIC = {"Scene": "lunarviz.api", "sweep": "lunarviz.api", "run": "lunarviz.api", "trace": "lunarviz.api",
+           "render": "lunarviz.api", "view": "lunarviz.api", "image": "lunarviz.api",
+           "LunarvizError": "lunarviz.errors"}
+
+
 def __getattr__(name):
-    if name in ("Scene", "sweep", "run", "trace", "render", "view", "image"):
-        from lunarviz import api
-        return getattr(api, name)
     if name == "study":
-        import importlib
         return importlib.import_module("lunarviz.workflows.study")
-    if name == "LunarvizError":
-        from lunarviz.errors import LunarvizError
-        return LunarvizError
+    if name in _PUBLIC:
+        return getattr(importlib.import_module(_PUBLIC[name]), name)
     raise AttributeError(f"module 'lunarviz' has no attribute {name!r}")

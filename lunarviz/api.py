@@ -399,7 +399,7 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
                 write_png(target, res, res.planes)
             files.append(target)
     if gif is not None and len(results) > 1:
-        import io as _io
+        import io as bytes_io
 
         from PIL import Image
 
@@ -411,7 +411,7 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
             v = np.arcsinh(tot / max(np.percentile(tot[tot > 0], 5) if (tot > 0).any() else 1.0, 1e-30))
             v = (255 * v / max(v.max(), 1e-30)).astype(np.uint8)[::-1]
             frames.append(Image.fromarray(v))
-        buf = _io.BytesIO()
+        buf = bytes_io.BytesIO()
         frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
         write_bytes_atomic(gif, buf.getvalue())
         files.append(gif)

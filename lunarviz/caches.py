@@ -1,8 +1,9 @@
 """One registry of lunarviz's in-process caches; :func:`release_caches` empties every one.
 
-Caches are keyed by content, never by object identity: function arguments (hashable values:
-paths, levels, names, numbers) for :func:`memoize`, and explicit content keys (a digest of a
-mesh's vertices and faces, :func:`array_digest`) for :class:`BoundedCache`.
+Caches are keyed by content, never by object identity: hashable argument values (levels,
+names, numbers) and, for files, :func:`file_key` (path, size and modification time) for
+:func:`memoize`; a digest of a mesh's vertices and faces (:func:`array_digest`) for
+:class:`BoundedCache`.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import functools
 import gc
 import hashlib
 from collections import OrderedDict
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -55,6 +57,18 @@ class BoundedCache:
         while len(self._data) >= self.maxsize:
             self._data.popitem(last=False)
         self._data[key] = value
+
+
+def file_key(path) -> tuple:
+    """A content key of a file for a cache: its resolved path, size and modification time
+    [ns], so a file rewritten in the same process is read again. A path that cannot be
+    read keys by its text (the reader then raises its own error)."""
+    p = Path(path)
+    try:
+        st = p.stat()
+    except OSError:
+        return (str(path), -1, -1)
+    return (str(p.resolve()), st.st_size, st.st_mtime_ns)
 
 
 def array_digest(*arrays: np.ndarray) -> str:

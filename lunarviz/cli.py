@@ -290,7 +290,7 @@ def _scene(a, phases, times=None):
 
 
 def cmd_sweep(a):
-    from lunarviz import api
+    import lunarviz.api as api
     from lunarviz.outputs.writers import write_results
     from lunarviz.workflows.sweeps import METHODS
     if a.method not in METHODS:
@@ -351,7 +351,7 @@ def cmd_brdf(a):
 
 
 def cmd_trace(a):
-    from lunarviz import api
+    import lunarviz.api as api
     from lunarviz.viz.meshio import check_vtm_target, write_facet_mesh
     times = _times(a)
     if times is not None:
@@ -396,7 +396,7 @@ def cmd_render(a, interactive=False):
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
     scene = _scene(a, phases, times)
     if interactive:
-        from lunarviz import api
+        import lunarviz.api as api
         web = getattr(a, "web", False)
         if times is None and len(phases) > 1:
             raise UsageError("view starts at one phase (its slider moves through the others): give one --phase")
@@ -424,7 +424,7 @@ def cmd_render(a, interactive=False):
 
 
 def cmd_image(a):
-    from lunarviz import api
+    import lunarviz.api as api
     from lunarviz.methods.camera import Camera, parse_pixels
     times = _times(a)
     if times is not None and a.phase is not None:

@@ -54,8 +54,18 @@ BODIES = ("sun", "earth", "moon")
 EXECUTORS = ("local", "dask")
 #: the finest packaged-icosphere level a scene may ask for (20·4^8 = 1.3 M facets)
 MAX_LEVEL = 8
-#: group names, in the order the documentation lists them
-GROUPS = ("photometry", "earth", "geometry", "sky", "meshes", "surfaces", "trace", "analytic")
+#: group names, in the order the documentation lists them, and their titles in ``--help``
+GROUP_TITLES = {
+    "photometry": "photometry (the lunar BRDFs)",
+    "earth": "the Earth",
+    "geometry": "geometry",
+    "sky": "the real sky (with --time or --time-range)",
+    "meshes": "bodies as meshes",
+    "surfaces": "surfaces (equirectangular maps in the body frame: .npy, .png, .tif)",
+    "trace": "the ray tracer (--method raytrace)",
+    "analytic": "the analytic method",
+}
+GROUPS = tuple(GROUP_TITLES)
 
 
 @dataclass(frozen=True)
@@ -80,6 +90,8 @@ class Option:
     flag: str | None = None
     metavar: str | None = None
     label: str | None = None
+    #: help of a ``--no-…`` flag (what switching the option off means), where the doc says what it is on
+    flag_help: str | None = None
 
     @property
     def cli_flag(self) -> str:
@@ -203,17 +215,19 @@ OPTIONS: tuple[Option, ...] = (
        "orbit:ALT_KM,INC_DEG,RAAN_DEG,ARGLAT_DEG[,EPOCH]", "sky"),
     # meshes
     _o("moon_mesh", "path", None, "a closed mesh for the Moon (PLY, OBJ, STL, OFF, GLB/GLTF): body-fixed frame, "
-       "centred on its centre, in mesh_units; never rescaled", "meshes", metavar="FILE"),
-    _o("earth_mesh", "path", None, "a closed mesh for the Earth (as moon_mesh)", "meshes", metavar="FILE"),
-    _o("sun_mesh", "path", None, "a closed mesh for the Sun (as moon_mesh)", "meshes", metavar="FILE"),
+       "centred on its centre, in the mesh units; never rescaled", "meshes", metavar="FILE"),
+    _o("earth_mesh", "path", None, "a closed mesh for the Earth (as for the Moon)", "meshes", metavar="FILE"),
+    _o("sun_mesh", "path", None, "a closed mesh for the Sun (as for the Moon)", "meshes", metavar="FILE"),
     _o("mesh_units", "str", "m", "units of the mesh files' vertices (radius: multiples of the body's nominal "
        "radius)", "meshes", choices=MESH_UNITS, label="mesh units"),
     _o("moon_level", "int", None, "the Moon's icosphere level (default 4, from the mesh study)", "meshes",
        lo=0, hi=MAX_LEVEL, flag="--mesh-level"),
     _o("earth_level", "int", None, "the Earth's icosphere level (default 6)", "meshes", lo=0, hi=MAX_LEVEL),
     _o("sun_level", "int", None, "the Sun's icosphere level (default 5)", "meshes", lo=0, hi=MAX_LEVEL),
-    _o("occlusion", "bool", True, "bodies shade and hide each other (off: the paper's assumption)", "meshes"),
-    _o("self_shadow", "bool", True, "a non-convex body shadows itself (independent of occlusion)", "meshes"),
+    _o("occlusion", "bool", True, "bodies shade and hide each other", "meshes",
+       flag_help="the paper's assumption: bodies never shade each other"),
+    _o("self_shadow", "bool", True, "a non-convex body shadows itself (independent of occlusion)", "meshes",
+       flag_help="a non-convex body does not shadow itself (independent of --no-occlusion)"),
     _o("shading", "str", "auto", "auto: exact sphere for the packaged icospheres, facet normals for user meshes; "
        "smooth: crease-limited interpolated normals on user meshes; flat: facets everywhere", "meshes",
        choices=SHADINGS),
@@ -230,18 +244,18 @@ OPTIONS: tuple[Option, ...] = (
     _o("grid", "str", "converged", "the analytic method's lunar surface grid: converged Gauss or the paper's",
        "analytic", choices=GRIDS),
     _o("order", "int", None, "the analytic method's Gauss order (default 24; 96 with a lunar albedo map, which "
-       "it reads at its nodes)", "analytic", lo=1),
+       "it reads at its nodes)", "analytic", lo=2, hi=512),
     # surfaces
     _o("moon_albedo_map", "path", None, "per-facet lunar albedo: FILE scales each BRDF's albedo/w by map/mean; "
        "FILE:MEAN makes the map the albedo/w itself with area-weighted mean MEAN; 'synthetic' is the shipped "
        "demo map; 'none' drops a preset's map", "surfaces", metavar="FILE[:MEAN]"),
-    _o("earth_surface", "str", "uniform", "uniform (earth_albedo), landocean (a land mask with land_albedo and "
-       "ocean_albedo) or a clear-sky albedo map FILE", "surfaces", metavar="uniform|landocean|FILE"),
+    _o("earth_surface", "str", "uniform", "uniform (the Earth albedo), landocean (a land mask with the land and "
+       "ocean albedos) or a clear-sky albedo map FILE", "surfaces", metavar="uniform|landocean|FILE"),
     _o("clouds", "str", "none", "cloud fraction: none, zonal (zonal means shipped with the package) or a map "
-       "FILE; clouds reflect with cloud_albedo", "surfaces", metavar="none|zonal|FILE"),
-    _o("land_albedo", "float", LAND_ALBEDO, "Lambert albedo of clear land (earth_surface landocean)", "surfaces",
+       "FILE; clouds reflect with the cloud albedo", "surfaces", metavar="none|zonal|FILE"),
+    _o("land_albedo", "float", LAND_ALBEDO, "Lambert albedo of clear land (Earth surface landocean)", "surfaces",
        unit="1", lo=0.0, hi=1.0, label="land albedo"),
-    _o("ocean_albedo", "float", OCEAN_ALBEDO, "Lambert albedo of clear ocean (earth_surface landocean)",
+    _o("ocean_albedo", "float", OCEAN_ALBEDO, "Lambert albedo of clear ocean (Earth surface landocean)",
        "surfaces", unit="1", lo=0.0, hi=1.0, label="ocean albedo"),
     _o("cloud_albedo", "float", CLOUD_ALBEDO, "Lambert albedo of clouds (with clouds)", "surfaces", unit="1",
        lo=0.0, hi=1.0, label="cloud albedo"),
@@ -337,12 +351,16 @@ def add_arguments(parser, groups: tuple[str, ...] = (), names: tuple[str, ...] =
     to an argparse ``parser``; ``defaults`` overrides a default for this command (e.g.
     ``{"brdfs": "dhg"}``)."""
     defaults = defaults or {}
+    sections: dict = {}
     for o in OPTIONS:
         if (o.group not in groups and o.name not in names) or o.name in exclude:
             continue
         help_text = o.doc + (f" [{o.unit}]" if o.unit and o.unit != "1" else "")
+        if o.group not in sections:
+            sections[o.group] = parser.add_argument_group(GROUP_TITLES[o.group])
+        where = sections[o.group]
         if o.kind == "bool":
-            parser.add_argument(o.cli_flag, dest=o.dest, action="store_true", help=help_text)
+            where.add_argument(o.cli_flag, dest=o.dest, action="store_true", help=o.flag_help or help_text)
             continue
         default = defaults.get(o.name, o.default)
         if o.kind in ("names",) and isinstance(default, tuple):
@@ -357,7 +375,7 @@ def add_arguments(parser, groups: tuple[str, ...] = (), names: tuple[str, ...] =
         t = _cli_type(o)
         if t is not None:
             kw["type"] = t
-        parser.add_argument(o.cli_flag, **kw)
+        where.add_argument(o.cli_flag, **kw)
 
 
 def scene_options(args, parse_value: dict[str, Callable] | None = None) -> dict:

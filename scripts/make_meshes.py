@@ -1,4 +1,4 @@
-"""Regenerate the packaged meshes in meshes/ and their manifest (sha256 checksums).
+"""Regenerate the packaged meshes in lunarviz/data/meshes/ (meshes/ links there) and their manifest (sha256 checksums).
 
     python scripts/make_meshes.py
 """

@@ -146,3 +146,19 @@ def test_an_option_lives_in_few_modules(name):
 def test_readme_is_short():
     n = len((ROOT / "README.md").read_text(encoding="utf-8").splitlines())
     assert n <= 200, f"README.md has {n} lines; the user guide lives in docs/"
+
+
+def test_every_data_file_ships_in_the_wheel():
+    """pyproject's package-data globs cover every file under lunarviz/data (the packaged meshes
+    included) and py.typed, so a wheel built from the checkout needs no checkout beside it."""
+    import fnmatch
+
+    import tomllib
+
+    globs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["lunarviz"]
+    files = [p.relative_to(PKG).as_posix() for p in (PKG / "data").rglob("*") if p.is_file()
+             and "__pycache__" not in p.parts]
+    assert any(f.startswith("meshes/") for f in (p.removeprefix("data/") for p in files))
+    missing = [f for f in files + ["py.typed"] if not any(fnmatch.fnmatch(f, g) for g in globs)]
+    assert missing == []
+    assert (PKG / "py.typed").is_file()

@@ -307,14 +307,15 @@ def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
     from lunarviz.constants import R_MOON_M
     from lunarviz.geometry.scene_geometry import Scene
     from lunarviz.methods.tracer import estimators as E
+    from lunarviz.methods.tracer import settings as tuning
     from lunarviz.photometry.brdf import make_brdf
     path = tmp_path / "craters.ply"
     shapes.write_mesh(shapes.craters(R_MOON_M, 4, 60, 50e3, 300e3, seed=3), path)
-    monkeypatch.setattr(E, "CHUNK", 100)
+    monkeypatch.setattr(tuning, "CHUNK", 100)
     models = {b: make_brdf(b) for b in ("lambert", "dhg")}
     out = {}
     for threads, block in ((1, 1000), (2, 1000), (1, 1 << 18)):
-        monkeypatch.setattr(E, "FACET_BLOCK", block)
+        monkeypatch.setattr(tuning, "FACET_BLOCK", block)
         ts = E.TraceScene(Scene(100.0), E.TraceSettings(threads=threads, moon_mesh=str(path)))
         res = [E.trace_path(ts, p, models, keep_facets=True) for p in ("moonshine", "earthshine")]
         out[threads, block] = (res, ts.rays_cast, ts.source_hits["earth"].copy(), ts.source_hits["sun"].copy())

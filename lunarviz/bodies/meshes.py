@@ -22,12 +22,12 @@ from lunarviz.options import BODIES, MAX_LEVEL, MESH_UNITS
 from lunarviz.resources import MESH_DIR
 
 #: Default subdivision levels, chosen from the mesh-resolution study
-#: (benchmarks/mesh_study.json; README "Choosing the mesh levels").
+#: (benchmarks/mesh_study_auto.json; docs/user_guide/meshes.md, "Choosing the mesh levels").
 DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}
 
 
 def _nominal_radii() -> dict:
-    from lunarviz import constants as C
+    import lunarviz.constants as C
     return {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}
 
 

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.caches import memoize
+from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.resources import DATA_DIR
@@ -283,7 +283,7 @@ class MoonAlbedoMap:
 
     def values(self) -> np.ndarray:
         """The map, normalised: mean 1 (a pattern) or mean MEAN (albedo values)."""
-        return _moon_map_values(str(self.source()), self.mean)
+        return _moon_map_values(file_key(self.source()), self.mean)
 
     def check_brdfs(self, brdfs: dict) -> None:
         """Every BRDF's per-facet albedo parameter stays within [0, 1]."""
@@ -297,8 +297,9 @@ class MoonAlbedoMap:
 
 
 @memoize(maxsize=8)
-def _moon_map_values(path: str, mean: float | None) -> np.ndarray:
-    m = read_map(path, "Moon albedo map")
+def _moon_map_values(key: tuple, mean: float | None) -> np.ndarray:
+    """The lunar map at ``key`` (:func:`lunarviz.caches.file_key`), scaled to ``mean``."""
+    m = read_map(key[0], "Moon albedo map")
     mu = map_mean(m)
     if mu <= 0.0:
         raise LunarvizError(f"Moon albedo map {path!r} has mean {mu:g}: it must be positive")
@@ -412,12 +413,12 @@ class EarthSurface:
         if self.surface == "landocean":
             f = land_fraction_map()
             return self.land_albedo * f + self.ocean_albedo * (1.0 - f)
-        return _earth_map(self.surface, "Earth surface map")
+        return _earth_map(file_key(self.surface), "Earth surface map")
 
     def cloud_map(self):
         if self.clouds in CLOUDS:
             return None
-        return _earth_map(self.clouds, "cloud-fraction map")
+        return _earth_map(file_key(self.clouds), "cloud-fraction map")
 
     def albedo_at(self, dirs: np.ndarray) -> np.ndarray:
         """Lambert albedo at directions (n, 3) in the Earth's map frame: clear sky and cloud
@@ -455,7 +456,9 @@ class EarthSurface:
 
 
 @memoize(maxsize=8)
-def _earth_map(path: str, what: str) -> np.ndarray:
+def _earth_map(key: tuple, what: str) -> np.ndarray:
+    """The Earth map at ``key`` (:func:`lunarviz.caches.file_key`), checked."""
+    path = key[0]
     m = read_map(path, what)
     check_range(m, f"{what} {path!r}")
     m.setflags(write=False)

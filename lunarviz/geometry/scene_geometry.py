@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lunarviz import constants as C
+import lunarviz.constants as C
 from lunarviz.errors import LunarvizError
 
 

@@ -122,7 +122,7 @@ def _facet_angles_and_brdf(ts, sc, model, alb) -> dict:
     """Per-facet angles at the centroid [deg] and the BRDF there [sr⁻¹] for sunlight and
     earthlight, computed in blocks of facets (a few dozen (F, 3) temporaries took 1 GB at 5 M
     facets)."""
-    from lunarviz.methods.tracer.settings import FACET_BLOCK
+    from lunarviz.methods.tracer import settings as tuning
     M = ts.moon
     cd = {}
     names = ("incidence_deg", "emission_deg", "phase_deg", "earth_incidence_deg", "earth_phase_deg",
@@ -130,8 +130,8 @@ def _facet_angles_and_brdf(ts, sc, model, alb) -> dict:
     for name in names:
         cd[name] = np.empty(M.n_faces)
     normals = M.normals_for(ts.settings.shading)
-    for a in range(0, M.n_faces, FACET_BLOCK):
-        b = slice(a, min(M.n_faces, a + FACET_BLOCK))
+    for a in range(0, M.n_faces, tuning.FACET_BLOCK):
+        b = slice(a, min(M.n_faces, a + tuning.FACET_BLOCK))
         x = M.centroids_local[b] + M.centre
         n = normals[b]
         s_dir, e_dir, o_dir = unit(sc.sun - x), unit(sc.earth - x), unit(sc.det - x)

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from lunarviz import constants as C
+import lunarviz.constants as C
 from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BRDF_NAMES, DHG_CONVENTIONS, H_FUNCTIONS

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz import compiled
+import lunarviz.compiled as compiled
 from lunarviz.photometry.brdf import DoubleHG, Hapke, SingleHG, make_brdf
 
 

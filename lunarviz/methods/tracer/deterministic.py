@@ -11,8 +11,8 @@ import numpy as np
 from lunarviz.geometry.scene_geometry import unit
 from lunarviz.methods.sources import horizon_cuts_source
 from lunarviz.methods.tracer import ray_kernels
+from lunarviz.methods.tracer import settings as tuning
 from lunarviz.methods.tracer.settings import (
-    CHUNK,
     NORMAL_OFFSET,
 )
 from lunarviz.methods.transport import Transport
@@ -36,7 +36,7 @@ class DeterministicTransport:
         self._warm_shared(body)
 
         def chunk(a):
-            sl = slice(a, a + CHUNK)
+            sl = slice(a, a + tuning.CHUNK)
             x, n, dA, owner = x_all[sl], n_all[sl], dA_all[sl], owner_all[sl]
             mu, geom, o = self.detector_view(x, n, dA)
             keep = geom > 0
@@ -52,7 +52,7 @@ class DeterministicTransport:
                 out.append((tr, owner[g]))
             return out
 
-        starts = list(range(0, len(x_all), CHUNK))
+        starts = list(range(0, len(x_all), tuning.CHUNK))
         yield from self._chunks_in_order(lambda i: chunk(starts[i]), len(starts))
 
     def _warm_shared(self, body: str) -> None:

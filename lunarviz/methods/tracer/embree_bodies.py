@@ -243,7 +243,7 @@ class EmbreeBody:
         ray meets); the hit point is then refined in float64 onto the exact sphere. Seen from
         the Moon, rays to the outer ~0.5° of the Earth's sphere pass *outside* an inscribed
         level-6 mesh, and a crescent Earth's light lives exactly there: the circumscribed
-        copy keeps them (README, "Meshes").
+        copy keeps them (docs/user_guide/meshes.md).
         """
         scene = self.outer_scene()
         o, d, t0, live = self._prepare(origins, dirs, None, bound=self.outer_bound)

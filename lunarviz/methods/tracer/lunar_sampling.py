@@ -10,8 +10,8 @@ import numpy as np
 
 from lunarviz.geometry.scene_geometry import unit
 from lunarviz.geometry.subdivision import sub_barycentric
+from lunarviz.methods.tracer import settings as tuning
 from lunarviz.methods.tracer.settings import (
-    FACET_BLOCK,
     KINK_FREE_WIDTH,
     LUNE_SAMPLES,
     NORMAL_OFFSET,
@@ -43,7 +43,7 @@ class LunarSampling:
         kinks = np.zeros(F, dtype=bool)
 
         def block(i):
-            blk = slice(i * FACET_BLOCK, min(F, (i + 1) * FACET_BLOCK))
+            blk = slice(i * tuning.FACET_BLOCK, min(F, (i + 1) * tuning.FACET_BLOCK))
             lit, vis = self._kink_values(x_all[blk], n_all[blk], c, R)
             tri = M.vertices[M.faces[blk]] + M.centre
             vn = self._corner_normals(M, blk)
@@ -57,14 +57,14 @@ class LunarSampling:
             keep[blk] = up & seen
             return []
         # blocks on the trace's threads (numpy and Embree release the GIL); each writes its own slice
-        list(self._chunks_in_order(block, -(-F // FACET_BLOCK)))
+        list(self._chunks_in_order(block, -(-F // tuning.FACET_BLOCK)))
         cand = np.flatnonzero(keep)
         self._kinks = kinks
         hidden_view = not self.scene.detector_inside("earth") or self.scene.horizon_normal is not None
         if self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view:
             def edges(i):
-                return [self._shadow_edges(cand[i * FACET_BLOCK:(i + 1) * FACET_BLOCK], c)]
-            for found in self._chunks_in_order(edges, -(-len(cand) // FACET_BLOCK)):
+                return [self._shadow_edges(cand[i * tuning.FACET_BLOCK:(i + 1) * tuning.FACET_BLOCK], c)]
+            for found in self._chunks_in_order(edges, -(-len(cand) // tuning.FACET_BLOCK)):
                 self._kinks[found] = True
         self._cand_cache[body] = (cand, self._kinks)
         return cand

@@ -11,8 +11,8 @@ import numpy as np
 from lunarviz.geometry.scene_geometry import half_angle_sin_cos, unit
 from lunarviz.geometry.sphere_quadrature import orthonormal_basis
 from lunarviz.methods.tracer import ray_kernels
+from lunarviz.methods.tracer import settings as tuning
 from lunarviz.methods.tracer.settings import (
-    CHUNK,
     UNIFORM_SHARE,
 )
 from lunarviz.methods.transport import Transport, detector_geometry
@@ -30,7 +30,7 @@ class MonteCarloTransport:
         path), so the chunks are independent of each other and of the thread count: with
         ``threads`` > 1 they are traced on that many threads, in order, with the same numbers."""
         s = self.settings
-        sizes = [min(CHUNK, s.rays - a) for a in range(0, s.rays, CHUNK)]
+        sizes = [min(tuning.CHUNK, s.rays - a) for a in range(0, s.rays, tuning.CHUNK)]
         self._warm_shared(body)
         self._facet_pdf(body)  # memoised here (with the candidates), before any thread asks
 

@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from lunarviz import compiled
+import lunarviz.compiled as compiled
 from lunarviz.photometry import shading_kernels
 
 

@@ -8,7 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from lunarviz.bodies.meshes import DEFAULT_LEVELS
-from lunarviz.caches import memoize
+from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.options import SHADINGS, compose, validate
 
@@ -95,12 +95,17 @@ class TraceSettings:
             raise LunarvizError(f"mapped_earth {self.mapped_earth!r} is not one of facets, beams")
 
 
-@memoize(maxsize=16)
 def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None = None):
     """The mesh of ``body`` in metres, body frame: a user mesh (``path``, read in ``units``)
-    or the packaged icosphere at ``level`` tagged as an analytic sphere of ``radius``."""
+    or the packaged icosphere at ``level`` tagged as an analytic sphere of ``radius``.
+    Cached by the file's content key (a rewritten file is read again) and the arguments."""
+    return _body_mesh_cached(body, level, None if path is None else file_key(path), units, radius)
+
+
+@memoize(maxsize=16)
+def _body_mesh_cached(body: str, level, key, units: str, radius: float | None):
     from lunarviz.bodies.meshes import NOMINAL_RADII, analytic_sphere, load_user_mesh
     nominal = NOMINAL_RADII[body] if radius is None else radius
-    if path is not None:
-        return load_user_mesh(path, body=body, units=units, nominal_radius=nominal)
+    if key is not None:
+        return load_user_mesh(key[0], body=body, units=units, nominal_radius=nominal)
     return analytic_sphere(body, level, nominal)
