@@ -299,7 +299,8 @@ class MoonAlbedoMap:
 @memoize(maxsize=8)
 def _moon_map_values(key: tuple, mean: float | None) -> np.ndarray:
     """The lunar map at ``key`` (:func:`lunarviz.caches.file_key`), scaled to ``mean``."""
-    m = read_map(key[0], "Moon albedo map")
+    path = key[0]
+    m = read_map(path, "Moon albedo map")
     mu = map_mean(m)
     if mu <= 0.0:
         raise LunarvizError(f"Moon albedo map {path!r} has mean {mu:g}: it must be positive")
