@@ -128,7 +128,7 @@ class Scene:
         return list(self.times) if self.times is not None else list(self.phases)
 
     def geometry(self, key=None):
-        """The low-level :class:`~lunarviz.geometry.scene_geometry.Scene` (positions [m]) of one task, and its
+        """The low-level :class:`~lunarviz.geometry.scene_geometry.SceneGeometry` (positions [m]) of one task, and its
         row fields (time, distances, libration, flags)."""
         return self.settings("raytrace").scene_and_fields(self.keys[0] if key is None else key)
 

@@ -38,9 +38,9 @@ SURFACE = dict(earth_surface="landocean", clouds="zonal")
 
 def global_mean(clouds: str) -> float:
     """Area-weighted mean albedo of the Earth's facets (level-6 mesh)."""
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
-    ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean", clouds=clouds))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean", clouds=clouds))
     a = ts.earth_facet_albedo()
     return float((a * ts.earth.areas).sum() / ts.earth.areas.sum())
 

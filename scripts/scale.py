@@ -45,7 +45,7 @@ TRACE = """
 import sys, time, json, resource
 from lunarviz.bodies import meshes
 from lunarviz.photometry.brdf import make_brdf
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
 path, threads = sys.argv[1], int(sys.argv[2])
 load = []
@@ -58,7 +58,7 @@ def timed_load(*a, **k):
         load.append(time.perf_counter() - t)
 meshes.load_user_mesh = timed_load  # (the tracer imports it at call time)
 t1 = time.perf_counter()
-ts = TraceScene(Scene(90.0), TraceSettings(moon_mesh=path, threads=threads))
+ts = TraceScene(SceneGeometry(90.0), TraceSettings(moon_mesh=path, threads=threads))
 ms, es = (trace_path(ts, p, {"dhg": make_brdf("dhg")}) for p in ("moonshine", "earthshine"))
 t2 = time.perf_counter()
 print(json.dumps({"load_seconds": sum(load), "trace_seconds": t2 - t1, "moonshine_W_m2": ms.mean["dhg"],

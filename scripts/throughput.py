@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods import transport as T
 from lunarviz.methods.tracer import embree_bodies as B
 from lunarviz.methods.tracer import estimators as E
@@ -99,14 +99,14 @@ def instrument(timer: StageTimer):
 
 def make_scene(name: str, quick: bool):
     if name == "paper":
-        return Scene(90.0), E.TraceSettings(occlusion=True, threads=1), None
+        return SceneGeometry(90.0), E.TraceSettings(occlusion=True, threads=1), None
     from lunarviz.bodies import shapes
     from lunarviz.constants import R_MOON_M
     level = 5 if quick else 6
     mesh = shapes.craters(R_MOON_M, level, 400, 20e3, 300e3, seed=1)
     path = Path("/tmp") / f"lunarviz_craters_L{level}.ply"
     shapes.write_mesh(mesh, path)
-    return Scene(90.0), E.TraceSettings(occlusion=True, threads=1, moon_mesh=str(path)), path
+    return SceneGeometry(90.0), E.TraceSettings(occlusion=True, threads=1, moon_mesh=str(path)), path
 
 
 def trace_once(scene, settings):
@@ -250,7 +250,7 @@ def measure(name: str, out: Path, quick: bool) -> dict:
 
 def _reference(theta: float) -> dict:
     from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
-    r = reference_irradiance(Scene(theta), MODELS, ReferenceSettings(32, 12))
+    r = reference_irradiance(SceneGeometry(theta), MODELS, ReferenceSettings(32, 12))
     return {k: (v.moonshine_W_m2, v.earthshine_W_m2) for k, v in r.items()}
 
 
@@ -296,7 +296,8 @@ def montecarlo_phase(target: float = 0.002, quick: bool = False) -> dict:
     for path, pilot in (("moonshine", 2_000), ("earthshine", 5_000)) if quick else \
             (("moonshine", 10_000), ("earthshine", 100_000)):
         def run(n, seed):
-            ts = TraceScene(Scene(90.0), TraceSettings(estimator="montecarlo", rays=n, occlusion=False, seed=seed))
+            ts = TraceScene(SceneGeometry(90.0),
+                            TraceSettings(estimator="montecarlo", rays=n, occlusion=False, seed=seed))
             r = trace_path(ts, path, MODELS)
             return r.seconds, max(r.std[b] / r.mean[b] for b in MODELS)
         _, rel = run(pilot, 1)

@@ -136,11 +136,11 @@ def main(argv=None) -> int:
     res["checkerboard_moon_theta90"] = checker
     from global_land_mask import globe
 
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     w = np.cos(np.radians(globe._lat.astype(float) - 1 / 240))
     f = float(((~globe._mask).mean(axis=1) * w).sum() / w.sum())
-    ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean"))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean"))
     fa = ts.earth_facet_albedo()
     mean = float((fa * ts.earth.areas).sum() / ts.earth.areas.sum())
     res["landocean"] = {"mask_land_fraction": f, "expected_mean": 0.25 * f + 0.06 * (1 - f), "facet_mean": mean,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.workflows.sweeps import SweepSettings, run_sweep
@@ -46,7 +46,7 @@ def test_inversion_recovers_a_different_true_albedo():
     # Consistency check: fluxes from an Earth of albedo 0.22, lunar terms from the model's 0.3
     # Earth: the inversion must return 0.22 (earthshine is linear in the Earth's albedo)
     for theta in (40.0, 100.0, 160.0):
-        sc = Scene(theta)
+        sc = SceneGeometry(theta)
         lam = {"dhg": __import__("lunarviz.photometry.brdf", fromlist=["x"]).make_brdf("dhg")}
         true = analytic_irradiance(sc, lam, AnalyticSettings(earth_albedo=0.22))["dhg"]
         cal = analytic_irradiance(sc, lam)["dhg"]
@@ -93,7 +93,7 @@ def test_printed_eq8_biases_the_inversion_by_three_halves():
 def test_no_measurable_moonshine_gives_undefined_apparent_albedo():
     # new Moon: the ray tracer's moonshine is round-off (~1e-18 W m⁻²); Eq. 15 must not turn
     # that into a number (it would bias the Bond integral through its β ≈ 0 weight)
-    sc = Scene(180.0)
+    sc = SceneGeometry(180.0)
     tiny = alb.LunarTerms(pa_fa=0.1, pb_fb=1e-15)
     assert np.isnan(alb.geometric_albedo_term(sc, 1e-8, 1e-18, tiny))
     ok = alb.LunarTerms(pa_fa=0.1, pb_fb=1e-4)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lunarviz.geometry.scene_geometry import Scene, half_angle_sin_cos, unit
+from lunarviz.geometry.scene_geometry import SceneGeometry, half_angle_sin_cos, unit
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.photometry.earth_phase import earth_intensity, lambert_phase_function
 
@@ -46,7 +46,7 @@ BRUTE_REL = 1e-4
 
 @pytest.mark.parametrize("theta", [20.0, 90.0, 150.0])
 def test_analytic_matches_independent_quadrature(theta, paper_brdfs):
-    sc = Scene(theta)
+    sc = SceneGeometry(theta)
     res = analytic_irradiance(sc, paper_brdfs)
     for k, b in paper_brdfs.items():
         assert res[k].moonshine_W_m2 == pytest.approx(brute_force(sc, b, "moonshine"), rel=BRUTE_REL)
@@ -56,7 +56,7 @@ def test_analytic_matches_independent_quadrature(theta, paper_brdfs):
 def test_default_order_is_converged(paper_brdfs):
     # order 24 against order 64: the default must be converged to 1e-4 (issue 2); it is ~1e-6
     for theta in (5.0, 60.0, 120.0, 175.0):
-        sc = Scene(theta)
+        sc = SceneGeometry(theta)
         a = analytic_irradiance(sc, paper_brdfs)
         b = analytic_irradiance(sc, paper_brdfs, AnalyticSettings(order=64))
         for k in paper_brdfs:
@@ -84,7 +84,7 @@ def test_lambert_sphere_far_field_limit(path, paper_brdfs):
     lam = {"lambert": paper_brdfs["lambert"]}
     errs = []
     for k in (1.0, 10.0, 100.0):
-        sc = Scene(60.0, d_em=3.8e8 * k, d_se=1.496e11 * k)
+        sc = SceneGeometry(60.0, d_em=3.8e8 * k, d_se=1.496e11 * k)
         got = getattr(analytic_irradiance(sc, lam)["lambert"], f"{path}_W_m2")
         errs.append(abs(got / lambert_far_field(sc, 0.10, path) - 1))
     assert errs[0] > 1e-4  # at real scale the far-field law is off by more than 1e-4
@@ -96,18 +96,18 @@ def test_lambert_sphere_far_field_limit(path, paper_brdfs):
 def test_paper_grid_truncation_shows():
     # The paper's ±85° grid misses the limb: at θ = 175° the crescent lies beyond 85°
     lam = {"l": __import__("lunarviz.photometry.brdf", fromlist=["x"]).make_brdf("lambert")}
-    sc = Scene(175.0)
+    sc = SceneGeometry(175.0)
     conv = analytic_irradiance(sc, lam)["l"].moonshine_W_m2
     paper = analytic_irradiance(sc, lam, AnalyticSettings(grid="paper"))["l"].moonshine_W_m2
     assert paper < 0.1 * conv
-    sc = Scene(60.0)
+    sc = SceneGeometry(60.0)
     conv = analytic_irradiance(sc, lam)["l"].moonshine_W_m2
     paper = analytic_irradiance(sc, lam, AnalyticSettings(grid="paper"))["l"].moonshine_W_m2
     assert 1e-4 < abs(paper / conv - 1) < 0.05
 
 
 def test_printed_eq8_is_three_halves_brighter(paper_brdfs):
-    sc = Scene(120.0)
+    sc = SceneGeometry(120.0)
     a = analytic_irradiance(sc, paper_brdfs)
     b = analytic_irradiance(sc, paper_brdfs, AnalyticSettings(earth_law="paper_eq8"))
     for k in paper_brdfs:

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from lunarviz.geometry.scene_geometry import Scene, angle_between, half_angle_sin_cos, unit
+from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, half_angle_sin_cos, unit
 
 
 def test_angle_between_is_accurate_near_zero_and_pi():
@@ -19,7 +19,7 @@ def test_half_angle_identities():
 
 @pytest.mark.parametrize("theta", [0.0, 5.0, 90.0, 175.0, 180.0])
 def test_angles_from_vectors(theta):
-    sc = Scene(theta)
+    sc = SceneGeometry(theta)
     # β is the Sun-Earth-Moon angle: exactly 180 - θ in the Eq. 3 frame
     assert sc.beta_deg == pytest.approx(180.0 - theta, abs=1e-9)
     assert sc.theta_from_vectors_deg == pytest.approx(theta, abs=1e-9)
@@ -28,11 +28,11 @@ def test_angles_from_vectors(theta):
 
 
 def test_detector_elsewhere_and_bad_scene():
-    sc = Scene(90, detector=(7e6, 0, 0))
+    sc = SceneGeometry(90, detector=(7e6, 0, 0))
     assert np.allclose(sc.det, [7e6, 0, 0])
     assert not sc.detector_inside("earth")
-    assert Scene(90).detector_inside("earth")
+    assert SceneGeometry(90).detector_inside("earth")
     with pytest.raises(ValueError, match="r_moon"):
-        Scene(90, r_moon=-1)
+        SceneGeometry(90, r_moon=-1)
     with pytest.raises(ValueError, match="theta"):
-        Scene(float("nan"))
+        SceneGeometry(float("nan"))

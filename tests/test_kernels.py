@@ -59,9 +59,9 @@ def test_earth_beams_kernel_matches_numpy_rule(theta):
     source_beams(source_sphere_rule(...)): same beams, to rounding (1e-12: sin/cos of two
     libraries), at lunar points all over the Moon, from a gibbous to a crescent Earth, and for
     the Sun cut by the horizon."""
-    from lunarviz.geometry.scene_geometry import Scene, unit
+    from lunarviz.geometry.scene_geometry import SceneGeometry, unit
     from lunarviz.methods.sources import source_beams, source_sphere_rule
-    sc = Scene(theta)
+    sc = SceneGeometry(theta)
     rng = np.random.default_rng(2)
     n = unit(rng.normal(size=(500, 3)))
     x = sc.moon + sc.radii["moon"] * n
@@ -156,9 +156,9 @@ def test_monte_carlo_earth_directions_kernel_matches_numpy(theta, monkeypatch):
     """The compiled Monte Carlo Earth sampler against the numpy one, fed the same uniforms
     (same generator state): same directions and weights to rounding (1e-12, sin/cos of two
     libraries; the weight's pdf table is the same piecewise-constant one)."""
-    from lunarviz.geometry.scene_geometry import Scene, unit
+    from lunarviz.geometry.scene_geometry import SceneGeometry, unit
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
-    ts = TraceScene(Scene(theta), TraceSettings(moon_level=2))
+    ts = TraceScene(SceneGeometry(theta), TraceSettings(moon_level=2))
     rng = np.random.default_rng(4)
     n = unit(rng.normal(size=(3000, 3)))
     xs = ts.scene.moon + ts.scene.radii["moon"] * n
@@ -213,14 +213,14 @@ def test_fused_beam_transport_matches_numpy_path(theta, tmp_path, monkeypatch):
     groups take the generic beam_rays."""
     from lunarviz.bodies import shapes
     from lunarviz.constants import R_MOON_M
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     path = tmp_path / "craters.ply"
     shapes.write_mesh(shapes.craters(R_MOON_M, 4, 60, 50e3, 300e3, seed=3), path)
     models = {b: make_brdf(b) for b in ("lambert", "shg", "dhg")}
 
     def run():
-        ts = TraceScene(Scene(theta), TraceSettings(moon_mesh=str(path), occlusion=True, threads=1))
+        ts = TraceScene(SceneGeometry(theta), TraceSettings(moon_mesh=str(path), occlusion=True, threads=1))
         res = {p: trace_path(ts, p, models, keep_facets=True) for p in ("moonshine", "earthshine")}
         return ts, res
     ts_f, fused = run()

@@ -15,7 +15,7 @@ from lunarviz import constants as C
 from lunarviz.bodies import shapes
 from lunarviz.bodies.meshes import MeshError, load_user_mesh
 from lunarviz.cli import main
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.tracer.embree_bodies import EmbreeBody
 from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
 
@@ -35,7 +35,7 @@ def lam_dhg():
 
 
 def _trace(theta, path, models, **kw):
-    ts = TraceScene(Scene(theta), TraceSettings(moon_mesh=path, **kw))
+    ts = TraceScene(SceneGeometry(theta), TraceSettings(moon_mesh=path, **kw))
     return trace_path(ts, "moonshine", models).mean, trace_path(ts, "earthshine", models).mean, ts
 
 
@@ -254,9 +254,9 @@ def test_moon_only_stub_changes_a_cratered_moon(tmp_path):
     from lunarviz.photometry.brdf import make_brdf
     lam = {"lambert": make_brdf("lambert")}
     p = _write(shapes.craters(R, 5, 25, 80e3, 250e3, seed=3, region=(0.0, -90.0, 25.0)), tmp_path / "c.ply")
-    ts = TraceScene(Scene(120.0), TraceSettings(moon_mesh=p))
+    ts = TraceScene(SceneGeometry(120.0), TraceSettings(moon_mesh=p))
     a = trace_path(ts, "moonshine", lam).mean["lambert"]
-    ts2 = TraceScene(Scene(120.0), TraceSettings(moon_mesh=p))
+    ts2 = TraceScene(SceneGeometry(120.0), TraceSettings(moon_mesh=p))
     ts2.moon.run_rays = lambda o32, d32, query, dists=None, scene=None: np.full(len(o32), -1, dtype=np.int32)
     b = trace_path(ts2, "moonshine", lam).mean["lambert"]
     assert b > a * 1.01  # no shadows at all: brighter by the craters' shadowed share
@@ -269,8 +269,8 @@ def test_sun_mesh_conserves_power(tmp_path):
     from lunarviz.photometry.brdf import make_brdf
     lam = {"lambert": make_brdf("lambert")}
     sun2 = _write(shapes.base_sphere(3).apply_scale(2 * C.R_SUN_M), tmp_path / "sun2.ply")
-    base = TraceScene(Scene(60.0), TraceSettings(moon_level=3))
-    big = TraceScene(Scene(60.0), TraceSettings(moon_level=3, sun_mesh=sun2))
+    base = TraceScene(SceneGeometry(60.0), TraceSettings(moon_level=3))
+    big = TraceScene(SceneGeometry(60.0), TraceSettings(moon_level=3, sun_mesh=sun2))
     assert trace_path(big, "moonshine", lam).mean["lambert"] == pytest.approx(
         trace_path(base, "moonshine", lam).mean["lambert"], rel=3e-3)
 
@@ -353,11 +353,11 @@ def test_earth_and_sun_meshes_are_traced(tmp_path, lam_dhg):
     sphere = _write(shapes.ellipsoid(Re, Re, Re, level=5), tmp_path / "earth_s.ply")
     sun = _write(shapes.base_sphere(4).apply_scale(C.R_SUN_M), tmp_path / "sun.ply")
     kw = dict(moon_level=3, earth_order=24, occlusion=False)
-    base = TraceScene(Scene(90.0), TraceSettings(**kw))
+    base = TraceScene(SceneGeometry(90.0), TraceSettings(**kw))
     ms0, es0 = trace_path(base, "moonshine", lam).mean, trace_path(base, "earthshine", lam).mean
-    ts = TraceScene(Scene(90.0), TraceSettings(earth_mesh=earth, sun_mesh=sun, **kw))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_mesh=earth, sun_mesh=sun, **kw))
     ms1, es1 = trace_path(ts, "moonshine", lam).mean, trace_path(ts, "earthshine", lam).mean
-    es_s = trace_path(TraceScene(Scene(90.0), TraceSettings(earth_mesh=sphere, **kw)), "earthshine", lam).mean
+    es_s = trace_path(TraceScene(SceneGeometry(90.0), TraceSettings(earth_mesh=sphere, **kw)), "earthshine", lam).mean
     # a faceted Sun of level 4 (inscribed: projected-area deficit 0.4 %) within 1 %
     assert ms1["lambert"] == pytest.approx(ms0["lambert"], rel=1e-2)
     # beams over the bounding cone (order 24: silhouette and terminator resolved to ~0.3 %)

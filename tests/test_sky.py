@@ -84,13 +84,13 @@ def test_irradiance_matches_independent_quadrature(iso):
 def test_general_scene_equals_theta_scene():
     # The θ scene rebuilt from its own position vectors goes through the general code paths
     # (vectors, paper grid about the sub-Earth point); every number must agree to round-off.
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     models = {k: make_brdf(k) for k in ("lambert", "dhg")}
     for th in (30.0, 120.0):
-        a = Scene(th)
-        b = Scene.from_vectors(a.sun, a.moon)
+        a = SceneGeometry(th)
+        b = SceneGeometry.from_vectors(a.sun, a.moon)
         assert b.theta_deg == pytest.approx(th, abs=1e-9)
         for grid in ("converged", "paper"):
             ra = analytic_irradiance(a, models, AnalyticSettings(grid=grid, paper_step_deg=5.0))
@@ -175,7 +175,7 @@ def test_tle_occultation_is_traced_by_embree(monkeypatch):
     # queries answered 'miss' (the Sun's still traced), the occulted LEO observer sees the
     # whole Moon again. Expected: the exact reference for the same positions with its
     # analytic sight-line test switched off (the Moon as if the Earth were transparent).
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.reference import reference_irradiance
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     iso = "2027-01-01T00:20:00Z"
@@ -186,7 +186,7 @@ def test_tle_occultation_is_traced_by_embree(monkeypatch):
         assert trace_path(ts, "moonshine", models).mean["lambert"] == 0.0
     ts = TraceScene(s.scene(iso), s.trace_settings())
     ts.earth.run_rays = lambda o32, d32, query, dists=None, scene=None: np.full(len(o32), -1, dtype=np.int32)
-    monkeypatch.setattr(Scene, "sight_lines_clear", lambda self, p: np.ones(len(p), dtype=bool))
+    monkeypatch.setattr(SceneGeometry, "sight_lines_clear", lambda self, p: np.ones(len(p), dtype=bool))
     want = reference_irradiance(s.scene(iso), models)["lambert"].moonshine_W_m2
     assert want > 1e-4
     # raytrace vs exact reference: 2e-4 (the README's accuracy at default settings)
@@ -365,10 +365,10 @@ def test_moon_shadow_on_the_earth_matches_disc_overlap():
     penumbra take a 512-beam Sun (ECLIPSE_ORDER); measured mean |error| 2.5e-3 and max 1.9e-2
     per facet (a straight limb across the beams), 5.1e-2 and 0.24 with the default 8 beams,
     which moved the new-Moon earthshine by 0.7 %."""
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer import estimators as E
     from lunarviz.methods.tracer.settings import NORMAL_OFFSET
-    sc = Scene(179.5)
+    sc = SceneGeometry(179.5)
     ts = E.TraceScene(sc, E.TraceSettings(occlusion=True))
     vis = ts.sun_visibility_of_earth()
     Eb = ts.earth

@@ -5,7 +5,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import analytic_irradiance
 from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
 from lunarviz.photometry import brdf as B
@@ -51,17 +51,17 @@ def test_grazing_geometry_radiance_finite_and_vanishing():
 
 @pytest.mark.parametrize("theta", [0.0, 180.0])
 def test_end_phases_finite_everywhere(theta, paper_brdfs):
-    res = analytic_irradiance(Scene(theta), paper_brdfs)
+    res = analytic_irradiance(SceneGeometry(theta), paper_brdfs)
     for v in res.values():
         assert np.isfinite(v.moonshine_W_m2) and np.isfinite(v.earthshine_W_m2)
     for occlusion in (True, False):
-        ts = TraceScene(Scene(theta), TraceSettings(occlusion=occlusion))
+        ts = TraceScene(SceneGeometry(theta), TraceSettings(occlusion=occlusion))
         for path in ("moonshine", "earthshine"):
             r = trace_path(ts, path, paper_brdfs, keep_facets=True)
             assert all(np.isfinite(v) and v >= 0 for v in r.mean.values())
             assert all(np.all(np.isfinite(a)) for a in r.facets.values())
     # eclipse: zero moonshine at θ = 0; new Moon: no sunlit side toward the detector
-    ms0 = trace_path(TraceScene(Scene(0.0), TraceSettings()), "moonshine", paper_brdfs).mean
+    ms0 = trace_path(TraceScene(SceneGeometry(0.0), TraceSettings()), "moonshine", paper_brdfs).mean
     assert all(v == 0.0 for v in ms0.values())
 
 
@@ -69,7 +69,7 @@ def test_memory_bounded_for_many_rays(paper_brdfs):
     # 2 million Monte Carlo rays at once would need > 2 GB of arrays; batched, the peak
     # stays at a few hundred MB (CHUNK = 16384 samples per batch)
     lam = {"lambert": paper_brdfs["lambert"]}
-    ts = TraceScene(Scene(90.0), TraceSettings(estimator="montecarlo", rays=2_000_000, occlusion=False))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(estimator="montecarlo", rays=2_000_000, occlusion=False))
     tracemalloc.start()
     r = trace_path(ts, "moonshine", lam)
     _, peak = tracemalloc.get_traced_memory()
@@ -83,7 +83,7 @@ def test_float32_trap_naive_geocentric_would_fail():
     # float32 frame. Our body-centred frames hit the same facets as an exact float64 answer.
     from lunarviz.bodies.meshes import unit_icosphere
     from lunarviz.methods.tracer.embree_bodies import EmbreeBody
-    sc = Scene(60.0)
+    sc = SceneGeometry(60.0)
     moon = EmbreeBody(unit_icosphere(6), sc.moon, scale=sc.r_moon)
     rng = np.random.default_rng(1)
     facing = np.flatnonzero(np.einsum("ij,ij->i", moon.normals, sc.sun - moon.centroids) > 0)

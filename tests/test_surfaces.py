@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from lunarviz.bodies.surfaces import EarthSurface, map_frame, map_mean, zonal_cloud_table
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.photometry.brdf import make_brdf
 from lunarviz.workflows.sweeps import SweepSettings, run_phase
 
@@ -109,7 +109,7 @@ def test_landocean_mean_matches_the_mask():
     w = np.cos(np.radians(globe._lat.astype(float) - 1 / 240))  # row centres
     f = float((land_rows * w).sum() / w.sum())
     assert 0.28 < f < 0.30  # the Earth: 29 % land
-    ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean"))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean"))
     a = ts.earth_facet_albedo()
     mean = float((a * ts.earth.areas).sum() / ts.earth.areas.sum())
     expect = 0.25 * f + 0.06 * (1 - f)
@@ -124,7 +124,7 @@ def test_zonal_clouds_give_the_documented_mean():
     mean_cloud = np.trapezoid(np.interp(x, la, cf) * np.cos(np.radians(x)), x) / 2 * np.pi / 180
     assert mean_cloud == pytest.approx(0.64, abs=0.01)
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
-    ts = TraceScene(Scene(90.0), TraceSettings(earth_surface="landocean", clouds="zonal"))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean", clouds="zonal"))
     a = ts.earth_facet_albedo()
     assert float((a * ts.earth.areas).sum() / ts.earth.areas.sum()) == pytest.approx(0.30, abs=0.01)
 
@@ -132,7 +132,7 @@ def test_zonal_clouds_give_the_documented_mean():
 def test_earth_frame_sub_solar_longitude():
     """--earth-rotation-deg is the sub-solar longitude: a map bright in one cell at longitude
     λ on the equator lights the facet nearest the sub-solar point when λ = λs."""
-    sc = Scene(90.0)
+    sc = SceneGeometry(90.0)
     for lam in (0.0, 75.0, -140.0):
         R = map_frame(sc, "earth", lam)
         sub_solar = R @ np.array([np.cos(np.radians(lam)), np.sin(np.radians(lam)), 0.0])
@@ -184,7 +184,7 @@ def test_moon_map_frame_faces_the_earth(tmp_path):
     m[88:92, 178:182] = 5.0  # a bright spot at (0°, 0°)
     path = _save(tmp_path, "spot.npy", m)
     for th in (30.0, 150.0, 250.0):
-        ts = TraceScene(Scene(th), TraceSettings(moon_albedo_map=path))
+        ts = TraceScene(SceneGeometry(th), TraceSettings(moon_albedo_map=path))
         v = ts.moon_facet_albedo()
         brightest = ts.moon.centroids[np.argmax(v)] - ts.moon.centre
         to_earth = -ts.scene.moon / np.linalg.norm(ts.scene.moon)

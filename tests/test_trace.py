@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from lunarviz.bodies.meshes import MeshError, load_user_mesh, unit_icosphere, validate_mesh
-from lunarviz.geometry.scene_geometry import Scene, unit
+from lunarviz.geometry.scene_geometry import SceneGeometry, unit
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 from lunarviz.methods.tracer.embree_bodies import EmbreeBody
 from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
@@ -16,13 +16,13 @@ TRACE_REL = 1e-3
 
 
 def traced(theta, brdfs, **kw):
-    ts = TraceScene(Scene(theta), TraceSettings(**kw))
+    ts = TraceScene(SceneGeometry(theta), TraceSettings(**kw))
     return trace_path(ts, "moonshine", brdfs), trace_path(ts, "earthshine", brdfs)
 
 
 @pytest.mark.parametrize("theta", [5.0, 60.0, 120.0, 175.0])
 def test_deterministic_matches_reference(theta, paper_brdfs):
-    ref = reference_irradiance(Scene(theta), paper_brdfs, ReferenceSettings(24, 8))
+    ref = reference_irradiance(SceneGeometry(theta), paper_brdfs, ReferenceSettings(24, 8))
     ms, es = traced(theta, paper_brdfs, occlusion=False)
     for k in paper_brdfs:
         assert ms.mean[k] == pytest.approx(ref[k].moonshine_W_m2, rel=TRACE_REL)
@@ -32,7 +32,7 @@ def test_deterministic_matches_reference(theta, paper_brdfs):
 def test_converges_with_mesh_level(paper_brdfs):
     # flat shading: the error is the mesh's; it must fall as the mesh is refined
     dhg = {"dhg": paper_brdfs["dhg"]}
-    ref = reference_irradiance(Scene(100.0), dhg, ReferenceSettings(24, 8))["dhg"].moonshine_W_m2
+    ref = reference_irradiance(SceneGeometry(100.0), dhg, ReferenceSettings(24, 8))["dhg"].moonshine_W_m2
     errs = [abs(traced(100.0, dhg, occlusion=False, shading="flat", moon_level=lv,
                        refine=False)[0].mean["dhg"] / ref - 1) for lv in (2, 3, 4, 5)]
     assert all(b < a for a, b in zip(errs, errs[1:]))
@@ -46,7 +46,7 @@ def test_refinement_never_hurts(theta, paper_brdfs):
     # the terminator's. With the degree-2 rule refining never makes the error larger; the
     # margin 2e-7 is the reference's own accuracy (ReferenceSettings(32, 12) vs (48, 16)).
     sub = {"dhg": paper_brdfs["dhg"], "lambert": paper_brdfs["lambert"]}
-    ref = reference_irradiance(Scene(theta), sub, ReferenceSettings(32, 12))
+    ref = reference_irradiance(SceneGeometry(theta), sub, ReferenceSettings(32, 12))
     on = traced(theta, sub, occlusion=False, moon_level=5)
     off = traced(theta, sub, occlusion=False, moon_level=5, refine=False)
     for k in sub:
@@ -116,8 +116,8 @@ def test_scale_invariance(scale, paper_brdfs, tmp_path):
     path = tmp_path / "ell.ply"
     shapes.write_mesh(shapes.ellipsoid(1.15 * 1.738e6, 1.738e6, 0.85 * 1.738e6, level=4), path)
     dhg = {"dhg": paper_brdfs["dhg"]}
-    base = TraceScene(Scene(120.0), TraceSettings(moon_mesh=str(path)))
-    scaled = TraceScene(Scene(120.0, scale=scale), TraceSettings(moon_mesh=str(path)))
+    base = TraceScene(SceneGeometry(120.0), TraceSettings(moon_mesh=str(path)))
+    scaled = TraceScene(SceneGeometry(120.0, scale=scale), TraceSettings(moon_mesh=str(path)))
     assert base.moon.mode(base.settings.shading) == "flat"
     for path_name in ("moonshine", "earthshine"):
         a = trace_path(base, path_name, dhg).mean["dhg"]
@@ -264,7 +264,7 @@ def test_user_mesh_is_traced(tmp_path, paper_brdfs):
     v[dent] *= 0.97
     path = tmp_path / "moon.stl"
     trimesh.Trimesh(v * 1.738e6, m.faces).export(path)  # metres, body frame
-    ts = TraceScene(Scene(90.0), TraceSettings(moon_mesh=str(path)))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(moon_mesh=str(path)))
     assert not ts.moon.convex
     ms = trace_path(ts, "moonshine", {"lambert": paper_brdfs["lambert"]})
     assert ms.mean["lambert"] > 0
@@ -305,7 +305,7 @@ def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
     blocks do not change the result either (one block of all 5120 facets, below)."""
     from lunarviz.bodies import shapes
     from lunarviz.constants import R_MOON_M
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer import estimators as E
     from lunarviz.methods.tracer import settings as tuning
     from lunarviz.photometry.brdf import make_brdf
@@ -316,10 +316,11 @@ def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
     out = {}
     for threads, block in ((1, 1000), (2, 1000), (1, 1 << 18)):
         monkeypatch.setattr(tuning, "FACET_BLOCK", block)
-        ts = E.TraceScene(Scene(100.0), E.TraceSettings(threads=threads, moon_mesh=str(path)))
+        ts = E.TraceScene(SceneGeometry(100.0), E.TraceSettings(threads=threads, moon_mesh=str(path)))
         res = [E.trace_path(ts, p, models, keep_facets=True) for p in ("moonshine", "earthshine")]
         out[threads, block] = (res, ts.rays_cast, ts.source_hits["earth"].copy(), ts.source_hits["sun"].copy())
-    assert len(E.TraceScene(Scene(100.0), E.TraceSettings(moon_mesh=str(path))).lunar_samples("sun")[0]) > 5 * 100
+    one = E.TraceScene(SceneGeometry(100.0), E.TraceSettings(moon_mesh=str(path)))
+    assert len(one.lunar_samples("sun")[0]) > 5 * 100
     r1, n1, e1, s1 = out[1, 1000]
     for r2, n2, e2, s2 in (out[2, 1000], out[1, 1 << 18]):
         assert n1 == n2 and np.array_equal(e1, e2) and np.array_equal(s1, s2)
@@ -331,7 +332,7 @@ def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
     # do not depend on the threads either
     mc = {}
     for threads in (1, 2):
-        ts = E.TraceScene(Scene(100.0), E.TraceSettings(estimator="montecarlo", rays=1000, runs=2, seed=4,
+        ts = E.TraceScene(SceneGeometry(100.0), E.TraceSettings(estimator="montecarlo", rays=1000, runs=2, seed=4,
                                                         threads=threads, moon_mesh=str(path)))
         mc[threads] = [E.trace_path(ts, p, models) for p in ("moonshine", "earthshine")]
     for a, b in zip(mc[1], mc[2]):

@@ -56,7 +56,7 @@ def segment_hits_sphere(a: np.ndarray, b: np.ndarray, c: np.ndarray, r: float) -
 
 
 @dataclass(frozen=True)
-class Scene:
+class SceneGeometry:
     """Positions and radii of the Sun, Earth, Moon and detector [m], in the geocentric frame.
 
     Parameters
@@ -100,7 +100,7 @@ class Scene:
 
     @classmethod
     def from_vectors(cls, sun, moon, detector=None, moon_rotation=None, earth_rotation=None,
-                     horizon_normal=None, **kw) -> "Scene":
+                     horizon_normal=None, **kw) -> "SceneGeometry":
         """A scene from the Sun's, Moon's and detector's positions [m] relative to the Earth."""
         sun, moon = (np.asarray(v, dtype=float) for v in (sun, moon))
         det = None if detector is None else tuple(float(c) for c in detector)

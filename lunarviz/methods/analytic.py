@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.geometry.scene_geometry import Scene, angle_between, half_angle_sin_cos, unit
+from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, half_angle_sin_cos, unit
 from lunarviz.geometry.sphere_quadrature import cap_rule, compact
 from lunarviz.methods.transport import Transport, detector_geometry
 from lunarviz.options import GRIDS
@@ -57,7 +57,7 @@ class AnalyticSettings:
             raise LunarvizError(f"Earth law {self.earth_law!r} is not one of {', '.join(EARTH_LAWS)}")
 
 
-def lunar_surface_rule(scene: Scene, source: np.ndarray, source_radius: float = 0.0,
+def lunar_surface_rule(scene: SceneGeometry, source: np.ndarray, source_radius: float = 0.0,
                        order: int = 24):
     """Points, normals and areas [m²] on the lunar sphere: seen by the detector, lit by a source.
 
@@ -84,7 +84,7 @@ def lunar_surface_rule(scene: Scene, source: np.ndarray, source_radius: float = 
     return M + R * n, n, w * R * R
 
 
-def paper_grid(scene: Scene, step_deg: float = 1.0):
+def paper_grid(scene: SceneGeometry, step_deg: float = 1.0):
     """The paper's surface elements, Eq. 4: φ, δ ∈ [-85°, 85°] about the sub-Earth point.
 
     Element area R² cos φ Δφ Δδ (a full-weight rectangle rule; the paper does not say more).
@@ -120,7 +120,7 @@ def _point_source_transport(scene, x, n, dA, source, e_normal) -> Transport:
                      e_beam=np.where(lit, e_normal, 0.0)[:, None], mu=mu, geom=geom)
 
 
-def moonshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
+def moonshine_transport(scene: SceneGeometry, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
     """Sun → Moon → detector with a point Sun (paper Eq. 6, 10, 11)."""
     if settings.grid == "paper":
         x, n, dA = paper_grid(scene, settings.paper_step_deg)
@@ -138,7 +138,7 @@ def _with_moon_map(tr: Transport, scene, x, settings) -> Transport:
     return tr
 
 
-def earthshine_transport(scene: Scene, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
+def earthshine_transport(scene: SceneGeometry, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
     """Sun → Earth → Moon → detector with a point Earth of Lambert-sphere intensity (Eq. 7-9)."""
     if settings.grid == "paper":
         x, n, dA = paper_grid(scene, settings.paper_step_deg)
@@ -172,7 +172,7 @@ class DetectorIrradiance:
         return self.earthshine_W_m2 / u if u else float("nan")
 
 
-def analytic_irradiance(scene: Scene, brdfs: dict, settings: AnalyticSettings = AnalyticSettings()
+def analytic_irradiance(scene: SceneGeometry, brdfs: dict, settings: AnalyticSettings = AnalyticSettings()
                         ) -> dict[str, DetectorIrradiance]:
     """Moonshine and earthshine at the detector for each named BRDF (one transport each)."""
     ms = moonshine_transport(scene, settings)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lunarviz.geometry.scene_geometry import Scene, half_angle_sin_cos
+from lunarviz.geometry.scene_geometry import SceneGeometry, half_angle_sin_cos
 from lunarviz.methods.analytic import DetectorIrradiance, lunar_surface_rule
 from lunarviz.methods.sources import earth_radiance, source_beams, source_sphere_rule, sun_radiance  # noqa: F401 (re-export)
 from lunarviz.methods.transport import Transport, detector_geometry
@@ -38,7 +38,7 @@ class ReferenceSettings:
     surfaces: object = None
 
 
-def reference_transports(scene: Scene, path: str, settings: ReferenceSettings = ReferenceSettings()):
+def reference_transports(scene: SceneGeometry, path: str, settings: ReferenceSettings = ReferenceSettings()):
     """Yield :class:`Transport` chunks for ``path`` in {"moonshine", "earthshine"}."""
     body = {"moonshine": "sun", "earthshine": "earth"}[path]
     src = {"sun": scene.sun, "earth": scene.earth}[body]
@@ -67,7 +67,7 @@ def reference_transports(scene: Scene, path: str, settings: ReferenceSettings = 
         yield tr
 
 
-def reference_irradiance(scene: Scene, brdfs: dict, settings: ReferenceSettings = ReferenceSettings(),
+def reference_irradiance(scene: SceneGeometry, brdfs: dict, settings: ReferenceSettings = ReferenceSettings(),
                          paths=("moonshine", "earthshine")) -> dict[str, DetectorIrradiance]:
     """Converged detector irradiance [W m⁻²] with extended Sun and Earth, for each BRDF."""
     tot = {k: {"moonshine": 0.0, "earthshine": 0.0, "unit": 0.0} for k in brdfs}

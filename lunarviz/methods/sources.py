@@ -10,26 +10,26 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.geometry.scene_geometry import Scene, unit
+from lunarviz.geometry.scene_geometry import SceneGeometry, unit
 from lunarviz.geometry.sphere_quadrature import cap_rule
 
 
-def sun_radiance(scene: Scene) -> float:
+def sun_radiance(scene: SceneGeometry) -> float:
     """Radiance of the Sun's surface [W m⁻² sr⁻¹]: exitance Φ/(4πR²) = πL."""
     return scene.phi / (4 * np.pi**2 * scene.radii["sun"] ** 2)
 
 
-def source_centre(scene: Scene, body: str) -> tuple[np.ndarray, float]:
+def source_centre(scene: SceneGeometry, body: str) -> tuple[np.ndarray, float]:
     return {"sun": scene.sun, "earth": scene.earth}[body], scene.radii[body]
 
 
-def horizon_cuts_source(scene: Scene, x, n, body: str) -> np.ndarray:
+def horizon_cuts_source(scene: SceneGeometry, x, n, body: str) -> np.ndarray:
     """True where the tangent plane at x (normal n) intersects the source sphere."""
     c, R = source_centre(scene, body)
     return np.einsum("ij,ij->i", c - x, n) < R
 
 
-def source_sphere_rule(scene: Scene, x, n, body: str, order: int, horizon: bool = True):
+def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizon: bool = True):
     """Nodes m (B, K, 3) on the unit sphere of ``body`` and their solid-angle weights (B, K)
     over the part seen from x (B, 3) — above x's horizon when ``horizon`` (pass False where
     the horizon does not cut the source: the rule is then smaller) and, for the Earth, lit by
@@ -52,7 +52,7 @@ def source_sphere_rule(scene: Scene, x, n, body: str, order: int, horizon: bool 
     return np.take_along_axis(m, sel[..., None], 1), np.take_along_axis(w, sel, 1)
 
 
-def source_beams(scene: Scene, x, body: str, m, w):
+def source_beams(scene: SceneGeometry, x, body: str, m, w):
     """Source points y (B, K, 3), unit directions from x (B, K, 3) and the beams' solid angles
     seen from x [sr] (B, K): dΩ = cos_y R² dω / r² for a node of weight dω on the unit sphere."""
     c, R = source_centre(scene, body)
@@ -64,7 +64,7 @@ def source_beams(scene: Scene, x, body: str, m, w):
     return y, om, cos_y * R * R * w / r**2
 
 
-def earth_radiance(scene: Scene, y, m, albedo: float) -> np.ndarray:
+def earth_radiance(scene: SceneGeometry, y, m, albedo: float) -> np.ndarray:
     """Radiance of the Lambertian Earth at points y with unit normals m, lit by a point Sun."""
     vs = scene.sun - y
     ds = np.linalg.norm(vs, axis=-1)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.photometry.earth_phase import lambert_phase_function
 
 
@@ -31,7 +31,7 @@ class LunarTerms:
     pb_fb: float  # p_b f_b(θ): the Moon lit by the Sun, seen from the detector
 
 
-def lunar_terms(scene: Scene, earthshine_cal: float, moonshine_cal: float,
+def lunar_terms(scene: SceneGeometry, earthshine_cal: float, moonshine_cal: float,
                 earth_albedo_cal: float) -> LunarTerms:
     """Lunar terms from a calibration transport's fluxes [W m⁻²].
 
@@ -56,7 +56,7 @@ def lunar_terms(scene: Scene, earthshine_cal: float, moonshine_cal: float,
 MIN_LUNAR_TERM = 1e-9
 
 
-def geometric_albedo_term(scene: Scene, earthshine: float, moonshine: float,
+def geometric_albedo_term(scene: SceneGeometry, earthshine: float, moonshine: float,
                           terms: LunarTerms) -> float:
     """p_E f_E(β), paper Eq. 15; NaN where it is undefined: no moonshine (new Moon, eclipse,
     occultation), no earthlight on the Moon (full Moon), or no earthlit Moon in the detector's

@@ -48,17 +48,17 @@ def disk_geometry(phase_deg: float, waxing: bool | None = None):
     (0°, 0°) toward the detector, north along +z, and the sub-solar point at longitude +g
     (waxing) or −g (waning), ROLO's convention; ``None`` keeps the unoriented scene (a uniform
     Moon, for which both branches are one)."""
-    from lunarviz.geometry.scene_geometry import Scene
+    from lunarviz.geometry.scene_geometry import SceneGeometry
     g = np.radians(phase_deg)
     moon = np.array([ROLO_DISTANCE_KM * 1e3, 0.0, 0.0])
     if waxing is None:
         to_sun = np.array([-np.cos(g), np.sin(g), 0.0])
-        return Scene.from_vectors(moon + 1.495978707e11 * to_sun, moon)
+        return SceneGeometry.from_vectors(moon + 1.495978707e11 * to_sun, moon)
     x_b, z_b = np.array([-1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
     y_b = np.cross(z_b, x_b)  # east
     lon_sun = g if waxing else -g
     to_sun = np.cos(lon_sun) * x_b + np.sin(lon_sun) * y_b
-    return Scene.from_vectors(moon + 1.495978707e11 * to_sun, moon, moon_rotation=np.stack([x_b, y_b, z_b], 1))
+    return SceneGeometry.from_vectors(moon + 1.495978707e11 * to_sun, moon, moon_rotation=np.stack([x_b, y_b, z_b], 1))
 
 
 class DiskModel:

@@ -1,4 +1,4 @@
-"""The real sky: a :class:`~lunarviz.geometry.scene_geometry.Scene` for a UTC time and an observer, and the
+"""The real sky: a :class:`~lunarviz.geometry.scene_geometry.SceneGeometry` for a UTC time and an observer, and the
 geometry fields of its row.
 
 Positions and orientations come from :mod:`lunarviz.sky.ephemeris` (geometric, geocentric, ICRF);
@@ -23,25 +23,25 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.caches import memoize
-from lunarviz.geometry.scene_geometry import Scene, angle_between, unit
+from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, unit
 from lunarviz.sky.ephemeris import selenographic, sky_state
 from lunarviz.sky.observers import Observer
 
 
 @memoize(maxsize=256)
-def sky_scene(label: str, observer: Observer = Observer()) -> tuple[Scene, dict]:
+def sky_scene(label: str, observer: Observer = Observer()) -> tuple[SceneGeometry, dict]:
     """The scene at UTC ``label`` seen by ``observer``, and the row fields that describe it."""
     st = sky_state(label)
     det = observer.position(label)
     up = observer.up(label)
-    sc = Scene.from_vectors(st.sun, st.moon, None if observer.kind == "geocentre" else det,
+    sc = SceneGeometry.from_vectors(st.sun, st.moon, None if observer.kind == "geocentre" else det,
                             moon_rotation=st.moon_rotation, earth_rotation=st.earth_rotation,
                             horizon_normal=up)
     info = sky_fields(sc, label, observer)
     return sc, info
 
 
-def sky_fields(sc: Scene, label: str, observer: Observer) -> dict:
+def sky_fields(sc: SceneGeometry, label: str, observer: Observer) -> dict:
     """The per-row geometry fields of a dated scene (time, distances, libration, flags)."""
     det, M, S = sc.det, sc.moon, sc.sun
     r_me = sc.rotation("moon")
@@ -70,7 +70,7 @@ def sky_fields(sc: Scene, label: str, observer: Observer) -> dict:
     return info
 
 
-def moon_direction_radec(sc: Scene) -> tuple[float, float]:
+def moon_direction_radec(sc: SceneGeometry) -> tuple[float, float]:
     """Right ascension and declination [deg] (ICRF) of the Moon's centre from the detector."""
     v = unit(sc.moon - sc.det)
     return float(np.degrees(np.arctan2(v[1], v[0])) % 360.0), float(np.degrees(np.arcsin(v[2])))

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 from lunarviz.photometry.brdf import make_brdf
@@ -49,8 +49,8 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     models = {b: make_brdf(b) for b in BRDFS}
     phases = (60.0, 150.0) if quick else (30.0, 90.0, 150.0)
     t_all = time.perf_counter()
-    refs = {th: reference_irradiance(Scene(th), models, ReferenceSettings(32, 12)) for th in phases}
-    limit = {th: analytic_irradiance(Scene(th), models, AnalyticSettings(order=96)) for th in phases}
+    refs = {th: reference_irradiance(SceneGeometry(th), models, ReferenceSettings(32, 12)) for th in phases}
+    limit = {th: analytic_irradiance(SceneGeometry(th), models, AnalyticSettings(order=96)) for th in phases}
     rows = _bench_analytic(models, phases, refs, limit, quick) + _bench_deterministic(models, phases, refs, quick) \
         + _bench_montecarlo(models, phases, refs, quick)
     throughput = _bench_throughput(models)
@@ -74,7 +74,7 @@ def _bench_analytic(models, phases, refs, limit, quick) -> list[dict]:
     rows = []
     for order in ((4, 8, 16, 24) if quick else (4, 6, 8, 12, 16, 24, 32)):
         for th in phases:
-            res, dt = _timed(lambda: analytic_irradiance(Scene(th), models, AnalyticSettings(order=order)), 3)
+            res, dt = _timed(lambda: analytic_irradiance(SceneGeometry(th), models, AnalyticSettings(order=order)), 3)
             for path in ("moonshine", "earthshine"):
                 v = {b: getattr(res[b], f"{path}_W_m2") for b in BRDFS}
                 rows.append({"method": "analytic", "setting": f"order {order}", "theta_deg": th, "path": path,
@@ -92,7 +92,8 @@ def _bench_deterministic(models, phases, refs, quick) -> list[dict]:
         [(3, 4, 1), (4, 4, 2), (4, 6, 2), (5, 4, 2), (5, 6, 2), (6, 6, 2), (6, 8, 3)]
     for lv, eo, so in det_cases:
         for th in phases:
-            ts = TraceScene(Scene(th), TraceSettings(moon_level=lv, earth_order=eo, sun_order=so, occlusion=False))
+            ts = TraceScene(SceneGeometry(th),
+                            TraceSettings(moon_level=lv, earth_order=eo, sun_order=so, occlusion=False))
             for path in ("moonshine", "earthshine"):
                 r = trace_path(ts, path, models)
                 rows.append({"method": "deterministic", "setting": f"moon L{lv}, earth order {eo}, sun order {so}",
@@ -108,7 +109,8 @@ def _bench_montecarlo(models, phases, refs, quick) -> list[dict]:
     rows = []
     for n in ((1000, 10_000, 50_000) if quick else (1000, 10_000, 50_000, 200_000)):
         for th in phases:
-            ts = TraceScene(Scene(th), TraceSettings(estimator="montecarlo", rays=n, runs=1, occlusion=False, seed=11))
+            ts = TraceScene(SceneGeometry(th),
+                            TraceSettings(estimator="montecarlo", rays=n, runs=1, occlusion=False, seed=11))
             for path in ("moonshine", "earthshine"):
                 r = trace_path(ts, path, models)
                 rel_std = max(r.std[b] / r.mean[b] for b in BRDFS if r.mean[b] > 0)
@@ -123,8 +125,8 @@ def _bench_throughput(models) -> dict:
     """End-to-end rays per second against raw Embree on the same rays, one and two threads."""
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     # warm-up (first traces pay one-time costs: allocation, mesh loading, Embree builds)
-    trace_path(TraceScene(Scene(90.0), TraceSettings(occlusion=True, threads=1)), "earthshine", models)
-    ts = TraceScene(Scene(90.0), TraceSettings(occlusion=True, threads=1))
+    trace_path(TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=True, threads=1)), "earthshine", models)
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=True, threads=1))
     for body in (ts.moon, ts.earth, ts.sun):
         body.recorder = []
     r_es = trace_path(ts, "earthshine", models)
@@ -145,7 +147,7 @@ def _bench_throughput(models) -> dict:
     raw2 = min(replay(2) for _ in range(3))
 
     def end_to_end(threads):
-        t = TraceScene(Scene(90.0), TraceSettings(occlusion=True, threads=threads))
+        t = TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=True, threads=threads))
         return trace_path(t, "earthshine", models).seconds + trace_path(t, "moonshine", models).seconds
 
     e2e = {1: [], 2: []}
@@ -184,27 +186,28 @@ def _bench_skips(models) -> dict:
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
     skips = {}
     one = {"dhg": models["dhg"]}
-    ts = TraceScene(Scene(90.0), TraceSettings(occlusion=False))
+    ts = TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=False))
     t3 = trace_path(ts, "earthshine", models).seconds
-    t1 = sum(trace_path(TraceScene(Scene(90.0), TraceSettings(occlusion=False)), "earthshine",
+    t1 = sum(trace_path(TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=False)), "earthshine",
                         {b: models[b]}).seconds for b in BRDFS)
     skips["transport_reused_across_3_brdfs"] = {"seconds_one_trace": t3, "seconds_three_traces": t1,
                                                 "saving": 1 - t3 / t1}
     cand = ts.candidates("sun").size
     skips["facets_culled_moonshine_theta90"] = {"facets": ts.moon.n_faces, "traced": int(cand),
                                                 "saving": 1 - cand / ts.moon.n_faces}
-    on = TraceScene(Scene(90.0), TraceSettings(occlusion=True))
-    off = TraceScene(Scene(90.0), TraceSettings(occlusion=False))
+    on = TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=True))
+    off = TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=False))
     r_on, r_off = trace_path(on, "moonshine", one), trace_path(off, "moonshine", one)
     skips["earth_not_traced_for_moonshine_without_occlusion"] = {
         "rays_with_occlusion": r_on.rays, "rays_without": r_off.rays,
         "seconds_with": r_on.seconds, "seconds_without": r_off.seconds, "saving": 1 - r_off.seconds / r_on.seconds}
-    dets = TraceScene(Scene(90.0), TraceSettings())
+    dets = TraceScene(SceneGeometry(90.0), TraceSettings())
     skips["detector_inside_earth_no_sightline_rays"] = {
         "detector_inside_earth": True, "sight_line_rays_skipped": int(dets.candidates("sun").size)}
-    rf_on = trace_path(TraceScene(Scene(170.0), TraceSettings(occlusion=False)), "moonshine", one)
-    rf_off = trace_path(TraceScene(Scene(170.0), TraceSettings(occlusion=False, refine=False)), "moonshine", one)
-    ref170 = reference_irradiance(Scene(170.0), one, ReferenceSettings(32, 12),
+    rf_on = trace_path(TraceScene(SceneGeometry(170.0), TraceSettings(occlusion=False)), "moonshine", one)
+    rf_off = trace_path(TraceScene(SceneGeometry(170.0), TraceSettings(occlusion=False, refine=False)), "moonshine",
+                        one)
+    ref170 = reference_irradiance(SceneGeometry(170.0), one, ReferenceSettings(32, 12),
                                   paths=("moonshine",))["dhg"].moonshine_W_m2
     skips["refinement_only_where_needed_theta170"] = {
         "rays_refined": rf_on.rays, "rays_unrefined": rf_off.rays,
@@ -235,7 +238,8 @@ def _bench_targets(models, quick) -> dict:
     targets["analytic_sweep_seconds"] = {"seconds": t_an, "target": "<= 1 s"}
     mc = {}
     for path, n in (("moonshine", 50_000), ("earthshine", 50_000), ("earthshine", 120_000)):
-        ts = TraceScene(Scene(90.0), TraceSettings(estimator="montecarlo", rays=n, runs=1, occlusion=False, seed=5))
+        ts = TraceScene(SceneGeometry(90.0),
+                        TraceSettings(estimator="montecarlo", rays=n, runs=1, occlusion=False, seed=5))
         r = trace_path(ts, path, models)
         mc[f"{path}_{n}_rays"] = {"seconds": r.seconds,
                                   "relative_std": max(r.std[b] / r.mean[b] for b in BRDFS)}

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 from lunarviz.photometry.brdf import make_brdf
 
@@ -69,7 +69,7 @@ def _study_task(task):
     st, th, body, brdfs = task
     models = {b: make_brdf(b) for b in brdfs}
     t0 = time.perf_counter()
-    ts = TraceScene(Scene(th), st)
+    ts = TraceScene(SceneGeometry(th), st)
     ms = trace_path(ts, "moonshine", models)
     es = trace_path(ts, "earthshine", models)
     return time.perf_counter() - t0, int(getattr(ts, body).n_faces), ms.mean, es.mean, (ms.rays, es.rays)
@@ -92,7 +92,8 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
         shading = "flat"
     models = {b: make_brdf(b) for b in brdfs}
     exact = shape == "sphere" and not meshes
-    refs = {th: reference_irradiance(Scene(th), models, ReferenceSettings(32, 12)) for th in phases} if exact else {}
+    refs = {th: reference_irradiance(SceneGeometry(th), models, ReferenceSettings(32, 12)) for th in phases} \
+        if exact else {}
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         paths = _study_meshes(body, shape, levels, axes, meshes, tmp)

@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 from lunarviz.options import GROUPS, compose, from_settings_dict, group, validate
@@ -76,7 +76,7 @@ class SweepSettings:
                 raise LunarvizError("--detector places a detector in the θ scene; with --time use --observer")
         if self.detector is not None and self.times is None:
             for th in self.phases_deg:  # a detector inside the Sun or the Moon, before any work
-                Scene(float(th), detector=self.detector)
+                SceneGeometry(float(th), detector=self.detector)
         obs = self.observer_model()  # validates (reads a TLE file) before any work
         if obs.kind != "geocentre" and self.times is None:
             raise LunarvizError(f"--observer {self.observer} needs a date: give --time or --time-range")
@@ -187,15 +187,15 @@ class SweepSettings:
         """One key per independent task: UTC labels with ``times``, else the phases θ [deg]."""
         return list(self.times) if self.times is not None else [float(p) for p in self.phases_deg]
 
-    def scene(self, key) -> Scene:
+    def scene(self, key) -> SceneGeometry:
         return self.scene_and_fields(key)[0]
 
-    def scene_and_fields(self, key) -> tuple[Scene, dict]:
+    def scene_and_fields(self, key) -> tuple[SceneGeometry, dict]:
         """The scene of one task and the geometry fields its rows start with."""
         if self.times is not None:
             from lunarviz.sky.dated_scene import sky_scene
             return sky_scene(str(key), self.observer_model())
-        sc = Scene(float(key), detector=self.detector)
+        sc = SceneGeometry(float(key), detector=self.detector)
         return sc, {"theta_deg": float(key)}
 
     @classmethod

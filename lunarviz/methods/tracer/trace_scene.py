@@ -14,7 +14,7 @@ import threading
 
 import numpy as np
 
-from lunarviz.geometry.scene_geometry import Scene
+from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.tracer.deterministic import DeterministicTransport
 from lunarviz.methods.tracer.embree_bodies import EmbreeBody
 from lunarviz.methods.tracer.lunar_sampling import LunarSampling
@@ -29,9 +29,9 @@ from lunarviz.methods.transport import Transport
 
 
 class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarthTransport, MonteCarloTransport):
-    """The three bodies of a :class:`~lunarviz.geometry.scene_geometry.Scene` as Embree meshes."""
+    """The three bodies of a :class:`~lunarviz.geometry.scene_geometry.SceneGeometry` as Embree meshes."""
 
-    def __init__(self, scene: Scene, settings: TraceSettings = TraceSettings()):
+    def __init__(self, scene: SceneGeometry, settings: TraceSettings = TraceSettings()):
         self.scene = scene
         self.settings = settings
         th = settings.threads
