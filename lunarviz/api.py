@@ -188,6 +188,9 @@ def sweep(scene: Scene | None = None, method: str = "analytic", workers: int | N
         extended-source reference.
     workers : int, optional
         Local worker processes (default: one per core for raytrace/reference).
+    progress : bool
+        Show a progress bar over the phases or dates (tqdm, on stderr); off by default in the
+        API, on in the command line (``--quiet`` turns it off).
     executor, scheduler
         ``"local"`` or ``"dask"`` (see :func:`run`).
 
@@ -357,6 +360,8 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     out : path, optional
         ``.fits`` (one HDU per plane, BUNIT, TAN WCS), ``.npy`` or ``.png``; several frames are
         numbered ``FILE_000.ext``.
+    progress : bool
+        Show a progress bar over the frames (tqdm, on stderr) when there are several.
 
     Returns
     -------

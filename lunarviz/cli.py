@@ -23,7 +23,22 @@ class UsageError(LunarvizError):
     """Bad input from the user on the command line: printed as one line."""
 
 
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Help that shows each option's default (where it has one) and keeps the examples' lines."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if action.option_strings and action.default not in (None, False, argparse.SUPPRESS) \
+                and "%(default)" not in text and "default" not in text:
+            text += " (default: %(default)s)"
+        return text
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
     def error(self, message):  # one line, no usage dump
         raise UsageError(message)
 
@@ -150,9 +165,10 @@ def _parser_sweep(sub):
     from lunarviz.workflows.sweeps import METHODS
     p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases", SCENE_GROUPS + ("analytic",))
     p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
-    p.add_argument("--method", default="analytic", help=" | ".join(METHODS))
+    p.add_argument("--method", default="analytic", help=" | ".join(METHODS) + ": the paper's point-source "
+                   "quadrature, Embree ray tracing of the meshes, or the exact extended-source reference")
     _add_executor_options(p)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
     p.add_argument("--out", required=True, help=".json, .csv or .nc (NetCDF-4 through xarray)")
 
 
@@ -163,7 +179,7 @@ def _parser_brdf(sub):
     p.add_argument("--incidence", required=True, help="incidence angles [deg]")
     p.add_argument("--emission", required=True, help="emission angles [deg]")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")
-    p.add_argument("--out", required=True)
+    p.add_argument("--out", required=True, help=".json or .csv: one row per (incidence, emission, azimuth)")
     add_arguments(p, names=BRDF_TABLE_OPTIONS)
 
 
@@ -174,13 +190,15 @@ def _parser_trace(sub):
     p.add_argument("--out", required=True,
                    help="the Moon with per-facet arrays (.vtp, .vtk, .ply), or every body (.vtm multiblock: "
                         "moon, earth, sun in scene coordinates [m])")
+    p.add_argument("--quiet", action="store_true", help="no summary on the terminal")
 
 
 def _parser_pictures(sub):
     for name, helptext in (("render", "offscreen picture of a phase"), ("view", "interactive desktop viewer")):
         p = _add_scene_command(sub, name, helptext, brdfs="dhg")
         p.add_argument("--phase", default=None,
-                       help="θ [deg] (default 90); render accepts a list for numbered frames")
+                       help="θ [deg] (default 90); a list writes numbered frames" if name == "render" else
+                       "θ [deg] to start at (default 90); the viewer's slider moves through the phases")
         p.add_argument("--view", default="composite", help="composite | moon | rays | maps | surfaces")
         p.add_argument("--size", default="1600x900", help="WxH pixels")
         if name == "render":
@@ -191,7 +209,7 @@ def _parser_pictures(sub):
                            help="serve the viewer to a browser through trame (no display needed)")
             p.add_argument("--port", type=int, default=None, help="with --web: TCP port (default: a free one)")
             p.add_argument("--host", default=None, help="with --web: interface to bind (default 127.0.0.1)")
-        p.add_argument("--quiet", action="store_true")
+        p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
 
 
 def _parser_image(sub):
@@ -207,22 +225,23 @@ def _parser_image(sub):
                    help="scattered-light wing FRACTION,INDEX[,CORE_ARCSEC]: (1+(r/core)^2)^(-INDEX/2)")
     p.add_argument("--out", required=True, help=".fits, .npy or .png; several phases/times: FILE_000.ext …")
     p.add_argument("--gif", default=None, help="with several frames: also an animated GIF of the PNG stretch")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
 
 
 def _parser_study(sub):
     p = sub.add_parser("study", help="mesh-resolution study")
     p.add_argument("kind", choices=["mesh"])
     p.add_argument("--levels", default="2:6:1", help="icosphere levels (integers)")
-    p.add_argument("--phases", default="30,90,150")
+    p.add_argument("--phases", default="30,90,150", help="θ list [deg]: a,b,c or start:stop:step")
     p.add_argument("--body", default="moon", choices=list(BODIES), help="the body whose mesh varies")
-    p.add_argument("--shape", default="sphere", choices=["sphere", "ellipsoid", "craters"])
+    p.add_argument("--shape", default="sphere", choices=["sphere", "ellipsoid", "craters"],
+                   help="the shape refined level by level: the exact sphere, an ellipsoid (--axes) or a cratered Moon")
     p.add_argument("--axes", default="1.15,1.0,0.85", help="ellipsoid semi-axes in body radii")
     p.add_argument("--meshes", default=None, help="user meshes F1,F2,... coarse to fine (replaces --levels)")
     add_arguments(p, names=("brdfs", "mesh_units", "shading"))
     _add_executor_options(p, "with --executor dask and no scheduler: local cluster processes")
     p.add_argument("--out", required=True, help=".json or .csv (a .png plot is written beside it)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
 
 
 def _parser_mesh(sub):
@@ -259,24 +278,55 @@ def _parser_fit(sub):
 
 def _parser_bench_paper(sub):
     p = sub.add_parser("bench", help="run time against error for every method")
-    p.add_argument("--quick", action="store_true")
+    p.add_argument("--quick", action="store_true", help="a reduced run (fewer phases, orders and rays)")
     p.add_argument("--out", required=True, help=".json (a .csv table and a .png Pareto plot beside it)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
     p = sub.add_parser("paper", help="reproduce the paper end to end")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--quick", action="store_true", help="reduced run for CI and a first look")
-    p.add_argument("--executor", default="local", choices=list(EXECUTORS))
+    p.add_argument("--executor", default="local", choices=list(EXECUTORS),
+                   help="local worker processes, or a Dask distributed cluster")
     p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
+
+
+#: a few examples per command, shown at the end of its --help
+EXAMPLES = {
+    "sweep": ["lunarviz sweep --method analytic --out paper.json",
+              "lunarviz sweep --method raytrace --phases 0:180:30 --brdf lambert,dhg --out raytrace.csv",
+              "lunarviz sweep --method reference --phases 30,90,150 --out reference.json",
+              "lunarviz sweep --method raytrace --time-range 2026-06-01,2026-06-02,6h "
+              "--observer site:34.26,-116.92,2067 --out sky.nc"],
+    "brdf": ["lunarviz brdf --model dhg --incidence 75 --emission 0:85:5 --azimuth 0,180 --out brdf.csv"],
+    "trace": ["lunarviz trace --phase 120 --brdf dhg,lambert --out moon.vtp",
+              "lunarviz trace --time 2025-03-14T06:58Z --out scene.vtm"],
+    "render": ["lunarviz render --phase 120 --out moon.png",
+               "lunarviz render --phase 0:180:30 --view moon --out frames.png --gif orbit.gif"],
+    "view": ["lunarviz view --phase 120", "lunarviz view --web --port 8080"],
+    "image": ["lunarviz image --phase 120 --pixels 512 --out moon.fits",
+              "lunarviz image --phase 120 --psf gaussian:2 --halo 0.01,3 --out moon.png"],
+    "study": ["lunarviz study mesh --levels 2:5 --phases 30,90,150 --out study.json",
+              "lunarviz study mesh --body earth --levels 3:6 --out earth_study.csv"],
+    "mesh": ["lunarviz mesh make craters --level 6 --count 40 --out craters.ply",
+             "lunarviz mesh make ellipsoid --axes 1.1,1.0,0.9 --level 5 --out ellipsoid.ply"],
+    "fit": ["lunarviz fit --brdf dhg --source rolo --out fit.json",
+            "lunarviz fit --brdf lambert --source table.csv --out fit_table.json"],
+    "bench": ["lunarviz bench --quick --out bench.json"],
+    "paper": ["lunarviz paper --out paper_out", "lunarviz paper --quick --out paper_quick"],
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``lunarviz`` command's parser: scene options come from :mod:`lunarviz.options`."""
+    from lunarviz import __version__
     ap = _Parser(prog="lunarviz", description="Real-scale ray-traced earthshine and moonshine.")
+    ap.add_argument("--version", action="version", version=f"lunarviz {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_parser_sweep, _parser_brdf, _parser_trace, _parser_pictures, _parser_image, _parser_study,
                 _parser_mesh, _parser_fit, _parser_bench_paper):
         add(sub)
+    for name, command in sub.choices.items():
+        command.epilog = "examples:\n" + "\n".join(f"  {e}" for e in EXAMPLES[name])
     return ap
 
 
@@ -373,8 +423,10 @@ def cmd_trace(a):
     from lunarviz.caches import release_caches
     release_caches()  # the meshes and Embree scenes are done with: ~1 GB at 5 M facets before the write
     write_facet_mesh(out, res)
-    print(f"moonshine {res.totals['moonshine_W_m2']:.6e} W/m2, earthshine {res.totals['earthshine_W_m2']:.6e} W/m2")
-    print(f"wrote {out} ({res.n_faces} facets)")
+    if not getattr(a, "quiet", False):
+        print(f"{res.info['brdf']}: moonshine {res.totals['moonshine_W_m2']:.6e} W m-2, earthshine "
+              f"{res.totals['earthshine_W_m2']:.6e} W m-2 at the detector")
+        print(f"wrote {out} ({res.n_faces} facets)")
 
 
 def cmd_render(a, interactive=False):
@@ -394,6 +446,9 @@ def cmd_render(a, interactive=False):
     brdf = _brdf_list(a.brdf)
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
+    if not interactive:  # a bad output path is refused before any work
+        out = _check_out(a.out, (".png",))
+        gif = _check_out(a.gif, (".gif",)) if a.gif else None
     scene = _scene(a, phases, times)
     if interactive:
         import lunarviz.api as api
@@ -414,13 +469,12 @@ def cmd_render(a, interactive=False):
                              "(a browser) or lunarviz render (pictures)")
         api.view(scene, brdf=brdf[0], size=(w, h))
         return
-    out = _check_out(a.out, (".png",))
-    gif = _check_out(a.gif, (".gif",)) if a.gif else None
     settings = scene.settings("raytrace")
     files = views.render_frames(settings, scene.keys, brdf[0], out, view=a.view, size=(w, h),
                                 gif=gif, progress=not a.quiet)
-    for f in files:
-        print(f"wrote {f}")
+    if not a.quiet:
+        for f in files:
+            print(f"wrote {f}")
 
 
 def cmd_image(a):
@@ -439,8 +493,9 @@ def cmd_image(a):
         raise UsageError("--gif needs several frames (several phases or times)")
     files = api.image(scene, keys=scene.keys, camera=camera, psf=a.psf, halo=a.halo, out=out, gif=gif,
                       progress=not a.quiet)
-    for f in files:
-        print(f"wrote {f}")
+    if not a.quiet:
+        for f in files:
+            print(f"wrote {f}")
 
 
 def cmd_study(a):

@@ -66,6 +66,10 @@ def test_netcdf_opens_and_equals_json(tmp_path):
             want = row["apparent_albedo"]
             got = float(ds.apparent_albedo.sel(sel))
             assert (want is None and np.isnan(got)) or got == want
+        # every variable read back carries units and a long_name (time: CF units in its encoding)
+        for name, var in list(ds.data_vars.items()) + list(ds.coords.items()):
+            units = var.attrs.get("units") or var.encoding.get("units")
+            assert units and var.attrs.get("long_name"), (name, var.attrs)
 
 
 def test_trace_to_pyvista_and_save(tmp_path):

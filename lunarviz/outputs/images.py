@@ -129,7 +129,7 @@ def write_fits(path, res, planes, extra: dict) -> None:
         hh = h.header
         hh["BUNIT"] = BUNIT
         hh["BRDF"] = b
-        hh["COMPONEN"] = comp
+        hh["LIGHT"] = (comp, "light path: moonshine (Sun-Moon) or earthshine (Sun-Earth-Moon)")
         hh["WCSAXES"] = 2
         hh["CTYPE1"], hh["CTYPE2"] = "RA---TAN", "DEC--TAN"
         hh["CUNIT1"], hh["CUNIT2"] = "deg", "deg"

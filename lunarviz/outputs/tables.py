@@ -38,6 +38,8 @@ DESCRIPTIONS = {
                                                "p*(beta) inverted with the paper's point-source lunar terms"),
     "extended_over_point_earthshine": ("extended_over_point_earthshine", "1",
                                        "earthshine with an extended Earth over that with a point Earth"),
+    "earth_visible_lit_albedo": ("earth_visible_lit_albedo", "1",
+                                 "albedo of the Earth's lit face seen from the Moon, as earthshine weights it"),
     "rays": ("rays", "1", "rays submitted to Embree for this row's phase (both paths)"),
     "runs": ("runs", "1", "Monte Carlo runs"),
     "rays_per_run": ("rays_per_run", "1", "Monte Carlo rays per run and path"),
@@ -67,6 +69,20 @@ def _num(v):
     return np.nan if v is None else v
 
 
+#: unit suffixes of row fields → UDUNITS spelling (for fields without a DESCRIPTIONS entry)
+SUFFIX_UNITS = (("_W_m2_sr", "W m-2 sr-1"), ("_W_m2", "W m-2"), ("_deg", "degree"), ("_days", "day"), ("_m", "m"),
+                ("_s", "s"))
+
+
+def _describe(field: str) -> tuple[str, str, str]:
+    """(name, units, long name) of a row field with no DESCRIPTIONS entry, from its unit suffix
+    (dimensionless otherwise), so that every variable carries both attributes."""
+    for suffix, units in SUFFIX_UNITS:
+        if field.endswith(suffix):
+            return field[: -len(suffix)], units, field[: -len(suffix)].replace("_", " ")
+    return field, "1", field.replace("_", " ")
+
+
 def to_dataset(result: dict):
     """An ``xarray.Dataset`` from :func:`lunarviz.workflows.sweeps.run_sweep`'s result."""
     import xarray as xr
@@ -85,7 +101,7 @@ def to_dataset(result: dict):
     fields = list(dict.fromkeys(k for r in rows for k in r if k not in SKIP))
     data = {}
     for f in fields:
-        name, units, long_name = DESCRIPTIONS.get(f, (f, None, None))
+        name, units, long_name = DESCRIPTIONS.get(f) or _describe(f)
         values = np.array([[_num(index[(b, k)].get(f)) for k in keys] for b in brdfs])
         is_bool = values.dtype == bool or all(isinstance(index[(b, k)].get(f), bool) for b in brdfs for k in keys)
         if f in PER_TASK:
@@ -99,13 +115,13 @@ def to_dataset(result: dict):
             attrs["long_name"] = long_name
         if is_bool:
             values = values.astype(np.int8)
-            attrs.update({"flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "false true"})
-            attrs.pop("units", None)
+            attrs.update({"flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "false true",
+                          "units": "1"})
         else:
             values = values.astype(float)
         data[name] = (dims, values, attrs)
     ds = xr.Dataset(data, coords=coords)
-    ds["brdf"].attrs["long_name"] = "lunar BRDF"
+    ds["brdf"].attrs.update({"long_name": "lunar BRDF", "units": "1"})
     if timed:
         ds["time"].attrs["long_name"] = "UTC time of the row"
         ds["time"].attrs["standard_name"] = "time"

@@ -233,7 +233,7 @@ def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "
         ("occluded", replace(base, method="raytrace", occlusion=True)),
     ):
         t = time.perf_counter()
-        sweeps[key] = run_sweep(s, executor=executor, scheduler=scheduler)
+        sweeps[key] = run_sweep(s, executor=executor, scheduler=scheduler, progress=progress)  # a bar per phase
         timings[f"{key}_s"] = time.perf_counter() - t
         step(key)
 
