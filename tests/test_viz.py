@@ -47,8 +47,8 @@ def test_composite_not_blank_with_colour_bars(data120):
 
 
 def test_sunlit_side_brighter_than_earthshine_side(data120):
-    # θ = 120°: the Sun lies almost along -z from the Moon; with z up on screen the sunlit
-    # crescent is in the lower half of the disk and the earthshine side in the upper half.
+    # The Moon panels put the Sun's direction up (the schematic draws the Sun on top): the sunlit
+    # crescent is in the upper half of the disk and the earthshine side in the lower half.
     pl = views.build_plotter(data120, "moon", (600, 600))
     pl.remove_scalar_bar()
     for a in list(pl.renderer.actors):
@@ -61,8 +61,57 @@ def test_sunlit_side_brighter_than_earthshine_side(data120):
     disk = (xx - w / 2) ** 2 + (yy - h / 2) ** 2 < (0.4 * h) ** 2
     top = img[disk & (yy < h / 2 - 0.2 * h)].mean()   # image rows grow downward
     bottom = img[disk & (yy > h / 2 + 0.2 * h)].mean()
-    assert bottom > top + 50
-    assert top > 5  # and the earthshine side is not black: it is visible
+    assert top > bottom + 50
+    assert bottom > 5  # and the earthshine side is not black: it is visible
+
+
+@pytest.mark.parametrize("view", ["composite", "maps"])
+def test_every_panel_has_content(data120, view):
+    """Each of the four panels shows something (a blank or broken panel is caught): its pixels
+    vary, and enough of them are neither the black background nor one flat colour."""
+    pl = views.build_plotter(data120, view, (1024, 768))
+    img = pl.screenshot(return_img=True)[..., :3].astype(float)
+    pl.close()
+    h, w = img.shape[0] // 2, img.shape[1] // 2
+    for r in range(2):
+        for c in range(2):
+            panel = img[r * h:(r + 1) * h, c * w:(c + 1) * w]
+            lum = panel.mean(axis=2)
+            assert lum.std() > 10, (view, r, c)
+            assert (lum > 40).mean() > 0.02, (view, r, c)  # more than text: a body or a diagram
+            assert len(np.unique(panel.reshape(-1, 3)[::7], axis=0)) > 20, (view, r, c)
+
+
+def test_terminator_is_smooth(data120):
+    """The sunlit edge is the smooth great circle it is, not the facets' sawtooth: along each
+    image column the last sunlit row moves by at most a few pixels from column to column."""
+    pl = views.build_plotter(data120, "moon", (600, 600))
+    pl.remove_scalar_bar()
+    for a in list(pl.renderer.actors):
+        if "Text" in a or "text" in a.lower() or "Labels" in a:
+            pl.remove_actor(a)
+    img = pl.screenshot(return_img=True).astype(float).mean(axis=2)
+    pl.close()
+    # the disc (its earthshine side is dark grey, not black), without the orientation key beside it
+    rows, cols_ = np.nonzero(img > 5)
+    big = np.bincount(cols_).argmax()  # a column through the disc
+    col_rows = rows[cols_ == big]
+    cy, r = 0.5 * (col_rows.min() + col_rows.max()), 0.5 * (col_rows.max() - col_rows.min())
+    row_cols = cols_[np.abs(rows - round(cy)) < 1]
+    cx = 0.5 * (row_cols.min() + row_cols.max())
+    yy, xx = np.mgrid[0:img.shape[0], 0:img.shape[1]]
+    bright = (img > 0.5 * img.max()) & ((yy - cy) ** 2 + (xx - cx) ** 2 < (0.95 * r) ** 2)
+    cols = [c for c in range(img.shape[1]) if bright[:, c].sum() > 10 and abs(c - cx) < 0.9 * r]
+    edge = []
+    for c in cols:  # of the bright run's two ends, the terminator is the one away from the limb
+        lit = np.nonzero(bright[:, c])[0]
+        half = 0.95 * np.sqrt(r ** 2 - (c - cx) ** 2)
+        top, bottom = lit.min() - (cy - half), (cy + half) - lit.max()
+        edge.append(lit.min() if top > bottom else lit.max())
+    edge = np.array(edge, dtype=float)
+    inner = edge[len(edge) // 5: -len(edge) // 5]  # away from the limb, where the edge turns
+    jumps = np.abs(np.diff(inner))
+    assert len(inner) > 50 and jumps.max() <= 3, jumps.max()
 
 
 def test_matches_stored_reference_image(data120, tmp_path):

@@ -90,11 +90,11 @@ class Viewer:
             n = len(self.settings.times)
             pl.add_slider_widget(lambda v: self.set_time_index(round(v)), [0.0, max(n - 1, 1e-9)],
                                  value=self.settings.times.index(self.theta), title="time index",
-                                 pointa=(0.32, 0.06), pointb=(0.95, 0.06), style="modern",
+                                 pointa=(0.32, 0.11), pointb=(0.95, 0.11), style="modern",
                                  interaction_event="end", color="white")
         else:
             pl.add_slider_widget(lambda v: self.set_phase(round(v)), [0.0, 180.0], value=self.theta,
-                                 title="phase theta [deg]", pointa=(0.32, 0.06), pointb=(0.95, 0.06),
+                                 title="phase theta [deg]", pointa=(0.32, 0.11), pointb=(0.95, 0.11),
                                  style="modern", interaction_event="end", color="white")
         for k, name in enumerate(BRDF_BUTTONS):
             pl.add_checkbox_button_widget(lambda on, n=name: self.set_brdf(n), value=name == self.brdf,

@@ -36,6 +36,9 @@ from lunarviz.viz.render_window import choose_render_window
 VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
 #: Dynamic range of the logarithmic colour scales (max / floor).
 LOG_RANGE = 1e7
+#: Colour levels of every colour map: 256 levels over the six decades of a log scale drew false
+#: contour rings across the disc
+N_COLORS = 2048
 
 
 @dataclass
@@ -120,18 +123,62 @@ def _linear_field(values, mask):
 
 
 def _ashen_floor(poly):
-    """Lower colour limit that keeps the earthshine ('ashen light') side visible."""
-    es = np.asarray(poly.cell_data["earthshine_radiance_W_m2_sr"])
+    """Lower colour limit of the radiance panels: one that keeps the earthshine ('ashen light')
+    side visible, except where the sunlit part fills most (3/4) of the visible disc (near full Moon):
+    there the ashen light is a sliver the eye cannot see beside it, and a scale stretched over
+    seven decades for it would paint the sunlit disc one flat white; the floor is then 1e-3 of
+    the brightest facet, so the sunlit disc keeps its shading."""
+    cd = poly.cell_data
+    es = np.asarray(cd["earthshine_radiance_W_m2_sr"])
+    total = np.asarray(cd["moonshine_radiance_W_m2_sr"]) + es
+    seen = np.asarray(cd["emission_deg"]) < 90
+    lit = seen & (np.asarray(cd["incidence_deg"]) < 90)
     pos = es[es > 0]
-    return float(np.percentile(pos, 1.0)) * 0.1 if pos.size else None
+    floor = float(np.percentile(pos, 1.0)) * 0.1 if pos.size else None
+    if seen.any() and lit.sum() > 0.75 * seen.sum() and total.max() > 0:
+        floor = max(floor or 0.0, float(total.max()) * 1e-3)
+    return floor
 
 
-def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=(0.0, 0.0, 1.0)):
-    """Look at the Moon from the detector (parallel projection), ``up`` (world z) up."""
+def _grey_map():
+    """Black to light grey (not white: the brightest facets keep a visible gradient)."""
+    from matplotlib.colors import ListedColormap
+    g = np.linspace(0.0, 0.92, N_COLORS)
+    return ListedColormap(np.stack([g, g, g], axis=1), name="lunar_grey")
+
+
+def _lunar_north(fr: FacetResult) -> np.ndarray:
+    """The Moon's north pole in scene axes: +x in the θ scene, MOON_ME's z on dates."""
+    rot = fr.info.get("moon_rotation_body_to_scene")
+    return np.asarray(rot, dtype=float)[:, 2] if rot is not None else np.array([1.0, 0.0, 0.0])
+
+
+def _sun_direction(fr: FacetResult) -> np.ndarray:
+    """Unit vector from the Moon's centre toward the Sun, scene axes."""
+    d = np.array(fr.info["sun_m"]) - np.array(fr.info["moon_centre_m"])
+    return d / np.linalg.norm(d)
+
+
+def _in_image_plane(v, view):
+    """``v`` projected onto the plane normal to ``view``, unit length (None if along ``view``)."""
+    w = np.asarray(v, dtype=float) - np.dot(v, view) * view
+    n = np.linalg.norm(w)
+    return w / n if n > 1e-6 else None
+
+
+def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=None, key=True):
+    """Look at the Moon from the detector (parallel projection). ``up`` defaults to the Sun's
+    direction in the image (the lit limb on top, as the schematic draws the Sun), or lunar north
+    where the Sun is behind the detector or the Moon (full and new Moon). ``key`` draws the
+    orientation key: arrows toward the Sun and to lunar north, and where the view is from."""
     moon = np.array(fr.info["moon_centre_m"])
     det = np.array(fr.info["detector_m"])
     R = float(np.max(np.linalg.norm(fr.vertices, axis=1)))
     view = (det - moon) / np.linalg.norm(det - moon)
+    if up is None:
+        up = _in_image_plane(_sun_direction(fr), view)
+        if up is None:
+            up = _in_image_plane(_lunar_north(fr), view)
     up = np.asarray(up, dtype=float)
     if abs(np.dot(up, view)) > 0.99:
         up = np.array([0.0, 1.0, 0.0])
@@ -142,14 +189,60 @@ def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=(0.0, 0.0, 1.0)):
     pl.camera_position = [tuple(focal + view * 8 * R), tuple(focal), tuple(up)]
     pl.enable_parallel_projection()
     pl.camera.parallel_scale = 1.2 * R / zoom
+    if key:
+        _orientation_key(pl, fr, view, up, R)
+
+
+def _orientation_key(pl, fr: FacetResult, view, up, R):
+    """Arrows at the disc's lower left: toward the Sun (projected) and to lunar north; the
+    observer is named in the panel's bottom line."""
+    screen_up = np.asarray(up, dtype=float)
+    screen_right = -np.cross(view, screen_up)  # the image's right
+    base = (-1.05 * screen_right - 1.0 * screen_up) * R + view * 1.2 * R  # in front of the disc
+    for vec, label, color in ((_sun_direction(fr), "Sun", "gold"), (_lunar_north(fr), "N", "white")):
+        d = _in_image_plane(vec, view)
+        if d is None:  # along the line of sight: say so instead of drawing a dot
+            label = f"{label} (along the line of sight)"
+            d = screen_up
+        # an arrow that points left or down starts further right or up, so it stays in the panel
+        start = base + 0.34 * R * (max(0.0, -float(np.dot(d, screen_right))) * screen_right
+                                   + max(0.0, -float(np.dot(d, screen_up))) * screen_up)
+        pl.add_mesh(pv.Arrow(start=start, direction=d, scale=0.32 * R, tip_length=0.3, tip_radius=0.12,
+                             shaft_radius=0.04), color=color, lighting=False)
+        pl.add_point_labels([start + d * 0.42 * R], [label], font_size=10, text_color=color, shape=None,
+                            show_points=False, always_visible=True)
+    where = "detector at the Earth's centre" if "time_utc" not in fr.info else "the observer"
+    pl.add_text(f"seen from the {where}", font_size=8, position="lower_left", color="white")
+
+
+def _cells_to_points(mesh, names):
+    """Point data: at each vertex the mean of its facets' finite values (NaN facets, dark or
+    unseen, do not blank their neighbours' vertices); NaN where no adjacent facet has one."""
+    faces = mesh.faces.reshape(-1, 4)[:, 1:]
+    out = pv.PolyData(mesh.points.copy(), mesh.faces.copy())
+    for name in names:
+        v = np.asarray(mesh.cell_data[name], dtype=float)
+        ok = np.isfinite(v)
+        total = np.zeros(mesh.n_points)
+        count = np.zeros(mesh.n_points)
+        for c in range(3):
+            np.add.at(total, faces[ok, c], v[ok])
+            np.add.at(count, faces[ok, c], 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out.point_data[name] = np.where(count > 0, total / np.maximum(count, 1.0), np.nan)
+    return out
 
 
 def _moon_panel(pl, poly, field, title, cmap, log=True, clim=None, bar_fmt="%.1e", mask=None, floor=None,
-                smooth=True):
+                smooth=True, sun_dir=None, dark_field=None):
     """One Moon panel: ``field`` on the mesh, with a colour bar titled ``title`` (keep it short:
-    two lines of ≤ 12 characters fit the bar at 1024×768). ``smooth`` interpolates the facet
-    values across facets (no facet-jagged terminator); a degenerate range (one value) gets a
-    single-label bar instead of four equal labels."""
+    two lines of ≤ 12 characters fit the bar at 1024×768).
+
+    ``smooth`` interpolates the facet values across facets; with ``sun_dir`` (unit vector toward
+    the Sun, the mesh's axes) the mesh is also cut along the terminator's plane, so the
+    terminator is the smooth great circle it is, not the facets' sawtooth: the sunlit half shows
+    ``field``, the night half ``dark_field`` (its earthshine; ``None``: nothing). A degenerate
+    range (one value) gets a single-label bar instead of four equal labels."""
     mesh = poly.copy()
     if log:
         vals, lim = _log_field(mesh.cell_data[field], floor)
@@ -163,16 +256,26 @@ def _moon_panel(pl, poly, field, title, cmap, log=True, clim=None, bar_fmt="%.1e
         n_labels = 1
     scalars = field + "_shown"
     mesh.cell_data[scalars] = vals
+    if dark_field is not None:
+        dark = np.asarray(mesh.cell_data[dark_field], dtype=float)
+        mesh.cell_data["_dark_shown"] = np.where(dark > 0, np.maximum(dark, lim[0]), np.nan) if log else dark
+    parts = [mesh]
     if smooth:
-        shown = mesh.cell_data_to_point_data(pass_cell_data=False)
-        shown.point_data[scalars] = np.where(np.isfinite(shown.point_data[scalars]), shown.point_data[scalars],
-                                             np.nan)
-        mesh = shown
-    bar = {"title": title, "fmt": bar_fmt, "n_labels": n_labels, "vertical": True, "color": "white",
-           "position_x": 0.80, "position_y": 0.08, "height": 0.74, "width": 0.045,
+        mesh = _cells_to_points(mesh, [n for n in (scalars, "_dark_shown") if n in mesh.cell_data])
+        parts = [mesh]
+        if sun_dir is not None:
+            lit = mesh.clip(normal=tuple(sun_dir), origin=(0.0, 0.0, 0.0), invert=False)
+            night = mesh.clip(normal=tuple(sun_dir), origin=(0.0, 0.0, 0.0), invert=True)
+            night.point_data[scalars] = night.point_data["_dark_shown"] if dark_field is not None else \
+                np.full(night.n_points, np.nan)
+            parts = [p for p in (lit, night) if p.n_points]
+    bar = {"title": title + "\n", "fmt": bar_fmt, "n_labels": n_labels, "vertical": True, "color": "white",
+           "position_x": 0.80, "position_y": 0.06, "height": 0.66, "width": 0.045,
            "title_font_size": 12, "label_font_size": 11}
-    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, log_scale=log, clim=lim, nan_color=(0.12, 0.12, 0.14),
-                show_edges=False, lighting=False, interpolate_before_map=True, scalar_bar_args=bar)
+    for k, part in enumerate(parts):
+        pl.add_mesh(part, scalars=scalars, cmap=cmap, log_scale=log, clim=lim, nan_color=(0.12, 0.12, 0.14),
+                    show_edges=False, lighting=False, interpolate_before_map=True, n_colors=N_COLORS,
+                    show_scalar_bar=k == 0, scalar_bar_args=bar)
     return mesh
 
 
@@ -203,8 +306,9 @@ def _ray_panel(pl, data: ViewData, text: str | None = None):
     for b in C:
         pl.add_mesh(pv.Sphere(radius=Rs[b], center=C[b], theta_resolution=32, phi_resolution=32),
                     color=colors[b], smooth_shading=True)
-        pl.add_point_labels([C[b] + up * Rs[b] * 1.7], [b.capitalize()], font_size=11,
-                            text_color="white", shape=None, show_points=False)
+        side = -1.0 if b == "moon" else 1.0  # the Moon's label below it, clear of the light paths
+        pl.add_point_labels([C[b] + side * up * Rs[b] * 2.2], [b.capitalize()], font_size=11,
+                            text_color="white", shape=None, show_points=False, always_visible=True)
 
     def snap(p, body):
         return C[body] + Rs[body] * (p - Cw[body]) / Rw[body]
@@ -274,13 +378,18 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
     """Draw ``view`` of ``data`` into an existing plotter of shape ``SHAPES[view]``."""
     fr = data.facets
     poly = facet_polydata(fr)
+    rot = fr.info.get("moon_rotation_body_to_scene")
+    if rot is not None:  # the Moon's body frame (MOON_ME on dates) → scene axes, where the camera is
+        poly.points = np.asarray(poly.points, dtype=float) @ np.asarray(rot, dtype=float).T
+    sun_dir = _sun_direction(fr)
     cd = poly.cell_data
     poly.cell_data["total_radiance"] = cd["moonshine_radiance_W_m2_sr"] + cd["earthshine_radiance_W_m2_sr"]
     text = numbers_text(data.numbers)
     if view == "moon":
         pl.subplot(0, 0)
         pl.set_background("black")
-        _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", "gray", floor=_ashen_floor(poly))
+        _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", _grey_map(), floor=_ashen_floor(poly),
+                    sun_dir=sun_dir, dark_field="earthshine_radiance_W_m2_sr")
         pl.add_text(text, font_size=8, position="upper_left", color="white")
         _camera_from_detector(pl, fr)
         return pl
@@ -311,29 +420,31 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         pl.add_text(text, font_size=8, position="upper_left", color="white")
         return pl
     if view == "maps":
-        panels = [("incidence_deg", "i [deg]", "twilight", (0, 90), "incidence i"),
-                  ("emission_deg", "e [deg]", "twilight", (0, 90), "emission e"),
+        panels = [("incidence_deg", "i [deg]", "twilight", (0, 90), "incidence i of sunlight"),
+                  ("emission_deg", "e [deg]", "twilight", (0, 90), "emission e toward the detector"),
                   ("solar_lit_fraction", "sunlit\nfraction", "gray", (0, 1), "sunlit fraction (shadows)"),
-                  ("reflectance_factor", "pi*BRDF", "viridis", None, "reflectance factor pi*BRDF")]
+                  ("reflectance_factor", "pi*BRDF", "viridis", None, "reflectance factor pi*BRDF for sunlight")]
         for k, (field, title, cmap, clim, long_title) in enumerate(panels):
             pl.subplot(k // 2, k % 2)
             pl.set_background("black")
             seen = poly.cell_data["emission_deg"] < 90
             lit = seen & (poly.cell_data["incidence_deg"] < 90)
             _moon_panel(pl, poly, field, title, cmap, log=False, clim=clim, bar_fmt="%.3g",
-                        mask=seen if field == "emission_deg" else lit)
-            pl.add_text(long_title + " (sunlight)", font_size=9, position="upper_left", color="white")
+                        mask=seen if field == "emission_deg" else lit,
+                        sun_dir=None if field == "emission_deg" else sun_dir)
+            pl.add_text("Moon: " + long_title, font_size=9, position="upper_left", color="white")
             _camera_from_detector(pl, fr)
         return pl
     pl.subplot(0, 0)
     pl.set_background("black")
-    _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", "gray", floor=_ashen_floor(poly))
-    pl.add_text("Moon from the detector (log)", font_size=9, position="upper_left", color="white")
+    _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", _grey_map(), floor=_ashen_floor(poly),
+                sun_dir=sun_dir, dark_field="earthshine_radiance_W_m2_sr")
+    pl.add_text("Moon: radiance toward the detector (log)", font_size=9, position="upper_left", color="white")
     _camera_from_detector(pl, fr)
     pl.subplot(0, 1)
     pl.set_background("black")
     _moon_panel(pl, poly, "earthshine_radiance_W_m2_sr", "earthshine\nW m-2 sr-1", "cividis")
-    pl.add_text("earthshine only (own log scale)", font_size=9, position="upper_left", color="white")
+    pl.add_text("Moon: earthshine only (own log scale)", font_size=9, position="upper_left", color="white")
     _camera_from_detector(pl, fr)
     pl.subplot(1, 0)
     pl.set_background("black")
@@ -342,8 +453,9 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
     pl.set_background("black")
     lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
     _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\nsunlight", "viridis", log=False,
-                bar_fmt="%.3f", mask=lit)
-    pl.add_text(f"BRDF map: pi*BRDF ({data.numbers['brdf']})", font_size=9, position="upper_left", color="white")
+                bar_fmt="%.3f", mask=lit, sun_dir=sun_dir)
+    pl.add_text(f"Moon: BRDF map pi*BRDF ({data.numbers['brdf']}, sunlight)", font_size=9, position="upper_left",
+                color="white")
     _camera_from_detector(pl, fr)
     return pl
 

@@ -63,11 +63,13 @@ def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
             v3.VSpacer()
             if times:
                 v3.VSlider(v_model=("phase", state.phase), min=0, max=len(times) - 1, step=1,
-                           label="time index", hide_details=True, thumb_label=True, density="compact",
+                           label="time index", hide_details=True, thumb_label="always", density="compact",
                            style="max-width: 480px")
+                html.Span("time index {{ phase }}", style="margin: 0 12px; white-space: nowrap;")
             else:
                 v3.VSlider(v_model=("phase", state.phase), min=0, max=180, step=5, label="phase θ [deg]",
-                           hide_details=True, thumb_label=True, density="compact", style="max-width: 480px")
+                           hide_details=True, thumb_label="always", density="compact", style="max-width: 480px")
+                html.Span("θ = {{ phase }}°", style="margin: 0 12px; white-space: nowrap;")
             v3.VSelect(v_model=("brdf", brdf), items=("brdfs", list(BRDFS)), label="BRDF", hide_details=True,
                        density="compact", style="max-width: 160px")
             v3.VProgressCircular(indeterminate=True, v_show=("busy",), size=20)

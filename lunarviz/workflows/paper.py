@@ -47,46 +47,61 @@ def fig3_reflectance(out: Path) -> dict:
               "DHG (Hapke 2012 convention)": ("tab:green", ":")}
     e = np.arange(-85.0, 85.01, 1.0)
     data = {"emission_signed_deg": e.tolist()}
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
-    for ax, plane in zip(axes, (0.0, 90.0)):
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True)
+    xlabels = {0.0: "emission e [deg]   (negative: source side, azimuth 0°; positive: far side, 180°)",
+               90.0: "emission e [deg]   (negative: azimuth 270°; positive: 90°; mirror images)"}
+    for k, (ax, plane) in enumerate(zip(axes, (0.0, 90.0))):
         for name, m in models.items():
-            # negative zenith: viewer on the source's side (azimuth 0 / 270), positive: far side
+            # negative zenith: azimuth 0 (plane 0) or 270 (plane 90); positive: 180 or 90
             az = np.where(e < 0, 0.0 if plane == 0 else 270.0, 180.0 if plane == 0 else 90.0)
             rf = np.pi * brdf_from_angles(m, np.radians(75.0), np.radians(np.abs(e)), np.radians(az))
             data[f"{name} | plane {plane:.0f}"] = rf.tolist()
             c, ls = styles[name]
-            ax.plot(e, rf, color=c, ls=ls, label=name)
-        ax.set_title(f"i = 75°, azimuth plane {plane:.0f}°")
-        ax.set_xlabel("scattering zenith angle e [deg]  (negative: source side)")
+            ax.plot(e, rf, color=c, ls=ls, lw=1.6, label=name)
+        ax.set_title(f"({'ab'[k]}) incidence i = 75°, plane of azimuth {plane:.0f}°/{plane + 180:.0f}°")
+        ax.set_xlabel(xlabels[plane], fontsize=8)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("reflectance factor π·BRDF")
-    axes[0].legend(fontsize=8)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=9, frameon=False)
     fig.suptitle("Fig. 3 — Hapke reflectance factors (w = 0.33, h = 0.017, B0 = 1; Table 2)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
     fig.savefig(out / "fig3_reflectance_factor.png", dpi=120)
     plt.close(fig)
     return data
 
 
 def fig4_brdf_test(out: Path, res: dict):
+    """Recovered BRDF against Eq. 12 (top) and the residuals (bottom), where the 2-3 % gap between
+    Eq. 12 at nominal angles and Eq. 12 averaged over the footprint and aperture shows."""
     plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for ax, (name, r) in zip(axes, res.items()):
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.6), sharex=True, gridspec_kw={"height_ratios": (3, 2)})
+    for k, (name, r) in enumerate(res.items()):
+        ax, rx = axes[0, k], axes[1, k]
         rows = r["rows"]
         x = np.array([-row["emission_deg"] if row["azimuth_deg"] == 0 else row["emission_deg"] for row in rows])
         o = np.argsort(x)
         rec = np.array([row["brdf_recovered_per_sr"] for row in rows])[o]
         exp = np.array([row["brdf_expected_per_sr"] for row in rows])[o]
         nom = np.array([row["brdf_eq12_per_sr"] for row in rows])[o]
-        ax.plot(x[o], nom, "k--", lw=1, label="Eq. 12 at nominal angles")
-        ax.plot(x[o], exp, "-", color=COLORS[name], label="Eq. 12 averaged over footprint and aperture")
-        ax.plot(x[o], rec, "s", mfc="none", color=COLORS[name],
-                label=f"ray traced (Embree), max error {r['max_relative_error']:.1e}")
-        ax.set_title(f"{name.upper()}: paper reached {PAPER_BRDF_TEST[name] * 100:.2f} %")
-        ax.set_xlabel("detector zenith e [deg]  (negative: source side, azimuth 0)")
+        x = x[o]
+        ax.plot(x, nom, "k--", lw=1, label="Eq. 12 at nominal angles")
+        ax.plot(x, exp, "-", color=COLORS[name], lw=1.2, label="Eq. 12 averaged over footprint and aperture")
+        ax.plot(x, rec, "o", ms=3.5, mfc="none", color=COLORS[name], label="ray traced (Embree)")
+        rx.plot(x, 100 * (rec / exp - 1), "o", ms=3.5, mfc="none", color=COLORS[name],
+                label="ray traced / averaged Eq. 12 − 1")
+        rx.plot(x, 100 * (nom / exp - 1), "k--", lw=1, label="nominal / averaged Eq. 12 − 1")
+        ax.set_title(f"({'ab'[k]}) {name.upper()}: ours {100 * r['max_relative_error']:.1e} % against the averaged "
+                     f"Eq. 12,\n{100 * r['max_relative_error_vs_nominal']:.2f} % against the nominal Eq. 12 "
+                     f"(paper: {PAPER_BRDF_TEST[name] * 100:.2f} %)", fontsize=9)
         ax.set_ylabel("BRDF [sr⁻¹]")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        rx.set_ylabel("difference [%]")
+        rx.set_xlabel("detector zenith e [deg]  (negative: source side, azimuth 0°)")
+        for a_ in (ax, rx):
+            a_.grid(alpha=0.3)
+        rx.set_yscale("symlog", linthresh=1e-4)  # the ray tracer's 1e-4 % and the nominal 3 % both show
+        ax.legend(fontsize=7, loc="upper center")
+        rx.legend(fontsize=7, loc="upper right")
     fig.suptitle("Fig. 4 — small-scale BRDF test (i = 75°, target r = 2.5 m, detector r = 0.5 m at 200 m)")
     fig.tight_layout()
     fig.savefig(out / "fig4_brdf_test.png", dpi=120)
@@ -100,68 +115,110 @@ def _series(res, brdf, key):
     return th, v
 
 
+def _positive(v):
+    """Zeros (an eclipsed Moon, a new Moon) as gaps on a log axis, never as drops to its floor."""
+    return np.where(v > 0, v, np.nan)
+
+
 def fig5_fluxes(out: Path, sw: dict):
+    """Fluxes (top, log) and each method against the exact reference (bottom, symmetric log)."""
     plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
-    for ax, path in zip(axes, ("moonshine", "earthshine")):
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex=True, gridspec_kw={"height_ratios": (3, 2)})
+    for k, path in enumerate(("moonshine", "earthshine")):
+        ax, rx = axes[0, k], axes[1, k]
+        key = f"{path}_W_m2"
         for b in BRDFS:
-            th, v = _series(sw["analytic"], b, f"{path}_W_m2")
-            ax.plot(th, v, "-", color=COLORS[b], lw=1.2, label=f"{b}: analytic (point sources)")
-            th, v = _series(sw["deterministic"], b, f"{path}_W_m2")
-            ax.plot(th, v, "--", color=COLORS[b], lw=1, label=f"{b}: ray traced, deterministic")
-            th, v = _series(sw["montecarlo"], b, f"{path}_W_m2")
-            _, s = _series(sw["montecarlo"], b, f"{path}_std_W_m2")
-            ax.errorbar(th, v, yerr=s, fmt="x", color=COLORS[b], ms=5, capsize=2,
-                        label=f"{b}: ray traced, Monte Carlo (±1σ of one run)")
-            th, v = _series(sw["occluded"], b, f"{path}_W_m2")
-            ax.plot(th, v, ":", color=COLORS[b], lw=1.5, label=f"{b}: deterministic, occlusion on")
+            c = COLORS[b]
+            th, ref = _series(sw["reference"], b, key)
+            th_a, v = _series(sw["analytic"], b, key)
+            ax.plot(th_a, _positive(v), "-", color=c, lw=1.2)
+            th_d, v = _series(sw["deterministic"], b, key)
+            ax.plot(th_d, _positive(v), "--", color=c, lw=1)
+            th_m, v = _series(sw["montecarlo"], b, key)
+            _, sd = _series(sw["montecarlo"], b, f"{path}_std_W_m2")
+            ax.errorbar(th_m, _positive(v), yerr=sd, fmt="x", color=c, ms=4, capsize=2)
+            th_o, v = _series(sw["occluded"], b, key)
+            ax.plot(th_o, _positive(v), "o", color=c, ms=3, mfc="none")
+            ok = (ref > 0) & (th >= 5.0) & (th <= 175.0)  # where the report's comparisons are made
+            for src, style in (("analytic", "-"), ("deterministic", "--")):
+                th_s, v = _series(sw[src], b, key)
+                rx.plot(th_s[ok], v[ok] / ref[ok] - 1, style, color=c, lw=1)
+            th_m, v = _series(sw["montecarlo"], b, key)
+            rx.plot(th_m[ok], v[ok] / ref[ok] - 1, "x", color=c, ms=4)
         ax.set_yscale("log")
-        top = max(np.nanmax(_series(sw["analytic"], b, f"{path}_W_m2")[1]) for b in BRDFS)
-        ax.set_ylim(top * (1e-6 if path == "moonshine" else 1e-8), top * 3)
-        ax.set_xlabel("orbital angle θ [deg]  (0: full Moon, 180: new Moon)")
-        ax.set_ylabel(f"{path} irradiance at the detector [W m⁻²]")
-        ax.set_title(f"({'a' if path == 'moonshine' else 'b'}) {path}")
-        ax.grid(alpha=0.3, which="both")
-    axes[1].legend(fontsize=6, ncol=1, loc="lower right")
-    fig.suptitle("Fig. 5 — moonshine and earthshine (no occlusion unless marked; detector at the Earth's centre)")
-    fig.tight_layout()
+        top = np.nanmax([np.nanmax(_series(sw["analytic"], b, key)[1]) for b in BRDFS])
+        ax.set_ylim(top * (1e-5 if path == "moonshine" else 1e-7), top * 3)  # thinner crescents run off the axis
+        ax.set_ylabel(f"{path} at the detector [W m⁻²]")
+        ax.set_title(f"({'ab'[k]}) {path}")
+        rx.set_yscale("symlog", linthresh=1e-5)
+        rx.axhline(0, color="k", lw=0.6)
+        rx.set_ylabel("method / exact reference − 1")
+        rx.set_title(f"({'cd'[k]}) {path} against the exact reference, θ = 5–175° (symmetric log, linear "
+                     f"within ±1e-5)", fontsize=9)
+        rx.set_xlabel("orbital angle θ [deg]  (0: full Moon, 180: new Moon)")
+        for a_ in (ax, rx):
+            a_.grid(alpha=0.3, which="both")
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], color=COLORS[b], lw=2, label=b) for b in BRDFS] + [
+        Line2D([], [], color="k", ls="-", label="analytic (point Sun, point Earth)"),
+        Line2D([], [], color="k", ls="--", label="ray traced, deterministic"),
+        Line2D([], [], color="k", marker="x", ls="", label="ray traced, Monte Carlo (±1σ of one run)"),
+        Line2D([], [], color="k", marker="o", mfc="none", ls="", label="deterministic, occlusion on")]
+    fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=9, frameon=False)
+    fig.suptitle("Fig. 5 — moonshine and earthshine (occlusion off unless marked; detector at the Earth's centre)")
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(out / "fig5_moonshine_earthshine.png", dpi=120)
     plt.close(fig)
 
 
 def fig6_albedo(out: Path, sw: dict):
     plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 6.4))
+    markers = {"lambert": "x", "shg": "+", "dhg": "o"}
+    widths = {"lambert": 3.5, "shg": 2.2, "dhg": 1.0}
     for b in BRDFS:
         th, v = _series(sw["analytic"], b, "geometric_albedo_term")
-        axes[0].plot(th, v, "-", color=COLORS[b], label=f"{b}: analytic")
+        axes[0].plot(th, v, "-", color=COLORS[b], lw=widths[b], label=f"{b}: analytic")
         th, v = _series(sw["montecarlo"], b, "geometric_albedo_term")
-        axes[0].plot(th, v, "x", color=COLORS[b], label=f"{b}: ray traced (MC)")
+        axes[0].plot(th, v, markers[b], color=COLORS[b], ms=5, mfc="none", label=f"{b}: ray traced (MC)")
         th, v = _series(sw["analytic"], b, "apparent_albedo")
-        axes[1].plot(th, v, "-", color=COLORS[b], label=f"{b}: analytic")
+        axes[1].plot(th, v, "-", color=COLORS[b], lw=widths[b], label=f"{b}: analytic")
         th, v = _series(sw["montecarlo"], b, "apparent_albedo")
-        axes[1].plot(th, v, "x", color=COLORS[b], label=f"{b}: ray traced (MC), consistent lunar terms")
+        axes[1].plot(th, v, markers[b], color=COLORS[b], ms=5, mfc="none",
+                     label=f"{b}: ray traced (MC), consistent lunar terms")
         th, v = _series(sw["montecarlo"], b, "apparent_albedo_point_source_inversion")
-        axes[1].plot(th, v, ".", color=COLORS[b], alpha=0.6, label=f"{b}: ray traced, point-source lunar terms")
+        axes[1].plot(th, v, ".", color=COLORS[b], alpha=0.7, label=f"{b}: ray traced, point-source lunar terms")
     axes[0].set_ylabel("p_E f_E(β)  (Eq. 15)")
+    axes[0].set_title("(a) geometric albedo term: the three lunar BRDFs recover the same Earth\n"
+                      "(their curves coincide; line widths and markers tell them apart)", fontsize=9)
     axes[1].set_ylabel("apparent albedo p*(β)  (Eq. 16)")
+    axes[1].set_title("(b) apparent albedo", fontsize=9)
     axes[1].axhline(0.3, color="k", lw=0.8, ls="--", label="input Bond albedo 0.3")
     for ax in axes:
         ax.set_xlabel("orbital angle θ [deg]  (Earth phase β = 180° − θ)")
         ax.grid(alpha=0.3)
-    axes[1].set_ylim(0.2, 0.35)
-    lines = ["Bond albedo (Table 5)   ours: analytic / ray traced   paper: analytic / IRT"]
+    vals = np.concatenate([_series(sw["montecarlo"], b, k)[1] for b in BRDFS
+                           for k in ("apparent_albedo", "apparent_albedo_point_source_inversion")])
+    vals = vals[np.isfinite(vals)]
+    if vals.size:
+        axes[1].set_ylim(min(0.25, vals.min() - 0.01), max(0.33, vals.max() + 0.01))
+    lines = ["Bond albedo (Table 5; input 0.3)      ours: analytic / ray traced    paper: analytic / IRT"]
     for b in BRDFS:
         ours_a = sw["analytic"]["bond_albedo"][b]["analytic"]
         ours_r = sw["montecarlo"]["bond_albedo"][b]["raytrace"]
-        lines.append(f"{b:8s}  {ours_a:.4f} / {ours_r:.4f}      {PAPER_TABLE5[b]['analytic']:.4f} / "
-                     f"{PAPER_TABLE5[b]['raytrace']:.4f}")
-    axes[1].text(0.02, 0.03, "\n".join(lines), transform=axes[1].transAxes, fontsize=7, family="monospace",
-                 va="bottom", bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "0.7"})
-    axes[0].legend(fontsize=7)
-    axes[1].legend(fontsize=6, loc="upper right", ncol=2)
+        lines.append(f"{b:8s}                               {ours_a:.4f} / {ours_r:.4f}        "
+                     f"{PAPER_TABLE5[b]['analytic']:.4f} / {PAPER_TABLE5[b]['raytrace']:.4f}")
+    fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8, family="monospace")
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], color=COLORS[b], lw=widths[b], marker=markers[b], mfc="none", label=b) for b in BRDFS]
+    handles += [Line2D([], [], color="k", lw=1, label="line: analytic"),
+                Line2D([], [], color="k", marker="o", mfc="none", ls="", label="open markers: ray traced (MC), "
+                       "consistent lunar terms"),
+                Line2D([], [], color="k", marker=".", ls="", label="dots: ray traced, point-source lunar terms (b)"),
+                Line2D([], [], color="k", ls="--", lw=0.8, label="input Bond albedo 0.3 (b)")]
+    fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.1), ncol=4, fontsize=8, frameon=False)
     fig.suptitle("Fig. 6 — (a) geometric albedo term and (b) apparent albedo")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.2, 1, 1))
     fig.savefig(out / "fig6_albedo.png", dpi=120)
     plt.close(fig)
 
@@ -340,7 +397,8 @@ def _report_table5(r: dict) -> list[str]:
         "Why ours differ from the paper's:",
         "",
         "* **Eq. 8's factor.** The printed Eq. 8 omits the 2/3 of a Lambert sphere's intensity "
-        "(a Lambert sphere: Russell 1916; Lester et al. 1979). We use the correct law; with the printed one the same inversion returns "
+        "(a Lambert sphere: Russell 1916; Lester et al. 1979; the documentation's notes on the paper, item 1). "
+        "We use the correct law; with the printed one the same inversion returns "
         "0.45 (`lunarviz sweep --earth-law paper_eq8`, tested). The paper's inversion evidently "
         "compensated somewhere not stated; its residuals (0.3009…0.3057) are its quadrature and "
         "sampling errors, which we remove: our analytic rule is converged to 1e-6 and Eq. 17 is "
@@ -351,11 +409,12 @@ def _report_table5(r: dict) -> list[str]:
         "noise of both fluxes.",
         "* **Extended versus point Earth (a finding).** The paper-style inversion — point-source "
         "lunar terms applied to ray-traced fluxes from an extended Earth — is biased low for the "
-        "Hapke Moons (last column): the Earth subtends 0.95° from the Moon, wider than the opposition "
+        "Hapke Moons (last column): the Earth's disc, 1.9° across (0.95° in radius) seen from the Moon, is wider than the opposition "
         "surge (h = 0.017 rad), so the surge B(g) that a point Earth would excite at g ≈ 0 is "
         "averaged down across the disk and the earthshine drops by "
-        f"{100 * (1 - _median_ratio(r, 'shg')):.0f} % (SHG). A Lambert Moon has no surge and "
-        "shows only the small finite-distance effect.",
+        f"{100 * (1 - _median_ratio(r, 'shg')):.0f} % (SHG, median over phases). A Lambert Moon has no surge; "
+        "its point-source inversion is still far off at crescent-Earth phases (see the comparison above) "
+        "but those phases carry little weight in Eq. 17.",
         "* **The DHG convention.** Eq. 14 as printed puts (1+c)/2 on the forward lobe; Hapke (2012) "
         "puts it on the backward lobe. Fig. 3 shows both: they differ by tens of percent near "
         "opposition. We default to the printed form (the paper's), `--dhg-convention hapke2012` "
@@ -366,7 +425,7 @@ def _report_table5(r: dict) -> list[str]:
         "* **Occlusion.** θ = 0 is a total lunar eclipse in exact geometry: with occlusion on, the "
         "moonshine at θ = 0 is "
         + ", ".join(f"{b} {v:.2e}" for b, v in r["eclipse_moonshine_theta0_W_m2"].items())
-        + " W m⁻² (Fig. 5, dotted), and at θ = 180° the Moon's shadow removes ≈ 11 % of the earthshine. "
+        + " W m⁻² (Fig. 5, open circles), and at θ = 180° the Moon's shadow removes ≈ 11 % of the earthshine. "
         "The paper ignores occlusion; Table 5 follows it (no occlusion).",
         f"* **Monte Carlo noise.** With {r['settings']['mc_rays']:,} rays per run (the paper: 50,000), one run's relative "
         f"standard deviation is {100 * acc['montecarlo_relative_std_one_run']['moonshine_median']:.3f} % "
@@ -428,10 +487,86 @@ def _report_brdf_test(r: dict) -> list[str]:
     return lines
 
 
+def _row_value(r, sweep, brdf, theta, key):
+    for x in r["sweeps"][sweep]["rows"]:
+        if x["brdf"] == brdf and abs(x["theta_deg"] - theta) < 1e-9:
+            return x.get(key)
+    return None
+
+
+def _worst_theta(r, sweep, key, theta_min=5.0, theta_max=175.0):
+    """(θ, relative difference, brdf) where ``sweep`` is farthest from the reference in ``key``."""
+    ref = {(x["brdf"], x["theta_deg"]): x[key] for x in r["sweeps"]["reference"]["rows"]}
+    best = (float("nan"), 0.0, "")
+    for x in r["sweeps"][sweep]["rows"]:
+        v, w = x.get(key), ref.get((x["brdf"], x["theta_deg"]))
+        if v is None or not w or not theta_min <= x["theta_deg"] <= theta_max:
+            continue
+        d = v / w - 1
+        if abs(d) > abs(best[1]):
+            best = (x["theta_deg"], d, x["brdf"])
+    return best
+
+
+def _report_comparison(r: dict) -> list[str]:
+    """Every comparison with the paper, stated plainly: reproduced or not, and the number."""
+    t5, acc, bt = r["table5"], r["accuracy"], r["brdf_test"]
+    th_a, d_a, b_a = _worst_theta(r, "analytic", "earthshine_W_m2")
+    phases = [t for t in (30.0, 90.0, 150.0) if t in r["settings"]["phases_deg"]]
+    ratio = [(_row_value(r, "reference", "shg", t, "earthshine_W_m2") or float("nan"))
+             / (_row_value(r, "reference", "dhg", t, "earthshine_W_m2") or float("nan")) for t in phases]
+    low = [t for t in (5.0, 10.0, 15.0) if t in r["settings"]["phases_deg"]]
+    lam_ps = [(t, _row_value(r, "montecarlo", "lambert", t, "apparent_albedo_point_source_inversion")) for t in low]
+    lam_ps = [(t, v) for t, v in lam_ps if v is not None]
+    worst_t5 = max(abs(t5[b][m] - 0.3) for b in BRDFS for m in ("analytic", "raytrace"))
+    lines = [
+        "## Comparison with the paper, plainly",
+        "",
+        "| the paper | ours | reproduced? |",
+        "| --- | --- | --- |",
+        f"| Table 5: Bond albedo 0.2993–0.3057 from an input of 0.3 | 0.3000 analytic; Monte Carlo within "
+        f"{worst_t5:.4f} of 0.3 | yes, and closer: the paper's residuals are its numerical error (see below) |",
+        f"| IRT against analytic: 2 % (moonshine), 6.8 % (earthshine) | analytic against the exact reference: "
+        f"{100 * acc['analytic_vs_reference_max_rel']['moonshine']:.2g} % (moonshine) and "
+        f"{100 * abs(d_a):.3g} % (earthshine, {b_a} at θ = {th_a:g}°, where a point Earth misses the thin lit "
+        f"crescent's extent; the same comparison is {100 * abs(_worst_theta(r, 'analytic', 'earthshine_W_m2', 30.0, 150.0)[1]):.3g} % "
+        f"at worst over θ = 30–150°) | in kind, not in number: the paper's figures mix numerical error and "
+        f"physics; ours are physics only |",
+        f"| BRDF test (Sec. 3.1): 2.28 % (SHG), 0.01 % (DHG) against Eq. 12 | "
+        f"{100 * bt['shg']['max_relative_error_vs_nominal']:.2f} % (SHG) and "
+        f"{100 * bt['dhg']['max_relative_error_vs_nominal']:.2f} % (DHG) against Eq. 12 at nominal angles, at "
+        f"backscatter; {bt['dhg']['max_relative_error']:.1e} against Eq. 12 averaged over the footprint and "
+        f"aperture | SHG close to the paper; **DHG's 0.01 % not reproduced**: a 0.5 m detector at 200 m sees the "
+        f"opposition surge averaged, 2.9 % below its nominal peak, whatever the phase function |",
+        f"| Monte Carlo: about 0.2 % per run with 50,000 rays | "
+        f"{100 * acc['montecarlo_relative_std_one_run']['moonshine_median']:.2f} % (moonshine) and "
+        f"{100 * acc['montecarlo_relative_std_one_run']['earthshine_median']:.2f} % (earthshine) per run with "
+        f"{r['settings']['mc_rays']:,} rays (median over phases) | yes (importance sampling) |",
+    ]
+    if ratio:
+        lines.append(
+            "| SHG and DHG earthshine \"almost identical\" | SHG/DHG earthshine "
+            + ", ".join(f"{v:.3f} at θ = {t:g}°" for t, v in zip(phases, ratio))
+            + " (exact reference) | **not reproduced**: earthlight returns to the Earth at phase angles of a "
+              "degree or less, where Table 2's single and double HG phase functions differ by this constant "
+              "factor (Fig. 3 at e = −75°) |")
+    if lam_ps:
+        lines.append(
+            "| (not in the paper) a point-source inversion of a Lambert Moon | p* = "
+            + ", ".join(f"{v:.3f} at θ = {t:g}°" for t, v in lam_ps)
+            + f" against 0.3; Bond albedo {r['table5_point_source_inversion']['lambert']['raytrace']:.4f} | a "
+              "large bias at crescent-Earth phases (the Earth's disc, 1.9° across seen from the Moon, is not a point "
+              "there), which Eq. 17 weights little |")
+    return lines + [""]
+
+
 def make_report(r: dict) -> str:
-    """The paper reproduction's ``report.md``: Table 5, accuracy against the exact reference,
-    the small-scale BRDF test, and the files written."""
-    lines = _report_table5(r) + _report_accuracy(r) + _report_brdf_test(r) + [
+    """The paper reproduction's ``report.md``: a plain comparison with the paper, Table 5,
+    accuracy against the exact reference, the small-scale BRDF test, and the files written."""
+    head, rest = _report_table5(r), None
+    cut = head.index("## Table 5 — Earth Bond albedo recovered from the earthshine/moonshine ratio (input 0.3)")
+    head, rest = head[:cut], head[cut:]
+    lines = head + _report_comparison(r) + rest + _report_accuracy(r) + _report_brdf_test(r) + [
         "## Files",
         "",
         "* `fig3_reflectance_factor.png`, `fig4_brdf_test.png`, `fig5_moonshine_earthshine.png`, `fig6_albedo.png`",
