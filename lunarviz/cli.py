@@ -430,6 +430,9 @@ def cmd_trace(a):
 
 
 def cmd_render(a, interactive=False):
+    if not interactive:  # a bad output path is refused before anything is loaded or computed
+        out = _check_out(a.out, (".png",))
+        gif = _check_out(a.gif, (".gif",)) if a.gif else None
     from lunarviz.viz import views
     phases = parse_float_list(a.phase or "90", "phase", 0.0, 360.0)
     try:
@@ -446,9 +449,6 @@ def cmd_render(a, interactive=False):
     brdf = _brdf_list(a.brdf)
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
-    if not interactive:  # a bad output path is refused before any work
-        out = _check_out(a.out, (".png",))
-        gif = _check_out(a.gif, (".gif",)) if a.gif else None
     scene = _scene(a, phases, times)
     if interactive:
         import lunarviz.api as api
