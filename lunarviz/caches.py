@@ -21,6 +21,11 @@ import numpy as np
 _CLEARERS: list[Callable[[], None]] = []
 
 
+def register(clear: Callable[[], None]) -> None:
+    """Register a cache's own ``clear`` (one that must also close what it holds: files, kernels)."""
+    _CLEARERS.append(clear)
+
+
 def memoize(maxsize: int):
     """:func:`functools.lru_cache` of ``maxsize`` entries, registered for :func:`release_caches`."""
 

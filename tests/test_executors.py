@@ -39,3 +39,20 @@ def test_dask_mesh_study_gives_identical_rows():
     a = study.mesh((1, 2), (90.0,), ("lambert",))
     b = study.mesh((1, 2), (90.0,), ("lambert",), executor="dask", workers=2)
     assert [r["value_W_m2"] for r in a["rows"]] == [r["value_W_m2"] for r in b["rows"]]
+
+
+def test_workers_are_capped_by_tasks_and_cores(monkeypatch):
+    """`--workers 24` for one phase forks no pool, and `workers=10**6` asks for no more processes
+    than the machine has cores (it used to fork them all up front)."""
+    import os
+
+    from lunarviz.workflows import sweeps
+    assert sweeps.worker_count(24, 1) == 1
+    assert sweeps.worker_count(10**6, 37) == min(37, os.cpu_count() or 1)
+    assert sweeps.worker_count(None, 5, "analytic") == 1
+
+    def no_pool(*a, **k):
+        raise AssertionError("a process pool was started for a single task")
+    monkeypatch.setattr(sweeps, "ProcessPoolExecutor", no_pool)
+    res = sweeps.run_sweep(sweeps.SweepSettings(method="analytic", phases_deg=(90.0,), brdfs=("lambert",)), workers=24)
+    assert len(res["rows"]) == 1

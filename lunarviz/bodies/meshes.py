@@ -261,6 +261,47 @@ def units_factor(units: str, nominal_radius: float) -> float:
     return {"m": 1.0, "km": 1e3, "radius": float(nominal_radius)}[units]
 
 
+#: mesh formats read (plain files only: trimesh's compressed and archive loaders, .bz2 .gz .zip
+#: .tar ..., would decompress whatever they are given before anything could be checked)
+MESH_SUFFIXES = (".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
+#: the largest mesh file read [bytes]: 2 GiB holds a 40 M-facet binary PLY
+MAX_MESH_FILE_BYTES = 2 << 30
+
+
+def check_mesh_file(p: Path, name: str) -> None:
+    """Refuse, in one line, what must not be handed to a loader: a missing path, a FIFO,
+    device or directory (a read would block or never end), a compressed or unknown format, an
+    oversized file, and a .gltf whose buffers are not plain files beside it."""
+    import stat
+    try:
+        st = p.stat()
+    except OSError:
+        raise MeshError(f"{name}: file not found") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise MeshError(f"{name}: not a regular file (a directory, FIFO or device)")
+    if p.suffix.lower() not in MESH_SUFFIXES:
+        raise MeshError(f"{name}: unsupported mesh format {p.suffix or '(no suffix)'!r}: use one of "
+                        f"{', '.join(MESH_SUFFIXES)} (compressed files and archives are not read)")
+    if st.st_size > MAX_MESH_FILE_BYTES:
+        raise MeshError(f"{name}: {st.st_size / 2**30:.1f} GiB is larger than the {MAX_MESH_FILE_BYTES >> 30} GiB "
+                        f"a mesh file may have")
+    if p.suffix.lower() == ".gltf":
+        try:
+            doc = json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, ValueError, UnicodeDecodeError) as exc:
+            raise MeshError(f"{name}: unreadable glTF ({type(exc).__name__})") from None
+        for buf in doc.get("buffers", []) if isinstance(doc, dict) else []:
+            uri = buf.get("uri", "") if isinstance(buf, dict) else ""
+            if uri and not uri.startswith("data:"):
+                ref = (p.parent / uri)
+                try:
+                    ok = stat.S_ISREG(ref.stat().st_mode) and ref.stat().st_size <= MAX_MESH_FILE_BYTES
+                except OSError:
+                    ok = False
+                if not ok:
+                    raise MeshError(f"{name}: glTF buffer {uri!r} is not a readable regular file beside it")
+
+
 def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: float | None = None,
                    name: str | None = None) -> trimesh.Trimesh:
     """Load a closed user mesh for ``body`` with trimesh and return it in metres.
@@ -276,8 +317,7 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     if nominal_radius is None:
         nominal_radius = NOMINAL_RADII[body]
     factor = units_factor(units, nominal_radius)
-    if not p.is_file():
-        raise MeshError(f"{name}: file not found")
+    check_mesh_file(p, name)
     try:
         mesh = trimesh.load(p, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files

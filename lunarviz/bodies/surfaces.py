@@ -55,23 +55,39 @@ _LAND_BLOCK = 12  # 30″ mask cells per 0.1° land-fraction cell
 # --------------------------------------------------------------------------------------------
 # reading and checking maps
 # --------------------------------------------------------------------------------------------
+#: the most cells a map may have (a 0.01° global grid is 6.5e8): 5e7 cells are 0.4 GB as float64
+MAX_MAP_CELLS = 50_000_000
+
+
 def read_grid(path, what: str = "map", error=LunarvizError) -> np.ndarray:
     """A 2-D grid of real, finite numbers from ``.npy`` (values) or ``.png``/``.tif`` (linear,
     scaled to [0, 1]: 8- and 16-bit integers by their full range, float images as they are,
     palette and colour images by the mean of their RGB channels); ``error`` (one line) otherwise.
     Shared by the surface maps and the DEM meshes (:func:`lunarviz.bodies.shapes.read_map`)."""
+    import stat
     p = Path(path)
     suffix = p.suffix.lower()
-    if not p.is_file():
-        raise error(f"{what} {str(path)!r}: file not found (or not a file)")
+    try:
+        regular = stat.S_ISREG(p.stat().st_mode)
+    except OSError:
+        regular = False
+    if not regular:  # a FIFO or device would block the reader
+        raise error(f"{what} {str(path)!r}: file not found (or not a regular file)")
     if suffix not in MAP_SUFFIXES:
         raise error(f"{what} {str(path)!r}: unknown format {suffix or '(none)'}; use {', '.join(MAP_SUFFIXES)}")
     try:
         if suffix == ".npy":
-            a = np.load(p, allow_pickle=False)
+            a = np.load(p, allow_pickle=False, mmap_mode="r")
+            if a.size > MAX_MAP_CELLS:
+                raise error(f"{what} {str(path)!r}: {a.size:,} cells is more than the {MAX_MAP_CELLS:,} a map may "
+                            f"have ({8 * a.size / 2**30:.1f} GiB as float64)")
+            a = np.array(a)
         else:
             from PIL import Image
-            with Image.open(p) as im:
+            with Image.open(p) as im:  # the header only: nothing is decoded before the size is checked
+                if im.width * im.height > MAX_MAP_CELLS:
+                    raise error(f"{what} {str(path)!r}: {im.width}×{im.height} pixels is more than the "
+                                f"{MAX_MAP_CELLS:,} a map may have")
                 if im.mode in ("P", "PA", "LA", "RGBA", "CMYK", "YCbCr", "LAB", "HSV"):
                     im = im.convert("RGB")
                 if im.mode == "I":  # 32-bit integers: no full range to scale by

@@ -33,7 +33,7 @@ from datetime import datetime, timedelta, timezone
 
 import numpy as np
 
-from lunarviz.caches import memoize
+from lunarviz.caches import register
 from lunarviz.errors import LunarvizError
 
 #: first and last instants [UTC] covered by both DE421 and the lunar PCK (the PCK is shorter)
@@ -53,9 +53,28 @@ def _package_dir(name: str) -> str:
     return list(spec.submodule_search_locations)[0]
 
 
-@memoize(maxsize=1)
+#: the loaded kernels, and the files they keep open (closed when the caches are released)
+_KERNELS: dict = {}
+
+
 def kernels():
-    """``(timescale, de421, moon_me_frame)``, loaded once per process from packaged files."""
+    """``(timescale, de421, moon_me_frame)``, loaded once per process from packaged files
+    (held until :func:`lunarviz.caches.release_caches`, which closes their files)."""
+    if "loaded" not in _KERNELS:
+        _KERNELS["loaded"] = _load_kernels()
+    return _KERNELS["loaded"]
+
+
+def _release_kernels() -> None:
+    _KERNELS.pop("loaded", None)
+    for f in _KERNELS.pop("files", []):
+        f.close()
+
+
+register(_release_kernels)
+
+
+def _load_kernels():
     from skyfield.api import Loader
     from skyfield.planetarylib import PlanetaryConstants
 
@@ -65,6 +84,8 @@ def kernels():
         load = Loader(data, verbose=False, expire=False)
         ts = load.timescale(builtin=True)
         eph = load("de421.bsp")
+    files = _KERNELS.setdefault("files", [])
+    files.append(eph)  # SpiceKernel.close() closes de421.bsp
     lunar = _package_dir("lunarsky")
     pc = PlanetaryConstants()
     for rel in _LUNAR_KERNELS:
@@ -72,7 +93,9 @@ def kernels():
         if not os.path.exists(path):
             raise LunarvizError(f"lunar kernel {path} is missing; reinstall lunarsky")
         if rel.endswith(".bpc"):
-            pc.read_binary(open(path, "rb"))  # noqa: SIM115 (jplephem reads it lazily: kept open)
+            f = open(path, "rb")  # noqa: SIM115 (jplephem reads it lazily: kept open until released)
+            files.append(f)
+            pc.read_binary(f)
         else:
             with open(path, "rb") as f:
                 pc.read_text(f)

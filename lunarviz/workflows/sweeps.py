@@ -333,6 +333,16 @@ def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
 EXECUTORS = ("local", "dask")
 
 
+def worker_count(requested: int | None, tasks: int, method: str = "raytrace") -> int:
+    """Worker processes actually started: at most one per task and one per core (``requested``
+    is an upper bound, never a count to fork blindly; ``None``: one per core, or one for the
+    analytic method, whose tasks take milliseconds)."""
+    cores = os.cpu_count() or 1
+    if requested is None:
+        return 1 if method == "analytic" else max(1, min(tasks, cores))
+    return max(1, min(int(requested), tasks, cores))
+
+
 def dask_client(scheduler: str | None, workers: int | None):
     """A Dask client: to ``scheduler`` (an address such as tcp://host:8786), or to a new local
     cluster of ``workers`` single-threaded processes (closed with the client)."""
@@ -346,8 +356,8 @@ def dask_client(scheduler: str | None, workers: int | None):
             return Client(scheduler, timeout="10s"), None
         except (OSError, TimeoutError) as exc:
             raise LunarvizError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
-    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                           dashboard_address=None)
+    cluster = LocalCluster(n_workers=min(workers or os.cpu_count() or 1, os.cpu_count() or 1), threads_per_worker=1,
+                           processes=True, dashboard_address=None)
     return Client(cluster), cluster
 
 
@@ -368,7 +378,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
     phases = settings.tasks()
     t0 = time.perf_counter()
     if executor == "dask":
-        client, cluster = dask_client(scheduler, workers)
+        client, cluster = dask_client(scheduler, None if workers is None else min(workers, len(phases)))
         try:
             futures = client.map(run_phase, [settings] * len(phases), phases, threads=1, pure=False)
             results = client.gather(futures)
@@ -377,8 +387,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
             if cluster is not None:
                 cluster.close()
         return _assemble(settings, results, t0)
-    if workers is None:
-        workers = 1 if settings.method == "analytic" else min(len(phases), os.cpu_count() or 1)
+    workers = worker_count(workers, len(phases), settings.method)
     bar = None
     if progress:
         from tqdm import tqdm
