@@ -507,6 +507,7 @@ def cmd_study(a):
     levels = [int(v) for v in levels]
     phases = parse_float_list(a.phases, "phase", 0.0, 180.0)
     out = _check_out(a.out, (".json", ".csv"))
+    _check_out(out.with_suffix(".png"), (".png",))  # the plot beside it, before any work
     meshes = [m.strip() for m in a.meshes.split(",") if m.strip()] if a.meshes else None
     if meshes is not None:
         from lunarviz.bodies.meshes import load_user_mesh
@@ -597,6 +598,7 @@ def cmd_fit(a):
     if a.source != "rolo" and not Path(a.source).is_file():
         raise UsageError(f"--source {a.source!r} is neither rolo nor a CSV file")
     out = _check_out(a.out, (".json",))
+    _check_out(out.with_suffix(".png"), (".png",))  # the residual plot beside it, before any work
     if a.moon_albedo_map is not None:
         from lunarviz.bodies.surfaces import MoonAlbedoMap
         MoonAlbedoMap.parse(a.moon_albedo_map)  # a bad map: one line, before any work
@@ -605,8 +607,8 @@ def cmd_fit(a):
     d = res.to_dict()
     d["settings"] = {"source": a.source, "band_nm": a.band, "phases_deg": a.phases, "dhg_convention": a.dhg_convention,
                      "h_function": a.h_function, "moon_albedo_map": a.moon_albedo_map, "order": a.order}
+    plot_fit(res, out.with_suffix(".png"))  # the plot first: a failure leaves neither file
     write_results(out, d)
-    plot_fit(res, out.with_suffix(".png"))
     for k in res.free:
         flag = "constrained" if res.constrained[k] else "NOT constrained (degenerate or at a bound)"
         print(f"{k:10s} = {res.params[k]:.5g} ± {res.sigma[k]:.2g}   {flag}")
@@ -642,6 +644,20 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"lunarviz: warning: {message}", file=sys.stderr)
 
 
+def _terminate_as_interrupt() -> None:
+    """SIGTERM ends a run the way Ctrl-C does: temporary files are removed, worker processes
+    ended, and the command exits 130 with one line (in the main thread only: a library
+    caller's own handlers are left alone)."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGTERM, interrupt)
+
+
 def main(argv=None) -> int:
     import warnings
 
@@ -652,6 +668,7 @@ def main(argv=None) -> int:
     warnings.showwarning = lambda m, c, *a, **k: (_show_warning(m, c, *a, **k) if issubclass(c, LunarvizWarning)
                                                   else shown(m, c, *a, **k))
     parser = build_parser()
+    _terminate_as_interrupt()
     try:
         args = parser.parse_args(argv)
         COMMANDS[args.command](args)

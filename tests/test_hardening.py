@@ -78,3 +78,88 @@ def test_cli_refuses_a_compressed_mesh_in_one_line(tmp_path):
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "unsupported mesh format '.gz'" in r.stderr
     assert not (tmp_path / "x.json").exists()
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                out.append(int(d))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc to list worker processes")
+def test_sigterm_ends_the_workers_and_leaves_no_file(tmp_path):
+    """SIGTERM to a sweep's parent: one line, exit 130, no result or temporary file, and no
+    worker left running (they used to outlive the parent by minutes)."""
+    import signal
+    import time
+    proc = subprocess.Popen([sys.executable, "-m", "lunarviz", "sweep", "--method", "raytrace", "--phases",
+                             "0:180:10", "--workers", "2", "--out", str(tmp_path / "s.json"), "--quiet"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    deadline = time.time() + 60
+    kids = []
+    while time.time() < deadline and len(kids) < 2 and proc.poll() is None:
+        time.sleep(0.5)
+        kids = _children(proc.pid)
+    assert proc.poll() is None and kids, "the sweep ended before its workers could be seen"
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and err.strip() == "lunarviz: interrupted"
+    time.sleep(1.0)
+    assert not [k for k in kids if _alive(k)]
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_plot_replaces_a_symlink_instead_of_writing_through_it(tmp_path):
+    """`ln -s victim.txt fitx.png`: the figure replaces the link; the victim is untouched."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lunarviz.outputs.writers import save_figure
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    (tmp_path / "fitx.png").symlink_to(victim)
+    fig = plt.figure()
+    save_figure(fig, tmp_path / "fitx.png")
+    plt.close(fig)
+    assert victim.read_text() == "keep me"
+    assert not (tmp_path / "fitx.png").is_symlink() and (tmp_path / "fitx.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_multiblock_output_leaves_a_users_folder_alone(tmp_path):
+    """Writing scene.vtm used to delete a user's folder named .scene.tmp/."""
+    import lunarviz
+    (tmp_path / ".scene.tmp").mkdir()
+    (tmp_path / ".scene.tmp" / "mine.txt").write_text("mine")
+    f = lunarviz.trace(lunarviz.Scene(phases=90.0, brdfs=("lambert",), moon_level=1, earth_level=2, sun_level=1))
+    f.save(tmp_path / "scene.vtm")
+    assert (tmp_path / ".scene.tmp" / "mine.txt").read_text() == "mine"
+    assert (tmp_path / "scene.vtm").is_file() and (tmp_path / "scene").is_dir()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".scene.tmp", "scene", "scene.vtm"]
+
+
+def test_a_plot_path_that_is_a_folder_is_refused_before_any_work(tmp_path):
+    (tmp_path / "fit.png").mkdir()
+    table = tmp_path / "t.csv"
+    table.write_text("phase_deg,reflectance\n10,0.1\n20,0.09\n30,0.08\n40,0.07\n")
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "fit", "--brdf", "lambert", "--source", str(table),
+                        "--out", str(tmp_path / "fit.json")], capture_output=True, text=True)
+    assert r.returncode == 2 and "is a directory" in r.stderr and r.stderr.count("\n") == 1
+    assert not (tmp_path / "fit.json").exists()

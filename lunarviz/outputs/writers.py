@@ -46,27 +46,64 @@ def json_safe(v):
 
 @contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside ``path``; on success it replaces ``path`` (``os.replace``),
-    on any error it is removed: the target is never left half-written."""
+    """Yield a private temporary path beside ``path``; when the caller has written it, it is
+    flushed to disk (``fsync``), checked to be non-empty and moved onto ``path``
+    (``os.replace``, which replaces a symlink rather than following it). On any error, the
+    interrupt included, the temporary file is removed: the target is never left half-written.
+    A full disk or an unwritable folder is one :class:`LunarvizError` line naming the path."""
     p = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.stem}.", suffix=p.suffix)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.stem}.", suffix=p.suffix)
+    except OSError as exc:
+        raise LunarvizError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
     os.close(fd)
     try:
         yield tmp
+        if os.path.getsize(tmp) == 0:
+            raise LunarvizError(f"writing {str(path)!r} produced an empty file (is the disk full?)")
+        _fsync(tmp)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; results get the usual mode
         os.replace(tmp, p)
+    except OSError as exc:
+        _remove(tmp)
+        raise LunarvizError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        _remove(tmp)
         raise
 
 
+def _fsync(path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _remove(path) -> None:
+    if os.path.lexists(path):
+        os.unlink(path)
+
+
 def write_bytes_atomic(path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (see :func:`atomic_path`)."""
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        fh.write(data)
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_path`), checking that every byte
+    reached the file."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+        if os.path.getsize(tmp) != len(data):
+            raise LunarvizError(f"writing {str(path)!r} stopped after {os.path.getsize(tmp)} of {len(data)} bytes "
+                                f"(is the disk full?)")
+
+
+def save_figure(fig, path, dpi: int = 120) -> None:
+    """A matplotlib figure to ``path`` through :func:`write_bytes_atomic` (format by suffix):
+    never half-written, never through a symlink at ``path``."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format=Path(path).suffix.lstrip(".").lower() or "png", dpi=dpi)
+    write_bytes_atomic(path, buf.getvalue())
 
 
 def write_results(path, payload: dict) -> None:

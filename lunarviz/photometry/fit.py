@@ -294,7 +294,8 @@ def plot_fit(res: FitResult, path, title: str = "") -> None:
     ax[1].set_ylabel("model / target - 1 [%]")
     ax[1].set_xlabel("phase angle [deg]")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from lunarviz.outputs.writers import save_figure
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -50,22 +50,31 @@ def write_multiblock(path, res, meta: str) -> None:
     coordinates [m]). A .vtm is an index plus a folder of blocks: both are written beside a
     temporary name and moved into place (the folder first), so nothing half-written is left;
     the caller has checked that the folder holds nothing but an earlier multiblock's blocks."""
+    import fcntl
+    import os
     import shutil
+    import tempfile
     from pathlib import Path
     mb = multiblock(res, meta)
     p = Path(path)
-    tmpdir = p.parent / f".{p.stem}.tmp"
-    if tmpdir.exists():
-        shutil.rmtree(tmpdir)
-    tmpdir.mkdir()
+    folder = p.parent if str(p.parent) else Path(".")
+    # a private temporary folder (never a name a user's folder could have), and the swap of the
+    # block folder and the index under a lock on the output folder, so two runs writing the
+    # same .vtm cannot leave an index without its blocks
+    tmpdir = Path(tempfile.mkdtemp(dir=folder, prefix=f".{p.stem}.", suffix=".vtm-tmp"))
+    lock = os.open(folder, os.O_RDONLY)
     try:
         mb.save(tmpdir / p.name)
+        fcntl.flock(lock, fcntl.LOCK_EX)
         final_dir = p.parent / p.stem
         if final_dir.exists():
             shutil.rmtree(final_dir)
         (tmpdir / p.stem).rename(final_dir)
         (tmpdir / p.name).replace(p)
+    except OSError as exc:
+        raise LunarvizError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
     finally:
+        os.close(lock)  # releases the lock
         shutil.rmtree(tmpdir, ignore_errors=True)
 
 

@@ -310,5 +310,6 @@ def plot_pareto(res: dict, path) -> None:
     axes[0].legend(fontsize=7)
     fig.suptitle("Error against run time (Pareto front of the methods)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from lunarviz.outputs.writers import save_figure
+    save_figure(fig, path, dpi=110)
     plt.close(fig)

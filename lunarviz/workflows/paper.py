@@ -31,6 +31,11 @@ BRDFS = ("lambert", "shg", "dhg")
 COLORS = {"lambert": "tab:gray", "shg": "tab:red", "dhg": "tab:blue"}
 
 
+def save_figure(fig, path) -> None:
+    from lunarviz.outputs.writers import save_figure as write
+    write(fig, path, dpi=120)
+
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
@@ -66,7 +71,7 @@ def fig3_reflectance(out: Path) -> dict:
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=9, frameon=False)
     fig.suptitle("Fig. 3 — Hapke reflectance factors (w = 0.33, h = 0.017, B0 = 1; Table 2)")
     fig.tight_layout(rect=(0, 0.08, 1, 1))
-    fig.savefig(out / "fig3_reflectance_factor.png", dpi=120)
+    save_figure(fig, out / "fig3_reflectance_factor.png")
     plt.close(fig)
     return data
 
@@ -104,7 +109,7 @@ def fig4_brdf_test(out: Path, res: dict):
         rx.legend(fontsize=7, loc="upper right")
     fig.suptitle("Fig. 4 — small-scale BRDF test (i = 75°, target r = 2.5 m, detector r = 0.5 m at 200 m)")
     fig.tight_layout()
-    fig.savefig(out / "fig4_brdf_test.png", dpi=120)
+    save_figure(fig, out / "fig4_brdf_test.png")
     plt.close(fig)
 
 
@@ -167,7 +172,7 @@ def fig5_fluxes(out: Path, sw: dict):
     fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=9, frameon=False)
     fig.suptitle("Fig. 5 — moonshine and earthshine (occlusion off unless marked; detector at the Earth's centre)")
     fig.tight_layout(rect=(0, 0.07, 1, 1))
-    fig.savefig(out / "fig5_moonshine_earthshine.png", dpi=120)
+    save_figure(fig, out / "fig5_moonshine_earthshine.png")
     plt.close(fig)
 
 
@@ -219,7 +224,7 @@ def fig6_albedo(out: Path, sw: dict):
     fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.1), ncol=4, fontsize=8, frameon=False)
     fig.suptitle("Fig. 6 — (a) geometric albedo term and (b) apparent albedo")
     fig.tight_layout(rect=(0, 0.2, 1, 1))
-    fig.savefig(out / "fig6_albedo.png", dpi=120)
+    save_figure(fig, out / "fig6_albedo.png")
     plt.close(fig)
 
 

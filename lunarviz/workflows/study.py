@@ -274,5 +274,6 @@ def plot_study(res: dict, path) -> None:
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from lunarviz.outputs.writers import save_figure
+    save_figure(fig, path, dpi=110)
     plt.close(fig)

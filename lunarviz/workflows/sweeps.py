@@ -8,6 +8,7 @@ so a sweep over three BRDFs costs one trace per phase. Tasks run in local worker
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -407,14 +408,27 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
         if not settings.times:
             order.sort(key=lambda i: abs(float(phases[i]) - 180.0))  # (θ in [0, 360]: both crescents)
         results = [None] * len(phases)
-        with ProcessPoolExecutor(workers) as ex:
+        ex = ProcessPoolExecutor(workers, initializer=_default_sigterm)
+        try:
             for i, res in zip(order, ex.map(_run_phase_star, [(settings, phases[i]) for i in order])):
                 results[i] = res
                 if bar:
                     bar.update()
+        except BaseException:  # an error, Ctrl-C or SIGTERM: end the workers now, not after their tasks
+            ex.shutdown(wait=False, cancel_futures=True)
+            for proc in multiprocessing.active_children():
+                proc.terminate()
+            raise
+        ex.shutdown(wait=True)
     if bar:
         bar.close()
     return _assemble(settings, results, t0)
+
+
+def _default_sigterm() -> None:
+    """In a worker: SIGTERM ends it at once, silently (the parent ends its workers that way)."""
+    import signal
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _warm_before_fork(settings: SweepSettings) -> None:
