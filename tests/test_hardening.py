@@ -163,3 +163,29 @@ def test_a_plot_path_that_is_a_folder_is_refused_before_any_work(tmp_path):
                         "--out", str(tmp_path / "fit.json")], capture_output=True, text=True)
     assert r.returncode == 2 and "is a directory" in r.stderr and r.stderr.count("\n") == 1
     assert not (tmp_path / "fit.json").exists()
+
+
+@pytest.mark.parametrize("case", ["huge_obj", "dem_scale", "waxing_inf", "tiny_reflectance"])
+def test_extreme_values_end_in_one_line(tmp_path, case):
+    """Inputs that raised OverflowError/ValueError tracebacks: now one line and exit 2."""
+    if case == "huge_obj":
+        (tmp_path / "big.obj").write_text("v 1e306 0 0\nv 0 1e306 0\nv 0 0 1e306\nv -1e306 -1e306 -1e306\n"
+                                          "f 1 2 3\nf 1 4 2\nf 1 3 4\nf 2 4 3\n")
+        args = ["sweep", "--method", "raytrace", "--phases", "90", "--moon-mesh", "big.obj", "--out", "x.json"]
+    elif case == "dem_scale":
+        np.save(tmp_path / "h.npy", np.ones((8, 16)))
+        args = ["mesh", "make", "dem", "--dem", "h.npy", "--height-scale", "1e300", "--level", "1", "--out", "d.ply"]
+    else:
+        (tmp_path / "t.csv").write_text("phase_deg,reflectance,waxing\n10,0.1,1\n20,0.09,1\n30,0.08,1\n"
+                                        + ("40,0.07,inf\n" if case == "waxing_inf" else "40,5e-324,1\n"))
+        args = ["fit", "--brdf", "lambert", "--source", "t.csv", "--out", "f.json"]
+    r = subprocess.run([sys.executable, "-m", "lunarviz", *args], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.startswith("lunarviz: error:") and r.stderr.count("\n") == 1, r.stderr
+    assert not [p for p in os.listdir(tmp_path) if p.endswith((".json", ".ply", ".png"))]
+
+
+def test_api_output_of_the_wrong_type_is_one_error():
+    import lunarviz
+    with pytest.raises(LunarvizError, match="must be a path"):
+        lunarviz.image(lunarviz.Scene(phases="90", moon_level=1), 90.0, pixels=16, out=123)

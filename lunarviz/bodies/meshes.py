@@ -224,11 +224,20 @@ def validate_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> trimesh.Trimesh:
     return mesh
 
 
+#: the largest vertex coordinate a mesh may have [its units; metres after conversion]: 1e15 m is
+#: 7000 au, far beyond any body, and far below where squares overflow float64
+MAX_VERTEX_M = 1e15
+
+
 def _check_arrays(v: np.ndarray, f: np.ndarray, name: str, edges: tuple | None = None):
     """:func:`validate_mesh` on arrays; ``edges``: :func:`edge_checks` already computed.
     Returns the enclosed volume and the centre of mass (:func:`volume_and_centroid`)."""
     if not np.all(np.isfinite(v)):
         raise MeshError(f"{name}: vertices contain NaN or inf")
+    extent = float(np.max(np.abs(v))) if v.size else 0.0
+    if extent > MAX_VERTEX_M:  # squares of such coordinates overflow float64
+        raise MeshError(f"{name}: a vertex lies {extent:.3g} from the origin; no body is larger than "
+                        f"{MAX_VERTEX_M:.0e} (check the mesh units)")
     areas = face_areas(v, f)
     scale = float(np.max(np.ptp(v, axis=0)))
     bad = np.flatnonzero(areas <= 1e-12 * scale**2)

@@ -18,6 +18,8 @@ SUFFIXES = (".json", ".csv")
 
 def check_output_path(path, suffixes=SUFFIXES) -> Path:
     """Validate an output path before any work is done: suffix and a writable directory."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise LunarvizError(f"output {path!r} must be a path (a string), not {type(path).__name__}")
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise LunarvizError(f"output {str(path)!r} must end in {' or '.join(suffixes)}")

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -166,9 +167,18 @@ def rolo_irradiance(row: dict, band=(400.0, 750.0), phi_sun: float = 1.626e26) -
     return a * ROLO_OMEGA * (ROLO_DISTANCE_KM * 1e3 / row["observer_moon_distance_m"]) ** 2 * e_sun / np.pi
 
 
+#: a fit table's most rows (a phase curve binned to 0.01° has 18,000) and smallest reflectance
+#: (the fit takes logarithms: subnormal values make its residuals non-finite)
+MAX_TABLE_ROWS = 20_000
+MIN_REFLECTANCE = 1e-12
+
+
 def read_table(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A CSV with columns ``phase_deg`` and ``reflectance`` (and optionally ``waxing`` 0/1)."""
     try:
+        size = Path(path).stat().st_size
+        if size > 16 << 20:
+            raise LunarvizError(f"table {path}: {size / 2**20:.0f} MiB is more than the 16 MiB a fit table may have")
         with open(path, newline="", encoding="utf-8") as fh:
             rows = list(csv.DictReader(fh))
     except OSError as exc:
@@ -177,15 +187,25 @@ def read_table(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise LunarvizError(f"table {path}: not a UTF-8 CSV ({type(exc).__name__})") from None
     if not rows or not {"phase_deg", "reflectance"} <= set(rows[0]):
         raise LunarvizError(f"table {path}: needs CSV columns phase_deg and reflectance")
+    if len(rows) > MAX_TABLE_ROWS:
+        raise LunarvizError(f"table {path}: {len(rows):,} rows is more than the {MAX_TABLE_ROWS:,} a fit takes "
+                            f"(bin the phase curve first)")
     try:
         g = np.array([float(r["phase_deg"]) for r in rows])
         a = np.array([float(r["reflectance"]) for r in rows])
-        wax = np.array([bool(int(float(r.get("waxing") or 1))) for r in rows])
+        w = np.array([float(r.get("waxing") or 1) for r in rows])
     except (ValueError, TypeError):
         raise LunarvizError(f"table {path}: a row has a missing or non-numeric phase_deg/reflectance/waxing") \
             from None
-    if not (np.all(np.isfinite(g)) and np.all((g > 0) & (g < 180)) and np.all(np.isfinite(a) & (a > 0))):
-        raise LunarvizError(f"table {path}: phase_deg must be in (0, 180) and reflectance positive")
+    if not np.all((w == 0) | (w == 1)):
+        raise LunarvizError(f"table {path}: waxing must be 0 or 1 (found {w[(w != 0) & (w != 1)][0]!r})")
+    wax = w == 1
+    if not (np.all(np.isfinite(g)) and np.all((g > 0) & (g < 180))):
+        raise LunarvizError(f"table {path}: phase_deg must be in (0, 180)")
+    if not np.all(np.isfinite(a) & (a >= MIN_REFLECTANCE) & (a <= 10.0)):
+        bad = a[~(np.isfinite(a) & (a >= MIN_REFLECTANCE) & (a <= 10.0))][0]
+        raise LunarvizError(f"table {path}: reflectance {bad!r} is outside [{MIN_REFLECTANCE:g}, 10] (the fit "
+                            f"works on its logarithm)")
     return g, a, wax
 
 
