@@ -28,8 +28,8 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
     def _get_help_string(self, action):
         text = action.help or ""
-        if action.option_strings and action.default not in (None, False, argparse.SUPPRESS) \
-                and "%(default)" not in text and "default" not in text:
+        if action.option_strings and action.default is not None and action.default is not argparse.SUPPRESS \
+                and action.default is not False and "%(default)" not in text and "default" not in text:
             text += " (default: %(default)s)"
         return text
 
@@ -158,7 +158,8 @@ def _add_executor_options(p, workers_help="local worker processes"):
                    help="local worker processes, or a Dask distributed cluster")
     p.add_argument("--scheduler", default=None, help="with --executor dask: scheduler address (tcp://host:8786); "
                                                       "default a local cluster of --workers processes")
-    p.add_argument("--workers", type=_positive_int("--workers"), default=None, help=workers_help)
+    p.add_argument("--workers", type=_positive_int("--workers"), default=None,
+                   help=workers_help + " (default: one per core, at most one per task)")
 
 
 def _parser_sweep(sub):
@@ -176,8 +177,8 @@ def _parser_brdf(sub):
     from lunarviz.options import BRDF_NAMES
     p = sub.add_parser("brdf", help="tabulate a lunar BRDF")
     p.add_argument("--model", required=True, help=" | ".join(BRDF_NAMES))
-    p.add_argument("--incidence", required=True, help="incidence angles [deg]")
-    p.add_argument("--emission", required=True, help="emission angles [deg]")
+    p.add_argument("--incidence", required=True, help="incidence angles [deg]: a,b,c or start:stop:step")
+    p.add_argument("--emission", required=True, help="emission angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")
     p.add_argument("--out", required=True, help=".json or .csv: one row per (incidence, emission, azimuth)")
     add_arguments(p, names=BRDF_TABLE_OPTIONS)
@@ -230,7 +231,7 @@ def _parser_image(sub):
 
 def _parser_study(sub):
     p = sub.add_parser("study", help="mesh-resolution study")
-    p.add_argument("kind", choices=["mesh"])
+    p.add_argument("kind", choices=["mesh"], help="what to study: mesh (the resolution of one body's mesh)")
     p.add_argument("--levels", default="2:6:1", help="icosphere levels (integers)")
     p.add_argument("--phases", default="30,90,150", help="θ list [deg]: a,b,c or start:stop:step")
     p.add_argument("--body", default="moon", choices=list(BODIES), help="the body whose mesh varies")
@@ -246,8 +247,10 @@ def _parser_study(sub):
 
 def _parser_mesh(sub):
     p = sub.add_parser("mesh", help="make a body mesh (ellipsoid, DEM, craters, patch) for --moon-mesh etc.")
-    p.add_argument("action", choices=["make"])
-    p.add_argument("shape", choices=["sphere", "ellipsoid", "dem", "craters", "patch"])
+    p.add_argument("action", choices=["make"], help="make: write a new mesh file")
+    p.add_argument("shape", choices=["sphere", "ellipsoid", "dem", "craters", "patch"],
+                   help="an icosphere, a triaxial ellipsoid, topography from a DEM map, seeded craters, or a sphere "
+                        "refined around a point (--patch)")
     p.add_argument("--body", default="moon", choices=list(BODIES),
                    help="sets the nominal radius (R) the other options scale with")
     p.add_argument("--level", type=_nonneg_int("--level"), default=6,
@@ -319,7 +322,10 @@ EXAMPLES = {
 def build_parser() -> argparse.ArgumentParser:
     """The ``lunarviz`` command's parser: scene options come from :mod:`lunarviz.options`."""
     from lunarviz import __version__
-    ap = _Parser(prog="lunarviz", description="Real-scale ray-traced earthshine and moonshine.")
+    ap = _Parser(prog="lunarviz", description="Real-scale ray-traced earthshine and moonshine.",
+                 epilog="examples:\n" + "\n".join(f"  {EXAMPLES[c][0]}" for c in ("sweep", "trace", "render", "image",
+                                                                                  "paper"))
+                 + "\n\nlunarviz COMMAND --help shows each command's options and more examples")
     ap.add_argument("--version", action="version", version=f"lunarviz {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_parser_sweep, _parser_brdf, _parser_trace, _parser_pictures, _parser_image, _parser_study,
@@ -364,7 +370,11 @@ def cmd_sweep(a):
     if not a.quiet:
         for b, m in res["bond_albedo"].items():
             for meth, v in m.items():
-                print(f"Bond albedo  {b:8s} {meth:10s} {v:.4f}")
+                if v is not None and math.isfinite(v):
+                    print(f"Bond albedo  {b:8s} {meth:10s} {v:.4f}")
+                else:
+                    print(f"Bond albedo  {b:8s} {meth:10s} undefined: Eq. 17 integrates p* over the Earth's "
+                          f"phases (sweep θ across 0-180°, or dates that span them)")
         print(f"wrote {out}")
 
 
@@ -424,9 +434,10 @@ def cmd_trace(a):
     release_caches()  # the meshes and Embree scenes are done with: ~1 GB at 5 M facets before the write
     write_facet_mesh(out, res)
     if not getattr(a, "quiet", False):
-        print(f"{res.info['brdf']}: moonshine {res.totals['moonshine_W_m2']:.6e} W m-2, earthshine "
-              f"{res.totals['earthshine_W_m2']:.6e} W m-2 at the detector")
-        print(f"wrote {out} ({res.n_faces} facets)")
+        for b in res.info["brdfs"]:
+            print(f"{b}: moonshine {res.totals[f'moonshine_W_m2_{b}']:.6e} W m-2, earthshine "
+                  f"{res.totals[f'earthshine_W_m2_{b}']:.6e} W m-2 at the detector")
+        print(f"wrote {out} ({res.n_faces} facets; unsuffixed arrays: {res.info['brdf']})")
 
 
 def cmd_render(a, interactive=False):

@@ -188,6 +188,14 @@ before = v.data.numbers["moonshine_W_m2"]
 v.set_phase(150.0)
 v.plotter.update()
 assert v.theta == 150.0
+# the controls survive a redraw: the slider and the three BRDF buttons are still drawn, at 150
+widgets = getattr(v.plotter, "widgets", v.plotter)
+controls = list(widgets.slider_widgets) + list(widgets.button_widgets)
+assert len(controls) == 4 and all(w.GetEnabled() for w in controls)
+props = v.plotter.renderers[2].GetViewProps()
+drawn = {id(props.GetItemAsObject(i)) for i in range(props.GetNumberOfItems())}
+assert all(id(w.GetRepresentation()) in drawn for w in controls)
+assert widgets.slider_widgets[0].GetRepresentation().GetValue() == 150.0
 assert v.data.numbers["moonshine_W_m2"] < 0.2 * before  # a crescent is much fainter
 v.set_brdf("dhg")
 assert v.data.numbers["brdf"] == "dhg"

@@ -112,14 +112,21 @@ def write_fits(path, res, planes, extra: dict) -> None:
     prim = fits.PrimaryHDU()
     hdr = prim.header
     hdr["ORIGIN"] = "lunarviz"
-    for k, v in (("DATE-OBS", res.info.get("time_utc")), ("OBSERVER", res.info.get("observer")),
-                 ("THETA", res.info.get("theta_deg")), ("PHASEANG", res.info.get("alpha_deg")),
-                 ("BETA", res.info.get("beta_deg")), ("FOV", cam.fov_deg), ("SUPERSAM", cam.supersample),
-                 ("POINTING", cam.pointing), ("MOON_RA", res.info["moon_ra_deg"]),
-                 ("MOON_DEC", res.info["moon_dec_deg"]), ("LITFRAC", res.lit_fraction),
-                 ("PSF", extra.get("psf") or "none"), ("HALO", extra.get("halo") or "none")):
+    for k, v, note in (("DATE-OBS", res.info.get("time_utc"), "UTC of the scene"),
+                       ("OBSERVER", res.info.get("observer"), "observer (geocentre, site, TLE, orbit)"),
+                       ("THETA", res.info.get("theta_deg"), "[deg] orbital angle theta (paper Eq. 3)"),
+                       ("PHASEANG", res.info.get("alpha_deg"), "[deg] Sun-Moon-observer angle"),
+                       ("BETA", res.info.get("beta_deg"), "[deg] Sun-Earth-Moon angle"),
+                       ("FOV", cam.fov_deg, "[deg] field of view across the width"),
+                       ("SUPERSAM", cam.supersample, "K: K x K rays per pixel"),
+                       ("POINTING", cam.pointing, "moon or RA,DEC [deg]"),
+                       ("MOON_RA", res.info["moon_ra_deg"], "[deg] Moon centre right ascension"),
+                       ("MOON_DEC", res.info["moon_dec_deg"], "[deg] Moon centre declination"),
+                       ("LITFRAC", res.lit_fraction, "sunlit fraction of the Moon's disc"),
+                       ("PSF", extra.get("psf") or "none", "point-spread function"),
+                       ("HALO", extra.get("halo") or "none", "scattered-light wing")):
         if v is not None:
-            hdr[k] = v
+            hdr[k] = (v, note)
     hdr["FRAME"] = res.info["frame"][:68]
     hdr["COMMENT"] = "lunarviz synthetic image: radiance planes per component, pinhole TAN camera at the detector"
     hdr["COMMENT"] = "settings: " + json.dumps(extra.get("settings", {}))[:2000]
@@ -129,7 +136,7 @@ def write_fits(path, res, planes, extra: dict) -> None:
         hh = h.header
         hh["BUNIT"] = BUNIT
         hh["BRDF"] = b
-        hh["LIGHT"] = (comp, "light path: moonshine (Sun-Moon) or earthshine (Sun-Earth-Moon)")
+        hh["LIGHT"] = (comp, "moonshine or earthshine")
         hh["WCSAXES"] = 2
         hh["CTYPE1"], hh["CTYPE2"] = "RA---TAN", "DEC--TAN"
         hh["CUNIT1"], hh["CUNIT2"] = "deg", "deg"

@@ -74,6 +74,15 @@ class Viewer:
             r.clear_actors()
         populate(pl, self.data, "composite")
         self._add_labels()  # cameras follow the new geometry (the Moon seen from the detector)
+        # clearing the actors took the widgets' representations with them: put them back, the
+        # slider showing the phase (or time index) now drawn
+        widgets = getattr(pl, "widgets", pl)
+        for widget in list(widgets.slider_widgets):
+            value = self.settings.times.index(self.theta) if self.settings.times else self.theta
+            widget.GetRepresentation().SetValue(float(value))
+        for widget in list(widgets.slider_widgets) + list(widgets.button_widgets):
+            widget.Off()
+            widget.On()
         pl.render()
 
     def _add_labels(self):

@@ -211,8 +211,11 @@ def _orientation_key(pl, fr: FacetResult, view, up, R):
                              shaft_radius=0.04), color=color, lighting=False)
         pl.add_point_labels([start + d * 0.42 * R], [label], font_size=10, text_color=color, shape=None,
                             show_points=False, always_visible=True)
-    where = "detector at the Earth's centre" if "time_utc" not in fr.info else "the observer"
-    pl.add_text(f"seen from the {where}", font_size=8, position="lower_left", color="white")
+    where = "the detector at the Earth's centre" if "time_utc" not in fr.info else "the observer"
+    pl.add_text(f"seen from {where}", font_size=8, position="lower_left", color="white")
+    if not (fr.totals.get("moonshine_W_m2") or fr.totals.get("earthshine_W_m2")):
+        why = "hidden from the observer" if fr.info.get("moon_occulted") else "dark: no light reaches the detector"
+        pl.add_text(f"the Moon is {why}", font_size=6, position=(0.02, 0.9), viewport=True, color="orange")
 
 
 def _cells_to_points(mesh, names):
@@ -229,7 +232,24 @@ def _cells_to_points(mesh, names):
             np.add.at(total, faces[ok, c], v[ok])
             np.add.at(count, faces[ok, c], 1.0)
         with np.errstate(invalid="ignore", divide="ignore"):
-            out.point_data[name] = np.where(count > 0, total / np.maximum(count, 1.0), np.nan)
+            pts = np.where(count > 0, total / np.maximum(count, 1.0), np.nan)
+        for _ in range(2):  # vertices with only NaN facets take their finite neighbours' mean
+            ok_p = np.isfinite(pts)
+            hole = ~ok_p
+            if not hole.any():
+                break
+            total = np.zeros(mesh.n_points)
+            count = np.zeros(mesh.n_points)
+            for a in range(3):
+                for b in range(3):
+                    if a != b:
+                        src, dst = faces[:, a], faces[:, b]
+                        use = ok_p[src] & hole[dst]
+                        np.add.at(total, dst[use], pts[src[use]])
+                        np.add.at(count, dst[use], 1.0)
+            fill = hole & (count > 0)
+            pts[fill] = total[fill] / count[fill]
+        out.point_data[name] = pts
     return out
 
 
@@ -272,10 +292,11 @@ def _moon_panel(pl, poly, field, title, cmap, log=True, clim=None, bar_fmt="%.1e
     bar = {"title": title + "\n", "fmt": bar_fmt, "n_labels": n_labels, "vertical": True, "color": "white",
            "position_x": 0.80, "position_y": 0.06, "height": 0.66, "width": 0.045,
            "title_font_size": 12, "label_font_size": 11}
+    has_values = bool(np.isfinite(vals).any())  # nothing to scale (a hidden Moon): no colour bar
     for k, part in enumerate(parts):
         pl.add_mesh(part, scalars=scalars, cmap=cmap, log_scale=log, clim=lim, nan_color=(0.12, 0.12, 0.14),
                     show_edges=False, lighting=False, interpolate_before_map=True, n_colors=N_COLORS,
-                    show_scalar_bar=k == 0, scalar_bar_args=bar)
+                    show_scalar_bar=k == 0 and has_values, scalar_bar_args=bar)
     return mesh
 
 
@@ -351,8 +372,8 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
         if lim[1] <= lim[0]:
             lim = (lim[0] - 0.05, lim[0] + 0.05)
     mesh.cell_data["shown"] = vals
-    bar = dict(title=title, color="white", fmt="%.2e" if log else "%.2f", vertical=True, position_x=0.84,
-               position_y=0.1, height=0.75, width=0.06, title_font_size=12, label_font_size=10)
+    bar = dict(title=title + "\n", color="white", fmt="%.2e" if log else "%.2f", vertical=True, position_x=0.84,
+               position_y=0.08, height=0.68, width=0.06, title_font_size=12, label_font_size=10)
     pl.add_mesh(mesh, scalars="shown", cmap=cmap, log_scale=log, clim=lim, nan_color=(0.05, 0.05, 0.08),
                 lighting=False, scalar_bar_args=bar)
     moon = np.array(fr.info["moon_centre_m"]) - np.array(fr.info["earth_m"])
