@@ -191,3 +191,31 @@ def test_api_output_of_the_wrong_type_is_one_error():
     import lunarviz
     with pytest.raises(LunarvizError, match="must be a path"):
         lunarviz.image(lunarviz.Scene(phases="90", moon_level=1), 90.0, pixels=16, out=123)
+
+
+def test_a_detector_on_the_moon_is_refused():
+    """1 km above the sub-solar point the ray tracer gave 0.11 W m-2 where the exact answer is
+    57.8: a detector closer than 10 lunar radii to the Moon's centre is refused in one line."""
+    import lunarviz
+    R = 1.738e6
+    with pytest.raises(LunarvizError, match="lunar radii"):
+        lunarviz.Scene(phases="90", detector=(0.0, 3.8e8 - R - 1e3, 0.0))
+    lunarviz.Scene(phases="90", detector=(0.0, 3.8e8 - 12 * R, 0.0))  # a detector well away: accepted
+
+
+def test_an_observer_inside_the_earth_is_refused(monkeypatch):
+    """A decayed TLE propagated far from its epoch put the observer 1772 km from the Earth's
+    centre and fluxes were reported: now one line naming the observer and the date."""
+    from lunarviz.sky import observers
+    from lunarviz.sky.dated_scene import sky_scene
+    monkeypatch.setattr(observers.Observer, "position", lambda self, label: np.array([1.772e6, 0.0, 0.0]))
+    obs = observers.Observer(kind="orbit", spec="orbit:test-decayed", alt_km=500.0)
+    with pytest.raises(LunarvizError, match="inside the Earth"):
+        sky_scene("2031-02-03T04:05:06Z", obs)
+
+
+def test_a_lobe_narrower_than_the_earth_is_refused(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--method", "analytic", "--brdf", "dhg",
+                        "--param", "b=0.999999", "--phases", "90", "--out", str(tmp_path / "b.json")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "narrower than the Earth's disc" in r.stderr and r.stderr.count("\n") == 1

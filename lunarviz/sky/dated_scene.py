@@ -23,9 +23,15 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.caches import memoize
+from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, unit
 from lunarviz.sky.ephemeris import selenographic, sky_state
 from lunarviz.sky.observers import Observer
+
+
+#: an observer closer to the Earth's centre than this is inside the Earth: 50 km below the WGS84
+#: polar radius (6356.8 km), below every site on the ground
+MIN_OBSERVER_RADIUS_M = 6_306_000.0
 
 
 @memoize(maxsize=256)
@@ -33,6 +39,10 @@ def sky_scene(label: str, observer: Observer = Observer()) -> tuple[SceneGeometr
     """The scene at UTC ``label`` seen by ``observer``, and the row fields that describe it."""
     st = sky_state(label)
     det = observer.position(label)
+    r = float(np.linalg.norm(det))
+    if observer.kind != "geocentre" and r < MIN_OBSERVER_RADIUS_M:
+        raise LunarvizError(f"observer {observer.spec!r} at {label} is {r / 1e3:.0f} km from the Earth's centre, "
+                            f"inside the Earth (a decayed or stale TLE, or a wrong orbit)")
     up = observer.up(label)
     sc = SceneGeometry.from_vectors(st.sun, st.moon, None if observer.kind == "geocentre" else det,
                             moon_rotation=st.moon_rotation, earth_rotation=st.earth_rotation,

@@ -25,6 +25,10 @@ from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.photometry.brdf import make_brdf
 
 METHODS = ("analytic", "raytrace", "reference")
+#: the sharpest Henyey-Greenstein lobe a sweep accepts: at b = 0.95 the lobe's width, about
+#: (1 - b) rad = 3°, still spans the Earth's 1.9° disc seen from the Moon; at b = 0.999999 the
+#: analytic earthshine came out 1e4 W m-2 (the exact reference: 4e-7)
+MAX_LOBE_ASYMMETRY = 0.95
 #: beyond this many days from a TLE's epoch a sweep warns (SGP4 errors of km grow within weeks)
 TLE_MAX_AGE_DAYS = 30.0
 
@@ -113,6 +117,13 @@ class SweepSettings:
         if isinstance(self.moon_albedo_map, str) and self.moon_albedo_map.strip().lower() == "none":
             object.__setattr__(self, "moon_albedo_map", None)  # --moon-albedo-map none: no map, even a preset's
         models = self.brdf_models()  # validates parameters early
+        for name, model in models.items():  # lobes the methods' source rules cannot resolve
+            phase = getattr(model, "phase", None)
+            g = abs(getattr(phase, "b", getattr(phase, "xi", 0.0)))
+            if g > MAX_LOBE_ASYMMETRY:
+                raise LunarvizError(f"{name}: a Henyey-Greenstein lobe with b (or |xi|) = {g:g} is narrower than the "
+                                    f"Earth's disc seen from the Moon (1.9°); the methods' point or Gauss-rule "
+                                    f"Earth cannot resolve it: use b ≤ {MAX_LOBE_ASYMMETRY:g}")
         sf = self.surfaces()  # reads and checks the maps before any work
         if sf is not None and sf.moon_map is not None:
             sf.moon_map.check_brdfs(models)
