@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import io
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -38,20 +39,26 @@ def web_server(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "lunarviz.cli", "view", "--web", "--port", str(port),
                              "--phase", "90", "--mesh-level", "3", "--size", "1200x700"],
                             stdout=log, stderr=subprocess.STDOUT, text=True)
-    url = f"http://127.0.0.1:{port}/"
+    base = f"http://127.0.0.1:{port}/"
     t0 = time.time()
+    url = None
     while True:
-        try:
-            with urllib.request.urlopen(url, timeout=2) as r:
-                if r.status == 200:
-                    break
-        except OSError:
-            pass
+        text = (tmp_path / "server.log").read_text()
+        found = re.search(r"serving on (http://\S+/\?secret=\S+)", text)
+        if found:
+            url = found.group(1)
+            try:
+                with urllib.request.urlopen(base, timeout=2) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                pass
         if proc.poll() is not None or time.time() - t0 > 120:
             proc.kill()
             log.close()
-            raise RuntimeError(f"lunarviz view --web did not serve: {(tmp_path / 'server.log').read_text()}")
+            raise RuntimeError(f"lunarviz view --web did not serve: {text}")
         time.sleep(0.5)
+    assert url.startswith(base) and "wslink-secret" not in url
     yield url
     proc.terminate()
     try:
@@ -98,3 +105,18 @@ def test_web_viewer_draws_and_phase_control_redraws(web_server):
     assert lit_a > 0.03
     assert lit_b < 0.6 * lit_a
     assert np.abs(a - b).mean() > 2.0
+
+
+def test_web_viewer_refuses_the_default_secret(web_server):
+    """wslink's public default secret ('wslink-secret', what a page without ?secret= presents)
+    is refused: the page never gets a scene; with the run's own secret it does."""
+    without = web_server.split("?", 1)[0]
+
+    async def run():
+        async with Browser(1000, 700) as b:
+            await b.goto(without)
+            await asyncio.sleep(15)  # time enough to connect, were it allowed
+            return await b.evaluate("document.body ? document.body.innerText : ''")
+
+    text = asyncio.run(run())
+    assert "phase theta" not in text  # the numbers come from the server: none without the secret

@@ -82,7 +82,25 @@ def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
 
 
 def serve(settings, key, brdf: str, host: str = "127.0.0.1", port: int = 0, size=(1600, 900)):
-    """Serve the viewer until interrupted (port 0: a free port, printed at start)."""
+    """Serve the viewer until interrupted (port 0: a free port, printed at start).
+
+    Each run has its own random secret, printed in the URL it serves (``?secret=...``); a
+    client that presents any other, wslink's public default ``wslink-secret`` included, is
+    refused. Binding to an interface other than the loopback prints a warning: anyone who can
+    reach it and has the URL drives the viewer."""
+    import secrets
+    import warnings
+
+    from lunarviz.errors import LunarvizWarning
     server, _ = build_app(settings, key, brdf, size=size)
-    print(f"lunarviz view --web: serving on http://{host}:{port or '<free port>'}/ (Ctrl-C stops)", flush=True)
-    server.start(host=host, port=port, open_browser=False, show_connection_info=True)
+    secret = secrets.token_urlsafe(24)
+    server.cli.set_defaults(authKey=secret, authKeyFile=None)  # trame configures wslink from these
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        warnings.warn(f"lunarviz view --web is listening on {host}: anyone who can reach it and has the URL "
+                      f"(with its secret) can drive the viewer", LunarvizWarning, stacklevel=2)
+
+    def announce(**_):
+        print(f"lunarviz view --web: serving on http://{host}:{server.port}/?secret={secret} (Ctrl-C stops)",
+              flush=True)
+    server.controller.on_server_ready.add(announce)
+    server.start(host=host, port=port, open_browser=False, show_connection_info=False)
