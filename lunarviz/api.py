@@ -18,6 +18,7 @@ Units are SI throughout: irradiance [W m⁻²], radiance [W m⁻² sr⁻¹], len
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -378,48 +379,54 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     pix_arcsec = float(np.degrees(camera.scale_rad)) * 3600.0
     k_psf = parse_psf(psf, pix_arcsec, (camera.height, camera.width))
     k_halo = parse_halo(halo, pix_arcsec, (camera.height, camera.width))
+    from lunarviz.outputs.writers import StagedFiles, check_output_path
     if out is not None:
-        from lunarviz.outputs.writers import check_output_path
         out = check_output_path(out, (".fits", ".npy", ".png"))
     results, files = [], []
+    targets = [] if out is None else [out if len(keys) == 1 else out.with_name(f"{out.stem}_{n:03d}{out.suffix}")
+                                      for n in range(len(keys))]
+    for target in targets + ([gif] if gif is not None and len(keys) > 1 else []):
+        check_output_path(target, (Path(target).suffix.lower(),))  # a folder in the way: refused before work
     it = keys
     if progress and len(keys) > 1:
         from tqdm import tqdm
         it = tqdm(keys, desc="image", unit="frame", leave=False)
-    for n, k in enumerate(it):
-        res = synthesize(settings, k, camera)
-        for comp in res.planes:
-            for b in res.planes[comp]:
-                res.planes[comp][b] = apply_optics(res.planes[comp][b], k_psf, k_halo)
-        results.append(res)
-        if out is not None:
-            target = out if len(keys) == 1 else out.with_name(f"{out.stem}_{n:03d}{out.suffix}")
-            suffix = target.suffix.lower()
-            extra = {"psf": psf, "halo": halo, "settings": settings.to_dict()}
-            if suffix == ".fits":
-                write_fits(target, res, res.planes, extra)
-            elif suffix == ".npy":
-                write_npy(target, res.planes)
-            else:
-                write_png(target, res, res.planes)
-            files.append(target)
-    if gif is not None and len(results) > 1:
-        import io as bytes_io
+    with StagedFiles() as staged:  # every frame (and the GIF) or none
+        for n, k in enumerate(it):
+            res = synthesize(settings, k, camera)
+            for comp in res.planes:
+                for b in res.planes[comp]:
+                    res.planes[comp][b] = apply_optics(res.planes[comp][b], k_psf, k_halo)
+            results.append(res)
+            if out is not None:
+                target = targets[n]
+                suffix = target.suffix.lower()
+                extra = {"psf": psf, "halo": halo, "settings": settings.to_dict()}
+                tmp = staged.stage(target)
+                if suffix == ".fits":
+                    write_fits(tmp, res, res.planes, extra)
+                elif suffix == ".npy":
+                    write_npy(tmp, res.planes)
+                else:
+                    write_png(tmp, res, res.planes)
+                files.append(target)
+        if gif is not None and len(results) > 1:
+            import io as bytes_io
 
-        from PIL import Image
+            from PIL import Image
 
-        from lunarviz.outputs.writers import write_bytes_atomic
-        frames = []
-        for res in results:
-            b = next(iter(res.planes["moonshine"]))
-            tot = res.planes["moonshine"][b] + res.planes["earthshine"][b]
-            v = np.arcsinh(tot / max(np.percentile(tot[tot > 0], 5) if (tot > 0).any() else 1.0, 1e-30))
-            v = (255 * v / max(v.max(), 1e-30)).astype(np.uint8)[::-1]
-            frames.append(Image.fromarray(v))
-        buf = bytes_io.BytesIO()
-        frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
-        write_bytes_atomic(gif, buf.getvalue())
-        files.append(gif)
+            from lunarviz.outputs.writers import write_bytes_atomic
+            frames = []
+            for res in results:
+                b = next(iter(res.planes["moonshine"]))
+                tot = res.planes["moonshine"][b] + res.planes["earthshine"][b]
+                v = np.arcsinh(tot / max(np.percentile(tot[tot > 0], 5) if (tot > 0).any() else 1.0, 1e-30))
+                v = (255 * v / max(v.max(), 1e-30)).astype(np.uint8)[::-1]
+                frames.append(Image.fromarray(v))
+            buf = bytes_io.BytesIO()
+            frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
+            write_bytes_atomic(staged.stage(gif), buf.getvalue())
+            files.append(gif)
     if out is not None:
         return files
     return results[0] if len(results) == 1 else results

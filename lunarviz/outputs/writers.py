@@ -100,6 +100,50 @@ def write_bytes_atomic(path, data: bytes) -> None:
                                 f"(is the disk full?)")
 
 
+class StagedFiles:
+    """Several outputs written all or nothing (numbered frames and their GIF)::
+
+        with StagedFiles() as files:
+            for k, frame in enumerate(frames):
+                write_png(files.stage(f"f_{k:03d}.png"), frame)   # any writer, to a staged path
+
+    Each target is first written to a private temporary beside it; when the block ends without
+    error every one is checked (non-empty), flushed to disk and moved into place; on any error
+    (the interrupt included) none is, and the temporaries are removed."""
+
+    def __init__(self):
+        self._staged: list[tuple[str, Path]] = []
+
+    def stage(self, target) -> Path:
+        p = check_output_path(target, (Path(target).suffix.lower(),))
+        try:
+            fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.stem}.", suffix=p.suffix)
+        except OSError as exc:
+            raise LunarvizError(f"cannot write {str(target)!r}: {exc.strerror or exc}") from None
+        os.close(fd)
+        self._staged.append((tmp, p))
+        return Path(tmp)
+
+    def __enter__(self) -> "StagedFiles":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            if exc_type is None:
+                for tmp, p in self._staged:
+                    if os.path.getsize(tmp) == 0:
+                        raise LunarvizError(f"writing {str(p)!r} produced an empty file (is the disk full?)")
+                    _fsync(tmp)
+                for tmp, p in self._staged:
+                    os.replace(tmp, p)
+        except OSError as e:
+            raise LunarvizError(f"cannot write {str(p)!r}: {e.strerror or e}") from None
+        finally:
+            for tmp, _ in self._staged:
+                _remove(tmp)
+            self._staged = []
+
+
 def save_figure(fig, path, dpi: int = 120) -> None:
     """A matplotlib figure to ``path`` through :func:`write_bytes_atomic` (format by suffix):
     never half-written, never through a symlink at ``path``."""

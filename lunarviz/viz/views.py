@@ -500,28 +500,32 @@ def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900
     """Render one PNG per phase (``out`` itself for one phase, else ``out_000.png`` …)."""
     from pathlib import Path
 
-    from lunarviz.outputs.writers import write_bytes_atomic
+    from lunarviz.outputs.writers import StagedFiles, check_output_path, write_bytes_atomic
     out = Path(out)
+    targets = [out if len(phases) == 1 else out.with_name(f"{out.stem}_{k:03d}{out.suffix}")
+               for k in range(len(phases))]
+    for target in targets + ([Path(gif)] if gif else []):
+        check_output_path(target, (target.suffix.lower(),))  # a folder in the way: refused before work
     files: list = []
     it = phases
     if progress and len(phases) > 1:
         from tqdm import tqdm
         it = tqdm(phases, desc="render", unit="frame", leave=False)
-    for k, th in enumerate(it):
-        target = out if len(phases) == 1 else out.with_name(f"{out.stem}_{k:03d}{out.suffix}")
-        render_image(settings, th, brdf, view=view, size=size, out=target)
-        files.append(target)
-    if gif:
-        from PIL import Image
-        frames = []
-        for f in files:
-            with Image.open(f) as im:
-                frames.append(im.convert("P", palette=Image.Palette.ADAPTIVE))
-        import io
-        buf = io.BytesIO()
-        frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
-        write_bytes_atomic(gif, buf.getvalue())
-        files.append(Path(gif))
+    images = []
+    with StagedFiles() as staged:  # every frame (and the GIF) or none
+        for k, th in enumerate(it):
+            images.append(render_image(settings, th, brdf, view=view, size=size, out=staged.stage(targets[k])))
+            files.append(targets[k])
+        if gif:
+            import io
+
+            from PIL import Image
+            frames = [Image.fromarray(np.asarray(img)[..., :3]).convert("P", palette=Image.Palette.ADAPTIVE)
+                      for img in images]
+            buf = io.BytesIO()
+            frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
+            write_bytes_atomic(staged.stage(gif), buf.getvalue())
+            files.append(Path(gif))
     return files
 
 
