@@ -244,3 +244,30 @@ def test_numbered_frames_are_all_or_nothing(tmp_path, monkeypatch):
     with pytest.raises(LunarvizError, match="last frame"):
         lunarviz.image(scene, keys=[30.0, 60.0, 90.0], pixels=16, supersample=1, out=tmp_path / "fr.npy")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 64 KiB tmpfs (needs root and mount permission; skipped elsewhere)."""
+    where = tmp_path / "full"
+    where.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(where)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here")
+    yield where
+    subprocess.run(["umount", str(where)], capture_output=True)
+
+
+@pytest.mark.parametrize("out", ["m.ply", "m.vtp", "s.vtm", "x.nc", "x.json"])
+def test_a_full_disk_is_one_line_and_no_file(full_disk, out):
+    """trace used to print 'wrote' with a truncated .ply and exit 0, .vtm left 0-byte files,
+    and a NetCDF on a full disk crashed the process (rc 139)."""
+    if out.endswith((".nc", ".json")):
+        args = ["sweep", "--phases", "0:180:0.5" if out.endswith(".nc") else "0:180:0.1", "--brdf", "lambert,dhg"]
+    else:
+        args = ["trace", "--phase", "90", "--brdf", "lambert"]
+    r = subprocess.run([sys.executable, "-m", "lunarviz", *args, "--out", str(full_disk / out), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr[-500:]
+    assert r.stderr.startswith("lunarviz: error:") and r.stderr.count("\n") == 1, r.stderr[-1500:]
+    assert os.listdir(full_disk) == []

@@ -146,6 +146,16 @@ def to_dataset(result: dict):
 
 def write_netcdf(path, result: dict) -> None:
     """Write the Dataset of ``result`` as NetCDF-4 (h5netcdf), atomically."""
+    import shutil
+    from pathlib import Path
+
+    from lunarviz.errors import LunarvizError
     ds = to_dataset(result)
+    folder = Path(path).parent if str(Path(path).parent) else Path(".")
+    need = 2 * ds.nbytes + (1 << 20)  # HDF5 metadata and chunk overheads: a generous margin
+    free = shutil.disk_usage(folder).free
+    if free < need:  # HDF5 crashes the process on a full disk: refuse before writing
+        raise LunarvizError(f"cannot write {str(path)!r}: {free:,} bytes free in {str(folder)!r}, about {need:,} "
+                            f"needed")
     with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, engine="h5netcdf")

@@ -61,10 +61,15 @@ def write_multiblock(path, res, meta: str) -> None:
     # a private temporary folder (never a name a user's folder could have), and the swap of the
     # block folder and the index under a lock on the output folder, so two runs writing the
     # same .vtm cannot leave an index without its blocks
+    _check_free_space(path, sum(mb[name].actual_memory_size for name in mb.keys()) * 1024)
     tmpdir = Path(tempfile.mkdtemp(dir=folder, prefix=f".{p.stem}.", suffix=".vtm-tmp"))
     lock = os.open(folder, os.O_RDONLY)
+    quiet = _quiet_vtk()
     try:
+        quiet.__enter__()
         mb.save(tmpdir / p.name)
+        for name in mb.keys():  # each block read back (VTK's writers report no error on a full disk)
+            _check_written(tmpdir / p.stem / f"{p.stem}_{list(mb.keys()).index(name)}.vtp", path, mb[name].n_cells)
         fcntl.flock(lock, fcntl.LOCK_EX)
         final_dir = p.parent / p.stem
         if final_dir.exists():
@@ -74,6 +79,7 @@ def write_multiblock(path, res, meta: str) -> None:
     except OSError as exc:
         raise LunarvizError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
     finally:
+        quiet.__exit__(None, None, None)
         os.close(lock)  # releases the lock
         shutil.rmtree(tmpdir, ignore_errors=True)
 
@@ -109,5 +115,43 @@ def write_facet_mesh(path, res) -> None:
     poly = facet_polydata(res)
     if Path(path).suffix.lower() != ".ply":
         poly.field_data["info_json"] = [meta]
-    with atomic_path(path) as tmp:
+    _check_free_space(path, poly.actual_memory_size * 1024)
+    with atomic_path(path) as tmp, _quiet_vtk():
         poly.save(tmp)
+        _check_written(tmp, path, poly.n_cells)
+
+
+def _check_free_space(path, nbytes: int) -> None:
+    """Refuse a write the folder cannot hold (VTK's PLY writer crashes the process on a full
+    disk; the XML writers leave broken files): twice the data's size, and a megabyte."""
+    import shutil
+    from pathlib import Path
+    folder = Path(path).parent if str(Path(path).parent) else Path(".")
+    need = 2 * int(nbytes) + (1 << 20)
+    free = shutil.disk_usage(folder).free
+    if free < need:
+        raise LunarvizError(f"cannot write {str(path)!r}: {free:,} bytes free in {str(folder)!r}, about {need:,} "
+                            f"needed")
+
+
+def _quiet_vtk():
+    """VTK's and PyVista's own messages off while a file is written and read back: a failure
+    is one LunarvizError line, not pages of VTK log."""
+    import contextlib
+    import warnings
+    stack = contextlib.ExitStack()
+    stack.enter_context(pv.vtk_verbosity("off"))
+    stack.enter_context(warnings.catch_warnings())
+    warnings.simplefilter("ignore")
+    return stack
+
+
+def _check_written(tmp, path, n_cells: int) -> None:
+    """VTK's writers report no error on a full disk: read the file back and count its cells."""
+    try:
+        back = pv.read(tmp)
+        ok = back.n_cells == n_cells
+    except Exception:  # noqa: BLE001 (any reader failure means a broken file)
+        ok = False
+    if not ok:
+        raise LunarvizError(f"writing {str(path)!r} left an incomplete file (is the disk full?)")
