@@ -163,17 +163,23 @@ class Option:
     def _in_range(self, v) -> bool:
         return (self.lo is None or v >= self.lo) and (self.hi is None or v <= self.hi)
 
-    def range_phrase(self) -> str:
-        """``positive``, ``non-negative``, ``in [lo, hi]`` or ``≥ lo``: what a value must be."""
-        if self.lo == 1 and self.hi is None:
+    def range_phrase(self, value=None) -> str:
+        """What a value must be: ``positive``, ``non-negative``, ``at most HI``, ``in [lo, hi]``
+        (for ``value``, the bound it breaks)."""
+        below = value is not None and self.lo is not None and value < self.lo
+        above = value is not None and self.hi is not None and value > self.hi
+        if (below or self.hi is None) and self.lo == 1:
             return "positive"
-        if self.lo == 0 and self.hi is None:
+        if (below or self.hi is None) and self.lo == 0:
             return "non-negative"
+        if above and self.lo in (0, 1):
+            return f"at most {self.hi:g}"
         return self._range_text().strip()
 
     def _integer_phrase(self) -> str:
-        if self.hi is None and self.lo in (0, 1):
-            return f"a {self.range_phrase()} integer"
+        if self.lo in (0, 1):
+            word = "positive" if self.lo == 1 else "non-negative"
+            return f"a {word} integer" + (f" of at most {self.hi:g}" if self.hi is not None else "")
         return f"an integer{self._range_text()}"
 
     def _range_text(self) -> str:
@@ -234,7 +240,8 @@ OPTIONS: tuple[Option, ...] = (
     # the ray tracer
     _o("estimator", "str", "deterministic", "the ray tracer's estimator: deterministic beams or Monte Carlo",
        "trace", choices=ESTIMATORS),
-    _o("rays", "int", 50_000, "Monte Carlo rays per path and run (the paper's 50,000)", "trace", lo=1),
+    _o("rays", "int", 50_000, "Monte Carlo rays per path and run (the paper's 50,000; at most 1e9: memory is "
+       "bounded by chunks of 16,384 samples, run time is not)", "trace", lo=1, hi=10**9),
     _o("runs", "int", 1, "Monte Carlo runs per phase (their spread gives the standard deviations)", "trace", lo=1),
     _o("seed", "int", 0, "Monte Carlo seed (runs and chunks draw from (seed, run, path, chunk))", "trace", lo=0),
     _o("earth_order", "int", 6, "Gauss order of the Earth's beams seen from each lunar sample", "trace",
@@ -332,7 +339,7 @@ def _cli_type(o: Option) -> Callable | None:
             except ValueError:
                 raise argparse.ArgumentTypeError(f"{o.cli_flag} {text!r} is not an integer") from None
             if not o._in_range(v):
-                raise argparse.ArgumentTypeError(f"{o.cli_flag} {v} must be {o.range_phrase()}")
+                raise argparse.ArgumentTypeError(f"{o.cli_flag} {v} must be {o.range_phrase(v)}")
             return v
         return conv
     if o.kind == "float":

@@ -176,7 +176,11 @@ MIN_REFLECTANCE = 1e-12
 def read_table(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A CSV with columns ``phase_deg`` and ``reflectance`` (and optionally ``waxing`` 0/1)."""
     try:
-        size = Path(path).stat().st_size
+        import stat
+        st_ = Path(path).stat()
+        if not stat.S_ISREG(st_.st_mode):  # a FIFO or device would block the reader
+            raise LunarvizError(f"table {path}: not a regular file")
+        size = st_.st_size
         if size > 16 << 20:
             raise LunarvizError(f"table {path}: {size / 2**20:.0f} MiB is more than the 16 MiB a fit table may have")
         with open(path, newline="", encoding="utf-8") as fh:

@@ -139,8 +139,10 @@ def read_tle(path: str) -> tuple:
     """The (name,) line 1, line 2 of a TLE file, checked (format and checksums) by sgp4."""
     if not os.path.exists(path):
         raise LunarvizError(f"TLE file {path!r} does not exist")
-    if not os.path.isfile(path):
-        raise LunarvizError(f"TLE file {path!r} is not a file")
+    if not os.path.isfile(path):  # also refuses FIFOs and devices, which would block the read
+        raise LunarvizError(f"TLE file {path!r} is not a regular file")
+    if os.path.getsize(path) > 1 << 20:
+        raise LunarvizError(f"TLE file {path!r} is larger than 1 MiB: a TLE is two or three lines")
     try:
         with open(path, encoding="ascii", errors="strict") as f:
             lines = [ln.rstrip() for ln in f if ln.strip()]
