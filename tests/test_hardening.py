@@ -263,11 +263,23 @@ def test_a_full_disk_is_one_line_and_no_file(full_disk, out):
     """trace used to print 'wrote' with a truncated .ply and exit 0, .vtm left 0-byte files,
     and a NetCDF on a full disk crashed the process (rc 139)."""
     if out.endswith((".nc", ".json")):
-        args = ["sweep", "--phases", "0:180:0.5" if out.endswith(".nc") else "0:180:0.1", "--brdf", "lambert,dhg"]
+        args = ["sweep", "--phases", "0:179:0.5" if out.endswith(".nc") else "0:179:0.1", "--brdf", "lambert,dhg"]
     else:
         args = ["trace", "--phase", "90", "--brdf", "lambert"]
     r = subprocess.run([sys.executable, "-m", "lunarviz", *args, "--out", str(full_disk / out), "--quiet"],
                        capture_output=True, text=True)
     assert r.returncode == 2, r.stderr[-500:]
     assert r.stderr.startswith("lunarviz: error:") and r.stderr.count("\n") == 1, r.stderr[-1500:]
+    assert "cannot write" in r.stderr or "incomplete" in r.stderr or "disk full" in r.stderr, r.stderr
     assert os.listdir(full_disk) == []
+
+
+def test_analytic_near_new_moon_is_refused_not_zero(tmp_path):
+    """At θ = 179.9° the analytic method's point Sun gave exactly 0 where the exact reference is
+    9.8e-15 W m-2: within 1° of new Moon it is refused; θ = 180° itself (reference 4e-20) is kept."""
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--method", "analytic", "--phases", "179.9",
+                        "--out", str(tmp_path / "a.json")], capture_output=True, text=True)
+    assert r.returncode == 2 and "--method raytrace or reference" in r.stderr and r.stderr.count("\n") == 1
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--method", "analytic", "--phases", "0:180:5",
+                        "--quiet", "--out", str(tmp_path / "b.json")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr

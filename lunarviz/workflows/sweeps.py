@@ -25,6 +25,10 @@ from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.photometry.brdf import make_brdf
 
 METHODS = ("analytic", "raytrace", "reference")
+#: the analytic method's point Sun is refused within this angle of new Moon (θ = 180° itself,
+#: where the exact reference is 4e-20 W m-2, is kept): its moonshine is 13 % low at 179°, 60 %
+#: at 179.5° and 0 from 179.8° where the extended Sun still lights a crescent
+ANALYTIC_CRESCENT_LIMIT_DEG = 1.0
 #: the sharpest Henyey-Greenstein lobe a sweep accepts: at b = 0.95 the lobe's width, about
 #: (1 - b) rad = 3°, still spans the Earth's 1.9° disc seen from the Moon; at b = 0.999999 the
 #: analytic earthshine came out 1e4 W m-2 (the exact reference: 4e-7)
@@ -94,6 +98,13 @@ class SweepSettings:
                 warnings.warn(f"TLE {self.observer!r} is propagated {age:.0f} days from its epoch; SGP4 errors grow "
                               f"to many km within weeks (rows carry tle_epoch_age_days)", LunarvizWarning,
                               stacklevel=2)
+        if self.method == "analytic" and self.times is None:
+            thin = [t for t in self.phases_deg if 0.0 < abs(180.0 - float(t)) < ANALYTIC_CRESCENT_LIMIT_DEG]
+            if thin:
+                raise LunarvizError(
+                    f"phase {thin[0]:g}: within {ANALYTIC_CRESCENT_LIMIT_DEG:g}° of new Moon the analytic method's "
+                    f"point Sun misses the thin crescent the extended Sun lights (at 179.9° it gives 0, the exact "
+                    f"reference 9.8e-15 W m-2); use --method raytrace or reference there")
         if self.method != "raytrace":
             for value, default, flag in (
                     (self.mesh_units, "m", "--mesh-units"), (self.moon_level, None, "--mesh-level"),
