@@ -98,13 +98,6 @@ class SweepSettings:
                 warnings.warn(f"TLE {self.observer!r} is propagated {age:.0f} days from its epoch; SGP4 errors grow "
                               f"to many km within weeks (rows carry tle_epoch_age_days)", LunarvizWarning,
                               stacklevel=2)
-        if self.method == "analytic" and self.times is None:
-            thin = [t for t in self.phases_deg if 0.0 < abs(180.0 - float(t)) < ANALYTIC_CRESCENT_LIMIT_DEG]
-            if thin:
-                raise LunarvizError(
-                    f"phase {thin[0]:g}: within {ANALYTIC_CRESCENT_LIMIT_DEG:g}° of new Moon the analytic method's "
-                    f"point Sun misses the thin crescent the extended Sun lights (at 179.9° it gives 0, the exact "
-                    f"reference 9.8e-15 W m-2); use --method raytrace or reference there")
         if self.method != "raytrace":
             for value, default, flag in (
                     (self.mesh_units, "m", "--mesh-units"), (self.moon_level, None, "--mesh-level"),
@@ -128,13 +121,7 @@ class SweepSettings:
         if isinstance(self.moon_albedo_map, str) and self.moon_albedo_map.strip().lower() == "none":
             object.__setattr__(self, "moon_albedo_map", None)  # --moon-albedo-map none: no map, even a preset's
         models = self.brdf_models()  # validates parameters early
-        for name, model in models.items():  # lobes the methods' source rules cannot resolve
-            phase = getattr(model, "phase", None)
-            g = abs(getattr(phase, "b", getattr(phase, "xi", 0.0)))
-            if g > MAX_LOBE_ASYMMETRY:
-                raise LunarvizError(f"{name}: a Henyey-Greenstein lobe with b (or |xi|) = {g:g} is narrower than the "
-                                    f"Earth's disc seen from the Moon (1.9°); the methods' point or Gauss-rule "
-                                    f"Earth cannot resolve it: use b ≤ {MAX_LOBE_ASYMMETRY:g}")
+        self._check_validity(models)
         sf = self.surfaces()  # reads and checks the maps before any work
         if sf is not None and sf.moon_map is not None:
             sf.moon_map.check_brdfs(models)
@@ -161,6 +148,24 @@ class SweepSettings:
                 if path is not None:  # same arguments as TraceScene's call: the cached mesh is reused
                     body_mesh_m(body, getattr(ts, f"{body}_level"), path, self.mesh_units, NOMINAL_RADII[body])
         self.analytic_settings()
+
+    def _check_validity(self, models: dict) -> None:
+        """Refuse what the methods cannot compute correctly: lobes narrower than the Earth's disc,
+        and the analytic method's point Sun next to new Moon."""
+        for name, model in models.items():  # lobes the methods' source rules cannot resolve
+            phase = getattr(model, "phase", None)
+            g = abs(getattr(phase, "b", getattr(phase, "xi", 0.0)))
+            if g > MAX_LOBE_ASYMMETRY:
+                raise LunarvizError(f"{name}: a Henyey-Greenstein lobe with b (or |xi|) = {g:g} is narrower than the "
+                                    f"Earth's disc seen from the Moon (1.9°); the methods' point or Gauss-rule "
+                                    f"Earth cannot resolve it: use b ≤ {MAX_LOBE_ASYMMETRY:g}")
+        if self.method == "analytic" and self.times is None:
+            thin = [t for t in self.phases_deg if 0.0 < abs(180.0 - float(t)) < ANALYTIC_CRESCENT_LIMIT_DEG]
+            if thin:
+                raise LunarvizError(
+                    f"phase {thin[0]:g}: within {ANALYTIC_CRESCENT_LIMIT_DEG:g}° of new Moon the analytic method's "
+                    f"point Sun misses the thin crescent the extended Sun lights (at 179.9° it gives 0, the exact "
+                    f"reference 9.8e-15 W m-2); use --method raytrace or reference there")
 
     def brdf_models(self) -> dict:
         return {b: make_brdf(b, dhg_convention=self.dhg_convention, h_function=self.h_function,
