@@ -140,7 +140,7 @@ def read_tle(path: str) -> tuple:
     if not os.path.exists(path):
         raise LunarvizError(f"TLE file {path!r} does not exist")
     if not os.path.isfile(path):  # also refuses FIFOs and devices, which would block the read
-        raise LunarvizError(f"TLE file {path!r} is not a regular file")
+        raise LunarvizError(f"TLE file {path!r} is not a file (a regular file is needed)")
     if os.path.getsize(path) > 1 << 20:
         raise LunarvizError(f"TLE file {path!r} is larger than 1 MiB: a TLE is two or three lines")
     try:
