@@ -283,3 +283,21 @@ def test_analytic_near_new_moon_is_refused_not_zero(tmp_path):
     r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--method", "analytic", "--phases", "0:180:5",
                         "--quiet", "--out", str(tmp_path / "b.json")], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+def test_web_viewer_caps_what_a_client_may_announce():
+    """wslink let a logged-in client announce a 1 GiB message (two 16-byte chunk headers grew the
+    server from 0.48 to 2.6 GB): the viewer's server caps the allocation at 16 MiB."""
+    pytest.importorskip("wslink")
+
+    from wslink import chunking
+
+    from lunarviz.viz.web import MAX_CLIENT_MESSAGE_BYTES, cap_client_messages
+    cap_client_messages()
+    un = chunking.UnChunker()
+    un.set_max_message_size(4 * 1024 ** 3)  # what wslink does after a successful login
+    assert un.max_message_size == MAX_CLIENT_MESSAGE_BYTES
+    header = chunking._encode_header(1, 0, 1 << 30)  # noqa: SLF001 (wslink's own header format): 1 GiB
+    assert len(header) == chunking.HEADER_LENGTH
+    with pytest.raises(ValueError, match="exceeds the allocation limit"):
+        un.process_chunk(header + b"x")

@@ -81,6 +81,21 @@ def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
     return server, pl
 
 
+#: the largest message a viewer client may send [bytes]: its messages are state changes of a few
+#: hundred bytes; wslink lets an authenticated client announce 4 GiB, which it allocates at once
+MAX_CLIENT_MESSAGE_BYTES = 16 << 20
+
+
+def cap_client_messages() -> None:
+    """In this (server) process, cap what wslink allocates for a client's message: a chunk
+    header announcing more than :data:`MAX_CLIENT_MESSAGE_BYTES` is refused, logged in or not."""
+    from wslink import chunking
+
+    def capped(self, size):
+        self.max_message_size = min(int(size), MAX_CLIENT_MESSAGE_BYTES)
+    chunking.UnChunker.set_max_message_size = capped
+
+
 def serve(settings, key, brdf: str, host: str = "127.0.0.1", port: int = 0, size=(1600, 900)):
     """Serve the viewer until interrupted (port 0: a free port, printed at start).
 
@@ -93,6 +108,7 @@ def serve(settings, key, brdf: str, host: str = "127.0.0.1", port: int = 0, size
 
     from lunarviz.errors import LunarvizWarning
     server, _ = build_app(settings, key, brdf, size=size)
+    cap_client_messages()
     secret = secrets.token_urlsafe(24)
     server.cli.set_defaults(authKey=secret, authKeyFile=None)  # trame configures wslink from these
     if host not in ("127.0.0.1", "localhost", "::1"):
