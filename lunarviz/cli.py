@@ -651,8 +651,15 @@ COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": 
             "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh, "fit": cmd_fit, "image": cmd_image}
 
 
+#: warnings already printed in this run: the same one (settings are checked more than once) is shown once
+_SHOWN: set = set()
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"lunarviz: warning: {message}", file=sys.stderr)
+    text = f"lunarviz: warning: {message}"
+    if text not in _SHOWN:
+        _SHOWN.add(text)
+        print(text, file=sys.stderr)
 
 
 def _terminate_as_interrupt() -> None:
@@ -675,7 +682,7 @@ def main(argv=None) -> int:
     from lunarviz.errors import LunarvizWarning
     shown = warnings.showwarning
     if not sys.warnoptions:
-        warnings.filterwarnings("always", category=LunarvizWarning)
+        warnings.filterwarnings("once", category=LunarvizWarning)  # one line per distinct warning
     warnings.showwarning = lambda m, c, *a, **k: (_show_warning(m, c, *a, **k) if issubclass(c, LunarvizWarning)
                                                   else shown(m, c, *a, **k))
     parser = build_parser()
@@ -691,9 +698,9 @@ def main(argv=None) -> int:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         print(f"lunarviz: error: {msg}", file=sys.stderr)
         return EXIT_USAGE
-    except OSError as exc:
+    except OSError as exc:  # a file the system refused (a name too long, a vanished folder): input/output
         print(f"lunarviz: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
-        return 1
+        return EXIT_USAGE
     except KeyboardInterrupt:
         print("lunarviz: interrupted", file=sys.stderr)
         return 130

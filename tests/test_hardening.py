@@ -60,14 +60,16 @@ def test_fifo_mesh_and_map_are_refused_without_blocking(tmp_path):
         load_user_mesh(gltf, units="radius")
 
 
-def test_oversized_image_map_is_refused_before_decoding(tmp_path):
+@pytest.mark.parametrize("side", [int(np.sqrt(MAX_MAP_CELLS)) + 100, 10_000])
+def test_oversized_image_map_is_refused_before_decoding(tmp_path, side):
+    """Above our cap (5e7 cells), and above Pillow's own bomb-warning threshold (8.9e7 pixels),
+    whose warning used to print before the one error line."""
     from PIL import Image
-    side = int(np.sqrt(MAX_MAP_CELLS)) + 100
     p = tmp_path / "bomb.png"
-    Image.new("1", (side, side)).save(p)  # a few kB on disk, 50 M pixels decoded
+    Image.new("1", (side, side)).save(p)  # a few kB on disk, 50-100 M pixels decoded
     assert p.stat().st_size < 1_000_000
     with pytest.raises(LunarvizError, match="pixels is more than"):
-        read_grid(p)
+        read_grid(p)  # (pytest's filterwarnings = error turns a leaked bomb warning into a failure)
 
 
 def test_cli_refuses_a_compressed_mesh_in_one_line(tmp_path):
@@ -301,3 +303,22 @@ def test_web_viewer_caps_what_a_client_may_announce():
     assert len(header) == chunking.HEADER_LENGTH
     with pytest.raises(ValueError, match="exceeds the allocation limit"):
         un.process_chunk(header + b"x")
+
+
+def test_an_output_name_the_system_refuses_is_exit_2(tmp_path):
+    """A file name too long for the file system was exit 1 (the OSError path); every input and
+    output failure is exit 2 with one line."""
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--phases", "90", "--brdf", "lambert",
+                        "--out", "a" * 300 + ".json"], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.startswith("lunarviz: error:") and r.stderr.count("\n") == 1, r.stderr
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_repeated_warning_is_printed_once(tmp_path):
+    """The TLE-age warning came three times for one date (the settings are checked more than once)."""
+    tle = os.path.join(os.path.dirname(__file__), "data", "leo_2027.tle")
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--method", "analytic", "--brdf", "lambert",
+                        "--time", "2027-03-15T00:00Z", "--observer", f"tle:{tle}", "--quiet", "--out",
+                        str(tmp_path / "t.json")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count("lunarviz: warning:") == 1, r.stderr

@@ -327,14 +327,21 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
         nominal_radius = NOMINAL_RADII[body]
     factor = units_factor(units, nominal_radius)
     check_mesh_file(p, name)
+    import warnings
     try:
-        mesh = trimesh.load(p, force="mesh", process=False)
+        with warnings.catch_warnings(), np.errstate(all="ignore"):  # the checks below speak for a bad file
+            warnings.simplefilter("ignore")
+            mesh = trimesh.load(p, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise MeshError(f"{name}: unreadable mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshError(f"{name}: not a triangle mesh with faces")
     if not np.all(np.isfinite(mesh.vertices)):
         raise MeshError(f"{name}: vertices contain NaN or inf")
+    extent = float(np.max(np.abs(mesh.vertices)))
+    if extent * factor > MAX_VERTEX_M:  # before any merge: squares of such coordinates overflow
+        raise MeshError(f"{name}: a vertex lies {extent:.3g} from the origin; no body is larger than "
+                        f"{MAX_VERTEX_M:.0e} m (check the mesh units)")
     v, f = np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
     if f.min() < 0 or f.max() >= len(v):
         bad = int(f.min()) if f.min() < 0 else int(f.max())

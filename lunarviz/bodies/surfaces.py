@@ -83,8 +83,13 @@ def read_grid(path, what: str = "map", error=LunarvizError) -> np.ndarray:
                             f"have ({8 * a.size / 2**30:.1f} GiB as float64)")
             a = np.array(a)
         else:
+            import warnings
+
             from PIL import Image
-            with Image.open(p) as im:  # the header only: nothing is decoded before the size is checked
+            with warnings.catch_warnings():  # Pillow's bomb warning: our own cap below speaks instead
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+                im = Image.open(p)
+            with im:  # the header only: nothing is decoded before the size is checked
                 if im.width * im.height > MAX_MAP_CELLS:
                     raise error(f"{what} {str(path)!r}: {im.width}×{im.height} pixels is more than the "
                                 f"{MAX_MAP_CELLS:,} a map may have")

@@ -202,13 +202,13 @@ def read_table(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise LunarvizError(f"table {path}: a row has a missing or non-numeric phase_deg/reflectance/waxing") \
             from None
     if not np.all((w == 0) | (w == 1)):
-        raise LunarvizError(f"table {path}: waxing must be 0 or 1 (found {w[(w != 0) & (w != 1)][0]!r})")
+        raise LunarvizError(f"table {path}: waxing must be 0 or 1 (found {float(w[(w != 0) & (w != 1)][0])!r})")
     wax = w == 1
     if not (np.all(np.isfinite(g)) and np.all((g > 0) & (g < 180))):
         raise LunarvizError(f"table {path}: phase_deg must be in (0, 180)")
     if not np.all(np.isfinite(a) & (a >= MIN_REFLECTANCE) & (a <= 10.0)):
         bad = a[~(np.isfinite(a) & (a >= MIN_REFLECTANCE) & (a <= 10.0))][0]
-        raise LunarvizError(f"table {path}: reflectance {bad!r} is outside [{MIN_REFLECTANCE:g}, 10] (the fit "
+        raise LunarvizError(f"table {path}: reflectance {float(bad)!r} is outside [{MIN_REFLECTANCE:g}, 10] (the fit "
                             f"works on its logarithm)")
     return g, a, wax
 
