@@ -379,12 +379,11 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     pix_arcsec = float(np.degrees(camera.scale_rad)) * 3600.0
     k_psf = parse_psf(psf, pix_arcsec, (camera.height, camera.width))
     k_halo = parse_halo(halo, pix_arcsec, (camera.height, camera.width))
-    from lunarviz.outputs.writers import StagedFiles, check_output_path
+    from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths
     if out is not None:
         out = check_output_path(out, (".fits", ".npy", ".png"))
     results, files = [], []
-    targets = [] if out is None else [out if len(keys) == 1 else out.with_name(f"{out.stem}_{n:03d}{out.suffix}")
-                                      for n in range(len(keys))]
+    targets = [] if out is None else numbered_paths(out, len(keys))
     for target in targets + ([gif] if gif is not None and len(keys) > 1 else []):
         check_output_path(target, (Path(target).suffix.lower(),))  # a folder in the way: refused before work
     it = keys

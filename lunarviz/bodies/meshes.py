@@ -229,15 +229,21 @@ def validate_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> trimesh.Trimesh:
 MAX_VERTEX_M = 1e15
 
 
+def _check_extent(v: np.ndarray, name: str) -> None:
+    """Refuse vertices [m] farther than :data:`MAX_VERTEX_M` from the origin (squares of such
+    coordinates overflow float64 in the checks and in trimesh's vertex merge)."""
+    extent = float(np.max(np.abs(v))) if v.size else 0.0
+    if extent > MAX_VERTEX_M:
+        raise MeshError(f"{name}: a vertex lies {extent:.3g} m from the origin; no body is larger than "
+                        f"{MAX_VERTEX_M:.0e} m (check the mesh units)")
+
+
 def _check_arrays(v: np.ndarray, f: np.ndarray, name: str, edges: tuple | None = None):
     """:func:`validate_mesh` on arrays; ``edges``: :func:`edge_checks` already computed.
     Returns the enclosed volume and the centre of mass (:func:`volume_and_centroid`)."""
     if not np.all(np.isfinite(v)):
         raise MeshError(f"{name}: vertices contain NaN or inf")
-    extent = float(np.max(np.abs(v))) if v.size else 0.0
-    if extent > MAX_VERTEX_M:  # squares of such coordinates overflow float64
-        raise MeshError(f"{name}: a vertex lies {extent:.3g} from the origin; no body is larger than "
-                        f"{MAX_VERTEX_M:.0e} (check the mesh units)")
+    _check_extent(v, name)
     areas = face_areas(v, f)
     scale = float(np.max(np.ptp(v, axis=0)))
     bad = np.flatnonzero(areas <= 1e-12 * scale**2)
@@ -338,10 +344,7 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
         raise MeshError(f"{name}: not a triangle mesh with faces")
     if not np.all(np.isfinite(mesh.vertices)):
         raise MeshError(f"{name}: vertices contain NaN or inf")
-    extent = float(np.max(np.abs(mesh.vertices)))
-    if extent * factor > MAX_VERTEX_M:  # before any merge: squares of such coordinates overflow
-        raise MeshError(f"{name}: a vertex lies {extent:.3g} from the origin; no body is larger than "
-                        f"{MAX_VERTEX_M:.0e} m (check the mesh units)")
+    _check_extent(np.asarray(mesh.vertices) * factor, name)  # before any merge: squares would overflow
     v, f = np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
     if f.min() < 0 or f.max() >= len(v):
         bad = int(f.min()) if f.min() < 0 else int(f.max())

@@ -14,7 +14,7 @@ from datetime import datetime
 
 import numpy as np
 
-from lunarviz.outputs.writers import atomic_path
+from lunarviz.outputs.writers import atomic_path, check_free_space
 
 #: fields that depend on the task (phase or time) only, not on the BRDF
 PER_TASK = ("theta_deg", "alpha_deg", "beta_deg", "phase_angle_deg", "observer_moon_distance_m",
@@ -146,16 +146,7 @@ def to_dataset(result: dict):
 
 def write_netcdf(path, result: dict) -> None:
     """Write the Dataset of ``result`` as NetCDF-4 (h5netcdf), atomically."""
-    import shutil
-    from pathlib import Path
-
-    from lunarviz.errors import LunarvizError
     ds = to_dataset(result)
-    folder = Path(path).parent if str(Path(path).parent) else Path(".")
-    need = 2 * ds.nbytes + (1 << 20)  # HDF5 metadata and chunk overheads: a generous margin
-    free = shutil.disk_usage(folder).free
-    if free < need:  # HDF5 crashes the process on a full disk: refuse before writing
-        raise LunarvizError(f"cannot write {str(path)!r}: {free:,} bytes free in {str(folder)!r}, about {need:,} "
-                            f"needed")
+    check_free_space(path, ds.nbytes)  # HDF5 crashes the process on a full disk: refuse before writing
     with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, engine="h5netcdf")

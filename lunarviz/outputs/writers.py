@@ -54,19 +54,10 @@ def atomic_path(path):
     interrupt included, the temporary file is removed: the target is never left half-written.
     A full disk or an unwritable folder is one :class:`LunarvizError` line naming the path."""
     p = Path(path)
-    try:
-        fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.stem}.", suffix=p.suffix)
-    except OSError as exc:
-        raise LunarvizError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
-    os.close(fd)
+    tmp = _temp_beside(p)
     try:
         yield tmp
-        if os.path.getsize(tmp) == 0:
-            raise LunarvizError(f"writing {str(path)!r} produced an empty file (is the disk full?)")
-        _fsync(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; results get the usual mode
+        _seal(tmp, p)
         os.replace(tmp, p)
     except OSError as exc:
         _remove(tmp)
@@ -74,6 +65,26 @@ def atomic_path(path):
     except BaseException:
         _remove(tmp)
         raise
+
+
+def _temp_beside(p: Path) -> str:
+    """A new private (0600) temporary file in ``p``'s folder, named after it."""
+    try:
+        fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.stem}.", suffix=p.suffix)
+    except OSError as exc:
+        raise LunarvizError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
+    os.close(fd)
+    return tmp
+
+
+def _seal(tmp: str, p: Path) -> None:
+    """A written temporary made ready to replace ``p``: non-empty, on disk, the usual mode."""
+    if os.path.getsize(tmp) == 0:
+        raise LunarvizError(f"writing {str(p)!r} produced an empty file (is the disk full?)")
+    _fsync(tmp)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; results get the usual mode
 
 
 def _fsync(path) -> None:
@@ -100,6 +111,25 @@ def write_bytes_atomic(path, data: bytes) -> None:
                                 f"(is the disk full?)")
 
 
+def check_free_space(path, nbytes: int) -> None:
+    """Refuse, before writing, a file its folder cannot hold: twice ``nbytes`` and a megabyte
+    (for writers that crash the process or leave broken files on a full disk: VTK, HDF5)."""
+    import shutil
+    p = Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    need = 2 * int(nbytes) + (1 << 20)
+    free = shutil.disk_usage(folder).free
+    if free < need:
+        raise LunarvizError(f"cannot write {str(path)!r}: {free:,} bytes free in {str(folder)!r}, about {need:,} "
+                            f"needed")
+
+
+def numbered_paths(out, n: int) -> list[Path]:
+    """``out`` itself for one frame, else ``OUT_000.ext``, ``OUT_001.ext``, … for ``n`` frames."""
+    out = Path(out)
+    return [out] if n == 1 else [out.with_name(f"{out.stem}_{k:03d}{out.suffix}") for k in range(n)]
+
+
 class StagedFiles:
     """Several outputs written all or nothing (numbered frames and their GIF)::
 
@@ -116,11 +146,7 @@ class StagedFiles:
 
     def stage(self, target) -> Path:
         p = check_output_path(target, (Path(target).suffix.lower(),))
-        try:
-            fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.stem}.", suffix=p.suffix)
-        except OSError as exc:
-            raise LunarvizError(f"cannot write {str(target)!r}: {exc.strerror or exc}") from None
-        os.close(fd)
+        tmp = _temp_beside(p)
         self._staged.append((tmp, p))
         return Path(tmp)
 
@@ -131,9 +157,7 @@ class StagedFiles:
         try:
             if exc_type is None:
                 for tmp, p in self._staged:
-                    if os.path.getsize(tmp) == 0:
-                        raise LunarvizError(f"writing {str(p)!r} produced an empty file (is the disk full?)")
-                    _fsync(tmp)
+                    _seal(tmp, p)
                 for tmp, p in self._staged:
                     os.replace(tmp, p)
         except OSError as e:

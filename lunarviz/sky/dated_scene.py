@@ -28,7 +28,6 @@ from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, unit
 from lunarviz.sky.ephemeris import selenographic, sky_state
 from lunarviz.sky.observers import Observer
 
-
 #: an observer closer to the Earth's centre than this is inside the Earth: 50 km below the WGS84
 #: polar radius (6356.8 km), below every site on the ground
 MIN_OBSERVER_RADIUS_M = 6_306_000.0

@@ -9,6 +9,7 @@ import numpy as np
 import pyvista as pv
 
 from lunarviz.errors import LunarvizError
+from lunarviz.outputs.writers import check_free_space
 
 
 def facet_polydata(res) -> pv.PolyData:
@@ -61,7 +62,7 @@ def write_multiblock(path, res, meta: str) -> None:
     # a private temporary folder (never a name a user's folder could have), and the swap of the
     # block folder and the index under a lock on the output folder, so two runs writing the
     # same .vtm cannot leave an index without its blocks
-    _check_free_space(path, sum(mb[name].actual_memory_size for name in mb.keys()) * 1024)
+    check_free_space(path, sum(mb[name].actual_memory_size for name in mb.keys()) * 1024)
     tmpdir = Path(tempfile.mkdtemp(dir=folder, prefix=f".{p.stem}.", suffix=".vtm-tmp"))
     lock = os.open(folder, os.O_RDONLY)
     quiet = _quiet_vtk()
@@ -115,23 +116,10 @@ def write_facet_mesh(path, res) -> None:
     poly = facet_polydata(res)
     if Path(path).suffix.lower() != ".ply":
         poly.field_data["info_json"] = [meta]
-    _check_free_space(path, poly.actual_memory_size * 1024)
+    check_free_space(path, poly.actual_memory_size * 1024)
     with atomic_path(path) as tmp, _quiet_vtk():
         poly.save(tmp)
         _check_written(tmp, path, poly.n_cells)
-
-
-def _check_free_space(path, nbytes: int) -> None:
-    """Refuse a write the folder cannot hold (VTK's PLY writer crashes the process on a full
-    disk; the XML writers leave broken files): twice the data's size, and a megabyte."""
-    import shutil
-    from pathlib import Path
-    folder = Path(path).parent if str(Path(path).parent) else Path(".")
-    need = 2 * int(nbytes) + (1 << 20)
-    free = shutil.disk_usage(folder).free
-    if free < need:
-        raise LunarvizError(f"cannot write {str(path)!r}: {free:,} bytes free in {str(folder)!r}, about {need:,} "
-                            f"needed")
 
 
 def _quiet_vtk():

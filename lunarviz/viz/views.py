@@ -500,10 +500,8 @@ def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900
     """Render one PNG per phase (``out`` itself for one phase, else ``out_000.png`` …)."""
     from pathlib import Path
 
-    from lunarviz.outputs.writers import StagedFiles, check_output_path, write_bytes_atomic
-    out = Path(out)
-    targets = [out if len(phases) == 1 else out.with_name(f"{out.stem}_{k:03d}{out.suffix}")
-               for k in range(len(phases))]
+    from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, write_bytes_atomic
+    targets = numbered_paths(out, len(phases))
     for target in targets + ([Path(gif)] if gif else []):
         check_output_path(target, (target.suffix.lower(),))  # a folder in the way: refused before work
     files: list = []

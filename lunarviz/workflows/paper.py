@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.constants import PAPER_RAYS, PAPER_RUNS
+from lunarviz.outputs.writers import save_figure
 
 #: The paper's printed numbers (Table 5; Sec. 3.1; Sec. 3.2).
 PAPER_TABLE5 = {"lambert": {"analytic": 0.3009, "raytrace": 0.3030},
@@ -29,11 +30,6 @@ PAPER_BRDF_TEST = {"shg": 0.0228, "dhg": 0.0001}
 PAPER_MC_STD = 0.002
 BRDFS = ("lambert", "shg", "dhg")
 COLORS = {"lambert": "tab:gray", "shg": "tab:red", "dhg": "tab:blue"}
-
-
-def save_figure(fig, path) -> None:
-    from lunarviz.outputs.writers import save_figure as write
-    write(fig, path, dpi=120)
 
 
 def _plt():
