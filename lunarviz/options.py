@@ -52,6 +52,10 @@ MESH_UNITS = ("m", "km", "radius")
 BODIES = ("sun", "earth", "moon")
 #: where sweeps and studies run their tasks: local worker processes or a Dask cluster
 EXECUTORS = ("local", "dask")
+#: packaged solar spectra (``lunarviz/data/spectra``) and the paper's flat grey Sun; or a CSV file
+SOLAR_SPECTRA = ("tsis1-hsrs", "grey")
+#: the Earth's surface classes in a spectral run: their packaged spectra, or their grey albedos
+EARTH_SPECTRA = ("surface", "grey")
 #: the finest packaged-icosphere level a scene may ask for (20·4^8 = 1.3 M facets)
 MAX_LEVEL = 8
 #: group names, in the order the documentation lists them, and their titles in ``--help``
@@ -64,6 +68,7 @@ GROUP_TITLES = {
     "surfaces": "surfaces (equirectangular maps in the body frame: .npy, .png, .tif)",
     "trace": "the ray tracer (--method raytrace)",
     "analytic": "the analytic method",
+    "spectral": "light in colour (without --wavelengths or --band a run is grey)",
 }
 GROUPS = tuple(GROUP_TITLES)
 
@@ -266,6 +271,19 @@ OPTIONS: tuple[Option, ...] = (
        "surfaces", unit="1", lo=0.0, hi=1.0, label="ocean albedo"),
     _o("cloud_albedo", "float", CLOUD_ALBEDO, "Lambert albedo of clouds (with clouds)", "surfaces", unit="1",
        lo=0.0, hi=1.0, label="cloud albedo"),
+    # light in colour
+    _o("wavelengths", "str", None, "spectral rows at these wavelengths: LIST or START:STOP:STEP (rows: wavelength_nm, "
+       "moonshine_W_m2_nm, earthshine_W_m2_nm, solar_irradiance_W_m2_nm)", "spectral", unit="nm",
+       metavar="LIST|START:STOP:STEP"),
+    _o("bands", "str", None, "band-integrated rows (∫E S dλ): Johnson-Cousins U,B,V,R,I (Bessell 1990), packaged "
+       "instrument bands (S2A-B1..B12, MODIS-TERRA-B1..B9), any speclite filter, LO-HI [nm] or a CSV FILE "
+       "(wavelength_nm,response)", "spectral", flag="--band", metavar="NAME|LO-HI|FILE.csv[,...]"),
+    _o("solar_spectrum", "str", "tsis1-hsrs", "the Sun's spectral irradiance at 1 au in spectral runs: tsis1-hsrs "
+       "(TSIS-1 HSRS v2, Coddington et al. 2023), grey (the paper's Φ flat over 400-750 nm) or a CSV FILE "
+       "(wavelength_nm,irradiance_W_m2_nm)", "spectral", metavar="tsis1-hsrs|grey|FILE.csv"),
+    _o("earth_spectra", "str", "surface", "spectral runs: the Earth's ocean, vegetation, desert and snow take their "
+       "packaged USGS spectra (surface) or the grey ocean/land albedos (grey); clouds and the uniform Earth stay grey",
+       "spectral", choices=EARTH_SPECTRA, label="Earth spectra"),
     _o("earth_rotation_deg", "float", None, "θ scene only: the Earth's sub-solar longitude (default 0); dates "
        "turn the Earth themselves", "surfaces", unit="deg", label="Earth rotation"),
 )

@@ -244,18 +244,24 @@ SAMPLE_SEED = 20261124
 
 
 def facet_average(values_at, vertices, faces, k: int, chunk: int = 65536, spread: bool = False):
-    """Area average over each facet of ``values_at(dirs)`` (dirs (n, 3) in the mesh frame), from
-    k² stratified, jittered points per facet (deterministic: a fixed seed); with ``spread`` also
-    the values' standard deviation over the facet (``(mean, std)``)."""
-    out = np.empty(len(faces))
+    """Area average over each facet of ``values_at(dirs)`` (dirs (n, 3) in the mesh frame; values
+    (n,) or (n, C): then (F, C) averages), from k² stratified, jittered points per facet
+    (deterministic: a fixed seed); with ``spread`` also the values' standard deviation over the
+    facet (``(mean, std)``)."""
+    out = None
     sd = np.zeros(len(faces))
     rng = np.random.default_rng(SAMPLE_SEED)
     for a in range(0, len(faces), chunk):
         p = facet_points(vertices, faces[a:a + chunk], k, rng)
-        v = values_at(p.reshape(-1, 3)).reshape(p.shape[:2])
+        v = values_at(p.reshape(-1, 3))
+        v = v.reshape(p.shape[:2] + v.shape[1:])
+        if out is None:
+            out = np.empty((len(faces),) + v.shape[2:])
         out[a:a + chunk] = v.mean(axis=1)
         if spread:
             sd[a:a + chunk] = v.std(axis=1)
+    if out is None:
+        out = np.empty(len(faces))
     return (out, sd) if spread else out
 
 
@@ -514,12 +520,15 @@ class Surfaces:
         d = p.reshape(-1, 3) @ map_frame(scene, "earth", self.earth_rotation_deg)
         return self.earth.albedo_at(d).reshape(p.shape[:-1])
 
-    def earth_albedo_toward(self, scene, target: np.ndarray, rows: int | None = None) -> float:
+    def earth_albedo_toward(self, scene, target: np.ndarray, rows: int | None = None, values=None):
         """The Earth's albedo as a Lambert Earth lit by a point Sun weights it toward a distant
         ``target`` (the Moon's centre): ``∫A μ_s μ_t dA / ∫μ_s μ_t dA`` over the sphere, on a
-        grid of cells at least as fine as the surface's maps (the map's value per cell)."""
-        if self.earth.uniform:
+        grid of cells at least as fine as the surface's maps (the map's value per cell).
+        ``values``: a function of map-frame directions (n, 3) giving (n,) or (n, C) values to
+        weight instead of the albedo (:mod:`lunarviz.spectral.earth`'s components)."""
+        if self.earth.uniform and values is None:
             return float(self.earth.albedo)
+        values = values or self.earth.albedo_at
         clear = self.earth.clear_map()
         n = max(360, min(1800, 0 if clear is None else clear.shape[0]))
         lat = np.radians(90.0 - (np.arange(n) + 0.5) * 180.0 / n)
@@ -537,7 +546,13 @@ class Surfaces:
             w = np.clip(ds @ us, 0, None) * np.clip(ds @ ut, 0, None) * np.cos(la)
             if not w.any():
                 continue
-            A = self.earth.albedo_at(d.reshape(-1, 3)).reshape(w.shape)
-            num += float((A * w).sum())
+            A = values(d.reshape(-1, 3))
+            A = A.reshape(w.shape + A.shape[1:])
+            if A.ndim == 2:
+                num += float((A * w).sum())
+            else:
+                num = num + (A * w[..., None]).sum(axis=(0, 1))
             den += float(w.sum())
-        return num / den if den > 0 else float("nan")
+        if np.ndim(num) == 0:
+            return float(num) / den if den > 0 else float("nan")
+        return num / den if den > 0 else np.full(np.shape(num), np.nan)

@@ -35,6 +35,9 @@ class Transport:
     #: earthshine only: ``e_beam`` for an Earth of albedo 1 everywhere (the Earth is Lambert,
     #: so earthshine is linear in its albedo: the weights of ``earth_visible_lit_albedo``)
     e_beam_unit: np.ndarray | None = None
+    #: earthshine of a spectral run (:mod:`lunarviz.spectral.earth`): ``e_beam`` for each surface
+    #: component's weight as the Earth's albedo, ``{name: (N, K)}``; ``None``: one uniform component
+    e_beam_parts: dict | None = None
     #: per-sample values of a lunar albedo map (:mod:`lunarviz.bodies.surfaces`): the BRDF's albedo
     #: parameter itself (``albedo_absolute``) or a factor on it; ``None``: the scalar
     albedo: np.ndarray | None = None

@@ -240,9 +240,11 @@ class FitResult:
 
 def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | None = None,
         fixed: dict | None = None, dhg_convention: str = "paper", h_function: str = "hapke1981",
-        moon_map: str | None = None, order: int = 24) -> FitResult:
+        moon_map: str | None = None, order: int = 24, disk_model: DiskModel | None = None) -> FitResult:
     """Least-squares fit of ``brdf``'s ``free`` parameters to disk reflectance ``target``
-    (on a Moon carrying the albedo map ``moon_map``, if given: then waxing and waning differ)."""
+    (on a Moon carrying the albedo map ``moon_map``, if given: then waxing and waning differ).
+    ``disk_model``: a :class:`DiskModel` of the same phases, branches, map and order, reused
+    (its transports are the costly part; a band-by-band fit shares one)."""
     from scipy.optimize import least_squares
 
     from lunarviz.photometry.brdf import make_brdf
@@ -262,7 +264,7 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
     phases = np.asarray(phases_deg, dtype=float)
     target = np.asarray(target, dtype=float)
     waxing = np.ones(len(phases), bool) if waxing is None else np.asarray(waxing, bool)
-    dm = DiskModel(phases, order=order, waxing=waxing, moon_map=moon_map)
+    dm = disk_model or DiskModel(phases, order=order, waxing=waxing, moon_map=moon_map)
     lo = np.array([BOUNDS[k][0] for k in free])
     hi = np.array([BOUNDS[k][1] for k in free])
     x0 = np.clip(np.array([p0[k] for k in free], dtype=float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))

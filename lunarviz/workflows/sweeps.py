@@ -122,6 +122,7 @@ class SweepSettings:
             object.__setattr__(self, "moon_albedo_map", None)  # --moon-albedo-map none: no map, even a preset's
         models = self.brdf_models()  # validates parameters early
         self._check_validity(models)
+        self._check_spectral(models)
         sf = self.surfaces()  # reads and checks the maps before any work
         if sf is not None and sf.moon_map is not None:
             sf.moon_map.check_brdfs(models)
@@ -166,6 +167,29 @@ class SweepSettings:
                     f"phase {thin[0]:g}: within {ANALYTIC_CRESCENT_LIMIT_DEG:g}° of new Moon the analytic method's "
                     f"point Sun misses the thin crescent the extended Sun lights (at 179.9° it gives 0, the exact "
                     f"reference 9.8e-15 W m-2); use --method raytrace or reference there")
+
+    def spectral_request(self):
+        """The run's :class:`~lunarviz.spectral.request.SpectralRequest`, or ``None`` (grey)."""
+        if self.wavelengths is None and self.bands is None:
+            return None
+        from lunarviz.spectral.request import spectral_request
+        return spectral_request(self.wavelengths, self.bands, self.solar_spectrum)
+
+    def _check_spectral(self, models: dict) -> None:
+        """Refuse what a spectral run cannot compute, before any work."""
+        req = self.spectral_request()
+        if req is None:
+            return
+        if self.method == "reference":
+            raise LunarvizError("--wavelengths/--band need --method analytic or raytrace (the exact reference "
+                                "is grey: a check of the paper's scene)")
+        if self.method == "raytrace" and not self.earth_uniform and (
+                self.estimator == "montecarlo" or self.mapped_earth != "facets"):
+            raise LunarvizError("a spectral run with a mapped Earth (--earth-surface/--clouds) needs the "
+                                "deterministic estimator")
+        from lunarviz.spectral.moon import parameters_at
+        for k, b in models.items():
+            parameters_at(self.moon_model, k, req.nodes, self.params.get(k), grey_model=b)
 
     def brdf_models(self) -> dict:
         return {b: make_brdf(b, dhg_convention=self.dhg_convention, h_function=self.h_function,
@@ -246,9 +270,16 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
     """All rows (one per BRDF) for one task: a phase θ [deg], or a UTC time with ``times``.
     Pure function of its arguments (``threads``, the trace's threads, changes no number)."""
     sc, fields = settings.scene_and_fields(key)
-    brdfs = settings.brdf_models()
     base = {**fields, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
     t0 = time.perf_counter()
+    if settings.spectral_request() is not None:
+        from lunarviz.workflows.spectral_phase import spectral_rows
+        rows = spectral_rows(settings, sc, base, key, threads)
+        dt = time.perf_counter() - t0
+        for r in rows:
+            r["seconds"] = dt / len(rows)
+        return rows
+    brdfs = settings.brdf_models()
     rows = []
     # point-source calibration (lunar terms of Eq. 15, and the point-vs-extended comparison):
     # converged grid, correct Lambert-sphere Earth law
@@ -350,12 +381,22 @@ def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
     groups: dict = {}
     for r in rows:
         if key in r:
-            groups.setdefault((r["brdf"], r["method"]), []).append(r)
-    for (b, m), rs in groups.items():
+            groups.setdefault((r["brdf"], r["method"], spectral_label(r)), []).append(r)
+    for (b, m, lab), rs in groups.items():
         beta = np.array([r["beta_deg"] for r in rs])
         ps = np.array([np.nan if r[key] is None else r[key] for r in rs], dtype=float)
-        out.setdefault(b, {})[m] = alb.bond_albedo(beta, ps)
+        if lab is None:
+            out.setdefault(b, {})[m] = alb.bond_albedo(beta, ps)
+        else:  # a spectral run: one per wavelength or band
+            out.setdefault(b, {}).setdefault(m, {})[lab] = alb.bond_albedo(beta, ps)
     return out
+
+
+def spectral_label(row: dict) -> str | None:
+    """A spectral row's wavelength (as text, e.g. ``"550"``) or band name; ``None`` for a grey row."""
+    if "wavelength_nm" in row:
+        return f"{row['wavelength_nm']:g}"
+    return row.get("band")
 
 
 EXECUTORS = ("local", "dask")

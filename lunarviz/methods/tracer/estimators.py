@@ -77,10 +77,15 @@ class PathResult:
     #: earthshine only: brdf -> mean for an Earth of albedo 1 [W m-2] (same rays; the
     #: earthshine-weighted albedo of the Earth is ``mean / mean_unit``)
     mean_unit: dict = field(default_factory=dict)
+    #: a spectral run (``spectral=``): brdf -> node irradiances at the grey Sun, mean over runs:
+    #: moonshine (L,); earthshine (P + 1, L), the Earth's components then an Earth of albedo 1
+    #: (:class:`lunarviz.spectral.shading.SpectralShader`)
+    spectral: dict = field(default_factory=dict)
 
 
-def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False) -> PathResult:
-    """Trace ``path`` once per run and shade every BRDF from the one transport."""
+def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False, spectral=None) -> PathResult:
+    """Trace ``path`` once per run and shade every BRDF from the one transport; ``spectral`` (a
+    :class:`~lunarviz.spectral.shading.SpectralShader`) also shades every node wavelength from it."""
     s = ts.settings
     body = PATHS[path]
     t0 = time.perf_counter()
@@ -90,6 +95,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     units = {k: [] for k in brdfs}
     within = {k: [] for k in brdfs}
     facets = {}
+    spec_runs = []
     nf = ts.moon.n_faces
     for run in range(runs):
         if s.estimator == "deterministic":
@@ -102,8 +108,13 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
         count = 0
         keep = keep_facets and run == runs - 1
         fac = {}
+        spec = {}
         for tr, owner in chunks:
             count += len(owner)
+            if spectral is not None:
+                got = spectral.moonshine(tr) if body == "sun" else spectral.earthshine(tr)
+                for k, v in got.items():
+                    spec[k] = spec[k] + v if k in spec else v
             for k, b in brdfs.items():
                 L, L_unit = tr.radiances(b)
                 contrib = L * tr.geom
@@ -123,6 +134,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
                                         (f"{path}_rays", (tr.e_beam > 0).sum(1).astype(float)),
                                         (f"{path}_geom", tr.geom)):
                     fac[key] = fac.get(key, 0.0) + np.bincount(owner, per_sample, nf)
+        spec_runs.append(spec)
         for k in brdfs:
             vals[k].append(tot[k])
             units[k].append(tot_unit[k])
@@ -158,4 +170,6 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     return PathResult(mean={k: float(np.mean(v)) for k, v in vals.items()}, std=std,
                       run_values=vals, within_std=within, rays=ts.rays_cast - r0,
                       seconds=time.perf_counter() - t0, facets=facets, sem=sem, spread=spread,
-                      mean_unit={k: float(np.mean(v)) for k, v in units.items()} if body == "earth" else {})
+                      mean_unit={k: float(np.mean(v)) for k, v in units.items()} if body == "earth" else {},
+                      spectral={k: np.mean([r[k] for r in spec_runs], axis=0) for k in spec_runs[0]}
+                      if spectral is not None and spec_runs and spec_runs[0] else {})

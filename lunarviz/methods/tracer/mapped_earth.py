@@ -48,6 +48,8 @@ class MappedEarthTransport:
         y, m, area_f, owner = (np.concatenate([u, v]) for u, v in zip(*parts))
         L1 = earth_radiance(sc, y, m, 1.0) * self.sun_visibility_of_earth()[owner]
         a = self.earth_facet_albedo()[owner]
+        parts = self.earth_facet_parts()
+        comp = None if parts is None else parts[owner]  # (n, C) weights of a spectral run's components
         rm = sc.radii["moon"]
         keep = (L1 > 0) & (np.einsum("ij,ij->i", m, sc.moon - y) > -rm)
         if self.settings.self_shadow and not E.convex:
@@ -60,6 +62,7 @@ class MappedEarthTransport:
             keep[idx[hid]] = False
         idx = np.flatnonzero(keep)
         y, m, L1A, a = y[idx], m[idx], L1[idx] * area_f[idx], a[idx]
+        comp = None if comp is None else comp[idx]
         axis = unit(sc.moon - sc.earth)
         e1, e2 = orthonormal_basis(axis[None, :])
         bound = E.bound if E.mode(s.shading) != "exact" else E.radius
@@ -69,6 +72,7 @@ class MappedEarthTransport:
         cell = u * g + w
         order = np.argsort(cell, kind="stable")
         y, m, L1A, a, cell = y[order], m[order], L1A[order], a[order], cell[order]
+        comp = None if comp is None else comp[order]
         starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]]) if len(cell) else np.zeros(0, int)
         # each cell's centre: its elements' mean weighted by their unit flux toward the Moon's centre
         v = sc.moon - y
@@ -85,10 +89,13 @@ class MappedEarthTransport:
         g0 = np.where(vis0, mv / r**3, 0.0)
         grad = np.where(vis0[:, None], m / r[:, None] ** 3 - 3 * (mv / r**5)[:, None] * v, 0.0)
         lin = {}
-        for name, wgt in (("unit", L1A), ("map", L1A * a)):
+        weights = [("unit", L1A), ("map", L1A * a)]
+        if comp is not None:
+            weights += [(("part", c), L1A * comp[:, c]) for c in range(comp.shape[1])]
+        for name, wgt in weights:
             lin[name] = (np.add.reduceat(wgt * g0, starts) if len(starts) else np.zeros(0),
                          np.add.reduceat(wgt[:, None] * grad, starts, axis=0) if len(starts) else np.zeros((0, 3)))
-        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, lin=lin)
+        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, lin=lin, comp=comp)
         return self._earth_el
 
     def mapped_earth_transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
@@ -111,6 +118,10 @@ class MappedEarthTransport:
         el = self._earth_elements()
         B, C = len(x), len(el["starts"])
         e_map, e_unit = np.zeros((B, C)), np.zeros((B, C))
+        comp = el["comp"]
+        n_parts = 0 if comp is None else comp.shape[1]
+        e_parts = np.zeros((n_parts, B, C))
+        outs = [("unit", e_unit), ("map", e_map)] + [(("part", c), e_parts[c]) for c in range(n_parts)]
         if C:
             y, m, L1A, a, st = el["y"], el["m"], el["L1A"], el["a"], el["starts"]
             # points whose horizon does not cut the Earth see every element: the cell sums are
@@ -118,7 +129,7 @@ class MappedEarthTransport:
             cut = np.einsum("ij,ij->i", n, self.scene.earth - x) < self.earth.bound * (1 + 1e-6)
             far = np.flatnonzero(~cut)
             dx = x[far] - self.scene.moon
-            for name, out in (("unit", e_unit), ("map", e_map)):
+            for name, out in outs:
                 s0, s1 = el["lin"][name]
                 out[far] = np.clip(s0[None, :] + dx @ s1.T, 0.0, None)
             rows = np.flatnonzero(cut)
@@ -133,6 +144,8 @@ class MappedEarthTransport:
                 f = np.where(up, L1A * cos_y / r2, 0.0)
                 e_unit[sel] = np.add.reduceat(f, st, axis=1)
                 e_map[sel] = np.add.reduceat(f * a, st, axis=1)
+                for c in range(n_parts):
+                    e_parts[c, sel] = np.add.reduceat(f * comp[:, c], st, axis=1)
         dirs = unit(el["centre"][None, :, :] - x[:, None, :]) if C else np.zeros((B, 0, 3))
         mu0 = np.einsum("bkj,bj->bk", dirs, n)
         e_free = e_map.copy()
@@ -143,6 +156,8 @@ class MappedEarthTransport:
             self._count(bi.size)
             e_map[bi[blocked], ki[blocked]] = 0.0
             e_unit[bi[blocked], ki[blocked]] = 0.0
+            e_parts[:, bi[blocked], ki[blocked]] = 0.0
         sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
+        parts = None if comp is None else dict(zip(self.earth_parts, e_parts))
         return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=e_map, mu=mu, geom=geom,
-                         e_beam_free=e_free, e_beam_unit=e_unit)
+                         e_beam_free=e_free, e_beam_unit=e_unit, e_beam_parts=parts)

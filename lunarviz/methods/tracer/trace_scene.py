@@ -59,6 +59,10 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         self._sun_vis_earth = None
         self._cand_cache: dict = {}
         self._moon_albedo = self._earth_albedo = None
+        #: a spectral run's Earth components (:func:`lunarviz.spectral.earth.components`): the
+        #: mapped Earth's transports then carry one beam array each (``e_beam_parts``)
+        self.earth_parts: tuple | None = None
+        self._earth_parts_w = None
 
     # ---- surfaces ----------------------------------------------------------------------------
     def moon_facet_albedo(self, spread: bool = False):
@@ -85,6 +89,18 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
             fa = surf.facet_albedo(self.earth, frame)
             self._earth_albedo = float(fa[0]) if np.all(fa == fa[0]) else fa
         return None if isinstance(self._earth_albedo, float) else self._earth_albedo
+
+    def earth_facet_parts(self):
+        """(F, C) per-facet weights of :attr:`earth_parts` for a mapped Earth, or ``None`` (a grey
+        run, or a uniform Earth: its one component is the unit-albedo beams)."""
+        if self.earth_parts is None or self.earth_facet_albedo() is None:
+            return None
+        if self._earth_parts_w is None:
+            from lunarviz.bodies.surfaces import map_frame
+            from lunarviz.spectral.earth import facet_weights
+            frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
+            self._earth_parts_w = facet_weights(self.settings.surface(), self.earth, frame)
+        return self._earth_parts_w
 
     def earth_albedo_value(self) -> float:
         """The uniform Earth's albedo: ``earth_albedo``, or a uniform map's one value."""

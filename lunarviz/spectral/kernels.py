@@ -1,0 +1,114 @@
+"""Compiled spectral shading (numba): one pass over a transport's beams, every wavelength inside.
+
+For P beam arrays ``E_p`` (N samples × K beams; moonshine: the Sun's beams; earthshine: the
+Earth's, one array per surface component and one for an Earth of albedo 1), L wavelengths and
+the detector weights ``geom``, :func:`spectral_sums` returns
+
+    out[p, l] = Σ_n geom_n Σ_k rf_l(n, k) E_p[n, k]
+
+with ``rf_l`` the radiance factor BRDF·μ0 of paper Eqs. 12-14 (or Lambert's) at wavelength l's
+parameters: Hapke ``w/(4π) · μ0e/(μ0e+μe) · {[1+B(g)] p(g) + H(μ0e) H(μe) − 1} · F``. The
+effective cosines μ0e, μe and the factor F (roughness shadowing S times the coherent backscatter
+1 + B_C0 B_C(g), Hapke 1984 Eq. 51 and 2002 Eq. 8) do not depend on wavelength when θ̄, B_C0 and
+h_C are grey: :mod:`lunarviz.spectral.shading` computes them once per transport with
+:mod:`lunarviz.photometry.roughness` (for a smooth surface μ0e = μ0, μe = μ, F = 1). The geometry
+of each beam is thus read once for every wavelength; per wavelength the work is the phase
+function, the surge and the two H-functions. Same formulas as :mod:`lunarviz.photometry.brdf`
+(the tests compare the two to 1e-9 through whole sweeps).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import lunarviz.compiled as compiled
+from lunarviz.photometry.shading_kernels import LAMBERT, _h, _lobe
+
+
+def _spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, has_alb, w, h, B0, p1, p2, pcode, hcode, out):
+    n, k = mu0e.shape
+    P, L = out.shape
+    per_beam_mu = mue.shape[1] > 1
+    per_beam_f = fac.shape[1] > 1
+    four_pi = 4.0 * np.pi
+    wi = np.empty(L)
+    hm = np.empty(L)
+    acc = np.empty((P, L))
+    for i in range(n):
+        gi = geom[i]
+        if gi == 0.0:
+            continue
+        for ll in range(L):
+            wl = alb[i] * w[ll] if has_alb else w[ll]
+            wi[ll] = min(max(wl, 0.0), 1.0)
+        if not per_beam_mu:
+            m_s = min(max(mue[i, 0], 0.0), 1.0)
+            for ll in range(L):
+                hm[ll] = _h(m_s, wi[ll], hcode)
+        acc[:, :] = 0.0
+        for j in range(k):
+            live = False
+            for p in range(P):
+                if E[p, i, j] != 0.0:
+                    live = True
+            if not live:
+                continue
+            m0 = min(max(mu0e[i, j], 0.0), 1.0)
+            m = min(max(mue[i, j if per_beam_mu else 0], 0.0), 1.0)
+            s = m0 + m
+            if pcode != LAMBERT and s <= 0.0:
+                continue
+            f = fac[i, j if per_beam_f else 0]
+            s_ = sh[i, j]
+            c_ = ch[i, j]
+            for ll in range(L):
+                if pcode == LAMBERT:
+                    rf = wi[ll] / np.pi * m0
+                else:
+                    num = h[ll] * c_
+                    den = num + s_
+                    if den <= 0.0:
+                        B = B0[ll] if s_ <= 0.0 else 0.0
+                    else:
+                        B = B0[ll] * num / den
+                    if pcode == 0:  # SHG: p1 = |ξ|, p2 = 1 for a backward lobe
+                        Pg = _lobe(p1[ll], s_ if p2[ll] > 0.5 else c_)
+                    else:  # DHG: p1 = b, p2 = c
+                        fwd = _lobe(p1[ll], c_)
+                        bwd = _lobe(p1[ll], s_)
+                        wp = 0.5 * (1.0 + p2[ll])
+                        wm = 0.5 * (1.0 - p2[ll])
+                        Pg = wp * fwd + wm * bwd if pcode == 1 else wp * bwd + wm * fwd
+                    hmu = hm[ll] if not per_beam_mu else _h(m, wi[ll], hcode)
+                    rf = wi[ll] / four_pi * (m0 / s) * ((1.0 + B) * Pg + _h(m0, wi[ll], hcode) * hmu - 1.0) * f
+                for p in range(P):
+                    acc[p, ll] += rf * E[p, i, j]
+        for p in range(P):
+            for ll in range(L):
+                out[p, ll] += gi * acc[p, ll]
+
+
+_NUMBA = compiled.available()
+if _NUMBA:
+    try:
+        _spectral_sums = compiled.jit(_spectral_sums, nogil=True)
+    except Exception:  # noqa: BLE001 (numba unusable: lunarviz.spectral.shading's numpy path serves)
+        _NUMBA = False
+
+
+def available() -> bool:
+    return _NUMBA
+
+
+def spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, w, h, B0, p1, p2, pcode: int, hcode: int) -> np.ndarray:
+    """``out[p, l]`` of the module docstring. ``mue`` and ``fac`` are (N, 1) or (N, K); ``alb``
+    (N,) multiplies w per sample (``None``: none); the parameter arrays are (L,)."""
+    f = np.ascontiguousarray
+    L = len(w)
+    out = np.zeros((E.shape[0], L))
+    al = f(alb, dtype=float).reshape(-1) if alb is not None else np.zeros(1)
+    _spectral_sums(f(mu0e, dtype=float), f(mue, dtype=float), f(sh, dtype=float), f(ch, dtype=float),
+                   f(fac, dtype=float), f(E, dtype=float), f(geom, dtype=float), al, alb is not None,
+                   *(f(np.broadcast_to(np.asarray(v, dtype=float), (L,))) for v in (w, h, B0, p1, p2)),
+                   int(pcode), int(hcode), out)
+    return out

@@ -1,0 +1,61 @@
+"""A spectral Moon: each lunar BRDF's parameters as functions of wavelength.
+
+``--moon-model rolo-fit`` and ``rolo-fit-map`` carry a table per BRDF fitted to ROLO at its 32
+band wavelengths (350-2384 nm; ``scripts/fit_rolo_spectral.py``, residuals in
+``benchmarks/rolo_fit/spectral_fit.json``): w, the phase function and the opposition effect per
+band, the roughness θ̄ grey. Between the bands every parameter is linear in λ; outside
+350-2384 nm a spectral run with such a model is refused. The ``paper`` model (Table 2, Apollo
+soil 10084 at 750 nm, and the Lambert 0.10) has no colour: it is grey, the same parameters at
+every wavelength, and so is every parameter a user sets with ``--param`` (it replaces the table's
+values at every λ).
+
+A lunar albedo map keeps its contrast at every wavelength: a map relative to its mean scales
+w(λ) (or the Lambert albedo(λ)) by the same factor everywhere; a map given as the parameter
+itself (``FILE:MEAN``) is grey. Neglected: the maria are bluer than the highlands (their
+reflectance ratio changes by ~10 % from 415 to 1000 nm, Clementine UVVIS); a map with a spectral
+dimension is left for later.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+from lunarviz.photometry.brdf import make_brdf
+
+
+def spectral_table(moon_model: str, brdf: str) -> dict | None:
+    """``{"wavelength_nm": [...], "params": {name: [...]}}`` of a preset's spectral fit, or ``None``
+    (the paper's model, or a preset without one: grey)."""
+    if moon_model == "paper":
+        return None
+    from lunarviz.photometry.presets import _fitted
+    return _fitted().get("models", {}).get(moon_model, {}).get("spectral", {}).get(brdf)
+
+
+def parameters_at(moon_model: str, brdf: str, wavelength_nm, overrides: dict | None = None,
+                  grey_model=None) -> dict[str, np.ndarray]:
+    """Every parameter of ``brdf`` at each wavelength [nm]: ``{name: array}`` (same length).
+
+    From the preset's spectral table (linear in λ between its wavelengths) where it has one,
+    else the grey model's parameters (``grey_model``, the BRDF of the grey run) at every λ;
+    ``overrides`` (the user's ``--param``) replace a parameter at every λ."""
+    lam = np.atleast_1d(np.asarray(wavelength_nm, dtype=float))
+    grey = (grey_model or make_brdf(brdf, moon_model=moon_model, params=overrides)).params
+    out = {k: np.full(lam.shape, float(v)) for k, v in grey.items()}
+    table = spectral_table(moon_model, brdf)
+    if table is not None:
+        tl = np.asarray(table["wavelength_nm"], dtype=float)
+        bad = lam[(lam < tl[0]) | (lam > tl[-1])]
+        if bad.size:
+            raise LunarvizError(f"wavelength {bad[0]:g} nm: --moon-model {moon_model} is tabulated over "
+                                f"{tl[0]:g}-{tl[-1]:g} nm (ROLO's bands)")
+        for k, v in table["params"].items():
+            if k in out and k not in (overrides or {}):
+                out[k] = np.interp(lam, tl, np.asarray(v, dtype=float))
+    return out
+
+
+def models_at(grey_model, params: dict[str, np.ndarray], index: int):
+    """The BRDF object at wavelength ``index`` of ``params`` (:func:`parameters_at`)."""
+    return grey_model.with_params(**{k: float(v[index]) for k, v in params.items()})

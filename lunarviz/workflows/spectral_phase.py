@@ -1,0 +1,116 @@
+"""One task of a spectral sweep: trace once, shade every node wavelength, write a row per wavelength
+or band and BRDF.
+
+The transports are the grey run's (analytic, or ray traced with either estimator); the rows'
+values are :class:`~lunarviz.spectral.request.SpectralRequest` outputs of the node irradiances of
+:class:`~lunarviz.spectral.shading.SpectralShader`. Each row's apparent albedo is Eq. 15-16 with
+lunar terms at its own wavelength (or band: solar-weighted over it), from a calibration transport
+of the model Earth (uniform, ``earth_albedo``) as in the grey run. The Earth's spectral albedo
+enters through its components (:mod:`lunarviz.spectral.earth`). Monte Carlo rows carry the mean
+over runs, without the per-wavelength standard deviations of the grey rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from lunarviz.photometry import albedo_inversion as alb
+from lunarviz.spectral.earth import albedo_spectra, components, weights_toward
+from lunarviz.spectral.shading import SpectralShader, spectral_brdfs
+
+
+def _earthshine_nodes(parts: np.ndarray, albedo: np.ndarray | None, uniform_albedo: float):
+    """(earthshine, unit-albedo earthshine) at the nodes from a shader's (P + 1, L) sums:
+    ``Σ_c A_c(λ) E_c`` with the component albedos ``albedo`` (P, L), or the uniform Earth's
+    albedo times the unit sums where the transport has no components."""
+    unit = parts[-1]
+    if albedo is None or parts.shape[0] == 1:
+        return uniform_albedo * unit, unit
+    return np.sum(albedo * parts[:-1], axis=0), unit
+
+
+def spectral_rows(settings, sc, base: dict, key, threads=None) -> list[dict]:
+    """All rows of one task (a phase θ or a time) of a spectral run."""
+    req = settings.spectral_request()
+    brdfs = settings.brdf_models()
+    shader = SpectralShader(spectral_brdfs(settings, brdfs, req.nodes))
+    surface = settings.surfaces().earth if settings.surfaces() is not None else None
+    mapped = surface is not None and not surface.uniform
+    names = components(surface) if mapped else ("uniform",)
+    albedo = albedo_spectra(surface, names, req.nodes, settings.earth_spectra) if mapped else None
+    a0 = settings.earth_albedo
+    extra: dict = {}
+    if settings.method == "analytic":
+        from lunarviz.methods.analytic import earthshine_transport, moonshine_transport
+        st = settings.analytic_settings()
+        ms = shader.moonshine(moonshine_transport(sc, st))
+        es_tr = earthshine_transport(sc, st)
+        unit = shader.earthshine(es_tr)  # (1, L): a point Earth of albedo 1
+        if mapped:  # the point Earth's components, weighted toward the Moon as its albedo is
+            w = weights_toward(st.surfaces, sc, sc.moon)
+            es = {k: np.concatenate([w[:, None] * u[-1][None, :], u[-1:]]) for k, u in unit.items()}
+        else:
+            es = unit
+        cal_st = replace(st, grid="converged", earth_law="lambert")
+        if cal_st == st:
+            cal_ms, cal_es = ms, es
+        else:
+            cal_ms = shader.moonshine(moonshine_transport(sc, cal_st))
+            cal_es = shader.earthshine(earthshine_transport(sc, cal_st))
+        uniform_albedo = a0
+        method_fields = {"method": "analytic"}
+    else:
+        from lunarviz.methods.tracer.estimators import TraceScene, trace_path
+        ts_set = settings.trace_settings(threads)
+        ts = TraceScene(sc, ts_set)
+        ts.earth_parts = names if mapped else None
+        ms_r = trace_path(ts, "moonshine", brdfs, spectral=shader)
+        es_r = trace_path(ts, "earthshine", brdfs, spectral=shader)
+        zeros = np.zeros(len(req.nodes))
+        ms = {k: ms_r.spectral.get(k, zeros) for k in brdfs}
+        es = {k: es_r.spectral.get(k, np.zeros((len(names) + 1 if mapped else 1, len(req.nodes)))) for k in brdfs}
+        uniform_albedo = ts.earth_albedo_value()
+        if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
+            cal_ms, cal_es = ms, es
+        else:  # the model Earth (the nominal sphere, uniform): as the grey run's calibration
+            dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
+                                         earth_surface="uniform", clouds="none"))
+            cal_ms = {k: trace_path(dts, "moonshine", brdfs, spectral=shader).spectral.get(k, zeros) for k in brdfs}
+            cal_es = {k: v[None, :] if v.ndim == 1 else v for k, v in
+                      ((k, trace_path(dts, "earthshine", brdfs, spectral=shader).spectral.get(k, zeros[None]))
+                       for k in brdfs)}
+        method_fields = {"method": "raytrace", "estimator": ts_set.estimator}
+        extra["rays"] = ms_r.rays + es_r.rays
+        if ts_set.estimator == "montecarlo":
+            extra.update(runs=ts_set.runs, rays_per_run=ts_set.rays)
+    return _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields,
+                 extra)
+
+
+def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields, extra):
+    a0 = settings.earth_albedo
+    e_sun_moon = sc.phi / (4.0 * np.pi * sc.d_sm**2)  # the grey Sun at the Moon [W m-2]
+    e_sun_1au = sc.phi_sun / (4.0 * np.pi * 1.495978707e11**2)
+    solar_moon = req.solar_1au * (e_sun_moon / e_sun_1au)
+    suffix = req.value_suffix
+    label_field = "wavelength_nm" if req.kind == "wavelength" else "band"
+    rows = []
+    for k in brdfs:
+        es_T, esu_T = _earthshine_nodes(es[k], albedo, uniform_albedo)
+        ms_o, es_o = req.outputs(ms[k], sc.phi_sun), req.outputs(es_T, sc.phi_sun)
+        ms_a, es_a, esu_a = req.averages(ms[k]), req.averages(es_T), req.averages(esu_T)
+        cms_a, cesu_a = req.averages(cal_ms[k]), req.averages(cal_es[k][-1])
+        for o, label in enumerate(req.labels):
+            terms = alb.lunar_terms(sc, a0 * cesu_a[o], cms_a[o], a0)
+            pe = alb.geometric_albedo_term(sc, es_a[o], ms_a[o], terms)
+            measurable = ms_o[o] > 0 and alb.lunar_terms(sc, 0.0, ms_a[o], a0).pb_fb > alb.MIN_LUNAR_TERM
+            rows.append({**base, "brdf": k, **method_fields, label_field: label,
+                         f"moonshine{suffix}": float(ms_o[o]), f"earthshine{suffix}": float(es_o[o]),
+                         f"solar_irradiance{suffix}": float(solar_moon[o]),
+                         "ratio_earthshine_moonshine": float(es_o[o] / ms_o[o]) if measurable else float("nan"),
+                         "earth_visible_lit_albedo": float(es_a[o] / esu_a[o]) if esu_a[o] > 0 else float("nan"),
+                         "geometric_albedo_term": pe, "apparent_albedo": alb.apparent_albedo(sc.beta_deg, pe),
+                         **extra})
+    return rows
