@@ -376,6 +376,10 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
         camera = Camera(fov_deg=fov_deg, width=int(w), height=int(h), supersample=supersample, pointing=pointing)
     settings = sc.settings("raytrace")
     keys = [_check_key(sc, k) for k in keys] if keys is not None else [_check_key(sc, key)]
+    req = settings.spectral_request()
+    if req is not None and req.kind == "wavelength" and out is not None and str(out).lower().endswith(".fits"):
+        from lunarviz.outputs.images import check_cube_wavelengths
+        check_cube_wavelengths(req.labels)
     pix_arcsec = float(np.degrees(camera.scale_rad)) * 3600.0
     k_psf = parse_psf(psf, pix_arcsec, (camera.height, camera.width))
     k_halo = parse_halo(halo, pix_arcsec, (camera.height, camera.width))

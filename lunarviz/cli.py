@@ -164,7 +164,8 @@ def _add_executor_options(p, workers_help="local worker processes"):
 
 def _parser_sweep(sub):
     from lunarviz.workflows.sweeps import METHODS
-    p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases", SCENE_GROUPS + ("analytic",))
+    p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases",
+                           SCENE_GROUPS + ("analytic", "spectral"))
     p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
     p.add_argument("--method", default="analytic", help=" | ".join(METHODS) + ": the paper's point-source "
                    "quadrature, Embree ray tracing of the meshes, or the exact extended-source reference")
@@ -215,7 +216,7 @@ def _parser_pictures(sub):
 
 def _parser_image(sub):
     p = _add_scene_command(sub, "image", "synthetic camera image in radiance units (FITS, NPY or PNG)",
-                           brdfs="dhg")
+                           SCENE_GROUPS + ("spectral",), brdfs="dhg")
     p.add_argument("--phase", default=None, help="θ [deg] (default 90); a list writes numbered frames")
     p.add_argument("--fov-deg", type=float, default=0.75, help="field of view across the width [deg]")
     p.add_argument("--pixels", default="256", help="N or WxH")
@@ -299,7 +300,10 @@ EXAMPLES = {
               "lunarviz sweep --method raytrace --phases 0:180:30 --brdf lambert,dhg --out raytrace.csv",
               "lunarviz sweep --method reference --phases 30,90,150 --out reference.json",
               "lunarviz sweep --method raytrace --time-range 2026-06-01,2026-06-02,6h "
-              "--observer site:34.26,-116.92,2067 --out sky.nc"],
+              "--observer site:34.26,-116.92,2067 --out sky.nc",
+              "lunarviz sweep --moon-model rolo-fit-map --brdf dhg --wavelengths 400:1000:50 --out spectrum.json",
+              "lunarviz sweep --method raytrace --band B,V,S2A-B4 --earth-surface landocean --clouds zonal "
+              "--out colour.nc"],
     "brdf": ["lunarviz brdf --model dhg --incidence 75 --emission 0:85:5 --azimuth 0,180 --out brdf.csv"],
     "trace": ["lunarviz trace --phase 120 --brdf dhg,lambert --out moon.vtp",
               "lunarviz trace --time 2025-03-14T06:58Z --out scene.vtm"],
@@ -307,7 +311,8 @@ EXAMPLES = {
                "lunarviz render --phase 0:180:30 --view moon --out frames.png --gif orbit.gif"],
     "view": ["lunarviz view --phase 120", "lunarviz view --web --port 8080"],
     "image": ["lunarviz image --phase 120 --pixels 512 --out moon.fits",
-              "lunarviz image --phase 120 --psf gaussian:2 --halo 0.01,3 --out moon.png"],
+              "lunarviz image --phase 120 --psf gaussian:2 --halo 0.01,3 --out moon.png",
+              "lunarviz image --phase 120 --band B,V,R --moon-model rolo-fit-map --out moon_bvr.fits"],
     "study": ["lunarviz study mesh --levels 2:5 --phases 30,90,150 --out study.json",
               "lunarviz study mesh --body earth --levels 3:6 --out earth_study.csv"],
     "mesh": ["lunarviz mesh make craters --level 6 --count 40 --out craters.ply",
@@ -370,7 +375,10 @@ def cmd_sweep(a):
     if not a.quiet:
         for b, m in res["bond_albedo"].items():
             for meth, v in m.items():
-                if v is not None and math.isfinite(v):
+                if isinstance(v, dict):  # a spectral run: one per wavelength or band
+                    shown = "  ".join(f"{lab}: {x:.4f}" for lab, x in v.items() if x is not None and math.isfinite(x))
+                    print(f"Bond albedo  {b:8s} {meth:10s} {shown or 'undefined (sweep θ across 0-180°)'}")
+                elif v is not None and math.isfinite(v):
                     print(f"Bond albedo  {b:8s} {meth:10s} {v:.4f}")
                 else:
                     print(f"Bond albedo  {b:8s} {meth:10s} undefined: Eq. 17 integrates p* over the Earth's "

@@ -5,12 +5,13 @@
 At each of ROLO's 32 band wavelengths (Kieffer & Stone 2005, Table 3; rimopy's coefficients,
 350-2384 nm) ROLO's disk reflectance (zero libration, phase 2:96:2°, waxing and waning) is fitted
 by each BRDF on the same analytic disk model as the grey fit (``scripts/fit_rolo.py``, order 48,
-the preset's lunar map). Free per band: the parameters that carry colour, w (single-scattering
-albedo), the phase function (b, c for DHG; ξ for SHG) and the opposition effect (B0, h); the
-roughness θ̄ stays at the grey fit's value (a phase curve does not
-separate it from the rest band by band, and a smooth table needs it fixed).
-Lambert: its albedo. Each band starts from the grey preset, so neighbouring bands stay on one
-branch of Hapke's degeneracies and the table varies smoothly.
+the preset's lunar map). Free per band: every Hapke parameter the grey fit frees (w, the phase
+function, the opposition effect B0 and h, the roughness θ̄) and, on the mapped Moon, the map's
+contrast k (:mod:`lunarviz.spectral.moon`: the maria's colour; ROLO's waxing/waning asymmetry
+grows toward the infrared and k with it); Lambert: its albedo and k. The fit starts at 549 nm
+from the grey preset and continues band by band outward, each band from its neighbour's
+solution, so the table stays on one branch of Hapke's degeneracies and varies smoothly enough
+to interpolate (parameters are linear in λ between bands).
 
 Writes the ``spectral`` table of each preset into ``lunarviz/data/moon_models.json`` (the grey
 entries untouched) and ``benchmarks/rolo_fit/spectral_fit.{json,png}``: parameters and rms log
@@ -33,7 +34,11 @@ MODELS = ROOT / "lunarviz" / "data" / "moon_models.json"
 PHASES = np.arange(2.0, 96.1, 2.0)
 ORDER = 48
 PRESETS = {"rolo-fit-map": "synthetic", "rolo-fit": None}
-FREE = {"dhg": ("w", "b", "c", "B0", "h"), "shg": ("w", "xi", "B0", "h"), "lambert": ("albedo",)}
+#: free per band (``map_contrast`` only where the preset carries a map)
+FREE = {"dhg": ("w", "b", "c", "B0", "h", "theta_bar", "map_contrast"),
+        "shg": ("w", "xi", "B0", "h", "theta_bar", "map_contrast"), "lambert": ("albedo", "map_contrast")}
+#: the band the continuation starts from (from the grey fit), then outward band by band
+START_NM = 549.1
 
 
 def rolo_wavelengths() -> list[float]:
@@ -53,20 +58,29 @@ def fit_preset(preset: str) -> dict:
     dm = DiskModel(G, order=ORDER, waxing=W, moon_map=mp)
     lams = rolo_wavelengths()
     table = {}
+    i0 = lams.index(START_NM)
     for brdf, free in FREE.items():
+        free = tuple(k for k in free if k != "map_contrast" or mp is not None)
         grey = moon_model_params(preset, brdf)
-        rows = {k: [] for k in grey}
-        rms = []
-        for lam in lams:
-            target = rolo_reflectance(G, W, band=(lam, lam))
-            res = fit(brdf, G, target, W, free=free, start=grey, fixed={k: v for k, v in grey.items() if k not in free},
-                      moon_map=mp, order=ORDER, disk_model=dm)
-            for k in rows:
-                rows[k].append(float(res.params[k]))
-            rms.append(res.rms_log_residual)
-            print(f"{preset} {brdf} {lam:7.1f} nm: rms {res.rms_log_residual:.4f} "
-                  + " ".join(f"{k}={res.params[k]:.4g}" for k in free), flush=True)
-        table[brdf] = {"wavelength_nm": lams, "params": rows, "free": list(free), "rms_log_residual": rms}
+        results = {}
+        # continuation: each band starts from its neighbour's solution (toward START_NM), so the
+        # table follows one branch of Hapke's degeneracies and is smooth enough to interpolate
+        for order in (range(i0, len(lams)), range(i0 - 1, -1, -1)):
+            prev = dict(grey) if i0 not in results else dict(results[i0].params)
+            for i in order:
+                lam = lams[i]
+                target = rolo_reflectance(G, W, band=(lam, lam))
+                fixed = {k: v for k, v in grey.items() if k not in free}
+                res = fit(brdf, G, target, W, free=free, start=prev, fixed=fixed, moon_map=mp, order=ORDER,
+                          disk_model=dm)
+                prev = {k: res.params[k] for k in res.params}
+                results[i] = res
+                print(f"{preset} {brdf} {lam:7.1f} nm: rms {res.rms_log_residual:.4f} "
+                      + " ".join(f"{k}={res.params[k]:.4g}" for k in free), flush=True)
+        keys = list(grey) + (["map_contrast"] if "map_contrast" in free else [])
+        table[brdf] = {"wavelength_nm": lams,
+                       "params": {k: [float(results[i].params[k]) for i in range(len(lams))] for k in keys},
+                       "free": list(free), "rms_log_residual": [results[i].rms_log_residual for i in range(len(lams))]}
     return table
 
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import unit
+from lunarviz.methods.image_shading import GreyShading
 
 MAX_PIXELS = 4096
 MAX_SUPERSAMPLE = 16
@@ -140,24 +141,6 @@ def _subpixel_rays(camera: Camera, f, e, n):
     return d / norm[:, None], omega, rr, cc
 
 
-def _facet_params(ts, models) -> dict | None:
-    """Each BRDF's albedo parameter per Moon facet under a lunar albedo map, or ``None``."""
-    v = ts.moon_facet_albedo()
-    if v is None:
-        return None
-    from lunarviz.bodies.surfaces import map_scale
-    absolute = ts.settings.moon_map().absolute
-    return {b: v * map_scale(absolute, m) for b, m in models.items()}
-
-
-def _albedo_nodes(p: np.ndarray) -> np.ndarray:
-    """Three albedo values spanning ``p`` (Chebyshev points; one where p is uniform)."""
-    lo, hi = float(p.min()), float(p.max())
-    if hi - lo <= 1e-12 * max(hi, 1e-300):
-        return np.array([lo])
-    return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos(np.pi * (np.arange(3) + 0.5) / 3)
-
-
 def _lagrange(nodes: np.ndarray, values: list, x: np.ndarray) -> np.ndarray:
     """Interpolate ``values`` (one array per node) at ``x``: quadratic through three nodes."""
     if len(nodes) == 1:
@@ -172,13 +155,8 @@ def _lagrange(nodes: np.ndarray, values: list, x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _earthshine_at_vertices(ts, models, params=None) -> dict:
-    """Earthshine radiance toward the detector [W m⁻² sr⁻¹] at every Moon vertex, per BRDF.
-
-    With a lunar albedo map (``params``, per facet), per BRDF a list of fields at three albedo
-    values spanning the map's (:func:`_albedo_nodes`): each hit interpolates them
-    quadratically at its facet's albedo (exact for Lambert, whose radiance is linear in the
-    albedo; Hapke's radiance is smooth in w).
+def _vertex_transports(ts):
+    """The Moon's vertices as Earth transports toward the detector: ``(slice, Transport)`` chunks.
 
     The transport's own earthlight (the Earth's beams, its lit part, the Moon's and the
     Earth's shadows) evaluated at the vertices, on the exact sphere for the packaged icospheres
@@ -198,8 +176,6 @@ def _earthshine_at_vertices(ts, models, params=None) -> dict:
         for k in range(3):
             np.add.at(acc, M.faces[:, k], cn[:, k] * M.areas[:, None])
         nrm = acc / np.linalg.norm(acc, axis=1, keepdims=True)
-    nodes = {b: np.array([np.nan]) if params is None else _albedo_nodes(params[b]) for b in models}
-    out = {b: [np.zeros(len(v)) for _ in nodes[b]] for b in models}
     order = ts.settings.earth_order
     det = ts.scene.det
     for a in range(0, len(v), CHUNK // 8):
@@ -207,13 +183,7 @@ def _earthshine_at_vertices(ts, models, params=None) -> dict:
         xs, ns = x[sl], nrm[sl]
         o = unit(det - xs)
         mu = np.clip(np.einsum("ij,ij->i", ns, o), 0.0, 1.0)
-        tr = ts.beam_transport(xs, ns, o, mu, np.ones(len(mu)), "earth", order)
-        for b, model in models.items():
-            for j, wj in enumerate(nodes[b]):
-                if params is not None:
-                    tr.albedo, tr.albedo_absolute = np.full(len(mu), wj), True
-                out[b][j][sl] = tr.radiance(model)
-    return {b: (nodes[b], out[b]) for b in models}
+        yield sl, ts.beam_transport(xs, ns, o, mu, np.ones(len(mu)), "earth", order)
 
 
 def _barycentric(tri, p):
@@ -260,12 +230,17 @@ def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
     dirs, omega, rr, cc = _subpixel_rays(camera, f, e, n)
     cosd = np.clip(dirs @ f, 0.0, 1.0)  # off-boresight cosine (flat detector facing f)
     W, H = camera.width, camera.height
-    ms = {b: np.zeros(H * W) for b in models}
-    es = {b: np.zeros(H * W) for b in models}
+    if settings.spectral_request() is not None:
+        from lunarviz.spectral.image_shading import SpectralImageShading
+        shading = SpectralImageShading(settings, ts, models)
+    else:
+        shading = GreyShading(ts, models)
+    ms = {k: np.zeros(H * W) for k in shading.keys}
+    es = {k: np.zeros(H * W) for k in shading.keys}
     pix_omega = np.zeros(H * W)
     np.add.at(pix_omega, rr * W + cc, omega * cosd)
-    params = _facet_params(ts, models)
-    vfield = _earthshine_at_vertices(ts, models, params)
+    params = shading.factors
+    vfield = shading.earth_vertex_fields(_vertex_transports(ts), len(M.vertices))
     order = settings.trace_settings().sun_order
     n_disc = n_lit = 0
     origin = sc.det
@@ -292,21 +267,27 @@ def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
         tr = ts.with_moon_albedo(ts.beam_transport(x, nrm, o_dir, mu, np.ones(len(mu)), "sun", order), prim)
         n_lit += int(np.count_nonzero(tr.e_beam.sum(1) > 0))
         bary = _barycentric(M.vertices[M.faces[prim]] + M.centre, x)
-        for b, model in models.items():
-            np.add.at(ms[b], pix, tr.radiance(model) * w_sub)
+        for b, rad in shading.moon_radiances(tr).items():
+            np.add.at(ms[b], pix, rad * w_sub)
+        for b in shading.keys:
             nodes, node_fields = vfield[b]
             at_hit = [np.einsum("ij,ij->i", bary, f[M.faces[prim]]) for f in node_fields]
             val = at_hit[0] if params is None else _lagrange(nodes, at_hit, params[b][prim])
             np.add.at(es[b], pix, val * w_sub)
     with np.errstate(invalid="ignore", divide="ignore"):
         to_radiance = np.where(pix_omega > 0, 1.0 / np.where(pix_omega > 0, pix_omega, 1.0), 0.0)
-    planes = {"moonshine": {b: (ms[b] * to_radiance).reshape(H, W) for b in models},
-              "earthshine": {b: (es[b] * to_radiance).reshape(H, W) for b in models}}
+    planes = {"moonshine": {b: (ms[b] * to_radiance).reshape(H, W) for b in shading.keys},
+              "earthshine": {b: (es[b] * to_radiance).reshape(H, W) for b in shading.keys}}
     from lunarviz.sky.dated_scene import moon_direction_radec
     moon_radec = moon_direction_radec(sc)
     info = {**{k: v for k, v in fields.items()}, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg,
             "beta_deg": sc.beta_deg, "boresight_ra_deg": ra, "boresight_dec_deg": dec,
             "moon_ra_deg": moon_radec[0], "moon_dec_deg": moon_radec[1],
-            "frame": "ICRF (geocentric axes)" if sc.general else "scene axes of the paper's theta scene"}
+            "frame": "ICRF (geocentric axes)" if sc.general else "scene axes of the paper's theta scene",
+            "bunit": shading.bunit}
+    req = settings.spectral_request()
+    if req is not None:
+        info.update(spectral=req.kind, spectral_labels=list(req.labels),
+                    spectral_solar_1au=[float(x) for x in req.solar_1au])
     total = len(dirs)
     return ImageResult(planes, camera, info, pix_omega.reshape(H, W), n_lit / max(n_disc, 1), n_disc / total)

@@ -93,12 +93,19 @@ def apply_optics(plane: np.ndarray, psf, halo) -> np.ndarray:
 
 
 def plane_names(planes: dict) -> list[tuple[str, str, str]]:
-    """``(EXTNAME, component, brdf)`` in file order; one BRDF keeps the bare names."""
-    brdfs = list(planes["moonshine"])
+    """``(EXTNAME, component, key)`` in file order; one BRDF keeps the bare names. A spectral
+    plane's key ``BRDF|LABEL`` (a band, or a wavelength in nm) adds the label:
+    ``MOONSHINE_DHG_V``, ``EARTHSHINE_550NM``."""
+    keys = list(planes["moonshine"])
+    brdfs = list(dict.fromkeys(k.split("|")[0] for k in keys))
     out = []
-    for b in brdfs:
+    for k in keys:
+        b, _, label = k.partition("|")
+        if label and label.replace(".", "").isdigit():
+            label += "NM"
         for comp in ("moonshine", "earthshine"):
-            out.append((comp.upper() if len(brdfs) == 1 else f"{comp.upper()}_{b.upper()}", comp, b))
+            parts = [comp.upper()] + ([] if len(brdfs) == 1 else [b.upper()]) + ([label.upper()] if label else [])
+            out.append(("_".join(parts), comp, k))
     return out
 
 
@@ -107,7 +114,6 @@ def write_fits(path, res, planes, extra: dict) -> None:
 
     from lunarviz.outputs.writers import atomic_path
     cam = res.camera
-    H, W = cam.height, cam.width
     scale_deg = float(np.degrees(cam.scale_rad))
     prim = fits.PrimaryHDU()
     hdr = prim.header
@@ -131,23 +137,73 @@ def write_fits(path, res, planes, extra: dict) -> None:
     hdr["COMMENT"] = "lunarviz synthetic image: radiance planes per component, pinhole TAN camera at the detector"
     hdr["COMMENT"] = "settings: " + json.dumps(extra.get("settings", {}))[:2000]
     hdus = [prim]
-    for ext, comp, b in plane_names(planes):
-        h = fits.ImageHDU(np.asarray(planes[comp][b], dtype=np.float64), name=ext)
+    if res.info.get("spectral") == "wavelength":
+        hdus += _cubes(res, planes, scale_deg)
+        with atomic_path(path) as tmp:
+            fits.HDUList(hdus).writeto(tmp, overwrite=True)
+        return
+    for ext, comp, key in plane_names(planes):
+        b, _, label = key.partition("|")
+        h = fits.ImageHDU(np.asarray(planes[comp][key], dtype=np.float64), name=ext)
         hh = h.header
-        hh["BUNIT"] = BUNIT
+        hh["BUNIT"] = res.info.get("bunit", BUNIT)
         hh["BRDF"] = b
+        if label:
+            hh["BAND"] = (label, "integral of L(lambda) S(lambda) dlambda")
         hh["LIGHT"] = (comp, "moonshine or earthshine")
-        hh["WCSAXES"] = 2
-        hh["CTYPE1"], hh["CTYPE2"] = "RA---TAN", "DEC--TAN"
-        hh["CUNIT1"], hh["CUNIT2"] = "deg", "deg"
-        hh["CRPIX1"], hh["CRPIX2"] = (W + 1) / 2.0, (H + 1) / 2.0
-        hh["CRVAL1"], hh["CRVAL2"] = res.info["boresight_ra_deg"], res.info["boresight_dec_deg"]
-        hh["CDELT1"], hh["CDELT2"] = -scale_deg, scale_deg
-        hh["RADESYS"] = "ICRS"
-        hh["INTEGRAT"] = (float(np.sum(planes[comp][b] * res.pixel_solid_angle)), "sum L*Omega [W m-2]")
+        _tan_wcs(hh, res, scale_deg)
+        hh["INTEGRAT"] = (float(np.sum(planes[comp][key] * res.pixel_solid_angle)),
+                          f"sum L*Omega [{hh['BUNIT'].replace(' sr-1', '')}]")
         hdus.append(h)
     with atomic_path(path) as tmp:
         fits.HDUList(hdus).writeto(tmp, overwrite=True)
+
+
+def _tan_wcs(hh, res, scale_deg: float, axes: int = 2) -> None:
+    """The image axes' TAN WCS (axes 1, 2) in header ``hh``."""
+    cam = res.camera
+    H, W = cam.height, cam.width
+    hh["WCSAXES"] = axes
+    hh["CTYPE1"], hh["CTYPE2"] = "RA---TAN", "DEC--TAN"
+    hh["CUNIT1"], hh["CUNIT2"] = "deg", "deg"
+    hh["CRPIX1"], hh["CRPIX2"] = (W + 1) / 2.0, (H + 1) / 2.0
+    hh["CRVAL1"], hh["CRVAL2"] = res.info["boresight_ra_deg"], res.info["boresight_dec_deg"]
+    hh["CDELT1"], hh["CDELT2"] = -scale_deg, scale_deg
+    hh["RADESYS"] = "ICRS"
+
+
+def _cubes(res, planes, scale_deg: float) -> list:
+    """One cube per component and BRDF (wavelength, row, column), radiance per nm, with a
+    linear spectral axis WAVE [nm] (the wavelengths must be evenly spaced: refused before any
+    work, :func:`check_cube_wavelengths`)."""
+    from astropy.io import fits
+    lam = np.asarray(res.info["spectral_labels"], dtype=float)
+    keys = list(planes["moonshine"])
+    brdfs = list(dict.fromkeys(k.split("|")[0] for k in keys))
+    out = []
+    for b in brdfs:
+        for comp in ("moonshine", "earthshine"):
+            cube = np.stack([planes[comp][f"{b}|{x:g}"] for x in lam]).astype(np.float64)
+            h = fits.ImageHDU(cube, name=comp.upper() if len(brdfs) == 1 else f"{comp.upper()}_{b.upper()}")
+            hh = h.header
+            hh["BUNIT"] = res.info.get("bunit")
+            hh["BRDF"] = b
+            hh["LIGHT"] = (comp, "moonshine or earthshine")
+            _tan_wcs(hh, res, scale_deg, axes=3)
+            hh["CTYPE3"], hh["CUNIT3"] = "WAVE", "nm"
+            hh["CRPIX3"], hh["CRVAL3"] = 1.0, float(lam[0])
+            hh["CDELT3"] = float(lam[1] - lam[0]) if len(lam) > 1 else 1.0
+            hh["SPECSYS"] = "TOPOCENT"
+            out.append(h)
+    return out
+
+
+def check_cube_wavelengths(wavelengths) -> None:
+    """A FITS cube's spectral axis is linear: wavelengths must be evenly spaced and increasing."""
+    lam = np.asarray(wavelengths, dtype=float)
+    if len(lam) > 1 and (np.any(np.diff(lam) <= 0) or np.ptp(np.diff(lam)) > 1e-9 * lam[-1]):
+        raise LunarvizError(f"a FITS image cube needs evenly spaced, increasing wavelengths (START:STOP:STEP); "
+                            f"got {', '.join(f'{x:g}' for x in lam[:6])}{' …' if len(lam) > 6 else ''}")
 
 
 def write_npy(path, planes) -> None:
@@ -159,8 +215,54 @@ def write_npy(path, planes) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
+def colour_planes(res, planes) -> tuple[str, list[str]] | None:
+    """``(brdf, [three plane keys])`` when an image holds exactly three bands (any order of the
+    command line: red, green, blue), else ``None``."""
+    if res.info.get("spectral") != "band" or len(res.info.get("spectral_labels", [])) != 3:
+        return None
+    b = next(iter(planes["moonshine"])).split("|")[0]
+    return b, [f"{b}|{lab}" for lab in res.info["spectral_labels"]]
+
+
+def write_colour_png(path, res, planes, title: str = "") -> None:
+    """Three bands as red, green, blue: the sunlit Moon (moonshine) and the earthlit Moon
+    (earthshine) side by side, each white-balanced to the Sun (a band's radiance over the Sun's
+    irradiance in that band: a grey surface lit by the Sun is grey) and scaled to its own
+    brightest band, so the colours of the two lights compare while their brightness (10⁻⁴
+    apart) does not."""
+    import io
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lunarviz.outputs.writers import write_bytes_atomic
+    b, keys = colour_planes(res, planes)
+    sun = np.asarray(res.info["spectral_solar_1au"], dtype=float)
+    fig, ax = plt.subplots(1, 2, figsize=(10, 5.2))
+    for a, comp, name in ((ax[0], "moonshine", "sunlit Moon (moonshine)"),
+                          (ax[1], "earthshine", "earthlit Moon (earthshine)")):
+        rgb = np.stack([planes[comp][k] / s for k, s in zip(keys, sun)], axis=-1)
+        top = 1.15 * float(rgb.max()) if (rgb > 0).any() else 1.0  # headroom: the colour stays visible
+        a.imshow(np.clip(rgb / max(top, 1e-300), 0.0, 1.0) ** (1 / 2.2), origin="lower")
+        a.set_title(f"{name}, {b}", fontsize=9)
+        a.set_xticks([])
+        a.set_yticks([])
+    labels = res.info["spectral_labels"]
+    fig.suptitle(title or f"R, G, B = {', '.join(labels)}: colours relative to the Sun's (each panel scaled to "
+                          f"its brightest band)", fontsize=9)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())
+
+
 def write_png(path, res, planes, title: str = "") -> None:
-    """The first BRDF's moonshine + earthshine with an asinh stretch and a colour bar."""
+    """The first BRDF's moonshine + earthshine with an asinh stretch and a colour bar; three
+    bands: a colour picture (:func:`write_colour_png`)."""
+    if colour_planes(res, planes) is not None:
+        return write_colour_png(path, res, planes, title)
     import io
 
     import matplotlib
@@ -176,7 +278,7 @@ def write_png(path, res, planes, title: str = "") -> None:
     fig, ax = plt.subplots(figsize=(6.4, 5.4))
     im = ax.imshow(tot, origin="lower", cmap="gray", norm=AsinhNorm(linear_width=max(lin, 1e-30), vmin=0.0))
     cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
-    cb.set_label(f"radiance [{BUNIT}] (asinh stretch)")
+    cb.set_label(f"radiance [{res.info.get('bunit', BUNIT)}] (asinh stretch)")
     ax.set_xlabel("pixel (east ←)")
     ax.set_ylabel("pixel (north ↑)")
     ax.set_title(title or f"{b}: moonshine + earthshine", fontsize=9)

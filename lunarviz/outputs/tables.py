@@ -62,7 +62,23 @@ DESCRIPTIONS = {
     "observer_y_m": ("observer_y", "m", "observer position, geocentric ICRF y"),
     "observer_z_m": ("observer_z", "m", "observer position, geocentric ICRF z"),
 }
-SKIP = ("brdf", "method", "estimator", "time_utc", "observer")
+#: spectral rows: fields that depend on the task and the wavelength or band, not on the BRDF
+PER_TASK_SPECTRAL = ("solar_irradiance_W_m2_nm", "solar_irradiance_W_m2")
+SPECTRAL_DESCRIPTIONS = {
+    "moonshine_W_m2_nm": ("moonshine", "W m-2 nm-1", "spectral irradiance at the detector from sunlight reflected "
+                                                     "by the Moon"),
+    "earthshine_W_m2_nm": ("earthshine", "W m-2 nm-1", "spectral irradiance at the detector from earthlight "
+                                                       "reflected by the Moon"),
+    "solar_irradiance_W_m2_nm": ("solar_irradiance", "W m-2 nm-1", "solar spectral irradiance at the Moon's "
+                                                                   "distance from the Sun"),
+    "moonshine_W_m2": ("moonshine", "W m-2", "band-integrated irradiance at the detector, moonshine: "
+                                             "integral of E(lambda) S(lambda) dlambda"),
+    "earthshine_W_m2": ("earthshine", "W m-2", "band-integrated irradiance at the detector, earthshine: "
+                                               "integral of E(lambda) S(lambda) dlambda"),
+    "solar_irradiance_W_m2": ("solar_irradiance", "W m-2", "band-integrated solar irradiance at the Moon's "
+                                                           "distance from the Sun"),
+}
+SKIP = ("brdf", "method", "estimator", "time_utc", "observer", "wavelength_nm", "band")
 
 
 def _num(v):
@@ -91,13 +107,12 @@ def to_dataset(result: dict):
     brdfs = list(dict.fromkeys(r["brdf"] for r in rows))
     timed = "time_utc" in rows[0]
     keys = list(dict.fromkeys(r["time_utc"] if timed else r["theta_deg"] for r in rows))
-    index = {(r["brdf"], r["time_utc"] if timed else r["theta_deg"]): r for r in rows}
     dim = "time" if timed else "phase"
-    if timed:
-        coord = np.array([np.datetime64(datetime.fromisoformat(k.replace("Z", "")), "ns") for k in keys])
-        coords = {"brdf": brdfs, "time": coord}
-    else:
-        coords = {"brdf": brdfs, "phase": np.asarray(keys, dtype=float)}
+    spec = "wavelength" if "wavelength_nm" in rows[0] else "band" if "band" in rows[0] else None
+    if spec is not None:
+        return _spectral_dataset(result, rows, brdfs, keys, timed, dim, spec)
+    index = {(r["brdf"], r["time_utc"] if timed else r["theta_deg"]): r for r in rows}
+    coords = _task_coords(brdfs, keys, timed)
     fields = list(dict.fromkeys(k for r in rows for k in r if k not in SKIP))
     data = {}
     for f in fields:
@@ -121,16 +136,81 @@ def to_dataset(result: dict):
             values = values.astype(float)
         data[name] = (dims, values, attrs)
     ds = xr.Dataset(data, coords=coords)
+    _label_coords(ds, timed)
+    bond = result.get("bond_albedo", {})
+    method = settings.get("method")
+    ds["bond_albedo"] = (("brdf",), np.array([_num(bond.get(b, {}).get(method)) for b in brdfs], dtype=float),
+                         BOND_ATTRS)
+    _global_attrs(ds, result)
+    return ds
+
+
+BOND_ATTRS = {"units": "1", "long_name": "Bond albedo of the Earth from apparent albedo, corrected Eq. 17"}
+
+
+def _task_coords(brdfs, keys, timed) -> dict:
+    if timed:
+        coord = np.array([np.datetime64(datetime.fromisoformat(k.replace("Z", "")), "ns") for k in keys])
+        return {"brdf": brdfs, "time": coord}
+    return {"brdf": brdfs, "phase": np.asarray(keys, dtype=float)}
+
+
+def _label_coords(ds, timed) -> None:
     ds["brdf"].attrs.update({"long_name": "lunar BRDF", "units": "1"})
     if timed:
         ds["time"].attrs["long_name"] = "UTC time of the row"
         ds["time"].attrs["standard_name"] = "time"
     else:
         ds["phase"].attrs.update({"units": "degree", "long_name": "orbital angle theta of the paper's scene (Eq. 3)"})
+
+
+def _spectral_dataset(result, rows, brdfs, keys, timed, dim, spec):
+    """A spectral run's Dataset: per-row values over (brdf, phase|time, wavelength|band); the
+    task's geometry over phase|time; the Sun at the Moon over (phase|time, wavelength|band)."""
+    import xarray as xr
+    label = "wavelength_nm" if spec == "wavelength" else "band"
+    labels = list(dict.fromkeys(r[label] for r in rows))
+    task = "time_utc" if timed else "theta_deg"
+    index = {(r["brdf"], r[task], r[label]): r for r in rows}
+    coords = _task_coords(brdfs, keys, timed)
+    coords[spec] = np.asarray(labels, dtype=float) if spec == "wavelength" else labels
+    fields = list(dict.fromkeys(k for r in rows for k in r if k not in SKIP))
+    data = {}
+    for f in fields:
+        name, units, long_name = SPECTRAL_DESCRIPTIONS.get(f) or DESCRIPTIONS.get(f) or _describe(f)
+        raw = [[[index[(b, k, lab)].get(f) for lab in labels] for k in keys] for b in brdfs]
+        flag = all(isinstance(v, bool) for a in raw for bb in a for v in bb)
+        values = np.array([[[_num(v) for v in bb] for bb in a] for a in raw], dtype=float)
+        if f in PER_TASK:
+            values, dims = values[0, :, 0], (dim,)
+        elif f in PER_TASK_SPECTRAL:
+            values, dims = values[0], (dim, spec)
+        else:
+            dims = ("brdf", dim, spec)
+        attrs = {"units": units, "long_name": long_name}
+        if flag:
+            values = values.astype(np.int8)
+            attrs.update({"flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "false true", "units": "1"})
+        data[name] = (dims, values, attrs)
+    ds = xr.Dataset(data, coords=coords)
+    _label_coords(ds, timed)
+    if spec == "wavelength":
+        ds["wavelength"].attrs.update({"units": "nm", "long_name": "wavelength in vacuum",
+                                       "standard_name": "radiation_wavelength"})
+    else:
+        ds["band"].attrs.update({"units": "1", "long_name": "spectral band (response function)"})
     bond = result.get("bond_albedo", {})
+    method = result["settings"].get("method")
+    key = (lambda v: f"{v:g}") if spec == "wavelength" else str
+    ds["bond_albedo"] = (("brdf", spec), np.array([[_num(bond.get(b, {}).get(method, {}).get(key(lab)))
+                                                    for lab in labels] for b in brdfs], dtype=float), BOND_ATTRS)
+    _global_attrs(ds, result)
+    return ds
+
+
+def _global_attrs(ds, result) -> None:
+    settings = result["settings"]
     method = settings.get("method")
-    ds["bond_albedo"] = (("brdf",), np.array([_num(bond.get(b, {}).get(method)) for b in brdfs], dtype=float),
-                         {"units": "1", "long_name": "Bond albedo of the Earth from apparent albedo, corrected Eq. 17"})
     ds.attrs.update({
         "Conventions": "CF-1.10",
         "title": f"lunarviz sweep ({method})",
@@ -141,7 +221,6 @@ def to_dataset(result: dict):
         "settings_json": json.dumps(settings),
         "wall_seconds": float(result.get("wall_seconds", np.nan)),
     })
-    return ds
 
 
 def write_netcdf(path, result: dict) -> None:

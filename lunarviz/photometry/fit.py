@@ -35,7 +35,7 @@ from lunarviz.errors import LunarvizError
 #: bounds of fittable parameters (θ̄ in degrees)
 BOUNDS = {"w": (0.01, 0.99), "h": (0.001, 0.5), "B0": (0.0, 5.0), "b": (0.0, 0.95), "c": (-1.0, 1.0),
           "xi": (-0.95, 0.95), "theta_bar": (0.0, 45.0), "Bc0": (0.0, 3.0), "hc": (0.0005, 0.3),
-          "albedo": (0.001, 1.0)}
+          "albedo": (0.001, 1.0), "map_contrast": (0.0, 3.0)}
 DEFAULT_FREE = {"dhg": ("w", "b", "c", "B0", "h", "theta_bar"), "shg": ("w", "xi", "B0", "h", "theta_bar"),
                 "lambert": ("albedo",)}
 ROLO_DISTANCE_KM = 384_400.0
@@ -82,9 +82,14 @@ class DiskModel:
             st = AnalyticSettings(order=order, surfaces=Surfaces(moon_map=MoonAlbedoMap.parse(moon_map)))
         self.transports = [moonshine_transport(sc, st) for sc in self.scenes]
 
-    def reflectance(self, model) -> np.ndarray:
+    def reflectance(self, model, map_contrast: float = 1.0) -> np.ndarray:
+        """Disk reflectance at each phase; ``map_contrast`` k scales the lunar map's contrast
+        (w per node ``w · (1 − k + k · map/⟨map⟩)``, :mod:`lunarviz.spectral.moon`)."""
         out = np.empty(len(self.phases))
         for k, (sc, tr) in enumerate(zip(self.scenes, self.transports)):
+            if map_contrast != 1.0 and tr.albedo is not None:
+                from dataclasses import replace
+                tr = replace(tr, albedo=map_contrast * tr.albedo + (1.0 - map_contrast))
             e = tr.detector_irradiance(model)
             d_om = np.linalg.norm(sc.moon - sc.det)
             omega = np.pi * (sc.radii["moon"] / d_om) ** 2
@@ -256,6 +261,8 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
                             f"parameters: give more phases or fewer --free")
     base = make_brdf(brdf, dhg_convention=dhg_convention, h_function=h_function)
     p0 = {**base.params, "theta_bar": 0.0, "Bc0": 0.0, "hc": 0.05} if brdf != "lambert" else dict(base.params)
+    if "map_contrast" in free:  # the map's contrast (a Moon parameter, not the BRDF's): from 1, the map as given
+        p0["map_contrast"] = 1.0
     p0.update(start or {})
     p0.update(fixed or {})
     for k in free:
@@ -270,12 +277,15 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
     x0 = np.clip(np.array([p0[k] for k in free], dtype=float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
 
     def model_of(x):
-        return base.with_params(**{**{k: v for k, v in p0.items() if k in base_keys}, **dict(zip(free, x))})
+        return base.with_params(**{k: v for k, v in {**p0, **dict(zip(free, x))}.items() if k in base_keys})
 
-    base_keys = set(p0)
+    base_keys = set(p0) - {"map_contrast"}
+
+    def contrast_of(x):
+        return dict(zip(free, x)).get("map_contrast", p0.get("map_contrast", 1.0))
 
     def resid(x):
-        return np.log(dm.reflectance(model_of(x)) / target)
+        return np.log(dm.reflectance(model_of(x), contrast_of(x)) / target)
 
     sol = least_squares(resid, x0, bounds=(lo, hi), x_scale=hi - lo, diff_step=1e-6)
     J = sol.jac
@@ -293,7 +303,7 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
         at_bound = min(sol.x[n] - lo[n], hi[n] - sol.x[n]) < 1e-6 * (hi[n] - lo[n])
         constrained[k] = bool(sig[n] < 0.1 * (hi[n] - lo[n]) and sig[n] < 0.5 * abs(sol.x[n]) and not at_bound
                               and (others.size == 0 or others.max() < 0.95))
-    model = dm.reflectance(model_of(sol.x))
+    model = dm.reflectance(model_of(sol.x), contrast_of(sol.x))
     return FitResult(brdf, params, free, {k: float(s) for k, s in zip(free, sig)}, corr, constrained, phases,
                      waxing, target, model, float(np.sqrt(np.mean(sol.fun**2))))
 

@@ -51,3 +51,11 @@ def moon_model_params(model: str, brdf: str) -> dict:
         has = ", ".join(b for b in models[model] if b != "moon_albedo_map")
         raise LunarvizError(f"--moon-model {model!r} has no {brdf!r} parameters (it has {has})")
     return dict(models[model][brdf]["params"])
+
+
+def spectral_table(model: str, brdf: str) -> dict | None:
+    """``{"wavelength_nm": [...], "params": {name: [...]}, ...}``: a preset's band-by-band fit
+    (``scripts/fit_rolo_spectral.py``), or ``None`` (the paper's model, or none kept)."""
+    if model == "paper":
+        return None
+    return _fitted().get("models", {}).get(model, {}).get("spectral", {}).get(brdf)

@@ -105,6 +105,11 @@ if _NUMBA:
         _NUMBA = False
 
 
+#: the Henyey-Greenstein lobe and Hapke's H-functions for other compiled kernels
+#: (:mod:`lunarviz.spectral.kernels`), inlined there as here
+hg_lobe, h_value = _lobe, _h
+
+
 def hapke_codes(model) -> tuple[int, float, float, int] | None:
     """(phase code, p1, p2, H code) for a smooth Hapke model the kernel handles, else ``None``."""
     if not isinstance(model, Hapke) or model.rough or model.h_function not in ("hapke1981", "hapke2002"):

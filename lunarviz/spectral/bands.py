@@ -110,9 +110,8 @@ def parse_band(text: str) -> Band:
     b = _speclite_band(JOHNSON.get(t, t))
     if b is not None:
         return Band(t, b.wavelength_nm, b.response, b.source)
-    raise LunarvizError(f"unknown band {t!r}: use {', '.join(JOHNSON)}, a packaged band "
-                        f"({', '.join(list(packaged)[:4])}, …; `lunarviz bands` lists them), a speclite filter "
-                        f"name, LO-HI [nm] or a .csv file")
+    raise LunarvizError(f"unknown band {t!r}: use {', '.join(JOHNSON)}, a packaged band ({', '.join(packaged)}), "
+                        f"a speclite filter name (e.g. sdss2010-r), LO-HI [nm] or a .csv file")
 
 
 def parse_bands(text) -> tuple[Band, ...]:

@@ -22,10 +22,13 @@ from __future__ import annotations
 import numpy as np
 
 import lunarviz.compiled as compiled
-from lunarviz.photometry.shading_kernels import LAMBERT, _h, _lobe
+from lunarviz.photometry.shading_kernels import LAMBERT
+from lunarviz.photometry.shading_kernels import h_value as _h
+from lunarviz.photometry.shading_kernels import hg_lobe as _lobe
 
 
-def _spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, has_alb, w, h, B0, p1, p2, pcode, hcode, out):
+def _spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, has_alb, w, kc, h, B0, p1, p2, pcode, hcode, out,
+                   per_sample, keep):
     n, k = mu0e.shape
     P, L = out.shape
     per_beam_mu = mue.shape[1] > 1
@@ -39,7 +42,7 @@ def _spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, has_alb, w, h, B0, p1, 
         if gi == 0.0:
             continue
         for ll in range(L):
-            wl = alb[i] * w[ll] if has_alb else w[ll]
+            wl = (kc[ll] * alb[i] + (1.0 - kc[ll])) * w[ll] if has_alb else w[ll]
             wi[ll] = min(max(wl, 0.0), 1.0)
         if not per_beam_mu:
             m_s = min(max(mue[i, 0], 0.0), 1.0)
@@ -86,6 +89,8 @@ def _spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, has_alb, w, h, B0, p1, 
         for p in range(P):
             for ll in range(L):
                 out[p, ll] += gi * acc[p, ll]
+                if keep:
+                    per_sample[i, p, ll] = acc[p, ll]
 
 
 _NUMBA = compiled.available()
@@ -100,15 +105,21 @@ def available() -> bool:
     return _NUMBA
 
 
-def spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, w, h, B0, p1, p2, pcode: int, hcode: int) -> np.ndarray:
+def spectral_sums(mu0e, mue, sh, ch, fac, E, geom, alb, w, kc, h, B0, p1, p2, pcode: int, hcode: int,
+                  per_sample: bool = False) -> np.ndarray:
     """``out[p, l]`` of the module docstring. ``mue`` and ``fac`` are (N, 1) or (N, K); ``alb``
-    (N,) multiplies w per sample (``None``: none); the parameter arrays are (L,)."""
+    (N,) is a lunar map's factor per sample (``None``: none), which w takes with the contrast
+    ``kc``: ``w_l · (1 − kc_l + kc_l · alb)`` (kc = 1: the map as it is); the parameter arrays
+    are (L,).
+    ``per_sample``: instead, each sample's radiance ``Σ_k rf_l E_p`` (N, P, L) (where its geom
+    is not zero)."""
     f = np.ascontiguousarray
     L = len(w)
     out = np.zeros((E.shape[0], L))
+    keep = np.zeros((len(geom), E.shape[0], L)) if per_sample else np.zeros((1, 1, 1))
     al = f(alb, dtype=float).reshape(-1) if alb is not None else np.zeros(1)
     _spectral_sums(f(mu0e, dtype=float), f(mue, dtype=float), f(sh, dtype=float), f(ch, dtype=float),
                    f(fac, dtype=float), f(E, dtype=float), f(geom, dtype=float), al, alb is not None,
-                   *(f(np.broadcast_to(np.asarray(v, dtype=float), (L,))) for v in (w, h, B0, p1, p2)),
-                   int(pcode), int(hcode), out)
-    return out
+                   *(f(np.broadcast_to(np.asarray(v, dtype=float), (L,))) for v in (w, kc, h, B0, p1, p2)),
+                   int(pcode), int(hcode), out, keep, per_sample)
+    return keep if per_sample else out

@@ -9,11 +9,13 @@ soil 10084 at 750 nm, and the Lambert 0.10) has no colour: it is grey, the same 
 every wavelength, and so is every parameter a user sets with ``--param`` (it replaces the table's
 values at every λ).
 
-A lunar albedo map keeps its contrast at every wavelength: a map relative to its mean scales
-w(λ) (or the Lambert albedo(λ)) by the same factor everywhere; a map given as the parameter
-itself (``FILE:MEAN``) is grey. Neglected: the maria are bluer than the highlands (their
-reflectance ratio changes by ~10 % from 415 to 1000 nm, Clementine UVVIS); a map with a spectral
-dimension is left for later.
+A lunar albedo map relative to its mean (the pattern of maria and highlands) scales w(λ) (or the
+Lambert albedo(λ)) per facet with a contrast k(λ): ``w_facet(λ) = w(λ) · (1 − k + k · map/⟨map⟩)``,
+the documented colour law of the maria (bluer than the highlands: their contrast with the
+highlands grows toward the red and near infrared). ``rolo-fit-map`` fits k per band with the
+rest (``map_contrast`` in its table); other models keep k = 1, the map as it is. A map given as
+the parameter itself (``FILE:MEAN``) is grey. Neglected: colour differences within the maria
+and within the highlands (a map with a spectral dimension is left for later).
 """
 
 from __future__ import annotations
@@ -22,15 +24,7 @@ import numpy as np
 
 from lunarviz.errors import LunarvizError
 from lunarviz.photometry.brdf import make_brdf
-
-
-def spectral_table(moon_model: str, brdf: str) -> dict | None:
-    """``{"wavelength_nm": [...], "params": {name: [...]}}`` of a preset's spectral fit, or ``None``
-    (the paper's model, or a preset without one: grey)."""
-    if moon_model == "paper":
-        return None
-    from lunarviz.photometry.presets import _fitted
-    return _fitted().get("models", {}).get(moon_model, {}).get("spectral", {}).get(brdf)
+from lunarviz.photometry.presets import spectral_table
 
 
 def parameters_at(moon_model: str, brdf: str, wavelength_nm, overrides: dict | None = None,
@@ -51,11 +45,16 @@ def parameters_at(moon_model: str, brdf: str, wavelength_nm, overrides: dict | N
             raise LunarvizError(f"wavelength {bad[0]:g} nm: --moon-model {moon_model} is tabulated over "
                                 f"{tl[0]:g}-{tl[-1]:g} nm (ROLO's bands)")
         for k, v in table["params"].items():
-            if k in out and k not in (overrides or {}):
+            if (k in out or k == MAP_CONTRAST) and k not in (overrides or {}):
                 out[k] = np.interp(lam, tl, np.asarray(v, dtype=float))
     return out
 
 
+#: the lunar map's contrast at λ (a parameter of the Moon, not of its BRDF): w_facet(λ) =
+#: w(λ) · (1 − k(λ) + k(λ) · map/⟨map⟩); k = 1 is the map as given (the grey run)
+MAP_CONTRAST = "map_contrast"
+
+
 def models_at(grey_model, params: dict[str, np.ndarray], index: int):
     """The BRDF object at wavelength ``index`` of ``params`` (:func:`parameters_at`)."""
-    return grey_model.with_params(**{k: float(v[index]) for k, v in params.items()})
+    return grey_model.with_params(**{k: float(v[index]) for k, v in params.items() if k != MAP_CONTRAST})

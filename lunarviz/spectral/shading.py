@@ -39,6 +39,11 @@ class SpectralBRDF:
     def n(self) -> int:
         return len(next(iter(self.params.values())))
 
+    @property
+    def contrast(self) -> np.ndarray:
+        """The lunar map's contrast at each node (:mod:`lunarviz.spectral.moon`; 1: as it is)."""
+        return self.params.get("map_contrast", np.ones(self.n))
+
     def model(self, index: int):
         return models_at(self.grey, self.params, index)
 
@@ -100,10 +105,11 @@ def _albedo_factors(tr, sb: SpectralBRDF):
     return [(a, 1.0)], tr.albedo_absolute
 
 
-def shade(tr, sb: SpectralBRDF, parts: np.ndarray) -> np.ndarray:
+def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> np.ndarray:
     """``out[p, l] = Σ_n geom_n Σ_k rf_l E_p`` for beam arrays ``parts`` (P, N, K) of transport
-    ``tr`` [W m⁻², at the grey Sun]."""
-    out = np.zeros((parts.shape[0], sb.n))
+    ``tr`` [W m⁻², at the grey Sun]; ``per_sample``: each sample's radiance ``Σ_k rf_l E_p``
+    (N, P, L) [W m⁻² sr⁻¹] where its ``geom`` is not zero (images pass geom = 1)."""
+    out = np.zeros((parts.shape[1], parts.shape[0], sb.n) if per_sample else (parts.shape[0], sb.n))
     if parts.shape[1] == 0:
         return out
     codes = _compiled_codes(sb)
@@ -117,9 +123,10 @@ def shade(tr, sb: SpectralBRDF, parts: np.ndarray) -> np.ndarray:
             w = np.ones_like(w)
         zeros = np.zeros(sb.n)
         h, B0 = (zeros, zeros) if type(sb.grey) is Lambert else (pr["h"], pr["B0"])
+        kc = np.ones(sb.n) if absolute else sb.contrast
         for alb, weight in factors:
             out += weight * kernels.spectral_sums(mu0e, mue, tr.sin_hg, tr.cos_hg, fac, parts, tr.geom, alb,
-                                                  w, h, B0, p1, p2, pcode, hcode)
+                                                  w, kc, h, B0, p1, p2, pcode, hcode, per_sample)
         return out
     for ll in range(sb.n):  # numpy: one wavelength at a time, Transport's own formulas
         m = sb.model(ll)
@@ -127,10 +134,15 @@ def shade(tr, sb: SpectralBRDF, parts: np.ndarray) -> np.ndarray:
             a = None
             if alb is not None:
                 from lunarviz.bodies.surfaces import map_scale
-                a = np.clip(alb * map_scale(absolute, m), 0.0, 1.0)[:, None]
+                k = 1.0 if absolute else sb.contrast[ll]
+                a = np.clip((k * alb + (1.0 - k)) * map_scale(absolute, m), 0.0, 1.0)[:, None]
             rf = m.radiance_factor(tr.mu0, tr.mu[:, None], tr.sin_hg, tr.cos_hg, albedo=a)
             for p in range(parts.shape[0]):
-                out[p, ll] += weight * float(np.dot(np.sum(rf * parts[p], axis=1), tr.geom))
+                L = np.sum(rf * parts[p], axis=1)
+                if per_sample:
+                    out[:, p, ll] += weight * np.where(tr.geom != 0, L, 0.0)
+                else:
+                    out[p, ll] += weight * float(np.dot(L, tr.geom))
     return out
 
 

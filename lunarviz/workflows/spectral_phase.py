@@ -12,6 +12,7 @@ over runs, without the per-wavelength standard deviations of the grey rows.
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -31,8 +32,16 @@ def _earthshine_nodes(parts: np.ndarray, albedo: np.ndarray | None, uniform_albe
     return np.sum(albedo * parts[:-1], axis=0), unit
 
 
-def spectral_rows(settings, sc, base: dict, key, threads=None) -> list[dict]:
-    """All rows of one task (a phase θ or a time) of a spectral run."""
+def spectral_rows(settings, sc, base: dict, threads=None) -> list[dict]:
+    """All rows of one task (a phase θ or a time, its scene ``sc``) of a spectral run."""
+    t0 = time.perf_counter()
+    rows = _task_rows(settings, sc, base, threads)
+    for r in rows:
+        r["seconds"] = (time.perf_counter() - t0) / len(rows)
+    return rows
+
+
+def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
     req = settings.spectral_request()
     brdfs = settings.brdf_models()
     shader = SpectralShader(spectral_brdfs(settings, brdfs, req.nodes))

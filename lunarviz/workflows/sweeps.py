@@ -274,11 +274,7 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
     t0 = time.perf_counter()
     if settings.spectral_request() is not None:
         from lunarviz.workflows.spectral_phase import spectral_rows
-        rows = spectral_rows(settings, sc, base, key, threads)
-        dt = time.perf_counter() - t0
-        for r in rows:
-            r["seconds"] = dt / len(rows)
-        return rows
+        return spectral_rows(settings, sc, base, threads)
     brdfs = settings.brdf_models()
     rows = []
     # point-source calibration (lunar terms of Eq. 15, and the point-vs-extended comparison):
