@@ -151,6 +151,13 @@ def _scene(scene, scene_options) -> Scene:
     return scene
 
 
+def _grey_only(sc: Scene, what: str) -> None:
+    """Refuse the spectral options where a function has no spectral output (they would be
+    silently ignored): per-facet arrays and the 3-D views are grey."""
+    if sc.options.get("wavelengths") is not None or sc.options.get("bands") is not None:
+        raise LunarvizError(f"{what} is grey: --wavelengths/--band apply to sweep and image")
+
+
 def run(scene: Scene | None = None, method: str = "analytic", workers: int | None = None,
         progress: bool = False, executor: str = "local", scheduler: str | None = None, **scene_options) -> dict:
     """Run a sweep and return the raw result, the structure written to JSON.
@@ -260,6 +267,7 @@ def trace(scene: Scene | None = None, key=None, brdf: str | None = None, **scene
     """
     from lunarviz.outputs.facets import trace_facets
     sc = _scene(scene, scene_options)
+    _grey_only(sc, "trace")
     settings = sc.settings("raytrace")
     key = _check_key(sc, key)
     if brdf is not None and brdf not in settings.brdfs:
@@ -292,6 +300,7 @@ def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = 
     """
     from lunarviz.viz import views
     sc = _scene(scene, scene_options)
+    _grey_only(sc, "render")
     if view not in views.VIEWS:
         raise LunarvizError(f"unknown view {view!r}: choose from {', '.join(views.VIEWS)}")
     size = _check_size(size)
@@ -329,6 +338,7 @@ def view(scene: Scene | None = None, key=None, brdf: str = "dhg", size=(1600, 90
         Interface to bind for ``web``: 127.0.0.1 unless asked otherwise.
     """
     sc = _scene(scene, scene_options)
+    _grey_only(sc, "view")
     settings = replace(sc.settings("raytrace"), brdfs=(brdf,))
     key = _check_key(sc, key)
     size = _check_size(size)

@@ -5,10 +5,14 @@
 At each of ROLO's 32 band wavelengths (Kieffer & Stone 2005, Table 3; rimopy's coefficients,
 350-2384 nm) ROLO's disk reflectance (zero libration, phase 2:96:2°, waxing and waning) is fitted
 by each BRDF on the same analytic disk model as the grey fit (``scripts/fit_rolo.py``, order 48,
-the preset's lunar map). Free per band: every Hapke parameter the grey fit frees (w, the phase
-function, the opposition effect B0 and h, the roughness θ̄) and, on the mapped Moon, the map's
-contrast k (:mod:`lunarviz.spectral.moon`: the maria's colour; ROLO's waxing/waning asymmetry
-grows toward the infrared and k with it); Lambert: its albedo and k. The fit starts at 549 nm
+the preset's lunar map). Free per band: w, the phase function, the opposition effect (B0, h) and,
+on the mapped Moon, the map's contrast k (:mod:`lunarviz.spectral.moon`: the maria's colour;
+ROLO's waxing/waning asymmetry grows toward the infrared and k with it). The roughness θ̄ is one
+value for all bands (a roughness that changed with λ would make every wavelength its own
+shadowing geometry, which the compiled spectral shading computes once), chosen from a few
+candidates by the worst rms log residual over five bands 440-1060 nm. Lambert: its albedo (a
+Lambert sphere cannot fit the phase curve, rms log residual ~0.4, and drives k to 0, erasing the
+map: k stays 1). The fit starts at 549 nm
 from the grey preset and continues band by band outward, each band from its neighbour's
 solution, so the table stays on one branch of Hapke's degeneracies and varies smoothly enough
 to interpolate (parameters are linear in λ between bands).
@@ -34,9 +38,13 @@ MODELS = ROOT / "lunarviz" / "data" / "moon_models.json"
 PHASES = np.arange(2.0, 96.1, 2.0)
 ORDER = 48
 PRESETS = {"rolo-fit-map": "synthetic", "rolo-fit": None}
-#: free per band (``map_contrast`` only where the preset carries a map)
-FREE = {"dhg": ("w", "b", "c", "B0", "h", "theta_bar", "map_contrast"),
-        "shg": ("w", "xi", "B0", "h", "theta_bar", "map_contrast"), "lambert": ("albedo", "map_contrast")}
+#: free per band (``map_contrast`` only where the preset carries a map); θ̄ is one value for all
+#: bands (see the module docstring), chosen from THETA_GRID
+FREE = {"dhg": ("w", "b", "c", "B0", "h", "map_contrast"), "shg": ("w", "xi", "B0", "h", "map_contrast"),
+        "lambert": ("albedo",)}
+#: candidate roughness θ̄ [deg] per BRDF, and the bands whose worst rms log residual chooses it
+THETA_GRID = {"dhg": (32.0, 36.0, 40.0, 44.0), "shg": (8.0, 12.0, 16.0, 20.0)}
+CHOOSE_NM = (441.6, 549.1, 745.3, 865.3, 1059.5)
 #: the band the continuation starts from (from the grey fit), then outward band by band
 START_NM = 549.1
 
@@ -49,7 +57,7 @@ def rolo_wavelengths() -> list[float]:
         return [float(r["nm"]) for r in csv.DictReader(f)]
 
 
-def fit_preset(preset: str) -> dict:
+def fit_preset(preset: str, brdfs=tuple(FREE)) -> dict:
     from lunarviz.photometry.fit import DiskModel, fit, rolo_reflectance
     from lunarviz.photometry.presets import moon_model_params
     mp = PRESETS[preset]
@@ -59,9 +67,18 @@ def fit_preset(preset: str) -> dict:
     lams = rolo_wavelengths()
     table = {}
     i0 = lams.index(START_NM)
-    for brdf, free in FREE.items():
-        free = tuple(k for k in free if k != "map_contrast" or mp is not None)
+    for brdf in brdfs:
+        free = tuple(k for k in FREE[brdf] if k != "map_contrast" or mp is not None)
         grey = moon_model_params(preset, brdf)
+        if brdf in THETA_GRID:  # one roughness for every band: the compiled spectral shading's
+            worst = {}
+            for tb in THETA_GRID[brdf]:
+                st = {**grey, "theta_bar": tb}
+                worst[tb] = max(fit(brdf, G, rolo_reflectance(G, W, band=(lam, lam)), W, free=free, start=st,
+                                    fixed={k: v for k, v in st.items() if k not in free}, moon_map=mp, order=ORDER,
+                                    disk_model=dm).rms_log_residual for lam in CHOOSE_NM)
+                print(f"{preset} {brdf} theta_bar {tb:g}: worst rms {worst[tb]:.4f}", flush=True)
+            grey = {**grey, "theta_bar": min(worst, key=worst.get)}
         results = {}
         # continuation: each band starts from its neighbour's solution (toward START_NM), so the
         # table follows one branch of Hapke's degeneracies and is smooth enough to interpolate

@@ -2,7 +2,8 @@
 
     python scripts/validate_spectral.py          # ~2 min; needs the optional rimopy
 
-For each date (2026-2031, none of them in the fit, which used zero libration), observer
+For each date (20, 2026-2030, phase angles 5-88° waxing and waning; none in the fit, which used
+zero libration), observer
 (geocentre, a ground site) and method (analytic, ray traced), lunarviz's spectral moonshine with
 ``--moon-model rolo-fit-map --brdf dhg --wavelengths 440,500,550,650,750,865,1000`` is turned into
 disk reflectance with the row's own solar irradiance, ``A = π E / (Ω E_sun(λ))``,
@@ -24,10 +25,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "spectral"
 WAVELENGTHS = "440,500,550,650,750,865,1000"
-#: dates spread over 2026-2031, waxing and waning, phase angles ~10-90° at the geocentre
-DATES = ("2026-07-20T03:00Z", "2026-08-04T18:00Z", "2027-01-12T09:00Z", "2027-05-30T21:00Z",
-         "2028-02-14T12:00Z", "2029-04-03T06:00Z", "2029-10-27T15:00Z", "2030-12-05T00:00Z",
-         "2031-03-18T09:00Z", "2031-08-09T03:00Z")
+#: 20 dates, 2026-2030, none in the fit (zero libration): geocentric phase angles ~5, 12, 20, 30, ...,
+#: 88°, each waxing and waning (found by scanning the ephemeris every 7 h)
+DATES = ("2029-01-01T03:00Z", "2030-03-19T14:00Z", "2028-01-13T01:00Z", "2028-01-11T07:00Z",
+         "2029-01-02T07:00Z", "2028-01-10T17:00Z", "2030-02-20T11:00Z", "2027-01-20T11:00Z",
+         "2029-01-03T18:00Z", "2028-01-09T06:00Z", "2026-09-01T07:00Z", "2027-01-19T00:00Z",
+         "2029-02-03T16:00Z", "2030-01-14T10:00Z", "2026-09-02T18:00Z", "2030-02-12T07:00Z",
+         "2026-09-03T15:00Z", "2027-01-16T16:00Z", "2026-09-04T05:00Z", "2027-01-16T02:00Z")
 OBSERVERS = ("geocentre", "site:34.26,-116.92,2067")
 R_MOON_ROLO_M = 1737.4e3
 

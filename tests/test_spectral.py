@@ -129,8 +129,8 @@ def test_a_wavelength_row_is_the_grey_run_at_that_wavelengths_parameters(method,
     for r in rows:
         b = r["brdf"]
         p = {k: float(v[0]) for k, v in parameters_at("rolo-fit-map", b, [lam]).items()}
-        k = p.pop(MAP_CONTRAST)
-        assert abs(k - 1) > 0.01  # the table's contrast is not the map's own: the test sees it
+        k = p.pop(MAP_CONTRAST, 1.0)  # Hapke's tables carry the map's contrast, Lambert's does not
+        assert abs(k - 1) > 0.01 or b == "lambert"  # not the map's own: the test sees it
         path = tmp_path / f"map_{b}.npy"
         np.save(path, 1.0 - k + k * m)
         g = run_phase(SweepSettings(phases_deg=(50.0,), method=method, moon_model="rolo-fit-map", brdfs=(b,),
@@ -172,7 +172,10 @@ def test_mapped_earth_spectral_earthshine_is_the_grey_run_of_that_wavelengths_ma
     """The Earth's components at 865 nm (USGS spectra for ocean, vegetation, desert, snow; grey
     clouds) against an independent grey run: a clear-sky albedo map FILE built from the same land
     fraction and land cover with the spectra at 865 nm, read by the grey path (one albedo per
-    facet). Their earthshine agrees to rounding."""
+    facet). Their earthshine agrees to 1e-6: the two read the 1° land cover at the same points but
+    through different grids (1° against the 0.1° composite), and a point on a 1° cell's edge can
+    fall on either side in one of the two readings (measured 9e-9; the arithmetic alone agrees to
+    1e-14, test_constant_spectrum_run_equals_the_grey_run)."""
     from lunarviz.bodies.surfaces import land_fraction_map
     from lunarviz.spectral.earth import albedo_spectra, components, land_cover
     f = land_fraction_map()
@@ -188,8 +191,8 @@ def test_mapped_earth_spectral_earthshine_is_the_grey_run_of_that_wavelengths_ma
     spec = run_phase(SweepSettings(earth_surface="landocean", wavelengths="865", **kw), 40.0)[0]
     grey = run_phase(SweepSettings(earth_surface=str(path), **kw), 40.0)[0]
     scale = 4 * np.pi * AU_M**2 * float(solar_spectrum().at(865.0)) / 1.626e26
-    assert spec["earthshine_W_m2_nm"] == pytest.approx(grey["earthshine_W_m2"] * scale, rel=1e-9)
-    assert spec["earth_visible_lit_albedo"] == pytest.approx(grey["earth_visible_lit_albedo"], rel=1e-9)
+    assert spec["earthshine_W_m2_nm"] == pytest.approx(grey["earthshine_W_m2"] * scale, rel=1e-6)
+    assert spec["earth_visible_lit_albedo"] == pytest.approx(grey["earth_visible_lit_albedo"], rel=1e-6)
 
 
 def test_the_earth_has_colour():

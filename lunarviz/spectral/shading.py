@@ -47,6 +47,14 @@ class SpectralBRDF:
     def model(self, index: int):
         return models_at(self.grey, self.params, index)
 
+    def distinct(self) -> tuple["SpectralBRDF", np.ndarray]:
+        """The distinct parameter sets among the nodes and, per node, which one it is: a grey
+        Moon (the paper's) has one, so its spectral run shades once, not once per wavelength."""
+        names = sorted(self.params)
+        table = np.stack([np.asarray(self.params[k], dtype=float) for k in names])
+        uniq, inverse = np.unique(table, axis=1, return_inverse=True)
+        return SpectralBRDF(self.grey, {k: uniq[i] for i, k in enumerate(names)}), np.asarray(inverse).reshape(-1)
+
 
 def spectral_brdfs(settings, brdfs: dict, wavelengths_nm) -> dict:
     """``{name: SpectralBRDF}`` for a run's BRDFs at ``wavelengths_nm`` (``settings``: its
@@ -79,10 +87,12 @@ def _compiled_codes(sb: SpectralBRDF):
 
 def _effective_geometry(sb: SpectralBRDF, tr):
     """μ0e (N, K), μe (N, 1 or K) and F (N, 1 or K) of :mod:`lunarviz.spectral.kernels`."""
-    g = sb.grey
     mu0 = np.clip(tr.mu0, 0.0, 1.0)
     mu = np.clip(tr.mu, 0.0, 1.0)[:, None]
-    if not (isinstance(g, Hapke) and g.rough):
+    if not isinstance(sb.grey, Hapke):
+        return mu0, mu, np.ones((len(mu), 1))
+    g = sb.model(0)  # θ̄, B_C0 and h_C: the nodes' own (one value for all of them on this path)
+    if not g.rough:
         return mu0, mu, np.ones((len(mu), 1))
     from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
     psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
@@ -112,6 +122,9 @@ def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> 
     out = np.zeros((parts.shape[1], parts.shape[0], sb.n) if per_sample else (parts.shape[0], sb.n))
     if parts.shape[1] == 0:
         return out
+    uniq, inverse = sb.distinct()
+    if uniq.n < sb.n:  # nodes sharing every parameter share their shading
+        return shade(tr, uniq, parts, per_sample)[..., inverse]
     codes = _compiled_codes(sb)
     factors, absolute = _albedo_factors(tr, sb)
     if codes is not None:
