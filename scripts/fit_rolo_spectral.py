@@ -3,7 +3,7 @@
     python scripts/fit_rolo_spectral.py          # ~15 min on 2 cores; needs the optional rimopy
 
 At each of ROLO's 32 band wavelengths (Kieffer & Stone 2005, Table 3; rimopy's coefficients,
-350-2384 nm) ROLO's disk reflectance (zero libration, phase 2:96:2°, waxing and waning) is fitted
+350-2383.6 nm) ROLO's disk reflectance (zero libration, phase 2:96:2°, waxing and waning) is fitted
 by each BRDF on the same analytic disk model as the grey fit (``scripts/fit_rolo.py``, order 48,
 the preset's lunar map). Free per band: w, the phase function, the opposition effect (B0, h) and,
 on the mapped Moon, the map's contrast k (:mod:`lunarviz.spectral.moon`: the maria's colour;

@@ -145,13 +145,13 @@ def test_spectral_moon_within_5_percent_of_rolo_at_real_dates():
     both methods, kept in benchmarks/spectral/rolo_spectral.md): the disk reflectance
     π E/(Ω E_sun(λ)) of each spectral row, from its own solar irradiance, within 5 % of ROLO
     (rimopy, independent of lunarviz) at 440-1000 nm. The dates are not in the fit (zero
-    libration); the tolerance is the issue's."""
+    libration); the tolerance is the issue's (measured ≤ 1.9 % over the script's 20 dates)."""
     pytest.importorskip("rimopy")
     from lunarviz.photometry.fit import AU_M as AU, rolo_reflectance
     checked = 0
-    for iso, obs, method in (("2026-08-04T18:00Z", "geocentre", "analytic"),
-                             ("2027-05-30T21:00Z", "geocentre", "raytrace"),
-                             ("2026-07-20T03:00Z", "site:34.26,-116.92,2067", "analytic")):
+    for iso, obs, method in (("2028-01-13T01:00Z", "geocentre", "analytic"),  # phase 12°, waning
+                             ("2029-02-03T16:00Z", "geocentre", "raytrace"),  # 60°, waning
+                             ("2029-01-01T03:00Z", "site:34.26,-116.92,2067", "analytic")):  # 6°
         s = SweepSettings(times=(iso,), brdfs=("dhg",), method=method, observer=obs, moon_model="rolo-fit-map",
                           wavelengths="440,500,550,650,750,865,1000")
         for r in run_phase(s, iso):
@@ -310,3 +310,67 @@ def test_band_image_integrates_to_the_band_sweep(tmp_path):
         assert h["MOONSHINE"].data.shape == (3, 32, 32)
         assert h["MOONSHINE"].header["CTYPE3"] == "WAVE" and h["MOONSHINE"].header["CDELT3"] == 100.0
         assert h["MOONSHINE"].header["BUNIT"] == "W m-2 sr-1 nm-1"
+
+
+def test_compiled_and_numpy_spectral_shading_agree(monkeypatch):
+    """The compiled pass (one read of each beam for every wavelength) against the numpy path
+    (Transport's own BRDF formulas, one wavelength at a time), on a ray-traced transport with the
+    lunar map and its spectral contrast, for each BRDF, detector sums and per-sample radiances:
+    the same formulas in another order, so rounding (1e-12)."""
+    from lunarviz.methods.tracer.estimators import TraceScene
+    from lunarviz.spectral import kernels
+    from lunarviz.spectral.shading import shade, spectral_brdfs
+    s = SweepSettings(phases_deg=(70.0,), method="raytrace", moon_model="rolo-fit-map", moon_level=3,
+                      wavelengths="420,555.5,870,1000")
+    ts = TraceScene(s.scene(70.0), s.trace_settings())
+    tr, _ = next(iter(ts.deterministic_transport("sun")))
+    ts.with_moon_albedo(tr, _)  # the map's mean and spread per sample
+    sbs = spectral_brdfs(s, s.brdf_models(), s.spectral_request().nodes)
+    got = {k: (shade(tr, sb, tr.e_beam[None]), shade(tr, sb, tr.e_beam[None], per_sample=True))
+           for k, sb in sbs.items()}
+    monkeypatch.setattr(kernels, "available", lambda: False)
+    for k, sb in sbs.items():
+        ref = shade(tr, sb, tr.e_beam[None]), shade(tr, sb, tr.e_beam[None], per_sample=True)
+        np.testing.assert_allclose(got[k][0], ref[0], rtol=1e-12, err_msg=k)
+        np.testing.assert_allclose(got[k][1], ref[1], rtol=1e-12, atol=1e-12 * np.abs(ref[1]).max(), err_msg=k)
+
+
+def test_mapped_earth_conservation_at_small_theta():
+    """The reviewer's case: near full Moon the first-order Earth cells dip below zero for some
+    components; they are not clipped one by one (their albedo-weighted sum is the grey map),
+    so the conservation bar holds there too (it failed at 2.4e-7 with per-component clipping)."""
+    kw = dict(phases_deg=(10.0,), method="raytrace", brdfs=("dhg",), earth_surface="landocean")
+    g = run_phase(SweepSettings(**kw), 10.0)[0]
+    s = run_phase(SweepSettings(bands="400-750", solar_spectrum="grey", earth_spectra="grey", **kw), 10.0)[0]
+    assert s["earthshine_W_m2"] == pytest.approx(g["earthshine_W_m2"], rel=CONSERVATION)
+
+
+def test_labels_and_inputs_the_review_found():
+    # wavelengths that differ past the 6th digit keep their own keys (they collided as {:g})
+    r = run_sweep(SweepSettings(phases_deg=(60.0,), brdfs=("dhg",), wavelengths="550.0001,550.0002"))
+    assert set(r["bond_albedo"]["dhg"]["analytic"]) == {"550.0001", "550.0002"}
+    with pytest.raises(LunarvizError, match="listed twice"):
+        spectral_request("550.00000000001,550", None, "tsis1-hsrs")
+    # a band beyond the lunar table is named
+    with pytest.raises(LunarvizError, match="band U"):
+        SweepSettings(moon_model="rolo-fit", bands="U")
+    # spectral options without a spectral request are refused, not ignored
+    with pytest.raises(LunarvizError, match="needs --wavelengths or --band"):
+        SweepSettings(solar_spectrum="grey")
+
+
+def test_three_columns_in_a_band_file_are_refused(tmp_path):
+    f = tmp_path / "b.csv"
+    f.write_text("wavelength_nm,response\n400,1,5\n500,1,5\n")
+    with pytest.raises(LunarvizError, match="two columns"):
+        parse_band(str(f))
+
+
+def test_colour_channels_follow_wavelength_not_the_order_given():
+    from lunarviz.outputs.images import colour_planes
+
+    class Res:
+        info = {"spectral": "band", "spectral_labels": ["B", "V", "R"], "spectral_centres_nm": [440.0, 550.0, 650.0]}
+    b, order = colour_planes(Res(), {"moonshine": {"dhg|B": 0, "dhg|V": 0, "dhg|R": 0}})
+    assert [Res.info["spectral_labels"][i] for i in order] == ["R", "V", "B"]
+    assert parse_band("B").centre_nm < parse_band("V").centre_nm < parse_band("R").centre_nm

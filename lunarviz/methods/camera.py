@@ -288,6 +288,6 @@ def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
     req = settings.spectral_request()
     if req is not None:
         info.update(spectral=req.kind, spectral_labels=list(req.labels),
-                    spectral_solar_1au=[float(x) for x in req.solar_1au])
+                    spectral_solar_1au=[float(x) for x in req.solar_1au], spectral_centres_nm=list(req.centres_nm))
     total = len(dirs)
     return ImageResult(planes, camera, info, pix_omega.reshape(H, W), n_lit / max(n_disc, 1), n_disc / total)

@@ -177,13 +177,15 @@ def _cubes(res, planes, scale_deg: float) -> list:
     linear spectral axis WAVE [nm] (the wavelengths must be evenly spaced: refused before any
     work, :func:`check_cube_wavelengths`)."""
     from astropy.io import fits
+
+    from lunarviz.spectral.image_shading import plane_key
     lam = np.asarray(res.info["spectral_labels"], dtype=float)
     keys = list(planes["moonshine"])
     brdfs = list(dict.fromkeys(k.split("|")[0] for k in keys))
     out = []
     for b in brdfs:
         for comp in ("moonshine", "earthshine"):
-            cube = np.stack([planes[comp][f"{b}|{x:g}"] for x in lam]).astype(np.float64)
+            cube = np.stack([planes[comp][plane_key(b, float(x))] for x in lam]).astype(np.float64)
             h = fits.ImageHDU(cube, name=comp.upper() if len(brdfs) == 1 else f"{comp.upper()}_{b.upper()}")
             hh = h.header
             hh["BUNIT"] = res.info.get("bunit")
@@ -215,13 +217,14 @@ def write_npy(path, planes) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
-def colour_planes(res, planes) -> tuple[str, list[str]] | None:
-    """``(brdf, [three plane keys])`` when an image holds exactly three bands (any order of the
-    command line: red, green, blue), else ``None``."""
+def colour_planes(res, planes) -> tuple[str, list[int]] | None:
+    """``(brdf, [indices of the three bands, reddest first])`` when an image holds exactly three
+    bands (red, green, blue by their response-weighted mean wavelength, whatever the order on the
+    command line), else ``None``."""
     if res.info.get("spectral") != "band" or len(res.info.get("spectral_labels", [])) != 3:
         return None
     b = next(iter(planes["moonshine"])).split("|")[0]
-    return b, [f"{b}|{lab}" for lab in res.info["spectral_labels"]]
+    return b, sorted(range(3), key=lambda i: -res.info["spectral_centres_nm"][i])
 
 
 def write_colour_png(path, res, planes, title: str = "") -> None:
@@ -237,8 +240,10 @@ def write_colour_png(path, res, planes, title: str = "") -> None:
     import matplotlib.pyplot as plt
 
     from lunarviz.outputs.writers import write_bytes_atomic
-    b, keys = colour_planes(res, planes)
-    sun = np.asarray(res.info["spectral_solar_1au"], dtype=float)
+    b, order = colour_planes(res, planes)
+    labels = [res.info["spectral_labels"][i] for i in order]
+    keys = [f"{b}|{lab}" for lab in labels]
+    sun = np.asarray(res.info["spectral_solar_1au"], dtype=float)[order]
     fig, ax = plt.subplots(1, 2, figsize=(10, 5.2))
     for a, comp, name in ((ax[0], "moonshine", "sunlit Moon (moonshine)"),
                           (ax[1], "earthshine", "earthlit Moon (earthshine)")):
@@ -248,7 +253,6 @@ def write_colour_png(path, res, planes, title: str = "") -> None:
         a.set_title(f"{name}, {b}", fontsize=9)
         a.set_xticks([])
         a.set_yticks([])
-    labels = res.info["spectral_labels"]
     fig.suptitle(title or f"R, G, B = {', '.join(labels)}: colours relative to the Sun's (each panel scaled to "
                           f"its brightest band)", fontsize=9)
     fig.tight_layout()

@@ -60,6 +60,14 @@ class Band:
     def at(self, wavelength_nm) -> np.ndarray:
         return np.interp(wavelength_nm, self.wavelength_nm, self.response, left=0.0, right=0.0)
 
+    @property
+    def centre_nm(self) -> float:
+        """The response-weighted mean wavelength ∫λS dλ / ∫S dλ [nm] (S linear between rows)."""
+        lam, s = self.wavelength_nm, self.response
+        x = np.linspace(lam[0], lam[-1], 20 * len(lam))
+        sx = np.interp(x, lam, s)
+        return float(np.sum(x * sx) / np.sum(sx))
+
 
 def packaged_bands() -> dict[str, Path]:
     """``{NAME: file}`` of the instrument bands shipped in ``lunarviz/data/bands``."""

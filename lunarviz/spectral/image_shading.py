@@ -19,7 +19,9 @@ from lunarviz.spectral.shading import shade, spectral_brdfs
 
 
 def plane_key(brdf: str, label) -> str:
-    return f"{brdf}|{label:g}" if isinstance(label, float) else f"{brdf}|{label}"
+    """``BRDF|LABEL``: a band's name, or a wavelength to 12 significant digits."""
+    from lunarviz.spectral.request import wavelength_label
+    return f"{brdf}|{wavelength_label(label)}" if isinstance(label, float) else f"{brdf}|{label}"
 
 
 class SpectralImageShading:

@@ -1,10 +1,10 @@
 """A spectral Moon: each lunar BRDF's parameters as functions of wavelength.
 
 ``--moon-model rolo-fit`` and ``rolo-fit-map`` carry a table per BRDF fitted to ROLO at its 32
-band wavelengths (350-2384 nm; ``scripts/fit_rolo_spectral.py``, residuals in
+band wavelengths (350-2383.6 nm; ``scripts/fit_rolo_spectral.py``, residuals in
 ``benchmarks/rolo_fit/spectral_fit.json``): w, the phase function and the opposition effect per
 band, the roughness θ̄ grey. Between the bands every parameter is linear in λ; outside
-350-2384 nm a spectral run with such a model is refused. The ``paper`` model (Table 2, Apollo
+350-2383.6 nm a spectral run with such a model is refused. The ``paper`` model (Table 2, Apollo
 soil 10084 at 750 nm, and the Lambert 0.10) has no colour: it is grey, the same parameters at
 every wavelength, and so is every parameter a user sets with ``--param`` (it replaces the table's
 values at every λ).

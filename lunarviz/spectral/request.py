@@ -39,6 +39,7 @@ class SpectralRequest:
     weights: np.ndarray  # (O, L) [W m-2 nm-1 at 1 au per node], see the module docstring
     solar_1au: np.ndarray  # (O,) [W m-2 nm-1] or [W m-2]
     solar: SolarSpectrum
+    centres_nm: tuple = ()  # each output's wavelength, or its band's response-weighted mean [nm]
 
     @property
     def value_suffix(self) -> str:
@@ -56,14 +57,20 @@ class SpectralRequest:
         return np.asarray(node_values) @ (self.weights / self.weights.sum(axis=1, keepdims=True)).T
 
 
+def wavelength_label(nm: float) -> str:
+    """A wavelength's text in output keys (``bond_albedo``, image planes): 12 significant digits."""
+    return format(float(nm), ".12g")
+
+
 def parse_wavelengths(text: str) -> tuple[float, ...]:
-    """``LIST|START:STOP:STEP`` [nm] (stop inclusive), distinct, increasing order kept as given."""
+    """``LIST|START:STOP:STEP`` [nm] (stop inclusive), distinct, order kept as given."""
     lam = parse_float_list(text, "wavelength", *WAVELENGTH_RANGE)
     if len(lam) > MAX_WAVELENGTHS:
         raise LunarvizError(f"{len(lam)} wavelengths: at most {MAX_WAVELENGTHS} in one run")
-    if len(set(lam)) != len(lam):
-        dup = next(v for v in lam if lam.count(v) > 1)
-        raise LunarvizError(f"wavelength {dup:g} nm is listed twice")
+    labels = [wavelength_label(v) for v in lam]
+    if len(set(labels)) != len(labels):
+        dup = next(v for v in labels if labels.count(v) > 1)
+        raise LunarvizError(f"wavelength {dup} nm is listed twice (to 12 significant digits)")
     return tuple(lam)
 
 
@@ -77,9 +84,11 @@ def spectral_request(wavelengths: str | None, bands: str | None, solar: str) -> 
     if wavelengths is not None:
         lam = np.array(parse_wavelengths(wavelengths))
         e = sun.at(lam)
-        return SpectralRequest("wavelength", tuple(float(x) for x in lam), lam, np.diag(e), e, sun)
+        return SpectralRequest("wavelength", tuple(float(x) for x in lam), lam, np.diag(e), e, sun,
+                               tuple(float(x) for x in lam))
     from lunarviz.spectral.bands import band_nodes, band_weights, parse_bands
     bs = parse_bands(bands)
     nodes = np.unique(np.concatenate([band_nodes(b) for b in bs]))
     W = np.stack([band_weights(b, nodes, sun) for b in bs])
-    return SpectralRequest("band", tuple(b.name for b in bs), nodes, W, W.sum(axis=1), sun)
+    return SpectralRequest("band", tuple(b.name for b in bs), nodes, W, W.sum(axis=1), sun,
+                           tuple(b.centre_nm for b in bs))

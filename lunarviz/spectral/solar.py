@@ -123,10 +123,15 @@ def read_table(path, what: str = "solar spectrum", max_rows: int = MAX_ROWS) -> 
             continue
         parts = [x.strip() for x in s.split(",")]
         try:
-            rows.append((float(parts[0]), float(parts[1])))
+            row = (float(parts[0]), float(parts[1]))
         except (ValueError, IndexError):
             if rows or len(parts) < 2:  # one header line, before the numbers
                 raise LunarvizError(f"{what} {str(path)!r} line {n}: expected two numbers, got {s[:60]!r}") from None
+            continue
+        if len(parts) != 2:
+            raise LunarvizError(f"{what} {str(path)!r} line {n}: expected two columns (wavelength_nm, value), got "
+                                f"{len(parts)}")
+        rows.append(row)
     if len(rows) < 2:
         raise LunarvizError(f"{what} {str(path)!r} has fewer than two rows of numbers")
     a = np.array(rows)

@@ -20,7 +20,7 @@ from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
-from lunarviz.options import GROUPS, compose, from_settings_dict, group, validate
+from lunarviz.options import BY_NAME, GROUPS, compose, from_settings_dict, group, validate
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.photometry.brdf import make_brdf
 
@@ -179,6 +179,10 @@ class SweepSettings:
         """Refuse what a spectral run cannot compute, before any work."""
         req = self.spectral_request()
         if req is None:
+            for name, value in (("solar_spectrum", self.solar_spectrum), ("earth_spectra", self.earth_spectra)):
+                if value != BY_NAME[name].default:
+                    raise LunarvizError(f"{BY_NAME[name].cli_flag} {value} needs --wavelengths or --band (without them "
+                                        f"the run is grey)")
             return
         if self.method == "reference":
             raise LunarvizError("--wavelengths/--band need --method analytic or raytrace (the exact reference "
@@ -189,6 +193,12 @@ class SweepSettings:
                                 "deterministic estimator")
         from lunarviz.spectral.moon import parameters_at
         for k, b in models.items():
+            if req.kind == "band":  # name the band that leaves the lunar table's range
+                for label, row in zip(req.labels, req.weights):
+                    try:
+                        parameters_at(self.moon_model, k, req.nodes[row > 0], self.params.get(k), grey_model=b)
+                    except LunarvizError as exc:
+                        raise LunarvizError(f"band {label}: {exc}") from None
             parameters_at(self.moon_model, k, req.nodes, self.params.get(k), grey_model=b)
 
     def brdf_models(self) -> dict:
@@ -389,9 +399,11 @@ def bond_table(rows: list[dict], key: str = "apparent_albedo") -> dict:
 
 
 def spectral_label(row: dict) -> str | None:
-    """A spectral row's wavelength (as text, e.g. ``"550"``) or band name; ``None`` for a grey row."""
+    """A spectral row's wavelength (as text, e.g. ``"550"``, 12 significant digits) or band name;
+    ``None`` for a grey row."""
     if "wavelength_nm" in row:
-        return f"{row['wavelength_nm']:g}"
+        from lunarviz.spectral.request import wavelength_label
+        return wavelength_label(row["wavelength_nm"])
     return row.get("band")
 
 

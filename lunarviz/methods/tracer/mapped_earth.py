@@ -129,9 +129,17 @@ class MappedEarthTransport:
             cut = np.einsum("ij,ij->i", n, self.scene.earth - x) < self.earth.bound * (1 + 1e-6)
             far = np.flatnonzero(~cut)
             dx = x[far] - self.scene.moon
+            unit_far = None
             for name, out in outs:
                 s0, s1 = el["lin"][name]
-                out[far] = np.clip(s0[None, :] + dx @ s1.T, 0.0, None)
+                v = s0[None, :] + dx @ s1.T
+                # the unit and the map are lights: clipped at 0 where the first-order value dips
+                # below it. A spectral run's components are not clipped one by one (a component's
+                # value may dip where their albedo-weighted sum, the map, does not: clipping each
+                # would break the sum), only where the unit's light is gone
+                out[far] = np.clip(v, 0.0, None) if not isinstance(name, tuple) else np.where(unit_far > 0, v, 0.0)
+                if name == "unit":
+                    unit_far = out[far]
             rows = np.flatnonzero(cut)
             for c0 in range(0, len(rows), chunk):
                 sel = rows[c0:c0 + chunk]
