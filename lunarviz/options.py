@@ -209,7 +209,8 @@ OPTIONS: tuple[Option, ...] = (
     _o("h_function", "str", "hapke1981", "Hapke's H-function (the paper uses Hapke 1981)", "photometry",
        choices=H_FUNCTIONS, label="H-function"),
     _o("moon_model", "str", "paper", "BRDF parameter preset: paper (Table 2), rolo-fit (fitted to ROLO, "
-       "400-750 nm) or rolo-fit-map (fitted on the synthetic lunar albedo map, which it brings)", "photometry",
+       "400-750 nm) or rolo-fit-map (fitted on the synthetic lunar albedo map, which it brings); in spectral runs "
+       "the rolo-fit presets take their band-by-band fits (350-2383.6 nm)", "photometry",
        label="moon model"),
     _o("params", "params", None, "BRDF parameter overrides {brdf: {name: value}}: w, h, B0, xi, b, c, albedo; "
        "Hapke: theta_bar [deg], Bc0, hc (command line: --param [BRDF.]NAME=VALUE, repeated)", "photometry",

@@ -1,7 +1,8 @@
 """What colour costs: a 32-wavelength ray-traced sweep against the grey sweep of the same scene, and
 the memory of 300 wavelengths.
 
-    python scripts/bench_spectral.py          # ~4 min on 2 cores
+    python scripts/bench_spectral.py          # ~5 min on 2 cores
+    python scripts/bench_spectral.py --quick --out DIR   # a smoke run (tests/test_benchmark_scripts.py)
 
 Each scene is swept grey and with 32 wavelengths (400:1020:20 nm) in the same run, alternating,
 twice each (the smaller wall time of each kept): ``lunarviz sweep --method raytrace --phases
@@ -33,10 +34,9 @@ SCENES = {
 }
 
 
-def sweep_seconds(opts: dict, wavelengths: str | None) -> float:
+def sweep_seconds(opts: dict, wavelengths: str | None, phases=tuple(float(p) for p in range(0, 181, 15))) -> float:
     from lunarviz.workflows.sweeps import SweepSettings, run_sweep
-    s = SweepSettings(phases_deg=tuple(float(p) for p in range(0, 181, 15)), method="raytrace",
-                      wavelengths=wavelengths, **opts)
+    s = SweepSettings(phases_deg=phases, method="raytrace", wavelengths=wavelengths, **opts)
     t0 = time.perf_counter()
     run_sweep(s)
     return time.perf_counter() - t0
@@ -57,30 +57,38 @@ def peak_mib(wavelengths: str) -> float:
 
 
 def main() -> int:
-    OUT.mkdir(parents=True, exist_ok=True)
-    sweep_seconds({}, "500")  # compile / load the kernels once
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="two phases, one run each, no memory runs")
+    ap.add_argument("--out", default=str(OUT), help="output folder")
+    a = ap.parse_args()
+    out_dir = Path(a.out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    phases = (60.0, 120.0) if a.quick else tuple(float(p) for p in range(0, 181, 15))
+    sweep_seconds({}, "500", phases[:1])  # compile / load the kernels once
     res = {}
     for name, opts in SCENES.items():
         grey, spec = [], []
-        for _ in range(2):
-            grey.append(sweep_seconds(opts, None))
-            spec.append(sweep_seconds(opts, WAVELENGTHS_32))
+        for _ in range(1 if a.quick else 2):
+            grey.append(sweep_seconds(opts, None, phases))
+            spec.append(sweep_seconds(opts, WAVELENGTHS_32, phases))
         res[name] = {"grey_s": min(grey), "spectral_32_s": min(spec), "ratio": min(spec) / min(grey),
                      "grey_runs_s": grey, "spectral_runs_s": spec}
         print(name, res[name], flush=True)
-    mem = {w: peak_mib(w) for w in ("grey", WAVELENGTHS_32, WAVELENGTHS_300)}
-    out = {"command": "python scripts/bench_spectral.py", "phases": "0:180:15", "brdfs": "lambert,shg,dhg",
+    mem = {} if a.quick else {w: peak_mib(w) for w in ("grey", WAVELENGTHS_32, WAVELENGTHS_300)}
+    out = {"command": "python scripts/bench_spectral.py", "phases": list(phases), "brdfs": "lambert,shg,dhg",
            "wavelengths_32": WAVELENGTHS_32, "sweeps": res, "peak_rss_MiB_one_phase": mem}
-    (OUT / "bench.json").write_text(json.dumps(out, indent=1) + "\n")
-    lines = ["| scene (raytrace, 13 phases, 3 BRDFs) | grey [s] | 32 wavelengths [s] | ratio |",
+    (out_dir / "bench.json").write_text(json.dumps(out, indent=1) + "\n")
+    lines = [f"| scene (raytrace, {len(phases)} phases, 3 BRDFs) | grey [s] | 32 wavelengths [s] | ratio |",
              "| --- | --- | --- | --- |"]
     lines += [f"| {n} | {r['grey_s']:.2f} | {r['spectral_32_s']:.2f} | {r['ratio']:.2f} |" for n, r in res.items()]
-    lines += ["", "| one phase, rolo-fit-map | peak RSS [MiB] |", "| --- | --- |"]
-    names = {"grey": "grey", WAVELENGTHS_32: "32 wavelengths", WAVELENGTHS_300: "301 wavelengths"}
-    lines += [f"| {names[w]} | {m:.0f} |" for w, m in mem.items()]
+    if mem:
+        names = {"grey": "grey", WAVELENGTHS_32: "32 wavelengths", WAVELENGTHS_300: "301 wavelengths"}
+        lines += ["", "| one phase, rolo-fit-map | peak RSS [MiB] |", "| --- | --- |"]
+        lines += [f"| {names[w]} | {m:.0f} |" for w, m in mem.items()]
     lines += ["", "`python scripts/bench_spectral.py` (2-core machine; min of 2 runs each, grey and spectral "
               "alternating in one process)"]
-    (OUT / "bench.md").write_text("\n".join(lines) + "\n")
+    (out_dir / "bench.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0
 

@@ -81,6 +81,21 @@ def issue13_section() -> list:
     return L
 
 
+def spectral_section() -> list:
+    """Light in colour (issue 23): the kept tables of benchmarks/spectral/."""
+    S = B / "spectral"
+    L = []
+    for name, title in (("bench.md", "cost of 32 wavelengths against grey (`python scripts/bench_spectral.py`)"),
+                        ("rolo_spectral.md", "the spectral Moon against ROLO (`python scripts/validate_spectral.py`)")):
+        f = S / name
+        if f.exists():
+            L += [f"## Spectral: {title}", "", f.read_text().rstrip(), ""]
+    if (S / "spectrum.png").exists():
+        L += ["Pictures: `spectral/spectrum.png` (moonshine, earthshine and their ratio against wavelength per",
+              "phase) and `spectral/moon_rvb.png` (the Moon in R, V, B), `python scripts/spectral_figures.py`.", ""]
+    return L
+
+
 def main():
     b = json.loads((B / "bench.json").read_text())
     t, tg, sk, rd = b["throughput"], b["targets"], b["skips"], b.get("render", {})
@@ -176,6 +191,7 @@ def main():
             L.append(f"| {r['path']} | {r['level']} | {r.get('facets', '')} | {r['max_abs_relative_error']:.1e} | {o} | "
                      f"{r['mean_seconds_per_phase']:.2f} |")
         L.append("")
+    L += spectral_section()
     (B / "README.md").write_text("\n".join(L) + "\n")
     print(B / "README.md")
 

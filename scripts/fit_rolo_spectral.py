@@ -5,12 +5,15 @@
 At each of ROLO's 32 band wavelengths (Kieffer & Stone 2005, Table 3; rimopy's coefficients,
 350-2383.6 nm) ROLO's disk reflectance (zero libration, phase 2:96:2°, waxing and waning) is fitted
 by each BRDF on the same analytic disk model as the grey fit (``scripts/fit_rolo.py``, order 48,
-the preset's lunar map). Free per band: w, the phase function, the opposition effect (B0, h) and,
-on the mapped Moon, the map's contrast k (:mod:`lunarviz.spectral.moon`: the maria's colour;
+the preset's lunar map). Free per band: w, the phase function and, on the mapped Moon, the map's
+contrast k (:mod:`lunarviz.spectral.moon`: the maria's colour;
 ROLO's waxing/waning asymmetry grows toward the infrared and k with it). The roughness θ̄ is one
 value for all bands (a roughness that changed with λ would make every wavelength its own
 shadowing geometry, which the compiled spectral shading computes once), chosen from a few
-candidates by the worst rms log residual over five bands 440-1060 nm. Lambert: its albedo (a
+candidates by the worst rms log residual over five bands 440-1060 nm (with B0 and h free). The
+opposition effect (B0, h) is also one for all bands, from a fit at 549 nm with everything free:
+ROLO's phase curve starts at 2° and constrains the surge poorly band by band, while earthshine is
+seen within ~1° of opposition, where band-to-band changes of B0 would show as false colour. Lambert: its albedo (a
 Lambert sphere cannot fit the phase curve, rms log residual ~0.4, and drives k to 0, erasing the
 map: k stays 1). The fit starts at 549 nm
 from the grey preset and continues band by band outward, each band from its neighbour's
@@ -18,8 +21,9 @@ solution, so the table stays on one branch of Hapke's degeneracies and varies sm
 to interpolate (parameters are linear in λ between bands).
 
 Writes the ``spectral`` table of each preset into ``lunarviz/data/moon_models.json`` (the grey
-entries untouched) and ``benchmarks/rolo_fit/spectral_fit.{json,png}``: parameters and rms log
-residual per band.
+entries untouched), ``benchmarks/rolo_fit/spectral_fit.{json,png}`` (parameters and rms log
+residual per band) and ``benchmarks/rolo_fit/spectral_residuals.json`` (model/ROLO − 1 per band
+and phase, both branches; ``--residuals`` rewrites only this file from the kept table).
 """
 
 from __future__ import annotations
@@ -79,6 +83,15 @@ def fit_preset(preset: str, brdfs=tuple(FREE)) -> dict:
                                     disk_model=dm).rms_log_residual for lam in CHOOSE_NM)
                 print(f"{preset} {brdf} theta_bar {tb:g}: worst rms {worst[tb]:.4f}", flush=True)
             grey = {**grey, "theta_bar": min(worst, key=worst.get)}
+            # the opposition effect (B0, h) is one for all bands too, from the start band's fit:
+            # ROLO's 2-96° curve constrains it poorly band by band, and earthshine is seen within
+            # ~1° of opposition, where B0 changing between neighbouring bands (1.32 at 939 nm,
+            # 1.51 at 942 nm when free) put a false 20 % step into the earthshine/moonshine ratio
+            lam0 = lams[i0]
+            r0 = fit(brdf, G, rolo_reflectance(G, W, band=(lam0, lam0)), W, free=free, start=grey,
+                     fixed={k: v for k, v in grey.items() if k not in free}, moon_map=mp, order=ORDER, disk_model=dm)
+            grey = {**grey, **{k: r0.params[k] for k in ("B0", "h")}}
+            free = tuple(k for k in free if k not in ("B0", "h"))
         results = {}
         # continuation: each band starts from its neighbour's solution (toward START_NM), so the
         # table follows one branch of Hapke's degeneracies and is smooth enough to interpolate
@@ -127,7 +140,37 @@ def plot(tables: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def residuals() -> dict:
+    """Per preset, BRDF and band: the kept table's model/ROLO − 1 at every fitted phase (both
+    branches), from the table itself (``--residuals`` rewrites only this file)."""
+    from lunarviz.photometry.brdf import make_brdf
+    from lunarviz.photometry.fit import DiskModel, rolo_reflectance
+    from lunarviz.spectral.moon import MAP_CONTRAST, parameters_at
+    G = np.concatenate([PHASES, PHASES])
+    W = np.concatenate([np.ones(len(PHASES), bool), np.zeros(len(PHASES), bool)])
+    out = {"phase_deg": G.tolist(), "waxing": W.tolist()}
+    for preset, mp in PRESETS.items():
+        dm = DiskModel(G, order=ORDER, waxing=W, moon_map=mp)
+        out[preset] = {}
+        for brdf in FREE:
+            lams = rolo_wavelengths()
+            par = parameters_at(preset, brdf, lams)
+            rows = []
+            for i, lam in enumerate(lams):
+                p = {k: float(v[i]) for k, v in par.items()}
+                k = p.pop(MAP_CONTRAST, 1.0)
+                m = dm.reflectance(make_brdf(brdf, params=p), k)
+                r = m / rolo_reflectance(G, W, band=(lam, lam)) - 1
+                rows.append({"wavelength_nm": lam, "max_abs_to_90deg": float(np.abs(r[G <= 90]).max()),
+                             "relative_residual": [float(x) for x in r]})
+            out[preset][brdf] = rows
+    return out
+
+
 def main() -> int:
+    if "--residuals" in sys.argv:
+        (OUT / "spectral_residuals.json").write_text(json.dumps(residuals()) + "\n")
+        return 0
     with ProcessPoolExecutor(2) as ex:
         tables = dict(zip(PRESETS, ex.map(fit_preset, PRESETS)))
     models = json.loads(MODELS.read_text())
@@ -141,6 +184,7 @@ def main() -> int:
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "spectral_fit.json").write_text(json.dumps(tables, indent=1) + "\n")
     plot(tables, OUT / "spectral_fit.png")
+    (OUT / "spectral_residuals.json").write_text(json.dumps(residuals()) + "\n")
     return 0
 
 

@@ -1,6 +1,7 @@
 """The spectral Moon against ROLO, wavelength by wavelength, at real dates and two observers.
 
     python scripts/validate_spectral.py          # ~2 min; needs the optional rimopy
+    python scripts/validate_spectral.py --quick --out DIR   # two dates, a smoke run
 
 For each date (20, 2026-2030, phase angles 5-88° waxing and waning; none in the fit, which used
 zero libration), observer
@@ -36,13 +37,13 @@ OBSERVERS = ("geocentre", "site:34.26,-116.92,2067")
 R_MOON_ROLO_M = 1737.4e3
 
 
-def reflectance_rows() -> list[dict]:
+def reflectance_rows(dates=DATES) -> list[dict]:
     from lunarviz.photometry.fit import AU_M, rolo_reflectance
     from lunarviz.workflows.sweeps import SweepSettings, run_phase
     out = []
     for obs in OBSERVERS:
         for method in ("analytic", "raytrace"):
-            for iso in DATES:
+            for iso in dates:
                 s = SweepSettings(times=(iso,), brdfs=("dhg",), method=method, observer=obs,
                                   moon_model="rolo-fit-map", wavelengths=WAVELENGTHS)
                 for r in run_phase(s, iso):
@@ -64,14 +65,21 @@ def reflectance_rows() -> list[dict]:
 
 
 def main() -> int:
+    import argparse
+
     from lunarviz.outputs.writers import write_results
     from lunarviz.spectral.solar import solar_spectrum
-    OUT.mkdir(parents=True, exist_ok=True)
-    rows = reflectance_rows()
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="two dates")
+    ap.add_argument("--out", default=str(OUT), help="output folder")
+    a = ap.parse_args()
+    out_dir = Path(a.out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = reflectance_rows(DATES[12:14] if a.quick else DATES)
     sun = solar_spectrum()
     solar = {"spectrum": sun.name, "integral_400_750_W_m2": sun.integral(400.0, 750.0),
              "reference_W_m2": 595.0, "relative_difference": sun.integral(400.0, 750.0) / 595.0 - 1}
-    write_results(OUT / "rolo_spectral.json", {"rows": rows, "solar": solar})
+    write_results(out_dir / "rolo_spectral.json", {"rows": rows, "solar": solar})
     lines = [f"Solar spectrum {sun.name}: 400-750 nm = {solar['integral_400_750_W_m2']:.2f} W m-2 at 1 au "
              f"({100 * solar['relative_difference']:+.2f} % from 595).", "",
              "| observer | method | dates | " + " | ".join(f"{w} nm" for w in WAVELENGTHS.split(",")) + " |",
@@ -88,7 +96,7 @@ def main() -> int:
     lines += ["", "max |A_lunarviz / A_ROLO − 1| over the dates (phase angles "
               f"{min(r['phase_angle_deg'] for r in rows):.0f}-{max(r['phase_angle_deg'] for r in rows):.0f}°), "
               "rolo-fit-map, DHG; `python scripts/validate_spectral.py`"]
-    (OUT / "rolo_spectral.md").write_text("\n".join(lines) + "\n")
+    (out_dir / "rolo_spectral.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0
 

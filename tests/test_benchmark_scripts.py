@@ -39,3 +39,27 @@ def test_scale_quick(tmp_path):
     assert rows[0]["facets"] == 1280 and rows[0]["rays"] > 0 and 0 < rows[0]["peak_rss_GB"] < 4
     assert rows[0]["moonshine_W_m2"] > 0 and rows[0]["earthshine_W_m2"] > 0
     assert (tmp_path / "scale.png").exists()
+
+
+def test_bench_spectral_quick(tmp_path):
+    # the spectral cost benchmark at smoke size: every scene swept grey and with 32 wavelengths
+    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "bench_spectral.py"), "--quick", "--out",
+                        str(tmp_path)], capture_output=True, text=True, cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-2000:]
+    res = json.loads((tmp_path / "bench.json").read_text())
+    assert set(res["sweeps"]) == {"paper Moon", "rolo-fit-map Moon", "mapped Earth"}
+    assert all(r["grey_s"] > 0 and r["spectral_32_s"] > 0 for r in res["sweeps"].values())
+    assert (tmp_path / "bench.md").read_text().count("|") > 10
+
+
+def test_validate_spectral_quick(tmp_path):
+    # ROLO against the spectral Moon on two of the twenty dates (the full run is kept in
+    # benchmarks/spectral/rolo_spectral.md); the 5 % bar applies to every row
+    import pytest
+    pytest.importorskip("rimopy")
+    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "validate_spectral.py"), "--quick", "--out",
+                        str(tmp_path)], capture_output=True, text=True, cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-2000:]
+    d = json.loads((tmp_path / "rolo_spectral.json").read_text())
+    assert len(d["rows"]) >= 2 * 7 and all(abs(r["ratio"] - 1) < 0.05 for r in d["rows"])
+    assert abs(d["solar"]["relative_difference"]) < 0.02
