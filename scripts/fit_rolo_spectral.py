@@ -179,7 +179,10 @@ def main() -> int:
     models["spectral_provenance"] = (
         "scripts/fit_rolo_spectral.py: each BRDF fitted to ROLO (Kieffer & Stone 2005, rimopy) at each of its 32 "
         "band wavelengths, phase 2:96:2 deg both branches, zero libration, analytic disk model order "
-        f"{ORDER}; free per band: {json.dumps(FREE)}; the other parameters at the grey fit's values")
+        f"{ORDER}; free per band: dhg w, b, c, map_contrast; shg w, xi, map_contrast; lambert albedo "
+        "(map_contrast only on the mapped Moon); theta_bar one value per BRDF chosen over 5 bands, B0 and h one "
+        "value per BRDF from a 549.1 nm fit with them free; the other parameters at the grey fit's values; each "
+        "entry's own 'free' lists its band-by-band parameters")
     MODELS.write_text(json.dumps(models, indent=2) + "\n")
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "spectral_fit.json").write_text(json.dumps(tables, indent=1) + "\n")

@@ -2,12 +2,13 @@
 
 ``--moon-model rolo-fit`` and ``rolo-fit-map`` carry a table per BRDF fitted to ROLO at its 32
 band wavelengths (350-2383.6 nm; ``scripts/fit_rolo_spectral.py``, residuals in
-``benchmarks/rolo_fit/spectral_fit.json``): w, the phase function and the opposition effect per
-band, the roughness θ̄ grey. Between the bands every parameter is linear in λ; outside
+``benchmarks/rolo_fit/spectral_fit.json``): w and the phase function per band (and the map's
+contrast, below), the roughness θ̄ and the opposition effect (B0, h) one value for all bands.
+Between the bands every parameter is linear in λ; outside
 350-2383.6 nm a spectral run with such a model is refused. The ``paper`` model (Table 2, Apollo
 soil 10084 at 750 nm, and the Lambert 0.10) has no colour: it is grey, the same parameters at
-every wavelength, and so is every parameter a user sets with ``--param`` (it replaces the table's
-values at every λ).
+every wavelength, and so is every parameter a user sets with ``--param``: it replaces that
+parameter's values at every λ, the rest of the table stays spectral.
 
 A lunar albedo map relative to its mean (the pattern of maria and highlands) scales w(λ) (or the
 Lambert albedo(λ)) per facet with a contrast k(λ): ``w_facet(λ) = w(λ) · (1 − k + k · map/⟨map⟩)``,

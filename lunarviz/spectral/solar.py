@@ -7,7 +7,8 @@ replaces that number by the spectral irradiance ``E_sun(λ)`` of a packaged tabl
 the detector is the grey transport shaded at λ times ``4π au² E_sun(λ) / Φ`` [nm⁻¹]
 (:func:`solar_scale`). The default table, ``tsis1-hsrs`` (TSIS-1 Hybrid Solar Reference Spectrum
 v2, Coddington et al. 2023), holds 602.9 W m⁻² in 400-750 nm at 1 au: 4.3 % more than the paper's
-Φ gives (578.2), and 1.3 % more than Wehrli (1985), the spectrum ROLO was calibrated with (595.4).
+Φ gives (578.2), and ~1 % more than Wehrli (1985), the spectrum ROLO was calibrated with (595-598,
+depending on how its table is read).
 
 ``grey`` is the paper's Sun spread flat over 400-750 nm (``Φ / (4π au² · 350 nm)``, zero outside):
 a spectral run with it and grey surfaces reproduces the grey run exactly (the conservation
