@@ -104,7 +104,9 @@ def _sums_h1981(mu0e, mue, sh, ch, fac, E, geom, alb, has_alb, w, kc, h, B0, p1,
     (the lobes' (1 − b)², 4b, 1 − b², the DHG weights, w/4π), what depends on the sample only
     once per sample (√(1 − w), H(μ)), and the loop over wavelengths is straight arithmetic.
     The same operations on the same numbers as the generic loop, up to the order of two
-    products (rounding)."""
+    products (rounding). Kept apart from :func:`_spectral_sums` on purpose: folding Lambert and
+    the 2002 H-function into this loop (branches inside the wavelength loop) measured 3-3.5x
+    slower per beam and wavelength for DHG (12.9 against 3.7 ns)."""
     n, k = mu0e.shape
     P, L = out.shape
     per_beam_mu = mue.shape[1] > 1

@@ -86,10 +86,10 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         else:  # the model Earth (the nominal sphere, uniform): as the grey run's calibration
             dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
                                          earth_surface="uniform", clouds="none"))
-            cal_ms = {k: trace_path(dts, "moonshine", brdfs, spectral=shader).spectral.get(k, zeros) for k in brdfs}
-            cal_es = {k: v[None, :] if v.ndim == 1 else v for k, v in
-                      ((k, trace_path(dts, "earthshine", brdfs, spectral=shader).spectral.get(k, zeros[None]))
-                       for k in brdfs)}
+            cal_m = trace_path(dts, "moonshine", brdfs, spectral=shader).spectral  # one trace each, all BRDFs
+            cal_e = trace_path(dts, "earthshine", brdfs, spectral=shader).spectral
+            cal_ms = {k: cal_m.get(k, zeros) for k in brdfs}
+            cal_es = {k: cal_e.get(k, zeros[None]) for k in brdfs}  # (1, L): the uniform Earth's unit sums
         method_fields = {"method": "raytrace", "estimator": ts_set.estimator}
         extra["rays"] = ms_r.rays + es_r.rays
         if ts_set.estimator == "montecarlo":
