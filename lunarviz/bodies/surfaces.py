@@ -455,13 +455,18 @@ class EarthSurface:
         a = np.full(len(dirs), float(self.albedo)) if clear is None else sample_map(clear, dirs)
         if self.clouds == "none":
             return a
+        c = self.cloud_fraction_at(dirs)
+        return (1.0 - c) * a + c * self.cloud_albedo
+
+    def cloud_fraction_at(self, dirs: np.ndarray) -> np.ndarray:
+        """Cloud fraction at directions (n, 3) in the Earth's map frame (0 without clouds)."""
+        if self.clouds == "none":
+            return np.zeros(len(dirs))
         if self.clouds == "zonal":
             lat, _ = lat_lon_deg(dirs)
             la, cf = zonal_cloud_table()
-            c = np.interp(lat, la, cf)
-        else:
-            c = sample_map(self.cloud_map(), dirs)
-        return (1.0 - c) * a + c * self.cloud_albedo
+            return np.interp(lat, la, cf)
+        return sample_map(self.cloud_map(), dirs)
 
     def facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
         """Per-facet (area-averaged) albedo of an Embree body for map frame ``frame``; kept with

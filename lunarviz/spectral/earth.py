@@ -67,15 +67,8 @@ def components(surface) -> tuple[str, ...]:
 def weights_at(surface, dirs: np.ndarray) -> np.ndarray:
     """Component weights (n, C) at directions (n, 3) in the Earth's map frame, such that
     ``Σ_c weight_c · grey_albedo_c`` is :meth:`EarthSurface.albedo_at`."""
-    from lunarviz.bodies.surfaces import land_fraction_map, lat_lon_deg, sample_map, zonal_cloud_table
-    n = len(dirs)
-    if surface.clouds == "none":
-        c = np.zeros(n)
-    elif surface.clouds == "zonal":
-        la, cf = zonal_cloud_table()
-        c = np.interp(lat_lon_deg(dirs)[0], la, cf)
-    else:
-        c = sample_map(surface.cloud_map(), dirs)
+    from lunarviz.bodies.surfaces import land_fraction_map, sample_map
+    c = surface.cloud_fraction_at(dirs)
     clear = 1.0 - c
     cols = []
     if surface.surface == "uniform":
