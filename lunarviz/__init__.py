@@ -17,13 +17,15 @@ import importlib
 
 __version__ = "0.1.0"
 
-__all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "study", "LunarvizError", "__version__"]
+__all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "measure", "plan", "study", "LunarvizError",
+           "__version__"]
 
 
 #: where each public name lives (imported on first use, so ``import lunarviz`` stays light and
 #: the package's ``__init__`` imports none of its modules)
 _PUBLIC = {"Scene": "lunarviz.api", "sweep": "lunarviz.api", "run": "lunarviz.api", "trace": "lunarviz.api",
-           "render": "lunarviz.api", "view": "lunarviz.api", "image": "lunarviz.api",
+           "render": "lunarviz.api", "view": "lunarviz.api", "image": "lunarviz.api", "measure": "lunarviz.api",
+           "plan": "lunarviz.api",
            "LunarvizError": "lunarviz.errors"}
 
 

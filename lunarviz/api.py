@@ -351,9 +351,99 @@ def view(scene: Scene | None = None, key=None, brdf: str = "dhg", size=(1600, 90
     return run_viewer(settings, key, brdf, size=size)
 
 
+def _instrument_images(sc: Scene, keys, instrument, exposure, frames: int, seed: int, out, progress: bool):
+    """:func:`image` with an instrument (``salex``, ``bbso`` or a TOML file, :mod:`lunarviz.instrument.spec`):
+    its camera, band and optics; the FITS file adds ``EXPECTED_COUNTS`` and ``frames`` noisy
+    ``COUNTS`` of ``exposure`` [s] (frame k from ``numpy.random.default_rng([seed, k])``; default:
+    the scene's ``seed``). Without ``out``: :class:`~lunarviz.instrument.observation.Observation` objects."""
+    import json
+
+    from lunarviz.instrument.observation import observe
+    from lunarviz.instrument.spec import load_instrument
+    from lunarviz.outputs.count_frames import append_counts
+    from lunarviz.outputs.images import write_fits
+    from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths
+    from lunarviz.workflows.measurement import MAX_FRAMES, check_seed
+    inst = load_instrument(instrument)
+    keys = [_check_key(sc, k) for k in keys]
+    if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or not 1 <= frames <= MAX_FRAMES:
+        raise LunarvizError(f"--frames {frames!r} must be an integer from 1 to {MAX_FRAMES}")
+    settings = sc.settings("raytrace")
+    seed = check_seed(settings.seed if seed is None else seed)
+    targets = []
+    if out is not None:
+        targets = numbered_paths(check_output_path(out, (".fits",)), len(keys))
+        for target in targets:
+            check_output_path(target, (".fits",))
+    it = keys
+    if progress and len(keys) > 1:
+        from tqdm import tqdm
+        it = tqdm(keys, desc="image", unit="frame", leave=False)
+    results = []
+    with StagedFiles() as staged:
+        for n, k in enumerate(it):
+            obs = observe(settings, k, inst, exposure)
+            results.append(obs)
+            if out is not None:
+                tmp = staged.stage(targets[n])
+                s = json.dumps(settings.to_dict())
+                write_fits(tmp, obs.image, obs.image.planes, {"psf": inst.psf, "halo": inst.halo,
+                                                              "settings": settings.to_dict()})
+                append_counts(tmp, obs, k, s, frames, seed)
+    if out is not None:
+        return targets
+    return results[0] if len(results) == 1 else results
+
+
+def measure(path=None, *, expected: bool = False, scene: Scene | None = None, simulate: int | None = None,
+            instrument=None, exposure: float | None = None, frames: int = 1, seed: int | None = None, lunar_fit=None,
+            progress: bool = False, **scene_options) -> dict:
+    """The Earth's apparent albedo p* measured from frames in counts (:mod:`lunarviz.instrument.pipeline`).
+
+    Parameters
+    ----------
+    path : path, optional
+        A FITS file of :func:`image` with an instrument; ``expected``: measure its noise-free plane.
+    scene, simulate, instrument : optional
+        Instead of a file: ``simulate`` measurements of the scene's first phase or time by
+        ``instrument`` (``salex``, ``bbso``, a TOML file), ``frames`` frames of ``exposure`` [s]
+        each, measurement i frame j from ``numpy.random.default_rng([seed, i, j])`` (default: the
+        scene's ``seed``).
+    lunar_fit : path, optional
+        A ``lunarviz fit`` result whose covariance is the lunar model's uncertainty.
+
+    Returns
+    -------
+    dict with ``rows`` (``p_star``, ``p_star_sigma`` (random), ``sigma_*`` terms,
+    ``p_star_sigma_systematic``, ``p_star_sigma_total``, ``p_star_U_k2``) and, simulated, a
+    ``summary`` of the standardised errors against the sweep's p*.
+    """
+    from lunarviz.workflows.measurement import measure_file, simulate as run_simulation
+    if simulate is None:
+        if path is None:
+            raise LunarvizError("measure needs a FITS file or simulate=N")
+        return measure_file(path, expected, lunar_fit)
+    from lunarviz.instrument.spec import load_instrument
+    sc = _scene(scene, scene_options)
+    settings = sc.settings("raytrace")
+    return run_simulation(settings, sc.keys[0], load_instrument(instrument), simulate,
+                          settings.seed if seed is None else seed, exposure, frames,
+                          lunar_fit, progress)
+
+
+def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, **scene_options) -> dict:
+    """The exposure [s] that reaches ``snr`` on the earthlit patch with nothing saturated, or the
+    statement that none does (:func:`lunarviz.workflows.measurement.plan`)."""
+    from lunarviz.instrument.spec import load_instrument
+    from lunarviz.workflows.measurement import plan as plan_exposure
+    sc = _scene(scene, scene_options)
+    return plan_exposure(sc.settings("raytrace"), _check_key(sc, key), load_instrument(instrument), float(snr))
+
+
 def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_deg: float = 0.75, pixels=256,
           supersample: int = 4, pointing: str = "moon", psf: str | None = None, halo: str | None = None, out=None,
-          gif=None, progress: bool = False, **scene_options):
+          gif=None, progress: bool = False, instrument=None, exposure: float | None = None, frames: int = 1,
+          seed: int | None = None, **scene_options):
     """Synthetic camera images (:mod:`lunarviz.methods.camera`) in radiance [W m-2 sr-1].
 
     Parameters
@@ -373,6 +463,8 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
         numbered ``FILE_000.ext``.
     progress : bool
         Show a progress bar over the frames (tqdm, on stderr) when there are several.
+    instrument : str or Instrument, optional
+        ``salex``, ``bbso`` or a TOML file: see :func:`_instrument_images` (``exposure``, ``frames``, ``seed``).
 
     Returns
     -------
@@ -381,6 +473,10 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     from lunarviz.methods.camera import Camera, synthesize
     from lunarviz.outputs.images import apply_optics, parse_halo, parse_psf, write_fits, write_npy, write_png
     sc = _scene(scene, scene_options)
+    if instrument is not None:
+        if camera is not None or psf not in (None, "none") or halo not in (None, "none") or gif is not None:
+            raise LunarvizError("an instrument sets the camera and its optics: drop camera, psf, halo and gif")
+        return _instrument_images(sc, keys or [key], instrument, exposure, frames, seed, out, progress)
     if camera is None:
         w, h = (pixels, pixels) if np.isscalar(pixels) else tuple(pixels)
         camera = Camera(fov_deg=fov_deg, width=int(w), height=int(h), supersample=supersample, pointing=pointing)

@@ -218,16 +218,55 @@ def _parser_image(sub):
     p = _add_scene_command(sub, "image", "synthetic camera image in radiance units (FITS, NPY or PNG)",
                            SCENE_GROUPS + ("spectral",), brdfs="dhg")
     p.add_argument("--phase", default=None, help="θ [deg] (default 90); a list writes numbered frames")
-    p.add_argument("--fov-deg", type=float, default=0.75, help="field of view across the width [deg]")
-    p.add_argument("--pixels", default="256", help="N or WxH")
-    p.add_argument("--supersample", type=int, default=4, help="K: K×K stratified rays per pixel")
-    p.add_argument("--pointing", default="moon", help="moon or RA,DEC [deg] (ICRF on dates)")
-    p.add_argument("--psf", default="none", help="none | gaussian:FWHM_ARCSEC | FILE.npy (2-D kernel, odd sides)")
-    p.add_argument("--halo", default="none",
+    p.add_argument("--fov-deg", type=float, default=None, help="field of view across the width [deg] (default 0.75)")
+    p.add_argument("--pixels", default=None, help="N or WxH (default 256)")
+    p.add_argument("--supersample", type=int, default=None, help="K: K×K stratified rays per pixel (default 4)")
+    p.add_argument("--pointing", default=None, help="moon or RA,DEC [deg] (ICRF on dates; default moon)")
+    p.add_argument("--psf", default=None, help="none | gaussian:FWHM_ARCSEC | FILE.npy (2-D kernel, odd sides)")
+    p.add_argument("--halo", default=None,
                    help="scattered-light wing FRACTION,INDEX[,CORE_ARCSEC]: (1+(r/core)^2)^(-INDEX/2)")
+    g = p.add_argument_group("instrument (frames in counts: FITS EXPECTED_COUNTS and COUNTS)")
+    _add_instrument_option(g)
+    g.add_argument("--exposure", type=float, default=None, help="exposure time [s] (default: the instrument's)")
+    g.add_argument("--frames", type=int, default=1, help="noisy frames in the COUNTS cube (default 1); frame k "
+                   "is drawn from numpy default_rng([SEED, k]) (--seed)")
     p.add_argument("--out", required=True, help=".fits, .npy or .png; several phases/times: FILE_000.ext …")
     p.add_argument("--gif", default=None, help="with several frames: also an animated GIF of the PNG stretch")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
+
+
+def _add_instrument_option(p, required: bool = False):
+    p.add_argument("--instrument", default=None, required=required, metavar="salex|bbso|FILE.toml",
+                   help="an instrument: a packaged preset or a TOML file (lunarviz.instrument.spec)")
+
+
+def _parser_measure(sub):
+    p = _add_scene_command(sub, "measure", "measure the Earth's apparent albedo p* from frames in counts, or "
+                           "simulate measurements end to end with their error budget", SCENE_GROUPS, brdfs="dhg")
+    p.add_argument("frames", nargs="?", default=None, help="a FITS file of lunarviz image --instrument")
+    p.add_argument("--expected", action="store_true", help="measure the file's noise-free EXPECTED_COUNTS")
+    p.add_argument("--simulate", type=int, default=None, metavar="N", help="simulate N measurements instead")
+    _add_instrument_option(p)
+    p.add_argument("--phase", default=None, help="with --simulate: θ [deg]")
+    p.add_argument("--exposure", type=float, default=None, help="with --simulate: exposure [s] (the instrument's)")
+    p.add_argument("--frames-per-measurement", type=int, default=1,
+                   help="with --simulate: frames averaged; measurement i, frame j from "
+                        "default_rng([SEED, i, j]) (--seed)")
+    p.add_argument("--lunar-fit", default=None, metavar="FIT.json",
+                   help="a lunarviz fit result whose covariance is the lunar model's uncertainty "
+                        "(default: the packaged fit of the BRDF to ROLO)")
+    p.add_argument("--out", default=None, help=".json (rows: p_star, p_star_sigma, the error budget) or .csv")
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
+
+
+def _parser_plan(sub):
+    p = _add_scene_command(sub, "plan", "the exposure that reaches an SNR on the earthlit patch without "
+                           "saturating", SCENE_GROUPS, brdfs="dhg")
+    _add_instrument_option(p, required=True)
+    p.add_argument("--snr", type=float, required=True, help="signal-to-noise ratio of the earthlit patch in one frame")
+    p.add_argument("--phase", default=None, help="θ [deg] (or --time)")
+    p.add_argument("--out", default=None, help=".json")
+    p.add_argument("--quiet", action="store_true", help="no summary on the terminal")
 
 
 def _parser_study(sub):
@@ -312,7 +351,12 @@ EXAMPLES = {
     "view": ["lunarviz view --phase 120", "lunarviz view --web --port 8080"],
     "image": ["lunarviz image --phase 120 --pixels 512 --out moon.fits",
               "lunarviz image --phase 120 --psf gaussian:2 --halo 0.01,3 --out moon.png",
-              "lunarviz image --phase 120 --band B,V,R --moon-model rolo-fit-map --out moon_bvr.fits"],
+              "lunarviz image --phase 120 --band B,V,R --moon-model rolo-fit-map --out moon_bvr.fits",
+              "lunarviz image --phase 120 --instrument salex --exposure 0.01 --frames 20 --out frames.fits"],
+    "measure": ["lunarviz measure frames.fits --out m.json",
+                "lunarviz measure --simulate 200 --instrument salex --phase 120 --exposure 0.01 --seed 1 --out m.json"],
+    "plan": ["lunarviz plan --instrument salex --snr 100 --phase 120",
+             "lunarviz plan --instrument bbso --snr 100 --time 2026-03-25T04:00Z --observer site:34.26,-116.92,2067"],
     "study": ["lunarviz study mesh --levels 2:5 --phases 30,90,150 --out study.json",
               "lunarviz study mesh --body earth --levels 3:6 --out earth_study.csv"],
     "mesh": ["lunarviz mesh make craters --level 6 --count 40 --out craters.ply",
@@ -333,7 +377,8 @@ def build_parser() -> argparse.ArgumentParser:
                  + "\n\nlunarviz COMMAND --help shows each command's options and more examples")
     ap.add_argument("--version", action="version", version=f"lunarviz {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for add in (_parser_sweep, _parser_brdf, _parser_trace, _parser_pictures, _parser_image, _parser_study,
+    for add in (_parser_sweep, _parser_brdf, _parser_trace, _parser_pictures, _parser_image, _parser_measure,
+                _parser_plan, _parser_study,
                 _parser_mesh, _parser_fit, _parser_bench_paper):
         add(sub)
     for name, command in sub.choices.items():
@@ -496,25 +541,110 @@ def cmd_render(a, interactive=False):
             print(f"wrote {f}")
 
 
-def cmd_image(a):
-    import lunarviz.api as api
-    from lunarviz.methods.camera import Camera, parse_pixels
+CAMERA_DEFAULTS = {"fov_deg": 0.75, "pixels": "256", "supersample": 4, "pointing": "moon", "psf": "none",
+                   "halo": "none"}
+
+
+def _phases_or_times(a, default: str = "90"):
     times = _times(a)
     if times is not None and a.phase is not None:
         raise UsageError("give --phase (the θ scene) or --time/--time-range (the real sky), not both")
-    phases = parse_float_list(a.phase or "90", "phase", 0.0, 360.0)
-    w, h = parse_pixels(a.pixels)
-    camera = Camera(fov_deg=a.fov_deg, width=w, height=h, supersample=a.supersample, pointing=a.pointing)
-    out = _check_out(a.out, (".fits", ".npy", ".png"))
+    return parse_float_list(a.phase or default, "phase", 0.0, 360.0), times
+
+
+def cmd_image(a):
+    import lunarviz.api as api
+    from lunarviz.methods.camera import Camera, parse_pixels
+    phases, times = _phases_or_times(a)
+    given = [k for k in CAMERA_DEFAULTS if getattr(a, k) is not None]
+    camera, out_suffixes = None, (".fits", ".npy", ".png")
+    if a.instrument is not None:
+        if given:
+            raise UsageError(f"--instrument sets the camera and its optics: drop --{given[0].replace('_', '-')}")
+        out_suffixes = (".fits",)
+    else:
+        for k in ("exposure",):
+            if getattr(a, k) is not None:
+                raise UsageError(f"--{k} goes with --instrument")
+        if a.frames != 1:
+            raise UsageError("--frames goes with --instrument")
+        for k, v in CAMERA_DEFAULTS.items():
+            setattr(a, k, v if getattr(a, k) is None else getattr(a, k))
+        w, h = parse_pixels(a.pixels)
+        camera = Camera(fov_deg=a.fov_deg, width=w, height=h, supersample=a.supersample, pointing=a.pointing)
+    out = _check_out(a.out, out_suffixes)
     gif = _check_out(a.gif, (".gif",)) if a.gif else None
     scene = _scene(a, phases, times)
     if gif is not None and len(scene.keys) < 2:
         raise UsageError("--gif needs several frames (several phases or times)")
     files = api.image(scene, keys=scene.keys, camera=camera, psf=a.psf, halo=a.halo, out=out, gif=gif,
-                      progress=not a.quiet)
+                      progress=not a.quiet, instrument=a.instrument, exposure=a.exposure, frames=a.frames)
     if not a.quiet:
         for f in files:
             print(f"wrote {f}")
+
+
+def cmd_measure(a):
+    import lunarviz.api as api
+    from lunarviz.outputs.writers import write_results
+    out = _check_out(a.out, (".json", ".csv")) if a.out is not None else None
+    if a.simulate is None:
+        if a.frames is None:
+            raise UsageError("give a FITS file of lunarviz image --instrument, or --simulate N")
+        for k in ("instrument", "phase", "exposure", "time", "time_range"):
+            if getattr(a, k) is not None:
+                raise UsageError(f"--{k.replace('_', '-')} goes with --simulate (a file carries its own)")
+        res = api.measure(a.frames, expected=a.expected, lunar_fit=a.lunar_fit)
+    else:
+        if a.frames is not None:
+            raise UsageError("give a FITS file or --simulate N, not both")
+        if a.instrument is None:
+            raise UsageError("--simulate needs --instrument")
+        phases, times = _phases_or_times(a)
+        if len(times or phases) != 1:
+            raise UsageError("--simulate takes one --phase or one --time")
+        scene = _scene(a, phases, times)
+        res = api.measure(scene=scene, simulate=a.simulate, instrument=a.instrument, exposure=a.exposure,
+                          frames=a.frames_per_measurement, lunar_fit=a.lunar_fit,
+                          progress=not a.quiet)
+    if out is not None:
+        write_results(out, res)
+    if not a.quiet:
+        r = res["rows"][0] if a.simulate is None else res["summary"]
+        if a.simulate is None:
+            print(f"p* = {r['p_star']:.5f} ± {r['p_star_sigma']:.5f} (random) ± {r['p_star_sigma_systematic']:.5f} "
+                  f"(systematic); U(k=2) = {r['p_star_U_k2']:.5f}")
+        else:
+            print(f"{r['measurements']} measurements: sweep p* = {r['p_star_sweep']:.5f}, noiseless "
+                  f"{r['p_star_noiseless']:.5f}; standardised error mean {r['standardised_error_mean']:+.3f}, "
+                  f"variance {r['standardised_error_variance']:.3f}")
+        if out is not None:
+            print(f"wrote {out}")
+
+
+def cmd_plan(a):
+    import json
+
+    import lunarviz.api as api
+    from lunarviz.outputs.writers import write_results
+    out = _check_out(a.out, (".json",)) if a.out is not None else None
+    phases, times = _phases_or_times(a)
+    if len(times or phases) != 1:
+        raise UsageError("plan takes one --phase or one --time")
+    res = api.plan(_scene(a, phases, times), instrument=a.instrument, snr=a.snr)
+    if out is not None:
+        write_results(out, res)
+    if not a.quiet:
+        if res["feasible"]:
+            print(f"exposure {res['exposure_s']:.6g} s reaches SNR {res['snr_target']:g} on the earthlit patch "
+                  f"({res['earthlit_pixels']} pixels); the brightest pixel holds {res['brightest_pixel_e']:.0f} e- "
+                  f"(saturation {res['saturation_level_e']:.0f} e-)")
+        else:
+            print(f"no exposure reaches SNR {res['snr_target']:g} unsaturated: the longest safe exposure "
+                  f"{res['saturation_exposure_s']:.6g} s gives {res['snr_at_saturation_exposure']:.3g}; "
+                  f"{res['frames_needed_at_saturation_exposure']} such frames would")
+        if out is None:
+            print(json.dumps(res, indent=1))
 
 
 def cmd_study(a):
@@ -656,7 +786,8 @@ def cmd_paper(a):
 
 COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": cmd_render,
             "view": lambda a: cmd_render(a, interactive=True), "study": cmd_study,
-            "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh, "fit": cmd_fit, "image": cmd_image}
+            "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh, "fit": cmd_fit, "image": cmd_image,
+            "measure": cmd_measure, "plan": cmd_plan}
 
 
 #: warnings already printed in this run: the same one (settings are checked more than once) is shown once

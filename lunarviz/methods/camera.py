@@ -219,8 +219,10 @@ class ImageResult:
 CHUNK = 20_000
 
 
-def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
-    """The image of phase θ [deg] or UTC time ``key`` for every BRDF of ``settings``."""
+def synthesize(settings, key, camera: Camera, trace_scene=None, request=None) -> ImageResult:
+    """The image of phase θ [deg] or UTC time ``key`` for every BRDF of ``settings``; ``request``
+    (a :class:`~lunarviz.spectral.request.SpectralRequest`) replaces the settings' wavelengths or
+    bands (an instrument's photon-counting response is not a ``--band`` text)."""
     from lunarviz.methods.tracer.estimators import TraceScene
     sc, fields = settings.scene_and_fields(key)
     ts = trace_scene or TraceScene(sc, settings.trace_settings())
@@ -230,9 +232,10 @@ def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
     dirs, omega, rr, cc = _subpixel_rays(camera, f, e, n)
     cosd = np.clip(dirs @ f, 0.0, 1.0)  # off-boresight cosine (flat detector facing f)
     W, H = camera.width, camera.height
-    if settings.spectral_request() is not None:
+    req = request if request is not None else settings.spectral_request()
+    if req is not None:
         from lunarviz.spectral.image_shading import SpectralImageShading
-        shading = SpectralImageShading(settings, ts, models)
+        shading = SpectralImageShading(settings, ts, models, req)
     else:
         shading = GreyShading(ts, models)
     ms = {k: np.zeros(H * W) for k in shading.keys}
@@ -285,7 +288,6 @@ def synthesize(settings, key, camera: Camera, trace_scene=None) -> ImageResult:
             "moon_ra_deg": moon_radec[0], "moon_dec_deg": moon_radec[1],
             "frame": "ICRF (geocentric axes)" if sc.general else "scene axes of the paper's theta scene",
             "bunit": shading.bunit}
-    req = settings.spectral_request()
     if req is not None:
         info.update(spectral=req.kind, spectral_labels=list(req.labels),
                     spectral_solar_1au=[float(x) for x in req.solar_1au], spectral_centres_nm=list(req.centres_nm))

@@ -151,7 +151,7 @@ def write_fits(path, res, planes, extra: dict) -> None:
         if label:
             hh["BAND"] = (label, "integral of L(lambda) S(lambda) dlambda")
         hh["LIGHT"] = (comp, "moonshine or earthshine")
-        _tan_wcs(hh, res, scale_deg)
+        tan_wcs(hh, res, scale_deg)
         hh["INTEGRAT"] = (float(np.sum(planes[comp][key] * res.pixel_solid_angle)),
                           f"sum L*Omega [{hh['BUNIT'].replace(' sr-1', '')}]")
         hdus.append(h)
@@ -159,7 +159,7 @@ def write_fits(path, res, planes, extra: dict) -> None:
         fits.HDUList(hdus).writeto(tmp, overwrite=True)
 
 
-def _tan_wcs(hh, res, scale_deg: float, axes: int = 2) -> None:
+def tan_wcs(hh, res, scale_deg: float, axes: int = 2) -> None:
     """The image axes' TAN WCS (axes 1, 2) in header ``hh``."""
     cam = res.camera
     H, W = cam.height, cam.width
@@ -191,7 +191,7 @@ def _cubes(res, planes, scale_deg: float) -> list:
             hh["BUNIT"] = res.info.get("bunit")
             hh["BRDF"] = b
             hh["LIGHT"] = (comp, "moonshine or earthshine")
-            _tan_wcs(hh, res, scale_deg, axes=3)
+            tan_wcs(hh, res, scale_deg, axes=3)
             hh["CTYPE3"], hh["CUNIT3"] = "WAVE", "nm"
             hh["CRPIX3"], hh["CRVAL3"] = 1.0, float(lam[0])
             hh["CDELT3"] = float(lam[1] - lam[0]) if len(lam) > 1 else 1.0

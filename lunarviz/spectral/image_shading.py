@@ -27,8 +27,8 @@ def plane_key(brdf: str, label) -> str:
 class SpectralImageShading:
     """The spectral counterpart of the camera's grey shading (same three calls)."""
 
-    def __init__(self, settings, ts, models: dict):
-        self.req = settings.spectral_request()
+    def __init__(self, settings, ts, models: dict, request=None):
+        self.req = request if request is not None else settings.spectral_request()
         self.ts = ts
         self.sbs = spectral_brdfs(settings, models, self.req.nodes)
         surface = settings.surfaces().earth if settings.surfaces() is not None else None

@@ -86,8 +86,13 @@ def spectral_request(wavelengths: str | None, bands: str | None, solar: str) -> 
         e = sun.at(lam)
         return SpectralRequest("wavelength", tuple(float(x) for x in lam), lam, np.diag(e), e, sun,
                                tuple(float(x) for x in lam))
-    from lunarviz.spectral.bands import band_nodes, band_weights, parse_bands
-    bs = parse_bands(bands)
+    from lunarviz.spectral.bands import parse_bands
+    return band_request(parse_bands(bands), sun)
+
+
+def band_request(bs, sun: SolarSpectrum) -> SpectralRequest:
+    """The request of bands ``bs`` (:class:`~lunarviz.spectral.bands.Band`, distinct names) lit by ``sun``."""
+    from lunarviz.spectral.bands import band_nodes, band_weights
     nodes = np.unique(np.concatenate([band_nodes(b) for b in bs]))
     W = np.stack([band_weights(b, nodes, sun) for b in bs])
     return SpectralRequest("band", tuple(b.name for b in bs), nodes, W, W.sum(axis=1), sun,

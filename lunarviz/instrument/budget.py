@@ -1,0 +1,174 @@
+"""The error budget of a measured p*: its systematic terms, and the totals.
+
+The random terms (photon, read and dark noise, the halo fit) come with each measurement
+(:func:`lunarviz.instrument.pipeline.measure`). The systematic terms below are the same for every
+frame of a pointing; each is a standard uncertainty (1σ) in p*:
+
+* ``lunar_model``: the lunar photometric model's parameters, with the covariance of a
+  ``lunarviz fit`` result (default: the packaged fits of the BRDF to ROLO, 400-750 nm,
+  ``lunarviz/data/lunar_fits``), propagated to the ratio of the model's reflectance at the two
+  patches (their centres' geometry; central differences): ``σ² = gᵀ C g``,
+  ``g = ∂ ln(ρ_earthlit/ρ_sunlit)/∂p``, over the parameters the fit calls constrained (one at a
+  bound or correlated beyond 0.95 with another has no meaningful linearised covariance: the DHG
+  fit to ROLO constrains B0 alone, the SHG fit all but θ̄). A Lambert Moon's albedo cancels: 0.
+* ``halo_shape``: the halo's power-law index known to ±0.1: half the change of p* when the
+  pipeline's kernel uses INDEX ± 0.1 on the same frames.
+* ``nd_filter``: the bright-side mask's transmission calibration (the instrument's
+  ``bright_side_nd_sigma``, relative; p* is proportional to it).
+* ``ephemeris``: the Earth-Moon distance known to ``EPHEMERIS_SIGMA_KM`` (earthshine falls as
+  D_EM⁻², so 2σ_D/D_EM relative).
+* ``band``: the band's centre known to the instrument's ``band_centre_sigma_nm``: the model Earth's
+  p*(λ) slope (lunarviz's land-ocean Earth with zonal clouds and surface spectra, the scene's
+  Moon; analytic sweeps 10 nm either side of the band's centre) times that uncertainty.
+
+The total is the quadrature sum of all; ``p_star_U_k2`` is it times 2 (coverage ≈ 95 %, as LIME
+reports its lunar irradiance uncertainty).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+from lunarviz.resources import DATA_DIR
+
+#: packaged ``lunarviz fit`` results whose covariance stands for the lunar model's uncertainty
+LUNAR_FITS = {"dhg": DATA_DIR / "lunar_fits" / "dhg_rolo_400-750.json",
+              "shg": DATA_DIR / "lunar_fits" / "shg_rolo_400-750.json"}
+#: the Earth-Moon distance's standard uncertainty [km] (DE440-class ephemerides are at the metre
+#: level; 1 km also covers a LEO observer's orbit determination)
+EPHEMERIS_SIGMA_KM = 1.0
+#: the halo index's standard uncertainty
+HALO_INDEX_SIGMA = 0.1
+#: half the wavelength step of the band term's finite difference [nm]
+BAND_STEP_NM = 10.0
+#: the expansion factor of ``p_star_U_k2``
+COVERAGE_K = 2.0
+
+
+def read_fit(path) -> dict:
+    """A ``lunarviz fit`` JSON: params, the free parameters, sigma and correlation."""
+    try:
+        d = json.loads(open(path, encoding="utf-8").read())
+        free = list(d["free"])
+        sig = np.array([float(d["sigma"][k]) for k in free])
+        corr = np.array([[float(d["correlation"][a][b]) for b in free] for a in free])
+        params = {k: float(v) for k, v in d["params"].items()}
+        brdf = str(d["brdf"])
+        constrained = {k: bool(d.get("constrained", {}).get(k, True)) for k in free}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise LunarvizError(f"--lunar-fit {str(path)!r}: not a lunarviz fit result ({type(exc).__name__})") from None
+    return {"brdf": brdf, "params": params, "free": free, "covariance": corr * np.outer(sig, sig), "path": str(path),
+            "constrained": constrained}
+
+
+def _patch_geometry(sc, camera, sel: np.ndarray, source: np.ndarray):
+    """(μ0, μ, sin g/2, cos g/2) at the centroid of pixels ``sel`` lit from ``source`` [m]."""
+    from lunarviz.geometry.scene_geometry import half_angle_sin_cos, unit
+    from lunarviz.instrument.disc import surface_point
+    y, x = np.nonzero(sel)
+    p, nrm = surface_point(sc, camera, float(x.mean()), float(y.mean()))
+    s, o = unit(source - p), unit(sc.det - p)
+    sin_hg, cos_hg = half_angle_sin_cos(s, o)
+    return float(nrm @ s), float(nrm @ o), float(sin_hg), float(cos_hg)
+
+
+def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
+    """Relative σ of p* from the lunar model's parameters (see the module docstring)."""
+    from lunarviz.instrument.observation import instrument_camera
+    from lunarviz.photometry.brdf import make_brdf
+    from lunarviz.photometry.fit import BOUNDS
+    brdf = settings.brdfs[0]
+    if brdf == "lambert":
+        return 0.0, "a Lambert Moon's albedo cancels in the ratio"
+    path = fit_path or LUNAR_FITS.get(brdf)
+    fit = read_fit(path)
+    if fit["brdf"] != brdf:
+        raise LunarvizError(f"--lunar-fit {str(path)!r} fits {fit['brdf']!r}, the scene's BRDF is {brdf!r}")
+    sc, _ = settings.scene_and_fields(key)
+    camera = instrument_camera(cal.instrument)
+    ge = _patch_geometry(sc, camera, cal.patches.earthlit, sc.earth)
+    gs = _patch_geometry(sc, camera, cal.patches.sunlit, sc.sun)
+    params = {k: v for k, v in fit["params"].items() if k != "map_contrast"}
+    # parameters the fit flags as not constrained (at a bound, or degenerate with another:
+    # |correlation| > 0.95) have no meaningful linearised covariance: they are left out
+    free = [k for k in fit["free"] if k != "map_contrast" and fit["constrained"][k]]
+    idx = [fit["free"].index(k) for k in free]
+    cov = fit["covariance"][np.ix_(idx, idx)]
+
+    def log_ratio(p):
+        m = make_brdf(brdf, dhg_convention=settings.dhg_convention, h_function=settings.h_function, params=p)
+        return float(np.log(m.radiance_factor(*ge[:2], *ge[2:]) / m.radiance_factor(*gs[:2], *gs[2:])))
+
+    grad = np.zeros(len(free))
+    for n, k in enumerate(free):
+        lo, hi = BOUNDS[k]
+        step = 1e-4 * (hi - lo)
+        up, dn = min(params[k] + step, hi), max(params[k] - step, lo)
+        grad[n] = (log_ratio({**params, k: up}) - log_ratio({**params, k: dn})) / (up - dn)
+    return float(np.sqrt(max(grad @ cov @ grad, 0.0))), f"covariance of {', '.join(free)} in {path}"
+
+
+def halo_shape_sigma(mean_counts, n_frames: int, cal, p_star: float) -> float:
+    """Relative σ of p* from the halo index's uncertainty (refits with INDEX ± σ)."""
+    from lunarviz.instrument.observation import instrument_camera
+    from lunarviz.instrument.pipeline import measure
+    from lunarviz.outputs.images import parse_halo
+    inst = cal.instrument
+    if cal.kernel is None:
+        return 0.0
+    vals = [float(v) for v in inst.halo.split(",")]
+    camera = instrument_camera(inst)
+    pix = float(np.degrees(camera.scale_rad)) * 3600.0
+    out = []
+    for sgn in (1, -1):
+        text = ",".join(str(v) for v in [vals[0], vals[1] + sgn * HALO_INDEX_SIGMA] + vals[2:])
+        k = parse_halo(text, pix, (camera.height, camera.width))[1]
+        out.append(measure(mean_counts, n_frames, replace(cal, kernel=k))["p_star"])
+    return abs(out[0] - out[1]) / 2.0 / p_star
+
+
+def band_sigma(settings, key, inst) -> float:
+    """Relative σ of p* from the band centre's uncertainty (module docstring)."""
+    from lunarviz.spectral.bands import parse_band
+    from lunarviz.workflows.sweeps import run_sweep
+    if inst.band_centre_sigma_nm == 0:
+        return 0.0
+    c = parse_band(inst.band).centre_nm
+    model = replace(settings, method="analytic", earth_surface="landocean", clouds="zonal", bands=None,
+                    wavelengths=f"{c - BAND_STEP_NM:.6f},{c + BAND_STEP_NM:.6f}", earth_spectra="surface",
+                    phases_deg=(float(key),) if settings.times is None else settings.phases_deg,
+                    times=None if settings.times is None else (str(key),))
+    rows = [r for r in run_sweep(model, progress=False)["rows"] if r["brdf"] == settings.brdfs[0]]
+    p = {r["wavelength_nm"]: r["apparent_albedo"] for r in rows}
+    lo, hi = p[min(p)], p[max(p)]
+    if not (np.isfinite(lo) and np.isfinite(hi)) or lo + hi <= 0:
+        return float("nan")
+    return abs(hi - lo) / (2 * BAND_STEP_NM) * inst.band_centre_sigma_nm / (0.5 * (lo + hi))
+
+
+def ephemeris_sigma(settings, key) -> float:
+    sc, _ = settings.scene_and_fields(key)
+    return 2.0 * EPHEMERIS_SIGMA_KM * 1e3 / float(sc.d_em_actual)
+
+
+def systematics(settings, key, cal, fit_path=None) -> dict:
+    """The pointing's systematic terms, relative (multiply by p*)."""
+    model, source = lunar_model_sigma(settings, key, cal, fit_path)
+    return {"lunar_model": model, "nd_filter": cal.instrument.bright_side_nd_sigma if cal.transmission < 1 else 0.0,
+            "ephemeris": ephemeris_sigma(settings, key), "band": band_sigma(settings, key, cal.instrument),
+            "lunar_model_source": source}
+
+
+def with_budget(row: dict, rel: dict, halo_shape_rel: float) -> dict:
+    """``row`` plus ``sigma_<term>`` for each systematic term, the totals and ``p_star_U_k2``."""
+    p = row["p_star"]
+    terms = {f"sigma_{k}": p * v for k, v in rel.items() if not k.endswith("_source")}
+    terms["sigma_halo_shape"] = p * halo_shape_rel
+    sys = float(np.sqrt(sum(v**2 for v in terms.values())))
+    total = float(np.hypot(row["p_star_sigma"], sys))
+    return {**row, **{k: float(v) for k, v in terms.items()}, "p_star_sigma_systematic": sys,
+            "p_star_sigma_total": total, "p_star_U_k2": COVERAGE_K * total}

@@ -1,0 +1,129 @@
+"""What an instrument records from a scene: the synthetic image in its band, through its optics
+(at a ground site) the atmosphere and a bright-side neutral-density mask, as a photoelectron
+rate per pixel.
+
+The camera (:func:`lunarviz.methods.camera.synthesize`) images the scene in the instrument's
+band and in its photon band (:mod:`lunarviz.instrument.response`); the PSF and the halo act on
+both (:func:`lunarviz.outputs.images.apply_optics`); at a ground site the Moon's light is dimmed
+and a uniform sky is added (:mod:`lunarviz.instrument.sky`). The radiance planes stay those above
+the atmosphere (as every lunarviz image); the electron rates carry everything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, disc_geometry, place_mask
+from lunarviz.instrument.detector import expected_counts, expected_electrons
+from lunarviz.instrument.response import electron_rate, instrument_request, photon_band, photon_label
+from lunarviz.instrument.sky import SiteSky, site_sky
+from lunarviz.instrument.spec import Instrument
+
+
+@dataclass
+class Observation:
+    """One pointing of an instrument at the Moon, noise-free."""
+
+    instrument: Instrument
+    exposure_s: float
+    brdf: str
+    image: object  # ImageResult: radiance planes in the band (after the optics), keys BRDF|BAND
+    raw_rates: dict  # {"moonshine", "earthshine"}: photoelectron rates [e⁻ s⁻¹] before the optics
+    rates: dict  # {"moonshine", "earthshine", "sky"}: [e⁻ s⁻¹] per pixel after optics and atmosphere
+    sky: SiteSky | None
+    sky_note: str
+    geometry: DiscGeometry
+    mask: BrightSideMask | None
+    masked: np.ndarray  # (H, W) bool: pixels behind the bright-side mask
+
+    @property
+    def rate_e_s(self) -> np.ndarray:
+        """Total photoelectron rate per pixel [e⁻ s⁻¹] (dark current excluded)."""
+        return self.rates["moonshine"] + self.rates["earthshine"] + self.rates["sky"]
+
+    @property
+    def electrons(self) -> np.ndarray:
+        """Expected charge per pixel and exposure [e⁻] (dark current included, before the full well)."""
+        return expected_electrons(self.rate_e_s, self.instrument, self.exposure_s)
+
+    @property
+    def expected_counts(self) -> np.ndarray:
+        return expected_counts(self.electrons, self.instrument)
+
+
+def instrument_camera(inst: Instrument):
+    """The pinhole camera of the instrument's detector, pointed at the Moon."""
+    from lunarviz.methods.camera import Camera
+    return Camera(fov_deg=inst.fov_deg, width=inst.width, height=inst.height, supersample=inst.supersample,
+                  pointing="moon")
+
+
+def instrument_settings(settings, inst: Instrument):
+    """The image settings of an instrument: one BRDF, and the instrument's band."""
+    if len(settings.brdfs) != 1:
+        raise LunarvizError(f"an instrument images one lunar BRDF: got {','.join(settings.brdfs)} (give one --brdf)")
+    if settings.wavelengths is not None:
+        raise LunarvizError("--instrument images in its own band: drop --wavelengths")
+    if settings.bands is not None and str(settings.bands).strip() != inst.band:
+        raise LunarvizError(f"--band {settings.bands!r} differs from the instrument's band {inst.band!r}")
+    return replace(settings, bands=inst.band)
+
+
+def optics_kernels(inst: Instrument, camera):
+    from lunarviz.outputs.images import parse_halo, parse_psf
+    pix_arcsec = float(np.degrees(camera.scale_rad)) * 3600.0
+    shape = (camera.height, camera.width)
+    return parse_psf(inst.psf, pix_arcsec, shape), parse_halo(inst.halo, pix_arcsec, shape)
+
+
+def observe(settings, key, inst: Instrument, exposure_s: float | None = None, trace_scene=None) -> Observation:
+    """The noise-free observation of phase θ [deg] or UTC time ``key``."""
+    from lunarviz.methods.camera import synthesize
+    from lunarviz.outputs.images import apply_optics
+    t = inst.exposure_s if exposure_s is None else float(exposure_s)
+    if not (np.isfinite(t) and 0 < t <= 1e5):
+        raise LunarvizError(f"--exposure {exposure_s!r} must be in (0, 1e5] seconds")
+    settings = instrument_settings(settings, inst)
+    camera = instrument_camera(inst)
+    request = instrument_request(inst, settings.solar_spectrum)
+    res = synthesize(settings, key, camera, trace_scene=trace_scene, request=request)
+    brdf = settings.brdfs[0]
+    e_key = f"{brdf}|{photon_label(inst)}"
+    omega = res.pixel_solid_angle
+    raw = {c: electron_rate(res.planes[c][e_key], omega, inst) for c in ("moonshine", "earthshine")}
+    psf, halo = optics_kernels(inst, camera)
+    for comp in res.planes:
+        for b in res.planes[comp]:
+            res.planes[comp][b] = apply_optics(res.planes[comp][b], psf, halo)
+    rates = {c: electron_rate(res.planes[c][e_key], omega, inst) for c in ("moonshine", "earthshine")}
+    sky, note = None, "none (observer above the atmosphere)"
+    altitude = res.info.get("moon_altitude_deg")
+    if altitude is not None and inst.atmosphere is None:
+        note = "none (the instrument file has no [atmosphere])"
+    elif altitude is not None:
+        atm = inst.atmosphere
+        sky = site_sky(altitude, atm.extinction_mag_per_airmass, atm.dark_sky_mag_arcsec2)
+        note = sky.model
+    sky_rate = np.zeros_like(omega)
+    if sky is not None:
+        e_moon = sum(float(np.sum(raw[c])) for c in raw)  # [e⁻ s⁻¹] of the whole Moon above the atmosphere
+        band_width = float(np.trapezoid(photon_band(inst).response, photon_band(inst).wavelength_nm))
+        dark = electron_rate(np.full_like(omega, sky.dark_sky_radiance_w_m2_sr_nm * band_width), omega, inst)
+        # scattered moonlight: L_sky = E_moon × ratio, in electrons: the Moon's electrons per unit
+        # collecting area and solid angle → per pixel: e_moon × ratio × Ω_pixel
+        sky_rate = dark + e_moon * sky.scattered_per_irradiance_sr * omega
+        rates = {c: r * sky.transmission for c, r in rates.items()}
+    rates["sky"] = sky_rate
+    sc, _ = settings.scene_and_fields(key)
+    geom = disc_geometry(sc, camera)
+    mask = place_mask(geom, inst.bright_side_nd, inst.margin_px())
+    masked = mask.pixels(geom, omega.shape) if mask is not None else np.zeros(omega.shape, bool)
+    if mask is not None:  # a focal-plane filter: after the optics' halo, on every light alike
+        rates = {c: np.where(masked, r * mask.transmission, r) for c, r in rates.items()}
+    # the photon band is an internal plane: the image keeps the band's radiance planes only
+    for comp in res.planes:
+        res.planes[comp] = {b: v for b, v in res.planes[comp].items() if b != e_key}
+    return Observation(inst, t, brdf, res, raw, rates, sky, note, geom, mask, masked)

@@ -1,0 +1,133 @@
+"""Frames in counts in FITS: ``EXPECTED_COUNTS`` (noise-free, ADU, 2-D) and ``COUNTS`` (ADU, N frames),
+appended to an image file written by :func:`lunarviz.outputs.images.write_fits`.
+
+Both carry the detector's keywords (``GAIN`` [e⁻/ADU], ``RDNOISE`` [e⁻], ``EXPTIME`` [s],
+``DARKCUR`` [e⁻ s⁻¹ pixel⁻¹], ``BIASLEV`` [ADU], ``SATURATE`` [ADU]), the frames' provenance
+(``INSTRUME``, ``NFRAMES``, ``SEED``, the sky model, the bright-side mask) and, as long strings,
+the settings, the instrument and the key that :func:`read_frames` (and ``lunarviz measure``) need
+to model the observation again. ``COUNTS`` is streamed: one frame in memory at a time.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+
+#: BZERO of unsigned integer counts stored as FITS signed integers
+_BZERO = {16: 32768, 32: 2147483648}
+
+
+def _detector_cards(hdr, obs) -> None:
+    inst = obs.instrument
+    for k, v, note in (("BUNIT", "adu", "detector counts"),
+                       ("INSTRUME", inst.name, "lunarviz instrument"),
+                       ("GAIN", inst.gain_e_per_adu, "[e-/ADU]"),
+                       ("RDNOISE", inst.read_noise_e, "[e-] read noise"),
+                       ("EXPTIME", obs.exposure_s, "[s] exposure time"),
+                       ("DARKCUR", inst.dark_current_e_per_s, "[e- s-1 pixel-1] dark current"),
+                       ("BIASLEV", inst.bias_adu, "[ADU] bias level"),
+                       ("SATURATE", inst.saturate_adu, "[ADU] full well or ADC top"),
+                       ("FULLWELL", inst.full_well_e, "[e-] full well"),
+                       ("BAND", inst.band, "spectral response"),
+                       ("BRDF", obs.brdf, "lunar BRDF of the scene"),
+                       ("SKYMODEL", obs.sky_note[:68], "sky and extinction"),
+                       ("EXTINCT", obs.sky.transmission if obs.sky else 1.0, "atmospheric transmission on the Moon"),
+                       ("MASKTAU", obs.mask.transmission if obs.mask else 1.0, "bright-side ND transmission"),
+                       ("MASKEDGE", obs.mask.edge_along if obs.mask else 0.0, "[radii] mask edge along the Sun")):
+        hdr[k] = (v, note)
+
+
+def _tan_cards(hdr, res) -> None:
+    from lunarviz.outputs.images import tan_wcs
+    tan_wcs(hdr, res, float(np.degrees(res.camera.scale_rad)))
+
+
+def append_counts(path, obs, key, settings_json: str, frames: int, seed: int) -> None:
+    """Append ``EXPECTED_COUNTS`` and ``frames`` noisy ``COUNTS`` frames to the FITS file ``path``."""
+    from astropy.io import fits
+
+    from lunarviz.instrument.detector import count_dtype, frames as draw_frames
+    inst = obs.instrument
+    exp = fits.ImageHDU(obs.expected_counts.astype(np.float64), name="EXPECTED_COUNTS")
+    _detector_cards(exp.header, obs)
+    _tan_cards(exp.header, obs.image)
+    exp.header["LVKEY"] = (str(key), "phase theta [deg] or UTC time of the scene")
+    exp.header["LVSETTNG"] = settings_json
+    exp.header["LVINSTR"] = inst.to_json()
+    fits.append(path, exp.data, exp.header)
+    bits = 16 if count_dtype(inst) == np.uint16 else 32
+    hdr = fits.Header()
+    hdr["XTENSION"] = "IMAGE"
+    hdr["BITPIX"] = bits
+    hdr["NAXIS"] = 3
+    hdr["NAXIS1"] = inst.width
+    hdr["NAXIS2"] = inst.height
+    hdr["NAXIS3"] = frames
+    hdr["PCOUNT"] = 0
+    hdr["GCOUNT"] = 1
+    hdr["BSCALE"] = 1
+    hdr["BZERO"] = _BZERO[bits]
+    hdr["EXTNAME"] = "COUNTS"
+    _detector_cards(hdr, obs)
+    hdr["NFRAMES"] = (frames, "frames in the cube")
+    hdr["SEED"] = (seed, "frame k drawn from numpy default_rng([SEED, k])")
+    stream = fits.StreamingHDU(path, hdr)
+    signed = np.dtype(f">i{bits // 8}")
+    try:
+        for f in draw_frames(obs.electrons, inst, frames, seed):
+            stream.write((f.astype(np.int64) - _BZERO[bits]).astype(signed))
+    finally:
+        stream.close()
+
+
+@dataclass
+class Frames:
+    """What :func:`read_frames` returns: the counts, their detector and how to model them again."""
+
+    counts: np.ndarray | None  # (N, H, W) ADU, or None (noise-free file read as EXPECTED_COUNTS)
+    expected: np.ndarray  # (H, W) ADU
+    header: dict
+    settings: dict
+    instrument: dict
+    key: str
+
+
+def read_frames(path, use_expected: bool = False) -> Frames:
+    """The counts of a ``lunarviz image --instrument`` FITS file (``use_expected``: the noise-free plane)."""
+    from pathlib import Path
+
+    from astropy.io import fits
+    p = Path(path)
+    if not p.is_file():
+        raise LunarvizError(f"{str(path)!r} is not a file")
+    try:
+        with fits.open(p, memmap=False) as hdul:
+            names = [h.name for h in hdul]
+            if "EXPECTED_COUNTS" not in names:
+                raise LunarvizError(f"{str(path)!r} has no EXPECTED_COUNTS extension (write it with "
+                                    f"lunarviz image --instrument)")
+            eh = hdul["EXPECTED_COUNTS"]
+            hdr = dict(eh.header)
+            expected = np.asarray(eh.data, dtype=float)
+            counts = None
+            if not use_expected:
+                if "COUNTS" not in names:
+                    raise LunarvizError(f"{str(path)!r} has no COUNTS extension")
+                counts = np.asarray(hdul["COUNTS"].data)
+    except LunarvizError:
+        raise
+    except Exception as exc:  # astropy raises many types on a damaged file
+        raise LunarvizError(f"{str(path)!r} is not a readable FITS file ({type(exc).__name__}: {exc})") from None
+    try:
+        settings = json.loads(hdr["LVSETTNG"])
+        instrument = json.loads(hdr["LVINSTR"])
+        key = str(hdr["LVKEY"])
+    except (KeyError, ValueError):
+        raise LunarvizError(f"{str(path)!r}: EXPECTED_COUNTS lacks the LVSETTNG/LVINSTR/LVKEY cards") from None
+    if counts is not None and (counts.ndim != 3 or counts.shape[1:] != expected.shape):
+        raise LunarvizError(f"{str(path)!r}: COUNTS of shape {counts.shape} does not match {expected.shape}")
+    return Frames(counts, expected, hdr, settings, instrument, key)

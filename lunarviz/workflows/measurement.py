@@ -1,0 +1,166 @@
+"""End-to-end measurements: frames written by ``lunarviz image --instrument`` measured
+(``lunarviz measure FILE``), simulated measurements with their error budget
+(``lunarviz measure --simulate N``), and exposure planning (``lunarviz plan``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+from lunarviz.instrument.budget import halo_shape_sigma, systematics, with_budget
+from lunarviz.instrument.detector import frames as draw_frames
+from lunarviz.instrument.observation import instrument_settings, observe
+from lunarviz.instrument.pipeline import calibrate, measure
+from lunarviz.instrument.spec import Instrument, instrument_from_dict
+
+#: the most simulated measurements in one run
+MAX_SIMULATIONS = 100_000
+#: the most frames stacked per measurement
+MAX_FRAMES = 10_000
+#: the expected charge of the brightest pixel plus this many standard deviations stays below the
+#: saturation level in a planned exposure
+SATURATION_SIGMAS = 5.0
+
+
+def _calibration(settings, key, inst: Instrument, obs):
+    """The pipeline's model of an observation; the observation's own rates when its Earth is the
+    calibration's (a uniform Lambert Earth), saving a second image."""
+    uniform = settings.earth_surface == "uniform" and settings.clouds == "none"
+    return calibrate(settings, key, inst, obs.exposure_s, rates=obs.raw_rates if uniform else None)
+
+
+def sweep_p_star(settings, key, inst: Instrument) -> float:
+    """p* of ``lunarviz sweep`` (ray traced, the instrument's band) for the same scene and key."""
+    from lunarviz.workflows.sweeps import run_sweep
+    s = instrument_settings(settings, inst)
+    s = replace(s, method="raytrace", phases_deg=(float(key),) if s.times is None else s.phases_deg,
+                times=None if s.times is None else (str(key),))
+    rows = run_sweep(s, progress=False)["rows"]
+    return float(rows[0]["apparent_albedo"])
+
+
+def _check_counts(n: int, what: str, hi: int) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= hi:
+        raise LunarvizError(f"{what} {n!r} must be an integer from 1 to {hi}")
+    return int(n)
+
+
+def check_seed(seed) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
+        raise LunarvizError(f"--seed {seed!r} must be a non-negative integer")
+    return int(seed)
+
+
+def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: float | None = None,
+             frames: int = 1, lunar_fit=None, progress: bool = False) -> dict:
+    """``n`` measurements of ``frames`` frames each (measurement i, frame j drawn from
+    ``default_rng([seed, i, j])``): rows with p*, its noise and the error budget; a summary of the
+    standardised errors against the sweep's p*."""
+    n = _check_counts(n, "--simulate", MAX_SIMULATIONS)
+    frames = _check_counts(frames, "--frames", MAX_FRAMES)
+    seed = check_seed(seed)
+    obs = observe(settings, key, inst, exposure_s)
+    cal = _calibration(settings, key, inst, obs)
+    noiseless = measure(obs.expected_counts, 1, cal)
+    rel = systematics(instrument_settings(settings, inst), key, cal, lunar_fit)
+    halo_rel = halo_shape_sigma(obs.expected_counts, 1, cal, noiseless["p_star"])
+    truth = sweep_p_star(settings, key, inst)
+    it = range(n)
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(it, desc="measure", unit="measurement", leave=False)
+    rows = []
+    e = obs.electrons
+    for i in it:
+        stack = np.zeros(e.shape)
+        for j, f in enumerate(draw_frames(e, inst, frames, seed, stream=(i,))):
+            stack += f
+        row = with_budget(measure(stack / frames, frames, cal), rel, halo_rel)
+        rows.append({"measurement": i, **row})
+    z = np.array([(r["p_star"] - truth) / r["p_star_sigma"] for r in rows])
+    summary = {"p_star_sweep": truth, "p_star_noiseless": noiseless["p_star"],
+               "noiseless_relative_error": noiseless["p_star"] / truth - 1,
+               "measurements": n, "standardised_error_mean": float(z.mean()),
+               "standardised_error_variance": float(z.var(ddof=1)) if n > 1 else float("nan"),
+               "coverage_1sigma": float(np.mean(np.abs(z) <= 1)), "coverage_k2_random": float(np.mean(np.abs(z) <= 2))}
+    return {"key": str(key), "instrument": inst.to_dict(), "exposure_s": obs.exposure_s, "frames": frames,
+            "seed": seed, "sky_model": obs.sky_note, "lunar_model_uncertainty": rel["lunar_model_source"],
+            "summary": summary, "rows": rows}
+
+
+def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
+    """Measure the frames of a ``lunarviz image --instrument`` FITS file (``use_expected``: its
+    noise-free ``EXPECTED_COUNTS``)."""
+    from lunarviz.outputs.count_frames import read_frames
+    from lunarviz.workflows.sweeps import SweepSettings
+    fr = read_frames(path, use_expected)
+    settings = SweepSettings.from_dict(fr.settings)
+    inst = instrument_from_dict(fr.instrument, f"{str(path)!r} instrument")
+    key = fr.key if settings.times is not None else float(fr.key)
+    exposure = float(fr.header["EXPTIME"])
+    cal = calibrate(settings, key, inst, exposure)
+    if fr.counts is None:
+        mean, n = fr.expected, 1
+    else:
+        n = fr.counts.shape[0]
+        mean = np.mean(fr.counts, axis=0, dtype=float)
+    row = measure(mean, n, cal)
+    rel = systematics(instrument_settings(settings, inst), key, cal, lunar_fit)
+    row = with_budget(row, rel, halo_shape_sigma(mean, n, cal, row["p_star"]))
+    if fr.counts is not None and n >= 2:
+        # the earthlit patch frame by frame: the scatter of its mean count is the single-frame noise
+        t, g = exposure, inst.gain_e_per_adu
+        per_frame = np.array([np.mean(f[cal.patches.earthlit], dtype=float) for f in fr.counts]) * g
+        row["earthlit_snr_per_frame"] = float(row["earthlit_e_s"] * t / np.std(per_frame, ddof=1))
+    return {"file": str(path), "key": fr.key, "instrument": inst.name, "exposure_s": exposure,
+            "lunar_model_uncertainty": rel["lunar_model_source"], "rows": [row]}
+
+
+def plan(settings, key, inst: Instrument, snr: float) -> dict:
+    """The exposure [s] at which the earthlit patch reaches ``snr`` in one frame with the
+    brightest pixel unsaturated (its expected charge + 5σ below the saturation level), or the
+    statement that none does and how many frames of the longest safe exposure would."""
+    if not (np.isfinite(snr) and 0 < snr <= 1e6):
+        raise LunarvizError(f"--snr {snr!r} must be a positive number (at most 1e6)")
+    from lunarviz.instrument.observation import instrument_camera, optics_kernels
+    from lunarviz.outputs.images import apply_optics
+    obs = observe(settings, key, inst, 1.0)
+    cal = _calibration(settings, key, inst, obs)
+    E = cal.patches.earthlit
+    n = int(E.sum())
+    psf, _ = optics_kernels(inst, instrument_camera(inst))
+    trans = obs.sky.transmission if obs.sky is not None else 1.0
+    signal = float(np.mean(apply_optics(obs.raw_rates["earthshine"], psf, None)[E])) * trans  # [e⁻ s⁻¹]
+    total = obs.rate_e_s + inst.dark_current_e_per_s
+    B = float(np.sum(total[E])) / n**2
+    C = (inst.read_noise_e**2 + inst.gain_e_per_adu**2 / 12.0) / n
+
+    def snr_at(t):
+        return signal * t / np.sqrt(B * t + C)
+
+    a2, s2 = signal**2, snr**2
+    t_snr = (s2 * B + np.sqrt((s2 * B) ** 2 + 4 * a2 * s2 * C)) / (2 * a2)
+    level = min(inst.full_well_e, (inst.adc_max - inst.bias_adu) * inst.gain_e_per_adu)
+    peak = float(total.max())
+    # x + k sqrt(x + σ_r²) = level with x = peak t: y = sqrt(x + σ_r²) solves y² + k y − (level + σ_r²) = 0
+    k, r2 = SATURATION_SIGMAS, inst.read_noise_e**2
+    y = (-k + np.sqrt(k * k + 4 * (level + r2))) / 2
+    t_sat = float(max(y * y - r2, 0.0) / peak)
+    feasible = bool(t_snr <= t_sat)
+    out = {"key": str(key), "instrument": inst.name, "snr_target": float(snr), "feasible": feasible,
+           "exposure_s": float(t_snr) if feasible else None, "saturation_exposure_s": t_sat,
+           "snr_at_saturation_exposure": float(snr_at(t_sat)),
+           "frames_needed_at_saturation_exposure": int(np.ceil((snr / snr_at(t_sat)) ** 2)),
+           "earthlit_pixels": n, "earthlit_signal_e_s": signal,
+           "brightest_pixel_e_s": peak, "saturation_level_e": float(level),
+           "snr_definition": "mean earthshine charge of the earthlit patch (halo and sky excluded) over the "
+                             "standard deviation of the patch's mean charge in one frame (photon noise of all its "
+                             "light, dark and read noise); lunarviz measure reports the same from frames as "
+                             "earthlit_snr_per_frame"}
+    if feasible:
+        out["snr_at_exposure"] = float(snr_at(t_snr))
+        out["brightest_pixel_e"] = float(peak * t_snr)
+    return out
