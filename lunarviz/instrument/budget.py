@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -52,7 +53,7 @@ COVERAGE_K = 2.0
 def read_fit(path) -> dict:
     """A ``lunarviz fit`` JSON: params, the free parameters, sigma and correlation."""
     try:
-        d = json.loads(open(path, encoding="utf-8").read())
+        d = json.loads(Path(path).read_text(encoding="utf-8"))
         free = list(d["free"])
         sig = np.array([float(d["sigma"][k]) for k in free])
         corr = np.array([[float(d["correlation"][a][b]) for b in free] for a in free])

@@ -210,10 +210,19 @@ def patch_mean_variance(var: np.ndarray, sel: np.ndarray, f: float) -> float:
     return float(np.sum(var[sel])) / n**2 / (1.0 - f) ** 2
 
 
-def measure(mean_counts: np.ndarray, n_frames: int, cal: Calibration) -> dict:
-    """Steps 1-4 on the mean of ``n_frames`` frames: p* and its noise terms (1σ, in p*)."""
-    y, noise = calibrated_image(mean_counts, n_frames, cal)
+def measure(mean_counts: np.ndarray, n_frames: int, cal: Calibration, peak_counts: np.ndarray | None = None) -> dict:
+    """Steps 1-4 on the mean of ``n_frames`` frames: p* and its noise terms (1σ, in p*).
+
+    ``peak_counts``: each pixel's highest count over the frames (default ``mean_counts``); a patch
+    or sky pixel at the saturation level is refused (its charge is lost, not measured)."""
     pt = cal.patches
+    peak = mean_counts if peak_counts is None else peak_counts
+    used = pt.earthlit | pt.sunlit | pt.sky
+    n_sat = int(np.count_nonzero(used & (peak >= cal.instrument.saturate_adu)))
+    if n_sat:
+        raise LunarvizError(f"{n_sat} patch or sky pixels reach the saturation level ({cal.instrument.saturate_adu:g} "
+                            f"ADU) at exposure {cal.exposure_s:g} s: a shorter exposure (lunarviz plan)")
+    y, noise = calibrated_image(mean_counts, n_frames, cal)
     fit = remove_halo(y, noise.total, pt, cal.kernel)
     f = fit.fraction
     pe, ps = float(np.mean(fit.image[pt.earthlit])), float(np.mean(fit.image[pt.sunlit]))

@@ -58,6 +58,7 @@ def append_counts(path, obs, key, settings_json: str, frames: int, seed: int) ->
     exp.header["LVKEY"] = (str(key), "phase theta [deg] or UTC time of the scene")
     exp.header["LVSETTNG"] = settings_json
     exp.header["LVINSTR"] = inst.to_json()
+    path = str(path)  # astropy names a file by its text (a Path is not always recognised)
     fits.append(path, exp.data, exp.header)
     bits = 16 if count_dtype(inst) == np.uint16 else 32
     hdr = fits.Header()

@@ -75,10 +75,11 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
     rows = []
     e = obs.electrons
     for i in it:
-        stack = np.zeros(e.shape)
-        for j, f in enumerate(draw_frames(e, inst, frames, seed, stream=(i,))):
+        stack, peak = np.zeros(e.shape), np.zeros(e.shape)
+        for f in draw_frames(e, inst, frames, seed, stream=(i,)):
             stack += f
-        row = with_budget(measure(stack / frames, frames, cal), rel, halo_rel)
+            np.maximum(peak, f, out=peak)
+        row = with_budget(measure(stack / frames, frames, cal, peak), rel, halo_rel)
         rows.append({"measurement": i, **row})
     z = np.array([(r["p_star"] - truth) / r["p_star_sigma"] for r in rows])
     summary = {"p_star_sweep": truth, "p_star_noiseless": noiseless["p_star"],
@@ -107,7 +108,7 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
     else:
         n = fr.counts.shape[0]
         mean = np.mean(fr.counts, axis=0, dtype=float)
-    row = measure(mean, n, cal)
+    row = measure(mean, n, cal, None if fr.counts is None else fr.counts.max(axis=0))
     rel = systematics(instrument_settings(settings, inst), key, cal, lunar_fit)
     row = with_budget(row, rel, halo_shape_sigma(mean, n, cal, row["p_star"]))
     if fr.counts is not None and n >= 2:
