@@ -63,3 +63,19 @@ def test_validate_spectral_quick(tmp_path):
     d = json.loads((tmp_path / "rolo_spectral.json").read_text())
     assert len(d["rows"]) >= 2 * 7 and all(abs(r["ratio"] - 1) < 0.05 for r in d["rows"])
     assert abs(d["solar"]["relative_difference"]) < 0.02
+
+
+def test_measurement_budget_quick(tmp_path):
+    # the error-budget script at smoke size (one salex phase, one bbso date): every term present,
+    # the random part near 1/SNR (1 % at SNR 100 on the earthlit patch; the sunlit patch and the
+    # halo fit add to it), and the full run's kept results (benchmarks/measurement) are its output
+    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "measurement_budget.py"), "--quick", "--out",
+                        str(tmp_path)], capture_output=True, text=True, cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-2000:]
+    res = json.loads((tmp_path / "budget.json").read_text())
+    rows = [r for rs in res["rows"].values() for r in rs]
+    assert len(rows) == 2
+    for r in rows:
+        assert 0.008 < r["p_star_sigma"] / r["p_star"] < 0.03
+        assert r["p_star_U_k2"] == 2 * r["p_star_sigma_total"]
+    assert (tmp_path / "budget.png").exists()

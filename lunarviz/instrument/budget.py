@@ -12,7 +12,8 @@ frame of a pointing; each is a standard uncertainty (1σ) in p*:
   bound or correlated beyond 0.95 with another has no meaningful linearised covariance: the DHG
   fit to ROLO constrains B0 alone, the SHG fit all but θ̄). A Lambert Moon's albedo cancels: 0.
 * ``halo_shape``: the halo's power-law index known to ±0.1: half the change of p* when the
-  pipeline's kernel uses INDEX ± 0.1 on the same frames.
+  pipeline's kernel uses INDEX ± 0.1 on the same frames (infinite where either leaves the earthlit
+  patch without light: the halo then swamps the earthshine).
 * ``nd_filter``: the bright-side mask's transmission calibration (the instrument's
   ``bright_side_nd_sigma``, relative; p* is proportional to it).
 * ``ephemeris``: the Earth-Moon distance known to ``EPHEMERIS_SIGMA_KM`` (earthshine falls as
@@ -128,7 +129,10 @@ def halo_shape_sigma(mean_counts, n_frames: int, cal, p_star: float) -> float:
     for sgn in (1, -1):
         text = ",".join(str(v) for v in [vals[0], vals[1] + sgn * HALO_INDEX_SIGMA] + vals[2:])
         k = parse_halo(text, pix, (camera.height, camera.width))[1]
-        out.append(measure(mean_counts, n_frames, replace(cal, kernel=k))["p_star"])
+        try:
+            out.append(measure(mean_counts, n_frames, replace(cal, kernel=k))["p_star"])
+        except LunarvizError:  # the halo's uncertainty alone swallows the earthlit patch
+            return float("inf")
     return abs(out[0] - out[1]) / 2.0 / p_star
 
 

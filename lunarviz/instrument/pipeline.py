@@ -7,7 +7,8 @@ What an earthshine observer does (Qiu et al. 2003, JGR 108, 4709, Sec. 3; Goode 
 2. **Choose patches** from the ephemeris (:mod:`lunarviz.instrument.disc`): an *earthlit* patch
    on the dark side (0.55-1 radii from the centre, within 30° of the anti-solar direction, clear
    of the terminator and the limb by :meth:`~lunarviz.instrument.spec.Instrument.margin_px`), a
-   *sunlit* patch within 30° of the solar direction (inside the lit region, clear of its edges),
+   *sunlit* patch within 30° of the solar direction (inside the lit region, a third of the margin
+   from its edges),
    and the *sky* off the dark limb (beyond the margin, within 90° of the anti-solar direction).
 3. **Remove the scattered light.** The instrument's halo is ``(1 − f) P + f K ⊛ P`` with K the
    halo's shape (from the instrument file: measured in the lab) and P the image before the halo;
@@ -70,13 +71,15 @@ def select_patches(geom: DiscGeometry, lit: np.ndarray, margin_px: float, masked
     m = margin_px / geom.radius_px
     it = max(int(np.ceil(margin_px)), 1)
     near_lit = binary_dilation(lit, iterations=it)
-    lit_core = binary_erosion(lit, iterations=it)
+    # the sunlit patch keeps a third of the margin from the terminator and the limb: the model has
+    # the same PSF, and the mask's edge lies a full margin beyond the lit region
+    lit_core = binary_erosion(lit, iterations=max(int(np.ceil(margin_px / 3)), 1))
     mask_edge = np.zeros(shape, bool)
     if masked.any():
         mask_edge = binary_dilation(masked, iterations=it) & binary_dilation(~masked, iterations=it)
     earthlit = ((r >= EARTHLIT_INNER_RADII) & (r <= 1 - m) & (ang >= 180 - PATCH_HALF_ANGLE_DEG) & ~near_lit
                 & ~masked & ~mask_edge)
-    sunlit = (r <= 1 - m) & (ang <= PATCH_HALF_ANGLE_DEG) & lit_core & ~mask_edge
+    sunlit = (ang <= PATCH_HALF_ANGLE_DEG) & lit_core & ~mask_edge
     if masked.any():
         sunlit &= masked
     sky = (r >= 1 + m) & (ang >= 90) & ~masked & ~mask_edge

@@ -120,16 +120,18 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
             "lunar_model_uncertainty": rel["lunar_model_source"], "rows": [row]}
 
 
-def plan(settings, key, inst: Instrument, snr: float) -> dict:
+def plan(settings, key, inst: Instrument, snr: float, obs=None, cal=None) -> dict:
     """The exposure [s] at which the earthlit patch reaches ``snr`` in one frame with the
     brightest pixel unsaturated (its expected charge + 5σ below the saturation level), or the
-    statement that none does and how many frames of the longest safe exposure would."""
+    statement that none does and how many frames of the longest safe exposure would.
+    ``obs``, ``cal``: the observation (any exposure: rates do not depend on it) and its
+    calibration, when the caller has them."""
     if not (np.isfinite(snr) and 0 < snr <= 1e6):
         raise LunarvizError(f"--snr {snr!r} must be a positive number (at most 1e6)")
     from lunarviz.instrument.observation import instrument_camera, optics_kernels
     from lunarviz.outputs.images import apply_optics
-    obs = observe(settings, key, inst, 1.0)
-    cal = _calibration(settings, key, inst, obs)
+    obs = obs if obs is not None else observe(settings, key, inst, 1.0)
+    cal = cal if cal is not None else _calibration(settings, key, inst, obs)
     E = cal.patches.earthlit
     n = int(E.sum())
     psf, _ = optics_kernels(inst, instrument_camera(inst))
