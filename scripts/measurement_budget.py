@@ -169,7 +169,7 @@ def main(argv=None) -> None:
                f"{t120:.6g}", "--seed", "1", "--out", str(out / "simulate_salex_120.json"), "--quiet"]
         subprocess.run(cmd, check=True)
         sim = json.loads((out / "simulate_salex_120.json").read_text())
-        sim["command"] = " ".join(cmd[:-3] + cmd[-2:-1]).replace(str(out) + "/", "")
+        sim["command"] = " ".join(cmd[:-1]).replace(str(out) + "/", "")
     (out / "budget.json").write_text(json.dumps({"target_snr": TARGET_SNR, "max_frames": MAX_FRAMES, "rows": rows,
                                                  "seconds": time.time() - t0}, indent=1))
     (out / "budget.md").write_text(markdown(rows, sim))

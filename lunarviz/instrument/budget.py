@@ -6,8 +6,8 @@ frame of a pointing; each is a standard uncertainty (1σ) in p*:
 
 * ``lunar_model``: the lunar photometric model's parameters, with the covariance of a
   ``lunarviz fit`` result (default: the packaged fits of the BRDF to ROLO, 400-750 nm,
-  ``lunarviz/data/lunar_fits``), propagated to the ratio of the model's reflectance at the two
-  patches (their centres' geometry; central differences): ``σ² = gᵀ C g``,
+  ``lunarviz/data/lunar_fits``), propagated to the ratio of the model's mean reflectance over the
+  two patches (each pixel's geometry; central differences): ``σ² = gᵀ C g``,
   ``g = ∂ ln(ρ_earthlit/ρ_sunlit)/∂p``, over the parameters the fit calls constrained (one at a
   bound or correlated beyond 0.95 with another has no meaningful linearised covariance: the DHG
   fit to ROLO constrains B0 alone, the SHG fit all but θ̄). A Lambert Moon's albedo cancels: 0.
@@ -68,14 +68,19 @@ def read_fit(path) -> dict:
 
 
 def _patch_geometry(sc, camera, sel: np.ndarray, source: np.ndarray):
-    """(μ0, μ, sin g/2, cos g/2) at the centroid of pixels ``sel`` lit from ``source`` [m]."""
-    from lunarviz.geometry.scene_geometry import half_angle_sin_cos, unit
-    from lunarviz.instrument.disc import surface_point
+    """(μ0, μ, sin g/2, cos g/2) arrays at the pixels ``sel`` (every 1 in k, at most ~400) lit
+    from ``source`` [m]."""
+    from lunarviz.geometry.scene_geometry import half_angle_sin_cos
+    from lunarviz.instrument.disc import surface_points
     y, x = np.nonzero(sel)
-    p, nrm = surface_point(sc, camera, float(x.mean()), float(y.mean()))
-    s, o = unit(source - p), unit(sc.det - p)
+    step = max(len(x) // 400, 1)
+    p, nrm = surface_points(sc, camera, x[::step], y[::step])
+    s = source[None, :] - p
+    s /= np.linalg.norm(s, axis=1, keepdims=True)
+    o = sc.det[None, :] - p
+    o /= np.linalg.norm(o, axis=1, keepdims=True)
     sin_hg, cos_hg = half_angle_sin_cos(s, o)
-    return float(nrm @ s), float(nrm @ o), float(sin_hg), float(cos_hg)
+    return np.clip(np.einsum("ij,ij->i", nrm, s), 0.0, 1.0), np.einsum("ij,ij->i", nrm, o), sin_hg, cos_hg
 
 
 def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
@@ -101,9 +106,9 @@ def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
     idx = [fit["free"].index(k) for k in free]
     cov = fit["covariance"][np.ix_(idx, idx)]
 
-    def log_ratio(p):
+    def log_ratio(p):  # the patches' mean radiance factors (the patch means of the pipeline)
         m = make_brdf(brdf, dhg_convention=settings.dhg_convention, h_function=settings.h_function, params=p)
-        return float(np.log(m.radiance_factor(*ge[:2], *ge[2:]) / m.radiance_factor(*gs[:2], *gs[2:])))
+        return float(np.log(np.mean(m.radiance_factor(*ge)) / np.mean(m.radiance_factor(*gs))))
 
     grad = np.zeros(len(free))
     for n, k in enumerate(free):

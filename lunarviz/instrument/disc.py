@@ -87,18 +87,23 @@ def place_mask(geom: DiscGeometry, transmission: float, margin_px: float) -> Bri
     return BrightSideMask(float(transmission), min(geom.terminator_along, 0.0) - margin_px / geom.radius_px)
 
 
-def surface_point(sc, camera, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
-    """The point [m] and outward normal where pixel (x, y)'s central ray meets the Moon's sphere."""
+def surface_points(sc, camera, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points [m] (n, 3) and outward normals where the central rays of pixels (x, y) meet the
+    Moon's sphere."""
     from lunarviz.errors import LunarvizError
     from lunarviz.methods.camera import camera_axes
     f, e, n, _, _ = camera_axes(sc, camera)
     s = camera.scale_rad
-    d = unit(f - s * (x - (camera.width - 1) / 2.0) * e + s * (y - (camera.height - 1) / 2.0) * n)
+    x, y = np.atleast_1d(np.asarray(x, dtype=float)), np.atleast_1d(np.asarray(y, dtype=float))
+    xi, eta = -s * (x - (camera.width - 1) / 2.0), s * (y - (camera.height - 1) / 2.0)  # as the camera's rays
+    d = f[None, :] + xi[:, None] * e[None, :] + eta[:, None] * n[None, :]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
     oc = sc.det - sc.moon
     r = float(sc.radii["moon"])
-    bq = float(oc @ d)
+    bq = d @ oc
     disc = bq * bq - (float(oc @ oc) - r * r)
-    if disc < 0:
-        raise LunarvizError(f"pixel ({x:.1f}, {y:.1f}) misses the Moon")
-    p = sc.det + (-bq - np.sqrt(disc)) * d
-    return p, unit(p - sc.moon)
+    if np.any(disc < 0):
+        raise LunarvizError(f"{int(np.count_nonzero(disc < 0))} pixels of a patch miss the Moon")
+    p = sc.det + (-bq - np.sqrt(disc))[:, None] * d
+    nrm = p - sc.moon
+    return p, nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
