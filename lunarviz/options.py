@@ -58,6 +58,8 @@ SOLAR_SPECTRA = ("tsis1-hsrs", "grey")
 EARTH_SPECTRA = ("surface", "grey")
 #: the finest packaged-icosphere level a scene may ask for (20·4^8 = 1.3 M facets)
 MAX_LEVEL = 8
+#: icosphere levels of the packaged meshes when none is asked for (from the mesh study)
+DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}
 #: group names, in the order the documentation lists them, and their titles in ``--help``
 GROUP_TITLES = {
     "photometry": "photometry (the lunar BRDFs)",

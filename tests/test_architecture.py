@@ -162,3 +162,18 @@ def test_every_data_file_ships_in_the_wheel():
     missing = [f for f in files + ["py.typed"] if not any(fnmatch.fnmatch(f, g) for g in globs)]
     assert missing == []
     assert (PKG / "py.typed").is_file()
+
+
+def test_an_analytic_sweep_imports_no_heavy_package(tmp_path):
+    # issue 27's start-up item: a one-phase analytic sweep from the command line loads neither
+    # the viewers (PyVista, trame), nor the table and sky packages (xarray, astropy), nor the
+    # tracer's meshes (trimesh, Embree): the modules are listed after the command has run
+    import subprocess
+    import sys
+    code = ("import sys; from lunarviz.cli import main; "
+            f"main(['sweep', '--method', 'analytic', '--phases', '90', '--out', r'{tmp_path / 's.json'}', '--quiet']); "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & "
+            "{'pyvista', 'trame', 'xarray', 'astropy', 'trimesh', 'embreex', 'vtk', 'vtkmodules', 'matplotlib'}))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().splitlines()[-1] == "[]"

@@ -18,12 +18,11 @@ import numpy as np
 import trimesh
 
 from lunarviz.errors import LunarvizError
-from lunarviz.options import BODIES, MAX_LEVEL, MESH_UNITS
+from lunarviz.options import BODIES, DEFAULT_LEVELS, MAX_LEVEL, MESH_UNITS  # noqa: F401 (DEFAULT_LEVELS: re-exported)
 from lunarviz.resources import MESH_DIR
 
 #: Default subdivision levels, chosen from the mesh-resolution study
 #: (benchmarks/mesh_study_auto.json; docs/user_guide/meshes.md, "Choosing the mesh levels").
-DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}
 
 
 def _nominal_radii() -> dict:

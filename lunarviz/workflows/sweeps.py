@@ -142,11 +142,11 @@ class SweepSettings:
             EarthSurface(self.earth_surface, self.clouds).clear_map()  # the land mask, once, before workers
         ts = self.trace_settings()
         if self.method == "raytrace":  # read and check user meshes once, before any work
-            from lunarviz.bodies.meshes import NOMINAL_RADII
-            from lunarviz.methods.tracer.settings import body_mesh_m
             for body in ("moon", "earth", "sun"):
                 path = getattr(self, f"{body}_mesh")
                 if path is not None:  # same arguments as TraceScene's call: the cached mesh is reused
+                    from lunarviz.bodies.meshes import NOMINAL_RADII  # trimesh: only when a mesh is given
+                    from lunarviz.methods.tracer.settings import body_mesh_m
                     body_mesh_m(body, getattr(ts, f"{body}_level"), path, self.mesh_units, NOMINAL_RADII[body])
         self.analytic_settings()
 
@@ -235,7 +235,7 @@ class SweepSettings:
     def trace_settings(self, threads: int | None = None):
         """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
         over several worker processes pass 1). Results do not depend on it."""
-        from lunarviz.methods.tracer.estimators import TraceSettings
+        from lunarviz.methods.tracer.settings import TraceSettings
         return TraceSettings(threads=threads, mapped_earth=self.mapped_earth,
                              **{o.name: getattr(self, o.name) for o in group(*TraceSettings.GROUPS)})
 

@@ -7,10 +7,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from lunarviz.bodies.meshes import DEFAULT_LEVELS
 from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
-from lunarviz.options import SHADINGS, compose, validate
+from lunarviz.options import DEFAULT_LEVELS, SHADINGS, compose, validate
 
 #: Shadow-ray origins are offset along the normal by this fraction of the body radius
 #: (0.17 m on the Moon: above float32's 0.125 m step at the lunar radius, far below any facet).
@@ -50,7 +49,7 @@ EARTH_CELLS = 24
 class TraceSettings:
     """The ray tracer's settings: the options of the ``earth``, ``meshes``, ``trace`` and
     ``surfaces`` groups of :mod:`lunarviz.options` (icosphere levels ``None`` resolve to
-    :data:`~lunarviz.bodies.meshes.DEFAULT_LEVELS`, the Earth's rotation ``None`` to 0), and:"""
+    :data:`~lunarviz.options.DEFAULT_LEVELS`, the Earth's rotation ``None`` to 0), and:"""
 
     #: the option groups whose fields this class takes from the schema
     GROUPS: ClassVar[tuple] = ("earth", "meshes", "trace", "surfaces")
