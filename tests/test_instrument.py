@@ -128,16 +128,19 @@ def test_noiseless_measurement_recovers_the_sweeps_p_star(small_observation):
 
 
 def test_noiseless_measurement_of_a_cloudy_land_ocean_earth():
-    # a non-uniform Earth: the pipeline's calibration Earth (uniform) differs from the scene's, so
-    # this tests the inversion itself. The patch near the dark limb weights the Earth's disc
-    # slightly differently from the whole Moon (incidence varies across the Earth's 2° disc):
-    # measured 1.1e-3 at 120° against the disk p* (Moon level 3 or 4 alike); bound 2e-3
+    # a non-uniform, coloured Earth: the pipeline's calibration Earth (uniform, grey) differs from
+    # the scene's, so this tests the inversion itself. Against the sweep in the instrument's
+    # photon band (S·T·QE·λ, what counts weigh): measured 1.0e-4 at 120° (the bar 1e-3).
+    # The sweep in the band S alone (`lunarviz sweep --band V`) differs by 1.1e-3 from both: the
+    # Earth's p*(λ) varies across V, and the two responses weigh it differently
     settings = Scene([120.0], brdfs="dhg", earth_surface="landocean", clouds="zonal", moon_level=3).settings("raytrace")
     obs = observe(settings, 120.0, SMALL, SMALL_EXPOSURE_S)
     cal = _calibration(settings, 120.0, SMALL, obs)
     truth = sweep_p_star(settings, 120.0, SMALL)
     assert abs(truth - 0.3) > 5e-3  # the scene's Earth is not the calibration's
-    assert measure(obs.expected_counts, 1, cal)["p_star"] == pytest.approx(truth, rel=2e-3)
+    assert measure(obs.expected_counts, 1, cal)["p_star"] == pytest.approx(truth, rel=NOISELESS_TOLERANCE)
+    srf = sweep_p_star(settings, 120.0, SMALL, photon=False)
+    assert 3e-4 < abs(srf / truth - 1) < 3e-3
 
 
 def test_stated_sigma_covers_the_truth_over_seeds():

@@ -52,3 +52,10 @@ def instrument_request(inst: Instrument, solar: str):
 def electron_rate(photon_plane: np.ndarray, pixel_solid_angle: np.ndarray, inst: Instrument) -> np.ndarray:
     """Photoelectrons per second per pixel [e⁻ s⁻¹] from a photon-band plane P̂ [W m⁻² sr⁻¹]."""
     return photon_plane * pixel_solid_angle * inst.collecting_area_m2 * ELECTRONS_PER_JOULE
+
+
+def write_band_csv(band: Band, path) -> None:
+    """A band as a ``wavelength_nm,response`` CSV (what ``--band FILE.csv`` reads)."""
+    from pathlib import Path
+    rows = "\n".join(f"{lam:.6f},{r:.12e}" for lam, r in zip(band.wavelength_nm, band.response))
+    Path(path).write_text(f"# {band.source}\nwavelength_nm,response\n{rows}\n", encoding="utf-8")

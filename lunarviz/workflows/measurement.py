@@ -32,14 +32,26 @@ def _calibration(settings, key, inst: Instrument, obs):
     return calibrate(settings, key, inst, obs.exposure_s, rates=obs.raw_rates if uniform else None)
 
 
-def sweep_p_star(settings, key, inst: Instrument) -> float:
-    """p* of ``lunarviz sweep`` (ray traced, the instrument's band) for the same scene and key."""
+def sweep_p_star(settings, key, inst: Instrument, photon: bool = True) -> float:
+    """p* of ``lunarviz sweep`` (ray traced) for the same scene and key: in the instrument's photon
+    band S·T·QE·λ (what its counts weigh; ``photon``), or in its band S as ``--band`` gives it.
+
+    The two differ where the Earth's p*(λ) varies across the band (≈ 1e-3 in V for a land-ocean
+    Earth with clouds; not at all for a grey Earth)."""
+    import tempfile
+    from pathlib import Path
+
+    from lunarviz.instrument.response import photon_band, write_band_csv
     from lunarviz.workflows.sweeps import run_sweep
     s = instrument_settings(settings, inst)
     s = replace(s, method="raytrace", phases_deg=(float(key),) if s.times is None else s.phases_deg,
                 times=None if s.times is None else (str(key),))
-    rows = run_sweep(s, progress=False)["rows"]
-    return float(rows[0]["apparent_albedo"])
+    if not photon:
+        return float(run_sweep(s, progress=False)["rows"][0]["apparent_albedo"])
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / f"{inst.name}_photon_band.csv"
+        write_band_csv(photon_band(inst), path)
+        return float(run_sweep(replace(s, bands=str(path)), progress=False)["rows"][0]["apparent_albedo"])
 
 
 def _check_counts(n: int, what: str, hi: int) -> int:
@@ -58,7 +70,8 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
              frames: int = 1, lunar_fit=None, progress: bool = False) -> dict:
     """``n`` measurements of ``frames`` frames each (measurement i, frame j drawn from
     ``default_rng([seed, i, j])``): rows with p*, its noise and the error budget; a summary of the
-    standardised errors against the sweep's p*."""
+    standardised errors against the sweep's p* in the instrument's photon band
+    (``p_star_sweep``; ``p_star_sweep_band``: in its band S, as ``lunarviz sweep --band``)."""
     n = _check_counts(n, "--simulate", MAX_SIMULATIONS)
     frames = _check_counts(frames, "--frames", MAX_FRAMES)
     seed = check_seed(seed)
@@ -82,7 +95,8 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
         row = with_budget(measure(stack / frames, frames, cal, peak), rel, halo_rel)
         rows.append({"measurement": i, **row})
     z = np.array([(r["p_star"] - truth) / r["p_star_sigma"] for r in rows])
-    summary = {"p_star_sweep": truth, "p_star_noiseless": noiseless["p_star"],
+    summary = {"p_star_sweep": truth, "p_star_sweep_band": sweep_p_star(settings, key, inst, photon=False),
+               "p_star_noiseless": noiseless["p_star"],
                "noiseless_relative_error": noiseless["p_star"] / truth - 1,
                "measurements": n, "standardised_error_mean": float(z.mean()),
                "standardised_error_variance": float(z.var(ddof=1)) if n > 1 else float("nan"),
