@@ -600,6 +600,8 @@ def cmd_measure(a):
             raise UsageError("give a FITS file or --simulate N, not both")
         if a.instrument is None:
             raise UsageError("--simulate needs --instrument")
+        if a.phase is None and _times(a) is None:
+            raise UsageError("--simulate needs --phase DEG or --time ISO")
         phases, times = _phases_or_times(a)
         if len(times or phases) != 1:
             raise UsageError("--simulate takes one --phase or one --time")
@@ -628,6 +630,8 @@ def cmd_plan(a):
     import lunarviz.api as api
     from lunarviz.outputs.writers import write_results
     out = _check_out(a.out, (".json",)) if a.out is not None else None
+    if a.phase is None and _times(a) is None:
+        raise UsageError("plan needs --phase DEG or --time ISO")
     phases, times = _phases_or_times(a)
     if len(times or phases) != 1:
         raise UsageError("plan takes one --phase or one --time")

@@ -61,7 +61,12 @@ def test_presets_load_and_state_their_sources():
                                            ({"band": "nope"}, "nope"), ({"gian": 1}, "gian"),
                                            ({"quantum_efficiency": [[500, 0.5], [600, 0.5]]}, "quantum_efficiency"),
                                            ({"bright_side_nd": 0}, "bright_side_nd"),
-                                           ({"bias_adu": 70000}, "bias_adu")])
+                                           ({"bias_adu": 70000}, "bias_adu"),
+                                           # found by a reviewer: each crashed later with a traceback
+                                           ({"quantum_efficiency": [[300, 0.0], [900, 0.0]]}, "quantum_efficiency"),
+                                           ({"dark_current_e_per_s": 1e300}, "dark_current_e_per_s"),
+                                           ({"aperture_m": 1000}, "aperture_m"),
+                                           ({"halo": "1,3"}, "halo"), ({"psf": "gaussian:-1"}, "psf")])
 def test_bad_instrument_values_are_refused_by_name(change, named):
     d = {**load_instrument("salex").to_dict(), **change}
     with pytest.raises(LunarvizError, match=named):
@@ -252,9 +257,35 @@ def test_cli_image_measure_and_plan(tmp_path):
     (["measure", "missing.fits"], "missing.fits"),
     (["measure", "--simulate", "3", "--phase", "120"], "--instrument"),
     (["plan", "--instrument", "salex", "--snr", "-3", "--phase", "120"], "--snr"),
+    (["plan", "--instrument", "salex", "--snr", "100"], "--phase"),
+    (["measure", "--simulate", "3", "--instrument", "salex"], "--phase"),
 ])
 def test_bad_measurement_inputs_are_one_line(tmp_path, args, named):
     r = run_cli(*args, cwd=tmp_path)
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and named in r.stderr
     assert not any(tmp_path.iterdir())
+
+
+def test_a_full_well_below_the_read_noise_margin_plans_nothing(small_observation):
+    # a reviewer's case: a 30 e- well under 10 e- read noise has no safe exposure at all
+    settings, _, _ = small_observation
+    tiny = replace(SMALL, full_well_e=30.0, read_noise_e=10.0, bias_adu=100.0)
+    p = plan(settings, 120.0, tiny, 100.0)
+    assert not p["feasible"] and p["saturation_exposure_s"] == 0.0
+    assert p["frames_needed_at_saturation_exposure"] is None
+
+
+def test_a_damaged_file_is_one_line(tmp_path, small_observation):
+    from astropy.io import fits
+
+    from lunarviz.outputs.count_frames import append_counts
+    from lunarviz.workflows.measurement import measure_file
+    settings, obs, _ = small_observation
+    path = tmp_path / "f.fits"
+    fits.PrimaryHDU().writeto(path)
+    append_counts(path, obs, 120.0, json.dumps(settings.to_dict()), 2, 0)
+    with fits.open(path, mode="update") as h:
+        h["EXPECTED_COUNTS"].header["LVKEY"] = "not a phase"
+    with pytest.raises(LunarvizError, match="LVKEY"):
+        measure_file(path)

@@ -8,9 +8,12 @@ frame of a pointing; each is a standard uncertainty (1σ) in p*:
   ``lunarviz fit`` result (default: the packaged fits of the BRDF to ROLO, 400-750 nm,
   ``lunarviz/data/lunar_fits``), propagated to the ratio of the model's mean reflectance over the
   two patches (each pixel's geometry; central differences): ``σ² = gᵀ C g``,
-  ``g = ∂ ln(ρ_earthlit/ρ_sunlit)/∂p``, over the parameters the fit calls constrained (one at a
-  bound or correlated beyond 0.95 with another has no meaningful linearised covariance: the DHG
-  fit to ROLO constrains B0 alone, the SHG fit all but θ̄). A Lambert Moon's albedo cancels: 0.
+  ``g = ∂ ln(ρ_earthlit/ρ_sunlit)/∂p`` at the fit's parameters (whose covariance it is), over the
+  fitted parameters; one the fit left at a bound of its range has no meaningful linearised
+  variance and is held fixed (θ̄ = 45° of the DHG fit to ROLO), the others taking their
+  covariance conditional on it (they are correlated beyond 0.95). The earthlit patch
+  is seen at opposition (phase ≈ 0), where ROLO has no data: the B0/h part is an extrapolation
+  of the fit. A Lambert Moon's albedo cancels: 0.
 * ``halo_shape``: the halo's power-law index known to ±0.1: half the change of p* when the
   pipeline's kernel uses INDEX ± 0.1 on the same frames (infinite where either leaves the earthlit
   patch without light: the halo then swamps the earthshine).
@@ -60,11 +63,13 @@ def read_fit(path) -> dict:
         corr = np.array([[float(d["correlation"][a][b]) for b in free] for a in free])
         params = {k: float(v) for k, v in d["params"].items()}
         brdf = str(d["brdf"])
-        constrained = {k: bool(d.get("constrained", {}).get(k, True)) for k in free}
+        from lunarviz.photometry.fit import BOUNDS
+        at_bound = {k: k in BOUNDS and min(params[k] - BOUNDS[k][0], BOUNDS[k][1] - params[k])
+                    < 1e-6 * (BOUNDS[k][1] - BOUNDS[k][0]) for k in free}
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise LunarvizError(f"--lunar-fit {str(path)!r}: not a lunarviz fit result ({type(exc).__name__})") from None
     return {"brdf": brdf, "params": params, "free": free, "covariance": corr * np.outer(sig, sig), "path": str(path),
-            "constrained": constrained}
+            "at_bound": at_bound}
 
 
 def _patch_geometry(sc, camera, sel: np.ndarray, source: np.ndarray):
@@ -99,12 +104,19 @@ def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
     camera = instrument_camera(cal.instrument)
     ge = _patch_geometry(sc, camera, cal.patches.earthlit, sc.earth)
     gs = _patch_geometry(sc, camera, cal.patches.sunlit, sc.sun)
+    # the gradient at the fit's own parameters: the covariance belongs to them (its valleys of
+    # correlated parameters lie where the fit put them; at other parameters, e.g. the paper's, the
+    # same covariance is not consistent and overstates several-fold). A parameter the fit left at
+    # a bound of its range has no meaningful linearised variance: it is held fixed (θ̄ = 45° for
+    # DHG), and the others take their covariance conditional on it
     params = {k: v for k, v in fit["params"].items() if k != "map_contrast"}
-    # parameters the fit flags as not constrained (at a bound, or degenerate with another:
-    # |correlation| > 0.95) have no meaningful linearised covariance: they are left out
-    free = [k for k in fit["free"] if k != "map_contrast" and fit["constrained"][k]]
-    idx = [fit["free"].index(k) for k in free]
-    cov = fit["covariance"][np.ix_(idx, idx)]
+    free = [k for k in fit["free"] if k != "map_contrast" and not fit["at_bound"][k]]
+    fixed = [k for k in fit["free"] if k not in free]
+    ia, ib = [fit["free"].index(k) for k in free], [fit["free"].index(k) for k in fixed]
+    C = fit["covariance"]
+    cov = C[np.ix_(ia, ia)]
+    if ib:  # the others' covariance given the fixed ones (conditional, not marginal: they are correlated)
+        cov = cov - C[np.ix_(ia, ib)] @ np.linalg.pinv(C[np.ix_(ib, ib)]) @ C[np.ix_(ib, ia)]
 
     def log_ratio(p):  # the patches' mean radiance factors (the patch means of the pipeline)
         m = make_brdf(brdf, dhg_convention=settings.dhg_convention, h_function=settings.h_function, params=p)

@@ -219,11 +219,13 @@ def measure(mean_counts: np.ndarray, n_frames: int, cal: Calibration, peak_count
     ``peak_counts``: each pixel's highest count over the frames (default ``mean_counts``); a patch
     or sky pixel at the saturation level is refused (its charge is lost, not measured)."""
     pt = cal.patches
+    inst = cal.instrument
     peak = mean_counts if peak_counts is None else peak_counts
     used = pt.earthlit | pt.sunlit | pt.sky
-    n_sat = int(np.count_nonzero(used & (peak >= cal.instrument.saturate_adu)))
+    # a full well reads SATURATE ± the read noise: five of its σ below counts as saturated
+    n_sat = int(np.count_nonzero(used & (peak >= inst.saturate_adu - 5 * inst.read_noise_e / inst.gain_e_per_adu)))
     if n_sat:
-        raise LunarvizError(f"{n_sat} patch or sky pixels reach the saturation level ({cal.instrument.saturate_adu:g} "
+        raise LunarvizError(f"{n_sat} patch or sky pixels reach the saturation level ({inst.saturate_adu:g} "
                             f"ADU) at exposure {cal.exposure_s:g} s: a shorter exposure (lunarviz plan)")
     y, noise = calibrated_image(mean_counts, n_frames, cal)
     fit = remove_halo(y, noise.total, pt, cal.kernel)

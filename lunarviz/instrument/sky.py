@@ -80,5 +80,4 @@ def site_sky(moon_altitude_deg: float, extinction_mag_per_airmass: float, dark_s
     mag = dark_sky_mag_arcsec2 - 2.5 * np.log10(10 ** (-0.4 * k * (X - 1.0)) * X)
     dark = V_ZERO_POINT_W_M2_NM * 10 ** (-0.4 * mag) / ARCSEC2_SR
     return SiteSky(t, scattered, float(dark), zm,
-                   f"Krisciunas & Schaefer 1991 (k = {k:g} mag/airmass, X = {X:.3f}, dark sky "
-                   f"{dark_sky_mag_arcsec2:g} mag/arcsec2 at zenith)")
+                   f"K&S1991 k={k:g}mag/X X={X:.3f} sky={dark_sky_mag_arcsec2:g}mag/as2 rho=10")

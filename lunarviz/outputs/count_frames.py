@@ -105,8 +105,10 @@ def read_frames(path, use_expected: bool = False) -> Frames:
     p = Path(path)
     if not p.is_file():
         raise LunarvizError(f"{str(path)!r} is not a file")
+    import warnings
     try:
-        with fits.open(p, memmap=False) as hdul:
+        with warnings.catch_warnings(), fits.open(p, memmap=False) as hdul:
+            warnings.simplefilter("ignore")  # a damaged file's warnings: the one-line error below says it
             names = [h.name for h in hdul]
             if "EXPECTED_COUNTS" not in names:
                 raise LunarvizError(f"{str(path)!r} has no EXPECTED_COUNTS extension (write it with "

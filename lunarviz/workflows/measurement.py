@@ -112,10 +112,16 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
     from lunarviz.outputs.count_frames import read_frames
     from lunarviz.workflows.sweeps import SweepSettings
     fr = read_frames(path, use_expected)
-    settings = SweepSettings.from_dict(fr.settings)
-    inst = instrument_from_dict(fr.instrument, f"{str(path)!r} instrument")
-    key = fr.key if settings.times is not None else float(fr.key)
-    exposure = float(fr.header["EXPTIME"])
+    try:
+        settings = SweepSettings.from_dict(fr.settings)
+        inst = instrument_from_dict(fr.instrument, f"{str(path)!r} instrument")
+        key = fr.key if settings.times is not None else float(fr.key)
+        exposure = float(fr.header["EXPTIME"])
+    except (ValueError, TypeError, KeyError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise LunarvizError(f"{str(path)!r}: its LVSETTNG, LVINSTR, LVKEY or EXPTIME card is damaged ({msg})") from None
+    if not (np.isfinite(exposure) and exposure > 0):
+        raise LunarvizError(f"{str(path)!r}: EXPTIME = {exposure!r} is not a positive exposure")
     cal = calibrate(settings, key, inst, exposure)
     if fr.counts is None:
         mean, n = fr.expected, 1
@@ -167,10 +173,13 @@ def plan(settings, key, inst: Instrument, snr: float, obs=None, cal=None) -> dic
     y = (-k + np.sqrt(k * k + 4 * (level + r2))) / 2
     t_sat = float(max(y * y - r2, 0.0) / peak)
     feasible = bool(t_snr <= t_sat)
+    snr_sat = float(snr_at(t_sat)) if t_sat > 0 else 0.0
+    # no frame count when even the read noise alone reaches the saturation margin
+    frames_needed = int(np.ceil((snr / snr_sat) ** 2)) if snr_sat > 0 and (snr / snr_sat) ** 2 < 1e12 else None
     out = {"key": str(key), "instrument": inst.name, "snr_target": float(snr), "feasible": feasible,
            "exposure_s": float(t_snr) if feasible else None, "saturation_exposure_s": t_sat,
-           "snr_at_saturation_exposure": float(snr_at(t_sat)),
-           "frames_needed_at_saturation_exposure": int(np.ceil((snr / snr_at(t_sat)) ** 2)),
+           "snr_at_saturation_exposure": snr_sat,
+           "frames_needed_at_saturation_exposure": frames_needed,
            "earthlit_pixels": n, "earthlit_signal_e_s": signal,
            "brightest_pixel_e_s": peak, "saturation_level_e": float(level),
            "snr_definition": "mean earthshine charge of the earthlit patch (halo and sky excluded) over the "
