@@ -148,7 +148,8 @@ def markdown(rows: dict, sim: dict | None) -> str:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="a smoke run: one phase, one date, no simulation")
+    ap.add_argument("--quick", action="store_true",
+                    help="a smoke run: one phase, one date, 128² detectors, no simulation")
     ap.add_argument("--out", default="benchmarks/measurement", help="output folder")
     a = ap.parse_args(argv)
     out = Path(a.out)
@@ -156,10 +157,14 @@ def main(argv=None) -> None:
     t0 = time.time()
     phases = [120.0] if a.quick else [float(p) for p in range(30, 171, 10)]
     salex = load_instrument("salex")
+    bbso = load_instrument("bbso")
+    if a.quick:  # smoke size: the presets on 128² detectors of 4× larger pixels, one ray per pixel
+        salex = replace(salex, width=128, height=128, pixel_size_um=4 * salex.pixel_size_um, supersample=1)
+        bbso = replace(bbso, width=128, height=128, pixel_size_um=4 * bbso.pixel_size_um, supersample=1)
     rows = {"salex (geocentre, θ scene)": [budget_row(Scene([th], brdfs="dhg").settings("raytrace"), th, salex)
                                           for th in phases]}
-    dates = bbso_dates("2026-03-21T00:00Z", 2 if a.quick else 26)[: 1 if a.quick else None]
-    bbso = load_instrument("bbso")
+    # quick: one night the full run also picks (the Moon 61° up, phase 99°)
+    dates = ["2026-03-25T03:30:00Z"] if a.quick else bbso_dates("2026-03-21T00:00Z", 26)
     settings = Scene(time=dates, observer=BBSO_SITE, brdfs="dhg").settings("raytrace")
     rows["bbso (Big Bear, March-April 2026)"] = [budget_row(settings, d, bbso) for d in dates]
     sim = None

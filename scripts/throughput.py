@@ -102,7 +102,7 @@ def make_scene(name: str, quick: bool):
         return SceneGeometry(90.0), E.TraceSettings(occlusion=True, threads=1), None
     from lunarviz.bodies import shapes
     from lunarviz.constants import R_MOON_M
-    level = 5 if quick else 6
+    level = 4 if quick else 6  # quick: a smoke run (tests), 5,120 facets
     mesh = shapes.craters(R_MOON_M, level, 400, 20e3, 300e3, seed=1)
     path = Path("/tmp") / f"lunarviz_craters_L{level}.ply"
     shapes.write_mesh(mesh, path)
