@@ -28,7 +28,9 @@ def run_once(src: str | None, out: Path) -> tuple[float, list]:
     if src is not None:
         env["PYTHONPATH"] = src
     t = time.perf_counter()
-    r = subprocess.run([sys.executable, "-c", CODE, str(out)], capture_output=True, text=True, env=env, check=True)
+    # in the output's folder: `python -c` puts the working folder first on sys.path
+    r = subprocess.run([sys.executable, "-c", CODE, str(out)], capture_output=True, text=True, env=env, check=True,
+                       cwd=out.parent)
     return time.perf_counter() - t, json.loads(r.stdout.strip().splitlines()[-1].replace("'", '"'))
 
 
@@ -51,7 +53,8 @@ def main(argv=None) -> None:
     res = {k: {"min_s": min(v), "median_s": sorted(v)[len(v) // 2], "heavy_imports": mods[k]} for k, v in times.items()}
     if a.against:
         res["median_ratio"] = res["this checkout"]["median_s"] / res["against"]["median_s"]
-    text = json.dumps({"command": "lunarviz sweep --method analytic --phases 90", "repeats": a.repeats, **res}, indent=1)
+    text = json.dumps({"command": "lunarviz sweep --method analytic --phases 90", "repeats": a.repeats, **res},
+                      indent=1)
     print(text)
     if a.out:
         Path(a.out).write_text(text + "\n")
