@@ -63,13 +63,14 @@ def read_fit(path) -> dict:
         corr = np.array([[float(d["correlation"][a][b]) for b in free] for a in free])
         params = {k: float(v) for k, v in d["params"].items()}
         brdf = str(d["brdf"])
+        conventions = {k: d.get("settings", {}).get(k) for k in ("h_function", "dhg_convention")}
         from lunarviz.photometry.fit import BOUNDS
         at_bound = {k: k in BOUNDS and min(params[k] - BOUNDS[k][0], BOUNDS[k][1] - params[k])
                     < 1e-6 * (BOUNDS[k][1] - BOUNDS[k][0]) for k in free}
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise LunarvizError(f"--lunar-fit {str(path)!r}: not a lunarviz fit result ({type(exc).__name__})") from None
     return {"brdf": brdf, "params": params, "free": free, "covariance": corr * np.outer(sig, sig), "path": str(path),
-            "at_bound": at_bound}
+            "at_bound": at_bound, "conventions": conventions}
 
 
 def _patch_geometry(sc, camera, sel: np.ndarray, source: np.ndarray):
@@ -100,6 +101,10 @@ def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
     fit = read_fit(path)
     if fit["brdf"] != brdf:
         raise LunarvizError(f"--lunar-fit {str(path)!r} fits {fit['brdf']!r}, the scene's BRDF is {brdf!r}")
+    differ = [f"{k} {v!r} (the scene: {getattr(settings, k)!r})" for k, v in fit["conventions"].items()
+              if v is not None and v != getattr(settings, k)]
+    if differ and fit_path is not None:  # the user's own fit must describe the scene's model
+        raise LunarvizError(f"--lunar-fit {str(path)!r} was fitted with {differ[0]}")
     sc, _ = settings.scene_and_fields(key)
     camera = instrument_camera(cal.instrument)
     ge = _patch_geometry(sc, camera, cal.patches.earthlit, sc.earth)
@@ -128,7 +133,8 @@ def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
         step = 1e-4 * (hi - lo)
         up, dn = min(params[k] + step, hi), max(params[k] - step, lo)
         grad[n] = (log_ratio({**params, k: up}) - log_ratio({**params, k: dn})) / (up - dn)
-    return float(np.sqrt(max(grad @ cov @ grad, 0.0))), f"covariance of {', '.join(free)} in {path}"
+    note = f"; fitted with {', '.join(differ)}" if differ else ""
+    return float(np.sqrt(max(grad @ cov @ grad, 0.0))), f"covariance of {', '.join(free)} in {path}{note}"
 
 
 def halo_shape_sigma(mean_counts, n_frames: int, cal, p_star: float) -> float:

@@ -191,12 +191,16 @@ _UPPER = {"aperture_m": 50.0, "central_obstruction_m": 50.0, "focal_length_m": 1
           "bright_side_nd_sigma": 1.0, "band_centre_sigma_nm": 100.0}
 
 
+#: the smallest accepted value of the positive numbers (below them, rounding rather than physics)
+_LOWER = {"aperture_m": 1e-3, "pixel_size_um": 0.1, "gain_e_per_adu": 1e-3, "full_well_e": 1.0, "exposure_s": 1e-6}
+
+
 def _check_number(where: str, key: str, v, positive: bool) -> float:
-    hi = _UPPER.get(key, np.inf)
+    hi, lo = _UPPER.get(key, np.inf), _LOWER.get(key, 0.0)
     if (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0 or (positive and v == 0)
-            or v > hi):
+            or v > hi or v < lo):
         raise LunarvizError(f"{where}: {key} = {v!r} must be a {'positive' if positive else 'non-negative'} number "
-                            f"(at most {hi:g})")
+                            f"from {lo:g} to {hi:g}")
     return float(v)
 
 

@@ -126,11 +126,15 @@ def read_frames(path, use_expected: bool = False) -> Frames:
     except Exception as exc:  # astropy raises many types on a damaged file
         raise LunarvizError(f"{str(path)!r} is not a readable FITS file ({type(exc).__name__}: {exc})") from None
     try:
-        settings = json.loads(hdr["LVSETTNG"])
-        instrument = json.loads(hdr["LVINSTR"])
-        key = str(hdr["LVKEY"])
-    except (KeyError, ValueError):
+        settings_text, instrument_text, key = hdr["LVSETTNG"], hdr["LVINSTR"], str(hdr["LVKEY"])
+    except KeyError:
         raise LunarvizError(f"{str(path)!r}: EXPECTED_COUNTS lacks the LVSETTNG/LVINSTR/LVKEY cards") from None
+    try:
+        settings, instrument = json.loads(settings_text), json.loads(instrument_text)
+    except (TypeError, ValueError):
+        raise LunarvizError(f"{str(path)!r}: the LVSETTNG or LVINSTR card is not readable JSON (damaged)") from None
+    if not (isinstance(settings, dict) and isinstance(instrument, dict)):
+        raise LunarvizError(f"{str(path)!r}: the LVSETTNG or LVINSTR card is not a table")
     if counts is not None and (counts.ndim != 3 or counts.shape[1:] != expected.shape):
         raise LunarvizError(f"{str(path)!r}: COUNTS of shape {counts.shape} does not match {expected.shape}")
     return Frames(counts, expected, hdr, settings, instrument, key)

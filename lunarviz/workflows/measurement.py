@@ -73,7 +73,7 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
     standardised errors against the sweep's p* in the instrument's photon band
     (``p_star_sweep``; ``p_star_sweep_band``: in its band S, as ``lunarviz sweep --band``)."""
     n = _check_counts(n, "--simulate", MAX_SIMULATIONS)
-    frames = _check_counts(frames, "--frames", MAX_FRAMES)
+    frames = _check_counts(frames, "--frames-per-measurement", MAX_FRAMES)
     seed = check_seed(seed)
     obs = observe(settings, key, inst, exposure_s)
     cal = _calibration(settings, key, inst, obs)
@@ -116,6 +116,8 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
         settings = SweepSettings.from_dict(fr.settings)
         inst = instrument_from_dict(fr.instrument, f"{str(path)!r} instrument")
         key = fr.key if settings.times is not None else float(fr.key)
+        if not (isinstance(key, str) or np.isfinite(key)):
+            raise ValueError(f"LVKEY = {fr.key!r} is not a phase")
         exposure = float(fr.header["EXPTIME"])
     except (ValueError, TypeError, KeyError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
