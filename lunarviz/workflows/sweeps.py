@@ -491,6 +491,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
                 if bar:
                     bar.update()
         except BaseException:  # an error, Ctrl-C or SIGTERM: end the workers now, not after their tasks
+            _quiet_pool_teardown()
             ex.shutdown(wait=False, cancel_futures=True)
             for proc in multiprocessing.active_children():
                 proc.terminate()
@@ -499,6 +500,21 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
     if bar:
         bar.close()
     return _assemble(settings, results, t0)
+
+
+def _quiet_pool_teardown() -> None:
+    """Ending a pool whose futures were just cancelled races the pool's manager thread, which
+    may then set an exception on a cancelled future and print InvalidStateError's traceback
+    (CPython's concurrent.futures, fixed in later versions): that thread's report is dropped, so
+    an interrupted run still ends in one line."""
+    import threading
+    from concurrent.futures import InvalidStateError
+    previous = threading.excepthook
+
+    def hook(args):
+        if not issubclass(args.exc_type, InvalidStateError):
+            previous(args)
+    threading.excepthook = hook
 
 
 def _default_sigterm() -> None:
