@@ -363,12 +363,12 @@ def _instrument_images(sc: Scene, keys, instrument, exposure, frames: int, seed:
     from lunarviz.outputs.count_frames import append_counts
     from lunarviz.outputs.images import write_fits
     from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths
-    from lunarviz.workflows.measurement import MAX_FRAMES, check_seed
+    from lunarviz.workflows.measurement import MAX_FRAMES, check_count, check_seed
     inst = load_instrument(instrument)
     keys = [_check_key(sc, k) for k in keys]
-    if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or not 1 <= frames <= MAX_FRAMES:
-        raise LunarvizError(f"--frames {frames!r} must be an integer from 1 to {MAX_FRAMES}")
+    frames = check_count(frames, "--frames", MAX_FRAMES)
     settings = sc.settings("raytrace")
+    settings_dict = settings.to_dict()
     seed = check_seed(settings.seed if seed is None else seed)
     targets = []
     if out is not None:
@@ -386,10 +386,9 @@ def _instrument_images(sc: Scene, keys, instrument, exposure, frames: int, seed:
             results.append(obs)
             if out is not None:
                 tmp = staged.stage(targets[n])
-                s = json.dumps(settings.to_dict())
                 write_fits(tmp, obs.image, obs.image.planes, {"psf": inst.psf, "halo": inst.halo,
-                                                              "settings": settings.to_dict()})
-                append_counts(tmp, obs, k, s, frames, seed)
+                                                              "settings": settings_dict})
+                append_counts(tmp, obs, k, json.dumps(settings_dict), frames, seed)
     if out is not None:
         return targets
     return results[0] if len(results) == 1 else results

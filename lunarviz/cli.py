@@ -563,9 +563,8 @@ def cmd_image(a):
             raise UsageError(f"--instrument sets the camera and its optics: drop --{given[0].replace('_', '-')}")
         out_suffixes = (".fits",)
     else:
-        for k in ("exposure",):
-            if getattr(a, k) is not None:
-                raise UsageError(f"--{k} goes with --instrument")
+        if a.exposure is not None:
+            raise UsageError("--exposure goes with --instrument")
         if a.frames != 1:
             raise UsageError("--frames goes with --instrument")
         for k, v in CAMERA_DEFAULTS.items():

@@ -87,6 +87,14 @@ def place_mask(geom: DiscGeometry, transmission: float, margin_px: float) -> Bri
     return BrightSideMask(float(transmission), min(geom.terminator_along, 0.0) - margin_px / geom.radius_px)
 
 
+def masked_pixels(sc, camera, transmission: float, margin_px: float):
+    """The disc, the mask placed on it (None: no mask) and the (H, W) pixels behind it."""
+    geom = disc_geometry(sc, camera)
+    mask = place_mask(geom, transmission, margin_px)
+    shape = (camera.height, camera.width)
+    return geom, mask, mask.pixels(geom, shape) if mask is not None else np.zeros(shape, bool)
+
+
 def surface_points(sc, camera, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points [m] (n, 3) and outward normals where the central rays of pixels (x, y) meet the
     Moon's sphere."""

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, disc_geometry, place_mask
+from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, masked_pixels
 from lunarviz.instrument.detector import expected_counts, expected_electrons
 from lunarviz.instrument.response import electron_rate, instrument_request, photon_band, photon_label
 from lunarviz.instrument.sky import SiteSky, site_sky
@@ -110,7 +110,8 @@ def observe(settings, key, inst: Instrument, exposure_s: float | None = None, tr
     sky_rate = np.zeros_like(omega)
     if sky is not None:
         e_moon = sum(float(np.sum(raw[c])) for c in raw)  # [e⁻ s⁻¹] of the whole Moon above the atmosphere
-        band_width = float(np.trapezoid(photon_band(inst).response, photon_band(inst).wavelength_nm))
+        band = photon_band(inst)
+        band_width = float(np.trapezoid(band.response, band.wavelength_nm))
         dark = electron_rate(np.full_like(omega, sky.dark_sky_radiance_w_m2_sr_nm * band_width), omega, inst)
         # scattered moonlight: L_sky = E_moon × ratio, in electrons: the Moon's electrons per unit
         # collecting area and solid angle → per pixel: e_moon × ratio × Ω_pixel
@@ -118,9 +119,7 @@ def observe(settings, key, inst: Instrument, exposure_s: float | None = None, tr
         rates = {c: r * sky.transmission for c, r in rates.items()}
     rates["sky"] = sky_rate
     sc, _ = settings.scene_and_fields(key)
-    geom = disc_geometry(sc, camera)
-    mask = place_mask(geom, inst.bright_side_nd, inst.margin_px())
-    masked = mask.pixels(geom, omega.shape) if mask is not None else np.zeros(omega.shape, bool)
+    geom, mask, masked = masked_pixels(sc, camera, inst.bright_side_nd, inst.margin_px())
     if mask is not None:  # a focal-plane filter: after the optics' halo, on every light alike
         rates = {c: np.where(masked, r * mask.transmission, r) for c, r in rates.items()}
     # the photon band is an internal plane: the image keeps the band's radiance planes only

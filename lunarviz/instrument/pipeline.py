@@ -157,7 +157,7 @@ def calibrate(settings, key, inst: Instrument, exposure_s: float, rates: dict | 
     before the optics, when the caller has them)."""
     from dataclasses import replace
 
-    from lunarviz.instrument.disc import disc_geometry, place_mask
+    from lunarviz.instrument.disc import masked_pixels
     from lunarviz.instrument.observation import instrument_camera, instrument_settings, optics_kernels
     from lunarviz.outputs.images import apply_optics
     settings = instrument_settings(settings, inst)
@@ -168,10 +168,7 @@ def calibrate(settings, key, inst: Instrument, exposure_s: float, rates: dict | 
         rates = observe(cal, key, inst, exposure_s).raw_rates
     psf, halo = optics_kernels(inst, camera)
     sc, _ = cal.scene_and_fields(key)
-    geom = disc_geometry(sc, camera)
-    mask = place_mask(geom, inst.bright_side_nd, inst.margin_px())
-    shape = rates["moonshine"].shape
-    masked = mask.pixels(geom, shape) if mask is not None else np.zeros(shape, bool)
+    geom, mask, masked = masked_pixels(sc, camera, inst.bright_side_nd, inst.margin_px())
     where = f"{key}: "
     patches = select_patches(geom, rates["moonshine"] > 0, inst.margin_px(), masked, where)
     es = apply_optics(rates["earthshine"], psf, None)

@@ -54,7 +54,8 @@ def sweep_p_star(settings, key, inst: Instrument, photon: bool = True) -> float:
         return float(run_sweep(replace(s, bands=str(path)), progress=False)["rows"][0]["apparent_albedo"])
 
 
-def _check_counts(n: int, what: str, hi: int) -> int:
+def check_count(n: int, what: str, hi: int) -> int:
+    """``n`` as an integer from 1 to ``hi``, or a one-line error naming ``what``."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= hi:
         raise LunarvizError(f"{what} {n!r} must be an integer from 1 to {hi}")
     return int(n)
@@ -72,8 +73,8 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
     ``default_rng([seed, i, j])``): rows with p*, its noise and the error budget; a summary of the
     standardised errors against the sweep's p* in the instrument's photon band
     (``p_star_sweep``; ``p_star_sweep_band``: in its band S, as ``lunarviz sweep --band``)."""
-    n = _check_counts(n, "--simulate", MAX_SIMULATIONS)
-    frames = _check_counts(frames, "--frames-per-measurement", MAX_FRAMES)
+    n = check_count(n, "--simulate", MAX_SIMULATIONS)
+    frames = check_count(frames, "--frames-per-measurement", MAX_FRAMES)
     seed = check_seed(seed)
     obs = observe(settings, key, inst, exposure_s)
     cal = _calibration(settings, key, inst, obs)
