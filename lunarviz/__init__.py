@@ -17,7 +17,8 @@ import importlib
 
 __version__ = "0.1.0"
 
-__all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "measure", "plan", "study", "LunarvizError",
+__all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "measure", "plan", "brdf", "study",
+           "LunarvizError",
            "__version__"]
 
 
@@ -25,7 +26,7 @@ __all__ = ["Scene", "sweep", "run", "trace", "render", "view", "image", "measure
 #: the package's ``__init__`` imports none of its modules)
 _PUBLIC = {"Scene": "lunarviz.api", "sweep": "lunarviz.api", "run": "lunarviz.api", "trace": "lunarviz.api",
            "render": "lunarviz.api", "view": "lunarviz.api", "image": "lunarviz.api", "measure": "lunarviz.api",
-           "plan": "lunarviz.api",
+           "plan": "lunarviz.api", "brdf": "lunarviz.api",
            "LunarvizError": "lunarviz.errors"}
 
 

@@ -538,3 +538,37 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     if out is not None:
         return files
     return results[0] if len(results) == 1 else results
+
+
+def _angles(values, what: str, lo: float, hi: float) -> tuple:
+    out = tuple(float(v) for v in np.atleast_1d(values))
+    bad = [v for v in out if not (lo <= v <= hi)]
+    if not out or bad:
+        raise LunarvizError(f"{what} {bad[0] if bad else values!r} must be in {lo:g}…{hi:g}")
+    return out
+
+
+def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = None, wavelengths=(550.0,),
+         incidence, emission, azimuth=(0.0,), atmosphere: bool = True, params: dict | None = None,
+         **moon_options) -> list[dict]:
+    """Rows of a lunar BRDF (``model``) or of the Earth's top-of-atmosphere reflectance (``body="earth"``,
+    ``surface`` one of black, lambert:A, ocean, land, vegetation, desert, snow, cloud), as
+    ``lunarviz brdf`` writes them (:mod:`lunarviz.workflows.brdf_tables`): angles in degrees,
+    azimuth 0 = the viewer on the source's side. ``params``: the Moon's model parameters
+    ``{name: value}`` (w, b, c, …) or the Earth's (wind_speed [m s⁻¹], cloud_top_hpa,
+    surface_hpa); ``moon_options``: dhg_convention, h_function, moon_model."""
+    from lunarviz.workflows.brdf_tables import earth_rows, lunar_rows
+    inc = _angles(incidence, "incidence", 0.0, 90.0)
+    emi = _angles(emission, "emission", 0.0, 90.0)
+    azi = _angles(azimuth, "azimuth", -360.0, 360.0)
+    if body == "earth":
+        if surface is None or model is not None or moon_options:
+            raise LunarvizError("brdf(body='earth') takes surface=..., not a lunar model or its options")
+        lam = _angles(wavelengths, "wavelength", 300.0, 2500.0)
+        return earth_rows(surface, lam, inc, emi, azi, atmosphere=atmosphere, params=params)[0]
+    if body != "moon":
+        raise LunarvizError(f"body {body!r} must be 'moon' or 'earth'")
+    from lunarviz.photometry.brdf import make_brdf
+    if model is None or surface is not None:
+        raise LunarvizError("brdf(body='moon') takes model=... (lambert, shg, dhg), not a surface")
+    return lunar_rows(make_brdf(model, params=params, **moon_options), inc, emi, azi)

@@ -46,7 +46,9 @@ class _Parser(argparse.ArgumentParser):
 # ---- parsing helpers ---------------------------------------------------------------------
 def parse_params(items, brdfs) -> dict:
     """``--param NAME=VALUE`` or ``BRDF.NAME=VALUE`` → ``{brdf: {name: value}}``."""
+    from lunarviz.earth_optics.surfaces import EARTH_DEFAULTS
     from lunarviz.photometry.brdf import BRDF_PARAMETERS
+    known = {**BRDF_PARAMETERS, "earth": tuple(EARTH_DEFAULTS)}
     out: dict = {b: {} for b in brdfs}
     for item in items or []:
         if "=" not in item:
@@ -59,15 +61,20 @@ def parse_params(items, brdfs) -> dict:
         targets = brdfs
         if "." in key:
             b, key = key.split(".", 1)
-            if b not in brdfs:
+            if b == "earth":
+                out.setdefault("earth", {})
+            elif b not in brdfs:
                 raise UsageError(f"--param {item!r}: BRDF {b!r} is not in this run")
             targets = [b]
         took = False
         for b in targets:
-            if key in BRDF_PARAMETERS[b]:
+            if key in known.get(b, ()):
                 out[b][key] = value
                 took = True
         if not took:
+            if targets == ["earth"]:
+                raise UsageError(f"--param {item!r}: the Earth has no parameter {key!r} (one of "
+                                 f"{', '.join(EARTH_DEFAULTS)})")
             raise UsageError(f"--param {item!r}: no BRDF in this run has a parameter {key!r}")
     return {b: p for b, p in out.items() if p}
 
@@ -175,13 +182,21 @@ def _parser_sweep(sub):
 
 
 def _parser_brdf(sub):
+    from lunarviz.earth_optics.surfaces import SURFACE_NAMES
     from lunarviz.options import BRDF_NAMES
-    p = sub.add_parser("brdf", help="tabulate a lunar BRDF")
-    p.add_argument("--model", required=True, help=" | ".join(BRDF_NAMES))
+    p = sub.add_parser("brdf", help="tabulate a lunar BRDF or the Earth's top-of-atmosphere reflectance")
+    p.add_argument("--body", default="moon", choices=("moon", "earth"),
+                   help="moon: a lunar BRDF (--model); earth: a surface class under the Rayleigh atmosphere "
+                   "(--surface)")
+    p.add_argument("--model", default=None, help=" | ".join(BRDF_NAMES) + " (the Moon)")
+    p.add_argument("--surface", default=None, help=" | ".join(SURFACE_NAMES) + " (the Earth)")
+    p.add_argument("--wavelengths", default="550", help="the Earth: wavelengths [nm], a,b,c or start:stop:step")
+    p.add_argument("--no-atmosphere", action="store_true", help="the Earth: the bare surface, no Rayleigh layer")
     p.add_argument("--incidence", required=True, help="incidence angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--emission", required=True, help="emission angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")
-    p.add_argument("--out", required=True, help=".json or .csv: one row per (incidence, emission, azimuth)")
+    p.add_argument("--out", required=True,
+                   help=".json or .csv: one row per (wavelength,) incidence, emission, azimuth")
     add_arguments(p, names=BRDF_TABLE_OPTIONS)
 
 
@@ -343,7 +358,9 @@ EXAMPLES = {
               "lunarviz sweep --moon-model rolo-fit-map --brdf dhg --wavelengths 400:1000:50 --out spectrum.json",
               "lunarviz sweep --method raytrace --band B,V,S2A-B4 --earth-surface landocean --clouds zonal "
               "--out colour.nc"],
-    "brdf": ["lunarviz brdf --model dhg --incidence 75 --emission 0:85:5 --azimuth 0,180 --out brdf.csv"],
+    "brdf": ["lunarviz brdf --model dhg --incidence 75 --emission 0:85:5 --azimuth 0,180 --out brdf.csv",
+             "lunarviz brdf --body earth --surface ocean --param earth.wind_speed=7 --wavelengths 450,550,865 "
+             "--incidence 30 --emission 0:70:10 --azimuth 0,90,180 --out ocean.csv"],
     "trace": ["lunarviz trace --phase 120 --brdf dhg,lambert --out moon.vtp",
               "lunarviz trace --time 2025-03-14T06:58Z --out scene.vtm"],
     "render": ["lunarviz render --phase 120 --out moon.png",
@@ -432,32 +449,35 @@ def cmd_sweep(a):
 
 
 def cmd_brdf(a):
-    import numpy as np
-
     from lunarviz.outputs.writers import write_results
-    from lunarviz.photometry.brdf import brdf_from_angles, half_angle_from_angles, make_brdf
-    model_name = _brdf_list(a.model)
-    if len(model_name) != 1:
-        raise UsageError(f"--model takes one BRDF, got {a.model!r}")
+    from lunarviz.workflows.brdf_tables import earth_rows, lunar_rows
     inc = parse_float_list(a.incidence, "incidence", 0.0, 90.0)
     emi = parse_float_list(a.emission, "emission", 0.0, 90.0)
     azi = parse_float_list(a.azimuth, "azimuth", -360.0, 360.0)
     out = _check_out(a.out, (".json", ".csv"))
-    params = parse_params(a.param, model_name).get(model_name[0], {})
-    model = make_brdf(model_name[0], dhg_convention=a.dhg_convention, h_function=a.h_function, params=params,
-                      moon_model=a.moon_model)
-    rows = []
-    for i in inc:
-        for e in emi:
-            for z in azi:
-                ir, er, zr = np.radians([i, e, z])
-                s, c = half_angle_from_angles(ir, er, zr)
-                f = float(brdf_from_angles(model, ir, er, zr))
-                rows.append({"incidence_deg": i, "emission_deg": e, "azimuth_deg": z,
-                             "phase_deg": float(np.degrees(2 * np.arctan2(s, c))),
-                             "brdf_per_sr": f, "reflectance_factor": np.pi * f})
-    settings = {"model": model_name[0], "dhg_convention": a.dhg_convention, "h_function": a.h_function,
-                "params": model.params}
+    if a.body == "earth":
+        if a.model is not None:
+            raise UsageError("--model names a lunar BRDF: the Earth takes --surface")
+        if a.surface is None:
+            raise UsageError("--body earth needs --surface (black, lambert:A, ocean, land, snow or cloud)")
+        lam = parse_float_list(a.wavelengths, "wavelengths", 300.0, 2500.0)
+        rows, settings = earth_rows(a.surface, lam, inc, emi, azi, atmosphere=not a.no_atmosphere,
+                                    params=parse_params(a.param, ["earth"]).get("earth", {}))
+    else:
+        from lunarviz.photometry.brdf import make_brdf
+        if a.model is None:
+            raise UsageError("the Moon's table needs --model (lambert, shg, dhg or hapke-style presets)")
+        if a.surface is not None or a.no_atmosphere:
+            raise UsageError("--surface and --no-atmosphere are the Earth's: add --body earth")
+        model_name = _brdf_list(a.model)
+        if len(model_name) != 1:
+            raise UsageError(f"--model takes one BRDF, got {a.model!r}")
+        params = parse_params(a.param, model_name).get(model_name[0], {})
+        model = make_brdf(model_name[0], dhg_convention=a.dhg_convention, h_function=a.h_function, params=params,
+                          moon_model=a.moon_model)
+        rows = lunar_rows(model, inc, emi, azi)
+        settings = {"model": model_name[0], "dhg_convention": a.dhg_convention, "h_function": a.h_function,
+                    "params": model.params}
     write_results(out, {"settings": settings, "rows": rows})
     if not getattr(a, "quiet", False):
         print(f"wrote {out} ({len(rows)} rows)")

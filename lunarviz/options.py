@@ -56,6 +56,8 @@ EXECUTORS = ("local", "dask")
 SOLAR_SPECTRA = ("tsis1-hsrs", "grey")
 #: the Earth's surface classes in a spectral run: their packaged spectra, or their grey albedos
 EARTH_SPECTRA = ("surface", "grey")
+#: how the Earth reflects: Lambert facets, or the physical classes of :mod:`lunarviz.earth_optics`
+EARTH_BRDFS = ("lambert", "physical")
 #: the finest packaged-icosphere level a scene may ask for (20·4^8 = 1.3 M facets)
 MAX_LEVEL = 8
 #: icosphere levels of the packaged meshes when none is asked for (from the mesh study)
@@ -268,6 +270,10 @@ OPTIONS: tuple[Option, ...] = (
        "ocean albedos) or a clear-sky albedo map FILE", "surfaces", metavar="uniform|landocean|FILE"),
     _o("clouds", "str", "none", "cloud fraction: none, zonal (zonal means shipped with the package) or a map "
        "FILE; clouds reflect with the cloud albedo", "surfaces", metavar="none|zonal|FILE"),
+    _o("earth_brdf", "str", "lambert", "how the Earth reflects: lambert (each place a Lambert surface of its albedo) "
+       "or physical (Rayleigh atmosphere over Cox-Munk ocean, Ross-Li land and snow, DISORT clouds; "
+       "--param earth.wind_speed=, earth.cloud_top_hpa=, earth.surface_hpa=, earth.wavelength_nm= for grey runs)",
+       "surfaces", choices=EARTH_BRDFS, label="Earth BRDF"),
     _o("land_albedo", "float", LAND_ALBEDO, "Lambert albedo of clear land (Earth surface landocean)", "surfaces",
        unit="1", lo=0.0, hi=1.0, label="land albedo"),
     _o("ocean_albedo", "float", OCEAN_ALBEDO, "Lambert albedo of clear ocean (Earth surface landocean)",

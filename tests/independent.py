@@ -302,7 +302,7 @@ def _edges(*cuts):
 
 def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, earth_lon_sub_solar_deg=0.0,
                       moon_cuts=(), earth_cuts=(), n_moon=(48, 24), n_earth=(32, 24), moon_lat_cuts=(),
-                      earth_lat_cuts=()):
+                      earth_lat_cuts=(), earth_reflectance=None):
     """``{brdf: (moonshine, earthshine)}`` [W m⁻²] in the θ scene, detector at the Earth's centre.
 
     Frames (DESIGN.md): both north poles along +x; the Moon's (0°, 0°) faces the Earth; the
@@ -311,7 +311,10 @@ def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, ea
     ``{brdf: array}`` (``None``: the models' own); ``earth_albedo(lat, lon)`` the Earth's Lambert
     albedo (``None``: 0.3). ``*_cuts``: longitudes [deg] where the albedo jumps; the rules are
     split there and at the Earth's terminator and limb meridians. Point Sun; the Earth is an
-    extended Lambert body lit by a point Sun; no occlusion.
+    extended Lambert body lit by a point Sun; no occlusion. ``earth_reflectance(m, s, t)``: an
+    anisotropic Earth instead, its reflectance factor R at unit normals ``m``, directions to the
+    Sun ``s`` and to each lunar point ``t`` (arrays (B, K, 3)), evaluated per pair of lunar point and
+    Earth node (radiance ``E μ_s R / π``).
     """
     sun, earth, moon = scene(theta_deg)
     pole = np.array([1.0, 0.0, 0.0])
@@ -348,6 +351,7 @@ def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, ea
     L_e = A_e / np.pi * C.PHI_SUN_W / (4 * np.pi * dsy**2) * mu_s  # (Y,)
     keep = L_e > 0
     y, m, L_e, dA_y = y[keep], m[keep], L_e[keep], EW[keep] * C.R_EARTH_M**2
+    s_y = vsy[keep] / dsy[keep][:, None]
     # detector geometry at the Earth's centre
     det = earth
     v = det - x
@@ -380,7 +384,11 @@ def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, ea
             ab = None if a is None else a[sl][:, None]
             f_e = np.where(mu0e > 0, model.brdf(mu0e, np.broadcast_to(mu[sl][:, None], mu0e.shape), she, che,
                                                 albedo=ab), 0.0)
-            L = np.sum(f_e * mu0e * L_e[None, :] * cos_y * dA_y[None, :] / r**2, axis=1)
+            L_y = L_e[None, :]
+            if earth_reflectance is not None:  # L_e holds the albedo 0.3 (no map): rescale to R per pair
+                R = earth_reflectance(np.broadcast_to(m, om.shape), np.broadcast_to(s_y, om.shape), -om)
+                L_y = L_e[None, :] / EARTH_ALBEDO * R
+            L = np.sum(f_e * mu0e * L_y * cos_y * dA_y[None, :] / r**2, axis=1)
             es += float(np.sum(L * geom[sl]))
         out[k] = (ms, es)
     return out

@@ -3,7 +3,6 @@
 import os
 import shutil
 import subprocess
-import time
 
 import numpy as np
 import pytest
@@ -162,10 +161,19 @@ def xvfb():
     exe = shutil.which("Xvfb")
     if exe is None:
         pytest.skip("Xvfb not installed (scripts/install.sh installs it)")
-    display = ":97"
-    proc = subprocess.Popen([exe, display, "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+    # -displayfd: Xvfb picks a free display itself and writes its number to the pipe only once it
+    # accepts connections (a fixed display and a fixed sleep raced a slow start in CI)
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen([exe, "-displayfd", str(write_fd), "-screen", "0", "1280x800x24",
+                             "-nolisten", "tcp"], pass_fds=(write_fd,),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    time.sleep(1.0)
+    os.close(write_fd)
+    with os.fdopen(read_fd) as ready:
+        number = ready.readline().strip()
+    if not number:
+        proc.kill()
+        pytest.fail("Xvfb exited before it accepted connections")
+    display = f":{number}"
     old = os.environ.get("DISPLAY")
     os.environ["DISPLAY"] = display
     yield display

@@ -414,8 +414,17 @@ class EarthSurface:
     land_albedo: float = LAND_ALBEDO
     ocean_albedo: float = OCEAN_ALBEDO
     cloud_albedo: float = CLOUD_ALBEDO
+    #: ``lambert`` or ``physical`` (:mod:`lunarviz.bodies.physical_earth`), and the physical Earth's
+    #: parameters as sorted (name, value) pairs
+    brdf: str = "lambert"
+    earth_params: tuple = ()
 
     def __post_init__(self):
+        if self.brdf not in ("lambert", "physical"):
+            raise LunarvizError(f"Earth BRDF {self.brdf!r} is not one of lambert, physical")
+        if self.earth_params:
+            from lunarviz.earth_optics.surfaces import earth_params
+            earth_params(dict(self.earth_params))
         for name in ("albedo", "land_albedo", "ocean_albedo", "cloud_albedo"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.number)) and np.isfinite(v) and 0.0 <= v <= 1.0):
@@ -429,11 +438,24 @@ class EarthSurface:
     def from_options(cls, o) -> "EarthSurface":
         """The Earth surface that settings ``o`` (any object with the ``surfaces`` options of
         :mod:`lunarviz.options` and ``earth_albedo``) describe."""
-        return cls(o.earth_surface, o.clouds, o.earth_albedo, o.land_albedo, o.ocean_albedo, o.cloud_albedo)
+        params = getattr(o, "params", None)
+        earth = (params or {}).get("earth", {}) if params is not None else dict(getattr(o, "earth_params", ()))
+        return cls(o.earth_surface, o.clouds, o.earth_albedo, o.land_albedo, o.ocean_albedo, o.cloud_albedo,
+                   getattr(o, "earth_brdf", "lambert"), tuple(sorted(earth.items())))
 
     @property
     def uniform(self) -> bool:
-        return self.surface == "uniform" and self.clouds == "none"
+        """One Lambert albedo everywhere (the physical Earth never is: it reflects by geometry)."""
+        return self.surface == "uniform" and self.clouds == "none" and self.brdf == "lambert"
+
+    @property
+    def physical(self) -> bool:
+        return self.brdf == "physical"
+
+    @property
+    def wavelength_nm(self) -> float:
+        """The wavelength [nm] of a grey run's physical Earth (``earth.wavelength_nm``)."""
+        return float(dict(self.earth_params).get("wavelength_nm", 550.0))
 
     def clear_map(self):
         if self.surface == "uniform":
@@ -533,6 +555,8 @@ class Surfaces:
         weight instead of the albedo (:mod:`lunarviz.spectral.earth`'s components)."""
         if self.earth.uniform and values is None:
             return float(self.earth.albedo)
+        if self.earth.physical:
+            raise AssertionError("a physical Earth: use lunarviz.bodies.physical_earth.albedo_toward")  # a caller bug
         values = values or self.earth.albedo_at
         clear = self.earth.clear_map()
         n = max(360, min(1800, 0 if clear is None else clear.shape[0]))

@@ -150,7 +150,13 @@ def earthshine_transport(scene: SceneGeometry, settings: AnalyticSettings = Anal
     e_in = scene.phi / (4 * np.pi * scene.d_se_actual**2)  # Eq. 7
     unit_intensity = earth_intensity(beta, 1.0, scene.radii["earth"], e_in, settings.earth_law)
     sf = settings.surfaces
-    albedo = settings.earth_albedo if sf is None else sf.earth_albedo_toward(scene, scene.moon)
+    if sf is None:
+        albedo = settings.earth_albedo
+    elif sf.earth.physical:  # the disc integral of the classes' reflectance toward the Moon
+        from lunarviz.bodies.physical_earth import albedo_toward_moon
+        albedo = float(albedo_toward_moon(sf, scene, [sf.earth.wavelength_nm])[0])
+    else:
+        albedo = sf.earth_albedo_toward(scene, scene.moon)
     tr = _point_source_transport(scene, x, n, dA, E, albedo * unit_intensity / d2)
     tr.e_beam_unit = np.where(tr.mu0 > 0, (unit_intensity / d2)[:, None], 0.0)  # lit: μ0 > 0, as e_beam
     return _with_moon_map(tr, scene, x, settings)

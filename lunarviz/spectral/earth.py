@@ -30,7 +30,7 @@ import numpy as np
 
 from lunarviz.caches import memoize
 from lunarviz.resources import DATA_DIR
-from lunarviz.spectral.solar import read_table
+from lunarviz.earth_optics.spectra import class_spectrum
 
 #: land-cover codes of ``earth_landcover.npy`` -> component
 LAND_CLASSES = {1: "vegetation", 2: "desert", 3: "snow"}
@@ -44,13 +44,6 @@ def land_cover() -> np.ndarray:
     m = np.load(DATA_DIR / "earth_landcover.npy")
     m.setflags(write=False)
     return m
-
-
-@memoize(maxsize=8)
-def class_spectrum(name: str) -> tuple[np.ndarray, np.ndarray]:
-    """(wavelength_nm, albedo) of a packaged surface class."""
-    lam, a, _ = read_table(DATA_DIR / "spectra" / f"earth_{name}.csv", f"{name} spectrum")
-    return lam, a
 
 
 def components(surface) -> tuple[str, ...]:
@@ -130,3 +123,14 @@ def weights_toward(surfaces, scene, target: np.ndarray) -> np.ndarray:
     ``target`` (:meth:`Surfaces.earth_albedo_toward`'s rule, per component)."""
     return np.atleast_1d(surfaces.earth_albedo_toward(scene, target,
                                                       values=lambda d: weights_at(surfaces.earth, d)))
+
+
+def spectral_components(surface, nodes, mode: str = "surface") -> tuple[tuple, np.ndarray]:
+    """A spectral run's Earth components and their (C, L) albedos at the node wavelengths: the
+    surface's classes (:func:`components`, :func:`albedo_spectra`), or for a physical Earth one
+    component per node (its reflectance there is the component's weight: albedos the identity)."""
+    if surface.physical:
+        from lunarviz.spectral.request import wavelength_label
+        return tuple(f"{wavelength_label(x)} nm" for x in nodes), np.eye(len(nodes))
+    names = components(surface)
+    return names, albedo_spectra(surface, names, nodes, mode)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.spectral.earth import albedo_spectra, components
+from lunarviz.spectral.earth import spectral_components
 from lunarviz.spectral.shading import shade, spectral_brdfs
 
 
@@ -34,8 +34,8 @@ class SpectralImageShading:
         surface = settings.surfaces().earth if settings.surfaces() is not None else None
         self.mapped = surface is not None and not surface.uniform
         if self.mapped:
-            ts.earth_parts = components(surface)
-            self.albedo = albedo_spectra(surface, ts.earth_parts, self.req.nodes, settings.earth_spectra)
+            ts.earth_parts, self.albedo = spectral_components(surface, self.req.nodes, settings.earth_spectra)
+            ts.earth_part_wavelengths = self.req.nodes if surface.physical else None
         self.phi = ts.scene.phi_sun
         self.keys = [plane_key(b, lab) for b in models for lab in self.req.labels]
         self.factors = None

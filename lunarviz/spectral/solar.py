@@ -22,7 +22,6 @@ colour (the Sun is a uniform disc in the transport), and the Doppler shifts of i
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -30,7 +29,7 @@ from lunarviz.caches import file_key, memoize
 from lunarviz.constants import PHI_SUN_W
 from lunarviz.errors import LunarvizError
 from lunarviz.options import SOLAR_SPECTRA
-from lunarviz.resources import DATA_DIR
+from lunarviz.resources import DATA_DIR, read_table
 
 #: the astronomical unit [m] (IAU 2012 Resolution B2)
 AU_M = 1.495978707e11
@@ -41,8 +40,6 @@ GREY_BAND_NM = (400.0, 750.0)
 PACKAGED = {"tsis1-hsrs": "solar_tsis1_hsrs_v2.csv"}
 #: the named spectra: the packaged tables and the paper's flat grey Sun
 DEFAULT = "tsis1-hsrs"
-#: a table may hold at most this many rows (a 1 nm table of 200-10,000 nm has 9,800)
-MAX_ROWS = 200_000
 
 
 @dataclass(frozen=True)
@@ -98,52 +95,6 @@ def grey_sun() -> SolarSpectrum:
     lam = np.array([lo - eps, lo, hi, hi + eps])
     return SolarSpectrum("grey", lam, np.array([0.0, level, level, 0.0]),
                          "the paper's Φ = 1.626e26 W spread flat over 400-750 nm")
-
-
-def read_table(path, what: str = "solar spectrum", max_rows: int = MAX_ROWS) -> tuple[np.ndarray, np.ndarray, str]:
-    """Two columns of a CSV file (``#`` comments, one header line), checked: finite, wavelengths
-    increasing and positive, values non-negative; returns them and the comment lines."""
-    p = Path(path)
-    if not p.is_file():
-        raise LunarvizError(f"{what} {str(path)!r} is not a file")
-    if p.suffix.lower() not in (".csv", ".txt"):
-        raise LunarvizError(f"{what} {str(path)!r}: expected a .csv file (wavelength_nm, value)")
-    if p.stat().st_size > 64 * max_rows:
-        raise LunarvizError(f"{what} {str(path)!r} is too large ({p.stat().st_size} bytes)")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise LunarvizError(f"cannot read {what} {str(path)!r}: {exc}") from None
-    notes, rows = [], []
-    for n, line in enumerate(text.splitlines(), 1):
-        s = line.strip()
-        if not s:
-            continue
-        if s.startswith("#"):
-            notes.append(s.lstrip("# "))
-            continue
-        parts = [x.strip() for x in s.split(",")]
-        try:
-            row = (float(parts[0]), float(parts[1]))
-        except (ValueError, IndexError):
-            if rows or len(parts) < 2:  # one header line, before the numbers
-                raise LunarvizError(f"{what} {str(path)!r} line {n}: expected two numbers, got {s[:60]!r}") from None
-            continue
-        if len(parts) != 2:
-            raise LunarvizError(f"{what} {str(path)!r} line {n}: expected two columns (wavelength_nm, value), got "
-                                f"{len(parts)}")
-        rows.append(row)
-    if len(rows) < 2:
-        raise LunarvizError(f"{what} {str(path)!r} has fewer than two rows of numbers")
-    a = np.array(rows)
-    lam, val = a[:, 0], a[:, 1]
-    if not np.all(np.isfinite(a)):
-        raise LunarvizError(f"{what} {str(path)!r} has a value that is not finite")
-    if lam[0] <= 0 or np.any(np.diff(lam) <= 0):
-        raise LunarvizError(f"{what} {str(path)!r}: wavelengths must be positive and increasing")
-    if np.any(val < 0):
-        raise LunarvizError(f"{what} {str(path)!r} has a negative value ({val[val < 0][0]:g})")
-    return lam, val, " ".join(notes)
 
 
 @memoize(maxsize=8)

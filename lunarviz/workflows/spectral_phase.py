@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from lunarviz.photometry import albedo_inversion as alb
-from lunarviz.spectral.earth import albedo_spectra, components, weights_toward
+from lunarviz.spectral.earth import spectral_components, weights_toward
 from lunarviz.spectral.shading import SpectralShader, spectral_brdfs
 
 
@@ -47,8 +47,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
     shader = SpectralShader(spectral_brdfs(settings, brdfs, req.nodes))
     surface = settings.surfaces().earth if settings.surfaces() is not None else None
     mapped = surface is not None and not surface.uniform
-    names = components(surface) if mapped else ("uniform",)
-    albedo = albedo_spectra(surface, names, req.nodes, settings.earth_spectra) if mapped else None
+    names, albedo = spectral_components(surface, req.nodes, settings.earth_spectra) if mapped else (("uniform",), None)
     a0 = settings.earth_albedo
     extra: dict = {}
     if settings.method == "analytic":
@@ -58,7 +57,11 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         es_tr = earthshine_transport(sc, st)
         unit = shader.earthshine(es_tr)  # (1, L): a point Earth of albedo 1
         if mapped:  # the point Earth's components, weighted toward the Moon as its albedo is
-            w = weights_toward(st.surfaces, sc, sc.moon)
+            if surface.physical:  # one component per node: the disc's reflectance toward the Moon there
+                from lunarviz.bodies.physical_earth import albedo_toward_moon
+                w = albedo_toward_moon(st.surfaces, sc, req.nodes)
+            else:
+                w = weights_toward(st.surfaces, sc, sc.moon)
             es = {k: np.concatenate([w[:, None] * u[-1][None, :], u[-1:]]) for k, u in unit.items()}
         else:
             es = unit
@@ -75,6 +78,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         ts_set = settings.trace_settings(threads)
         ts = TraceScene(sc, ts_set)
         ts.earth_parts = names if mapped else None
+        ts.earth_part_wavelengths = req.nodes if mapped and surface.physical else None
         ms_r = trace_path(ts, "moonshine", brdfs, spectral=shader)
         es_r = trace_path(ts, "earthshine", brdfs, spectral=shader)
         zeros = np.zeros(len(req.nodes))
@@ -85,7 +89,8 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_ms, cal_es = ms, es
         else:  # the model Earth (the nominal sphere, uniform): as the grey run's calibration
             dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
-                                         earth_surface="uniform", clouds="none"))
+                                         earth_surface="uniform", clouds="none", earth_brdf="lambert",
+                                         earth_params=()))
             cal_m = trace_path(dts, "moonshine", brdfs, spectral=shader).spectral  # one trace each, all BRDFs
             cal_e = trace_path(dts, "earthshine", brdfs, spectral=shader).spectral
             cal_ms = {k: cal_m.get(k, zeros) for k in brdfs}

@@ -71,7 +71,12 @@ class SweepSettings:
             dup = next(p for p in self.phases_deg if list(self.phases_deg).count(p) > 1)
             raise LunarvizError(f"phase {dup:g} is listed twice")
         for b in self.params:
-            if b not in self.brdfs:
+            if b == "earth":  # the physical Earth's parameters (--param earth.NAME=VALUE)
+                from lunarviz.earth_optics.surfaces import earth_params
+                earth_params(self.params[b])
+                if self.earth_brdf != "physical":
+                    raise LunarvizError("earth parameters (--param earth.NAME=VALUE) need --earth-brdf physical")
+            elif b not in self.brdfs:
                 raise LunarvizError(f"params name BRDF {b!r}, which is not in this run ({', '.join(self.brdfs)})")
         if self.times is not None:
             from lunarviz.sky.ephemeris import time_list
@@ -218,7 +223,8 @@ class SweepSettings:
 
     @property
     def earth_uniform(self) -> bool:
-        return self.earth_surface == "uniform" and self.clouds == "none"
+        """One Lambert albedo over the whole Earth (the paper's)."""
+        return self.earth_surface == "uniform" and self.clouds == "none" and self.earth_brdf == "lambert"
 
     def analytic_settings(self, model_earth: bool = False) -> AnalyticSettings:
         order = self.order
@@ -237,6 +243,7 @@ class SweepSettings:
         over several worker processes pass 1). Results do not depend on it."""
         from lunarviz.methods.tracer.settings import TraceSettings
         return TraceSettings(threads=threads, mapped_earth=self.mapped_earth,
+                             earth_params=tuple(sorted(self.params.get("earth", {}).items())),
                              **{o.name: getattr(self, o.name) for o in group(*TraceSettings.GROUPS)})
 
     def observer_model(self):

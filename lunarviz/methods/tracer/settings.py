@@ -63,6 +63,8 @@ class TraceSettings:
     #: :meth:`TraceScene.mapped_earth_transport`) or ``beams`` (the uniform Earth's Gauss beams
     #: with each hit facet's albedo: ~2 % off at a map's edges; a diagnostic for comparisons)
     mapped_earth: str = "facets"
+    #: the physical Earth's parameters (``--param earth.NAME=VALUE``) as sorted (name, value) pairs
+    earth_params: tuple = ()
 
     def moon_map(self):
         """The parsed lunar albedo map, or ``None``."""

@@ -62,6 +62,8 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         #: a spectral run's Earth components (:func:`lunarviz.spectral.earth.components`): the
         #: mapped Earth's transports then carry one beam array each (``e_beam_parts``)
         self.earth_parts: tuple | None = None
+        #: a physical Earth's spectral run: the node wavelengths [nm] its components are
+        self.earth_part_wavelengths = None
         self._earth_parts_w = None
 
     # ---- surfaces ----------------------------------------------------------------------------
@@ -86,6 +88,11 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         if self._earth_albedo is None:
             from lunarviz.bodies.surfaces import map_frame
             frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
+            if surf.physical:  # each facet's reflectance toward the Moon as its albedo (earth_optics.planet)
+                from lunarviz.bodies.physical_earth import facet_reflectance
+                self._earth_albedo = facet_reflectance(surf, self.earth, frame, self.scene.sun, self.scene.moon,
+                                                       [surf.wavelength_nm])[:, 0]
+                return self._earth_albedo
             fa = surf.facet_albedo(self.earth, frame)
             self._earth_albedo = float(fa[0]) if np.all(fa == fa[0]) else fa
         return None if isinstance(self._earth_albedo, float) else self._earth_albedo
@@ -99,7 +106,13 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
             from lunarviz.bodies.surfaces import map_frame
             from lunarviz.spectral.earth import facet_weights
             frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
-            self._earth_parts_w = facet_weights(self.settings.surface(), self.earth, frame)
+            surf = self.settings.surface()
+            if surf.physical:  # one component per node wavelength: the facets' reflectance there
+                from lunarviz.bodies.physical_earth import facet_reflectance
+                self._earth_parts_w = facet_reflectance(surf, self.earth, frame, self.scene.sun, self.scene.moon,
+                                                        self.earth_part_wavelengths)
+            else:
+                self._earth_parts_w = facet_weights(surf, self.earth, frame)
         return self._earth_parts_w
 
     def earth_albedo_value(self) -> float:

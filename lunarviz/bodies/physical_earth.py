@@ -1,0 +1,141 @@
+"""The physical Earth as a planet (``--earth-brdf physical``): each place's reflectance toward a
+direction, per facet of a traced Earth and integrated over the disc for the point-Earth methods.
+
+Each place is a mix of the classes of :mod:`lunarviz.spectral.earth` (``--earth-surface`` and
+``--clouds``), each class reflecting as its model under the Rayleigh atmosphere
+(:func:`lunarviz.earth_optics.surfaces.toa_reflectance`): the uniform Earth and a clear-sky map
+FILE as Lambert surfaces of their albedo, ``ocean`` as Cox–Munk glint with whitecaps and water,
+``vegetation``/``desert``/``snow`` with the Ross–Li shape and their USGS spectra, ``cloud`` as
+the DISORT cloud under the air above its top. The options ``--ocean-albedo``, ``--land-albedo``
+and ``--cloud-albedo`` are the Lambert Earth's: the physical classes carry their own.
+
+A place's radiance toward a distant point (the Moon) is ``E μ_s R(μ_s, μ_t, φ) / π``: a Lambert
+place of albedo R. So a traced Earth takes, per facet, R toward the Moon's centre at the facet's
+centre (its classes' area-averaged weights) as the facet's albedo, and the point-Earth methods
+take ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA`` as the Earth's albedo. Neglected: R's change across a
+facet (~0.9° on the packaged Earth; the glint lobe is ~10° wide) and across the Moon as seen from
+the Earth (0.26°), the Earth's curvature in the atmosphere (plane-parallel: beyond 89° zenith
+angles are held there).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.bodies.surfaces import map_frame, sample_map
+from lunarviz.earth_optics.surfaces import Surface, earth_params, surface_from_name, toa_reflectance
+from lunarviz.spectral.earth import components, facet_weights, weights_at
+
+
+def _geometry(normals, to_sun, to_target):
+    """μ_s, μ_t and the azimuth [deg] (0: target on the Sun's side) at unit normals (n, 3) for
+    unit directions to the Sun and the target ((n, 3) or (3,))."""
+    ms = np.einsum("ij,ij->i", normals, np.broadcast_to(to_sun, normals.shape))
+    mt = np.einsum("ij,ij->i", normals, np.broadcast_to(to_target, normals.shape))
+    a = to_sun - ms[:, None] * normals
+    b = to_target - mt[:, None] * normals
+    den = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
+    cphi = np.where(den > 1e-12, np.einsum("ij,ij->i", a, b) / np.maximum(den, 1e-300), 1.0)
+    return ms, mt, np.degrees(np.arccos(np.clip(cphi, -1.0, 1.0)))
+
+
+def class_models(surface) -> dict[str, Surface]:
+    """Each component of ``surface`` (an :class:`~lunarviz.bodies.surfaces.EarthSurface`) as its
+    physical class (``clear`` of a map FILE is Lambert per place: ``None`` here)."""
+    p = earth_params(dict(surface.earth_params))
+    out = {}
+    for name in components(surface):
+        if name == "uniform":
+            out[name] = Surface("lambert", float(surface.albedo))
+        elif name == "clear":
+            out[name] = None if surface.surface != "uniform" else Surface("lambert", float(surface.albedo))
+        else:
+            out[name] = surface_from_name(name, wind_speed=p["wind_speed"])
+    return out
+
+
+def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, wavelengths) -> np.ndarray:
+    """(n, L) top-of-atmosphere reflectance factor toward the target of places with component
+    ``weights`` (n, C) (:func:`lunarviz.spectral.earth.weights_at` or facet averages) at unit
+    ``normals`` (n, 3) (``map_dirs``: the same in the map frame, for a clear-sky map's albedo)."""
+    p = dict(earth_params(dict(surface.earth_params)))
+    ms, mt, phi = _geometry(normals, to_sun, to_target)
+    lit = np.flatnonzero((ms > 0) & (mt > 0))
+    lam = np.atleast_1d(np.asarray(wavelengths, float))
+    out = np.zeros((len(normals), len(lam)))
+    if not len(lit):
+        return out
+    models = class_models(surface)
+    for c, (name, model) in enumerate(models.items()):
+        w = weights[lit, c]
+        rows = lit[w > 0]
+        if not len(rows):
+            continue
+        if model is None:  # a clear-sky map: Lambert at the map's albedo, per place
+            model = Surface("lambert", 0.0)
+            albedo = sample_map(surface.clear_map(), map_dirs[rows])
+            frac = weights[rows, c] / np.maximum(albedo, 1e-300)  # weights_at folds the map into its weight
+            for j, lj in enumerate(lam):
+                out[rows, j] += np.where(albedo > 0, frac, 0.0) * _lambert_map(lj, albedo, ms[rows], mt[rows],
+                                                                             phi[rows], p)
+            continue
+        geometry: dict = {}  # the class's wavelength-free parts at these places, computed once
+        for j, lj in enumerate(lam):
+            out[rows, j] += weights[rows, c] * toa_reflectance(model, lj, ms[rows], mt[rows], phi[rows], params=p,
+                                                               geometry=geometry)
+    return out
+
+
+def _lambert_map(wavelength, albedo, ms, mt, phi, params):
+    """R = ρ_R + T T A / (1 − S A) with A per place (the exact Lambert coupling)."""
+    from lunarviz.earth_optics import rayleigh
+    from lunarviz.earth_optics.atmosphere import path_reflectance, spherical_albedo, transmittance
+    tau = float(rayleigh.optical_depth(wavelength, params["surface_hpa"]))
+    S = spherical_albedo(tau)
+    coupled = transmittance(tau, ms) * transmittance(tau, mt) * albedo / (1 - S * albedo)
+    return path_reflectance(tau, ms, mt, phi) + coupled
+
+
+def facet_reflectance(surface, body, frame, sun, target, wavelengths) -> np.ndarray:
+    """(F, L) reflectance factor of a traced Earth's facets toward ``target`` (scene points [m]),
+    each at its centre with its classes' area-averaged weights."""
+    w = facet_weights(surface, body, frame)
+    tri = body.vertices[body.faces]
+    centre = tri.mean(axis=1)
+    n = centre / np.linalg.norm(centre, axis=1, keepdims=True)  # mesh frame = scene frame about the centre
+    y = body.centre + n * body.radius
+    to_sun = (sun - y) / np.linalg.norm(sun - y, axis=1, keepdims=True)
+    to_t = (target - y) / np.linalg.norm(target - y, axis=1, keepdims=True)
+    return reflectance(surface, w, n @ frame, n, to_sun, to_t, wavelengths)
+
+
+def albedo_toward(surface, scene, frame, target, wavelengths, rows: int = 180) -> np.ndarray:
+    """(L,) the point Earth's albedo toward a distant ``target``: ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA``
+    on a grid of ``rows`` latitudes × 2 ``rows`` longitudes (midpoints), the Sun and the target
+    seen from the Earth's centre."""
+    us = (scene.sun - scene.earth) / np.linalg.norm(scene.sun - scene.earth)
+    ut = (target - scene.earth) / np.linalg.norm(target - scene.earth)
+    lat = np.radians(90.0 - (np.arange(rows) + 0.5) * 180.0 / rows)
+    lon = np.radians(-180.0 + (np.arange(2 * rows) + 0.5) * 180.0 / rows)
+    lam = np.atleast_1d(np.asarray(wavelengths, float))
+    num, den = np.zeros(len(lam)), 0.0
+    for a in range(0, rows, 45):
+        la = lat[a:a + 45, None]
+        d = np.stack([np.cos(la) * np.cos(lon), np.cos(la) * np.sin(lon),
+                      np.broadcast_to(np.sin(la), (len(la), len(lon)))], -1).reshape(-1, 3)
+        ds = d @ frame.T
+        w = np.clip(ds @ us, 0, None) * np.clip(ds @ ut, 0, None) * np.repeat(np.cos(la[:, 0]), len(lon))
+        keep = np.flatnonzero(w > 0)
+        if not len(keep):
+            continue
+        r = reflectance(surface, weights_at(surface, d[keep]), d[keep], ds[keep], us, ut, lam)
+        num += w[keep] @ r
+        den += float(w[keep].sum())
+    return num / den if den > 0 else np.full(len(lam), np.nan)
+
+
+def albedo_toward_moon(surfaces, scene, wavelengths) -> np.ndarray:
+    """(L,) :func:`albedo_toward` the Moon's centre for a scene's
+    :class:`~lunarviz.bodies.surfaces.Surfaces` (its Earth's rotation gives the map frame)."""
+    frame = map_frame(scene, "earth", surfaces.earth_rotation_deg)
+    return albedo_toward(surfaces.earth, scene, frame, scene.moon, wavelengths)

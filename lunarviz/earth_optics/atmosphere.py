@@ -1,0 +1,93 @@
+"""The Rayleigh atmosphere over a surface: top-of-atmosphere reflectance factor.
+
+The packaged DISORT tables (:mod:`.tables`) give, for a Rayleigh layer of optical depth τ over a
+black surface, the path reflectance factor ρ_R(μ₀, μ, φ) (three Fourier modes, exact for the
+order-2 phase function), the total transmittance T(μ) = e^{−τ/μ} + t(μ) and the spherical albedo
+S. Over a Lambert surface of albedo A the top-of-atmosphere reflectance factor is exactly (in the
+plane-parallel scalar equation; Chandrasekhar 1950, §72)::
+
+    R = ρ_R + T(μ₀) T(μ) A / (1 − S A)
+
+Over a surface of reflectance factor ρ_s(μ₀, μ, φ), directional albedo ρ̄(μ) and bi-hemispherical
+albedo ρ̿, the coupling of Tanré, Herman & Deschamps (1983) as 6S uses it (Vermote et al. 1997,
+Eq. 11)::
+
+    R = ρ_R + e₀ e ρ_s + e t₀ ρ̄(μ) + e₀ t ρ̄(μ₀) + t₀ t ρ̿ + T₀ T S ρ̿² / (1 − S ρ̿)
+
+with e = e^{−τ/μ}, t = T − e: the direct beam is reflected by the full BRDF, the diffuse sky as
+if it were isotropic (the neglected part is second order in the BRDF's anisotropy times the diffuse
+fraction; checked against a DISORT run with the ocean as its lower boundary in
+tests/test_earth_optics.py). Lambert surfaces fall back to the exact form above.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.errors import LunarvizError
+from lunarviz.earth_optics.tables import RAYLEIGH_TAU, THETA_DEG, cubic_weights, load, theta_of
+
+
+def _tau_weights(tau):
+    tau = np.asarray(tau, dtype=float)
+    if np.any(tau < RAYLEIGH_TAU[0] * (1 - 1e-12)) or np.any(tau > RAYLEIGH_TAU[-1] * (1 + 1e-12)):
+        raise LunarvizError(f"Rayleigh optical depth {float(np.max(tau)):.4g} is outside the tables' "
+                            f"{RAYLEIGH_TAU[0]:g}…{RAYLEIGH_TAU[-1]:g} (wavelengths 290–2500 nm at sea level)")
+    return cubic_weights(np.log(RAYLEIGH_TAU), np.log(tau))
+
+
+def path_reflectance(tau: float, mu0, mu, phi_deg) -> np.ndarray:
+    """ρ_R: the Rayleigh layer's reflectance factor over a black surface (broadcast over μ₀, μ, φ;
+    φ = 0 with the viewer on the Sun's side)."""
+    t = load("rayleigh")
+    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    per_tau = np.tensordot(tw[0], t["rho_m"][ti[0]] / RAYLEIGH_TAU[ti[0], None, None, None], axes=1) * tau
+    mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
+    i0, w0 = cubic_weights(THETA_DEG, theta_of(mu0))
+    i1, w1 = cubic_weights(THETA_DEG, theta_of(mu))
+    modes = np.einsum("...a,...b,...abm->...m", w0, w1, per_tau[i0[..., :, None], i1[..., None, :]])
+    ph = np.radians(phi)
+    return modes[..., 0] + modes[..., 1] * np.cos(ph) + modes[..., 2] * np.cos(2 * ph)
+
+
+def transmittance(tau: float, mu) -> np.ndarray:
+    """T(μ): total (direct + diffuse) transmittance of the layer for a beam at cos θ = μ."""
+    t = load("rayleigh")
+    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    loss = np.tensordot(tw[0], (1.0 - t["trans"][ti[0]]) / RAYLEIGH_TAU[ti[0], None], axes=1) * tau
+    i1, w1 = cubic_weights(THETA_DEG, theta_of(mu))
+    return 1.0 - np.einsum("...a,...a->...", w1, loss[i1])
+
+
+def spherical_albedo(tau: float) -> float:
+    """S: the layer's reflectance for isotropic light from below."""
+    t = load("rayleigh")
+    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    return float(np.dot(tw[0], t["sph"][ti[0]] / RAYLEIGH_TAU[ti[0]]) * tau)
+
+
+def direct(tau: float, mu) -> np.ndarray:
+    """e^{−τ/μ}: the direct beam's transmittance (μ held at cos 89° as the tables are)."""
+    return np.exp(-tau / np.cos(np.radians(theta_of(mu))))
+
+
+def toa_reflectance(tau: float, surface, wavelength_nm: float, mu0, mu, phi_deg, geometry: dict | None = None
+                    ) -> np.ndarray:
+    """Top-of-atmosphere reflectance factor πL/(μ₀E₀) of ``surface`` (a
+    :class:`~lunarviz.earth_optics.surfaces.Surface`) under a Rayleigh layer of optical depth
+    ``tau`` (τ = 0: the bare surface); ``geometry``: kept between wavelengths at the same angles
+    (:meth:`Surface.reflectance`)."""
+    mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
+    rs = surface.reflectance(wavelength_nm, mu0, mu, phi, geometry)
+    if tau <= 0.0:
+        return rs
+    rr = path_reflectance(tau, mu0, mu, phi)
+    T0, T1, S = transmittance(tau, mu0), transmittance(tau, mu), spherical_albedo(tau)
+    bhr = surface.bihemispherical(wavelength_nm)
+    if surface.lambertian:
+        return rr + T0 * T1 * bhr / (1.0 - S * bhr)
+    e0, e1 = direct(tau, mu0), direct(tau, mu)
+    t0, t1 = T0 - e0, T1 - e1
+    return (rr + e0 * e1 * rs + e1 * t0 * surface.directional(wavelength_nm, mu)
+            + e0 * t1 * surface.directional(wavelength_nm, mu0) + t0 * t1 * bhr
+            + T0 * T1 * S * bhr * bhr / (1.0 - S * bhr))

@@ -1,0 +1,188 @@
+"""The Earth's surface classes by name, each with its reflectance factor and albedos, and the
+top-of-atmosphere reflectance factor of a class: what ``lunarviz brdf --body earth`` tabulates.
+
+Names (``--surface``): ``black`` and ``lambert:A`` (bare Lambert surfaces of albedo 0 and A),
+``ocean`` (:mod:`.ocean`, wind from ``wind_speed``), ``land`` (vegetation), ``vegetation``,
+``desert``, ``snow`` (:mod:`.land`, the packaged USGS spectra of :mod:`lunarviz.spectral.earth`
+as white-sky albedo) and ``cloud`` (:mod:`.cloud`, under the Rayleigh layer above its top).
+
+Directional albedo ρ̄(μ) = (1/π) ∫ ρ(μ', μ, φ) μ' dμ' dφ and bi-hemispherical albedo ρ̿ = 2 ∫ ρ̄ μ dμ
+are computed by Gauss–Legendre quadrature in μ' (:data:`ALBEDO_ORDER` nodes) and the midpoint
+rule in φ (every 2.5°), on the tables' zenith nodes, and interpolated cubically between them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lunarviz.caches import memoize
+from lunarviz.earth_optics import rayleigh
+from lunarviz.earth_optics.tables import THETA_DEG, cubic_weights, theta_of
+from lunarviz.errors import LunarvizError
+
+#: Gauss nodes in cos θ' for the albedos (the glint lobe of a 2 m s⁻¹ sea is ~10° wide)
+ALBEDO_ORDER = 96
+#: classes with a packaged spectrum serving as albedo
+LAND_CLASSES = ("vegetation", "desert", "snow")
+SURFACE_NAMES = ("black", "lambert:A", "ocean", "land", *LAND_CLASSES, "cloud")
+#: default parameters of the physical Earth: ``--param earth.NAME=VALUE``: the wind speed [m s⁻¹],
+#: the cloud top's and the surface's pressure [hPa] (the Rayleigh optical depth above them), the
+#: wavelength [nm] at which a grey (not spectral) run evaluates the Earth
+EARTH_DEFAULTS = {"wind_speed": 7.0, "cloud_top_hpa": 700.0, "surface_hpa": rayleigh.SEA_LEVEL_HPA,
+                  "wavelength_nm": 550.0}
+#: their ranges (Cox & Munk fitted 1–14 m s⁻¹; the tables' optical depths end at 2)
+EARTH_RANGES = {"wind_speed": (0.0, 30.0), "cloud_top_hpa": (100.0, 1100.0), "surface_hpa": (100.0, 1100.0),
+                "wavelength_nm": (300.0, 2500.0)}
+
+
+@dataclass(frozen=True)
+class Surface:
+    """One class: ``kind`` (lambert, ocean, land, cloud), its albedo (lambert), land class, wind."""
+    kind: str
+    albedo: float = 0.0
+    land_class: str = ""
+    wind_speed: float = EARTH_DEFAULTS["wind_speed"]
+
+    @property
+    def lambertian(self) -> bool:
+        return self.kind == "lambert"
+
+    def reflectance(self, wavelength_nm, mu0, mu, phi_deg, geometry: dict | None = None) -> np.ndarray:
+        """The bare surface's reflectance factor (πBRDF); ``geometry``: a dict in which the
+        wavelength-free parts at these angles are kept between calls (the glint, the land's shape,
+        the cloud)."""
+        if geometry is not None:
+            key = (self.kind, self.wind_speed)
+            if key not in geometry:
+                geometry[key] = self._wavelength_free(mu0, mu, phi_deg)
+            return self._at_wavelength(wavelength_nm, geometry[key])
+        if self.kind == "lambert":
+            return np.full(np.broadcast(np.asarray(mu0), np.asarray(mu), np.asarray(phi_deg)).shape, self.albedo)
+        if self.kind == "ocean":
+            from lunarviz.earth_optics.ocean import ocean_reflectance
+            return ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, self.wind_speed)
+        if self.kind == "cloud":
+            from lunarviz.earth_optics.cloud import cloud_reflectance
+            return cloud_reflectance(mu0, mu, phi_deg)
+        from lunarviz.earth_optics.land import land_reflectance
+        return land_reflectance(self.land_albedo(wavelength_nm), mu0, mu, phi_deg)
+
+    def _wavelength_free(self, mu0, mu, phi_deg):
+        if self.kind == "ocean":
+            from lunarviz.earth_optics.ocean import glint
+            return glint(mu0, mu, phi_deg, self.wind_speed)
+        if self.kind == "land":
+            from lunarviz.earth_optics.land import land_shape
+            return land_shape(mu0, mu, phi_deg)
+        return self.reflectance(550.0, mu0, mu, phi_deg)  # Lambert, cloud: grey
+
+    def _at_wavelength(self, wavelength_nm, part):
+        if self.kind == "ocean":
+            from lunarviz.earth_optics.ocean import ocean_from_glint
+            return ocean_from_glint(part, wavelength_nm, self.wind_speed)
+        if self.kind == "land":
+            from lunarviz.earth_optics.land import land_reflectance
+            return land_reflectance(self.land_albedo(wavelength_nm), None, None, None, shape=part)
+        return part
+
+    def land_albedo(self, wavelength_nm) -> float:
+        from lunarviz.earth_optics.spectra import class_spectrum
+        lam, a = class_spectrum(self.land_class)
+        return float(np.interp(float(wavelength_nm), lam, a))
+
+    def _albedos(self, wavelength_nm) -> tuple[np.ndarray, float]:
+        # a cloud is grey: its albedos do not depend on λ
+        return _albedos(self.kind, self.albedo, self.land_class, self.wind_speed,
+                        None if self.kind == "cloud" else float(wavelength_nm))
+
+    @staticmethod
+    def _interp(nodes_values, mu) -> np.ndarray:
+        i, w = cubic_weights(THETA_DEG, theta_of(mu))
+        return np.einsum("...a,...a->...", w, nodes_values[i])
+
+    def directional(self, wavelength_nm, mu) -> np.ndarray:
+        """ρ̄(μ): the directional (= hemispherical-directional, by reciprocity) albedo."""
+        if self.lambertian:
+            return np.full(np.shape(mu), self.albedo)
+        return self._interp(self._albedos(wavelength_nm)[0], np.asarray(mu, float))
+
+    def bihemispherical(self, wavelength_nm) -> float:
+        """ρ̿: the albedo under isotropic light."""
+        return self.albedo if self.lambertian else self._albedos(wavelength_nm)[1]
+
+
+@memoize(maxsize=4096)
+def _albedos(kind, albedo, land_class, wind_speed, wavelength_nm) -> tuple[np.ndarray, float]:
+    """(directional albedo on the zenith nodes, bi-hemispherical albedo) of a class (module docstring)."""
+    surface = Surface(kind, albedo, land_class, wind_speed)
+    lam = 550.0 if wavelength_nm is None else wavelength_nm
+    if kind == "land":  # linear in the kernels' shape: closed form
+        from lunarviz.earth_optics.land import land_directional
+        return land_directional(surface.land_albedo(lam))
+    x, w = np.polynomial.legendre.leggauss(ALBEDO_ORDER)
+    mup, wmu = 0.5 * (x + 1.0), 0.5 * w
+    nphi = 72  # over 0 … 180 (symmetric)
+    phi = (np.arange(nphi) + 0.5) * 180.0 / nphi
+    mu_nodes = np.cos(np.radians(THETA_DEG))
+    r = surface.reflectance(lam, mup[None, :, None], mu_nodes[:, None, None], phi[None, None, :])
+    dhr = 2.0 * np.einsum("ijk,j->i", r, wmu * mup) / nphi  # (1/π) ∫ dφ over 2π = 2/nphi Σ over 0…180
+    dhr.setflags(write=False)
+    xg, wg = np.polynomial.legendre.leggauss(48)
+    mug = 0.5 * (xg + 1.0)
+    return dhr, float(2.0 * np.sum(0.5 * wg * mug * Surface._interp(dhr, mug)))
+
+
+def earth_params(params: dict | None) -> dict:
+    """The physical Earth's parameters: defaults updated by ``params``, each checked."""
+    p = dict(EARTH_DEFAULTS)
+    for k, v in (params or {}).items():
+        if k not in EARTH_DEFAULTS:
+            raise LunarvizError(f"earth parameter {k!r} is not one of {', '.join(EARTH_DEFAULTS)}")
+        lo, hi = EARTH_RANGES[k]
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            v = float("nan")
+        if not lo <= v <= hi:
+            raise LunarvizError(f"earth.{k}={params[k]!r}: must be in {lo:g}…{hi:g}")
+        p[k] = v
+    return p
+
+
+def surface_from_name(text: str, wind_speed: float = EARTH_DEFAULTS["wind_speed"]) -> Surface:
+    """A :class:`Surface` from ``black``, ``lambert:A``, ``ocean``, ``land``, ``vegetation``,
+    ``desert``, ``snow`` or ``cloud``; a bad name or albedo raises one line naming it."""
+    name = text.strip().lower()
+    if name == "black":
+        return Surface("lambert", 0.0)
+    if name.startswith("lambert:"):
+        try:
+            a = float(name.split(":", 1)[1])
+        except ValueError:
+            a = float("nan")
+        if not 0.0 <= a <= 1.0:
+            raise LunarvizError(f"earth surface {text!r}: lambert:A needs an albedo A in 0…1")
+        return Surface("lambert", a)
+    if name == "ocean":
+        return Surface("ocean", wind_speed=float(wind_speed))
+    if name in ("land",) + LAND_CLASSES:
+        return Surface("land", land_class="vegetation" if name == "land" else name)
+    if name == "cloud":
+        return Surface("cloud")
+    raise LunarvizError(f"earth surface {text!r} is not one of {', '.join(SURFACE_NAMES)}")
+
+
+def toa_reflectance(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosphere: bool = True,
+                    params: dict | None = None, geometry: dict | None = None) -> np.ndarray:
+    """Top-of-atmosphere reflectance factor πL/(μ₀E₀) of ``surface`` at λ; ``atmosphere=False``
+    gives the bare surface. A cloud sits under the Rayleigh layer above ``cloud_top_hpa``."""
+    from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
+    p = earth_params(params)
+    if not atmosphere:
+        tau = 0.0
+    else:
+        top = p["cloud_top_hpa"] if surface.kind == "cloud" else p["surface_hpa"]
+        tau = float(rayleigh.optical_depth(wavelength_nm, top))
+    return couple(tau, surface, wavelength_nm, mu0, mu, phi_deg, geometry)

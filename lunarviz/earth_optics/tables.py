@@ -1,0 +1,55 @@
+"""The packaged DISORT tables of the physical Earth: their grids, their loading and interpolation.
+
+Made by ``scripts/make_earth_tables.py`` (its docstring says how). Interpolation is cubic in the
+zenith angles (2° nodes) and, for the Rayleigh layer, cubic in log τ of the quantities divided by
+τ (smooth, finite as τ → 0); beyond 89° a zenith angle is held at 89° (the plane-parallel
+atmosphere is not valid there anyway, and such light carries the weight cos θ ≤ 0.017).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.caches import memoize
+from lunarviz.resources import DATA_DIR
+
+TABLE_DIR = DATA_DIR / "earth_optics"
+#: zenith-angle nodes of every table [deg]
+THETA_DEG = np.r_[np.arange(0.0, 88.0, 2.0), 89.0]
+#: Rayleigh optical depths tabulated: from 1e-4 (beyond 2.5 µm) to 2 (below 300 nm at 1100 hPa)
+RAYLEIGH_TAU = np.geomspace(1e-4, 2.0, 44)
+#: azimuth nodes of the cloud table [deg]; 0 = viewer on the Sun's side
+CLOUD_PHI_DEG = np.arange(0.0, 181.0, 5.0)
+#: the plane-parallel cloud tabulated (scripts/make_earth_tables.py)
+CLOUD = {"tau": 10.0, "ssalb": 0.99999, "g": 0.85, "surface_albedo": 0.06}
+MAX_THETA_DEG = float(THETA_DEG[-1])
+
+
+@memoize(maxsize=2)
+def load(name: str) -> dict:
+    """The arrays of ``name``.npz (``rayleigh`` or ``cloud``), read-only."""
+    with np.load(TABLE_DIR / f"{name}.npz") as z:
+        out = {k: z[k] for k in z.files}
+    for v in out.values():
+        v.setflags(write=False)
+    return out
+
+
+def theta_of(mu) -> np.ndarray:
+    """Zenith angle [deg] of cos θ, held within the tables' 0 … 89°."""
+    return np.clip(np.degrees(np.arccos(np.clip(mu, -1.0, 1.0))), 0.0, MAX_THETA_DEG)
+
+
+def cubic_weights(nodes: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (n, 4) and weights (n, 4) of Lagrange cubic interpolation on ``nodes`` (held at
+    the ends): the four nodes around x, shifted inward at the edges."""
+    x = np.clip(np.asarray(x, dtype=float), nodes[0], nodes[-1])
+    j = np.clip(np.searchsorted(nodes, x) - 2, 0, len(nodes) - 4)
+    idx = j[..., None] + np.arange(4)
+    xs = nodes[idx]
+    w = np.ones(idx.shape)
+    for a in range(4):
+        for b in range(4):
+            if a != b:
+                w[..., a] *= (x - xs[..., b]) / (xs[..., a] - xs[..., b])
+    return idx, w

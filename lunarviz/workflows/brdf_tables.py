@@ -1,0 +1,56 @@
+"""BRDF tables: the lunar models' and the Earth's reflectance, one row per geometry (what
+``lunarviz brdf`` writes and :func:`lunarviz.brdf` returns).
+
+Columns: ``incidence_deg``, ``emission_deg``, ``azimuth_deg`` (0 = the viewer on the source's
+side), ``phase_deg``, ``brdf_per_sr`` and ``reflectance_factor`` (π · BRDF); the Earth's rows add
+``wavelength_nm`` and give its top-of-atmosphere reflectance factor πL/(μ₀E₀) (the bare surface's
+with ``atmosphere=False``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.photometry.brdf import half_angle_from_angles
+
+
+def _geometry(inc, emi, azi):
+    """(incidence, emission, azimuth) triples [deg] in row order, and their phase angles [deg]."""
+    grid = np.array([(i, e, z) for i in inc for e in emi for z in azi], dtype=float).reshape(-1, 3)
+    ir, er, zr = np.radians(grid.T)
+    s, c = half_angle_from_angles(ir, er, zr)
+    return grid, np.degrees(2 * np.arctan2(s, c))
+
+
+def _row(g, phase, f) -> dict:
+    return {"incidence_deg": float(g[0]), "emission_deg": float(g[1]), "azimuth_deg": float(g[2]),
+            "phase_deg": float(phase), "brdf_per_sr": float(f) / np.pi, "reflectance_factor": float(f)}
+
+
+def lunar_rows(model, inc, emi, azi) -> list[dict]:
+    """Rows of a lunar BRDF ``model`` (:func:`lunarviz.photometry.brdf.make_brdf`)."""
+    from lunarviz.photometry.brdf import brdf_from_angles
+    grid, phase = _geometry(inc, emi, azi)
+    rows = []
+    for g, p in zip(grid, phase):
+        ir, er, zr = np.radians(g)
+        rows.append(_row(g, p, np.pi * float(brdf_from_angles(model, ir, er, zr))))
+    return rows
+
+
+def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True, params: dict | None = None
+               ) -> tuple[list[dict], dict]:
+    """Rows of the Earth's class ``surface`` (:func:`lunarviz.earth_optics.surfaces.surface_from_name`)
+    at each wavelength [nm], and the settings that made them."""
+    from lunarviz.earth_optics.surfaces import earth_params, surface_from_name, toa_reflectance
+    p = earth_params(params)
+    s = surface_from_name(surface, wind_speed=p["wind_speed"])
+    grid, phase = _geometry(inc, emi, azi)
+    mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
+    rows = []
+    for lam in wavelengths:
+        rf = toa_reflectance(s, float(lam), mu0, mu, grid[:, 2], atmosphere=atmosphere, params=p)
+        rows += [{"wavelength_nm": float(lam), **_row(g, ph, f)} for g, ph, f in zip(grid, phase, rf)]
+    settings = {"body": "earth", "surface": surface, "atmosphere": "rayleigh" if atmosphere else "none",
+                "params": p, "model": "lunarviz.earth_optics (DISORT tables, scripts/make_earth_tables.py)"}
+    return rows, settings
