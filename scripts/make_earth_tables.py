@@ -6,7 +6,9 @@ Stamnes et al. 1988), plane-parallel, scalar. Writes into ``lunarviz/data/earth_
 * ``rayleigh.npz``: a Rayleigh layer (single-scattering albedo 1, phase function of
   :mod:`lunarviz.earth_optics.rayleigh`) over a black surface, at optical depths ``tau`` (log
   spaced 1e-4 … 2): the TOA reflectance factor's three azimuthal Fourier modes ``rho_m`` (tau,
-  mu0, mu, m) (a phase function of Legendre order 2 has exactly m = 0, 1, 2), the total
+  mu0, mu, m) (a phase function of Legendre order 2 has exactly m = 0, 1, 2), the diffuse sky
+  at the bottom ``sky_m`` (tau, mu0, mu', m) as π I↓/(μ₀F) toward the source azimuth (0: the Sun's
+  side) on Gauss nodes mu' (``tables.sky_nodes``), the total
   (direct + diffuse) transmittance ``trans`` (tau, mu) and the spherical albedo ``sph`` (tau),
   on zenith angles ``theta_deg`` 0 … 89°;
 * ``cloud.npz``: a plane-parallel water cloud (optical depth 10, single-scattering albedo
@@ -27,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.earth_optics import rayleigh
-from lunarviz.earth_optics.tables import CLOUD, RAYLEIGH_TAU, THETA_DEG, TABLE_DIR, CLOUD_PHI_DEG
+from lunarviz.earth_optics.tables import CLOUD, CLOUD_PHI_DEG, RAYLEIGH_TAU, TABLE_DIR, THETA_DEG, sky_nodes
 
 #: streams: 36 puts no computational angle on a table node (32 has one at 36°, 34 at 60°)
 NSTR = 36
@@ -54,9 +56,21 @@ def _state(nmom, umu, phi, tau_layers, ssalb, pmom, mu0, albedo, correction=Fals
 
 
 def _uu_top(s, umu) -> np.ndarray:
-    """(numu, nphi) upward intensity at the top, in the order of ``umu`` (DISORT sorts them)."""
+    """(numu, nphi) intensity at the top, in the order of ``umu`` (DISORT sorts them)."""
     order = np.argsort(np.argsort(np.asarray(umu, float)))
     return np.asarray(s.uu)[order, 0, :]
+
+
+def _uu_bottom(s, umu) -> np.ndarray:
+    """(numu, nphi) intensity at the bottom, in the order of ``umu``."""
+    order = np.argsort(np.argsort(np.asarray(umu, float)))
+    return np.asarray(s.uu)[order, 1, :]
+
+
+def _modes(u0, u90, u180) -> np.ndarray:
+    """(n, 3) Fourier modes a, b, c of u(φ) = a + b cos φ + c cos 2φ (exact for Legendre order 2)
+    from its values at φ = 0, 90, 180."""
+    return np.stack([0.25 * (u0 + u180) + 0.5 * u90, 0.5 * (u0 - u180), 0.25 * (u0 + u180) - 0.5 * u90], -1)
 
 
 def rayleigh_tables() -> dict:
@@ -66,18 +80,21 @@ def rayleigh_tables() -> dict:
     # DISORT's azimuth is measured from the beam's own direction (0 = forward); lunarviz's 0 is
     # the viewer on the Sun's side: phi_lunarviz = 180 - phi_disort
     phi_d = np.array([180.0, 90.0, 0.0])  # lunarviz 0, 90, 180
+    sky_mu = sky_nodes()[0]
+    up = np.r_[mu, -sky_mu]  # upward at the top (lunarviz's nodes), downward at the bottom (Gauss nodes)
     rho = np.zeros((len(RAYLEIGH_TAU), len(mu), len(mu), 3))
+    sky = np.zeros((len(RAYLEIGH_TAU), len(mu), len(sky_mu), 3))
     trans = np.zeros((len(RAYLEIGH_TAU), len(mu)))
     sph = np.zeros(len(RAYLEIGH_TAU))
     for k, tau in enumerate(RAYLEIGH_TAU):
         for i, mu0 in enumerate(mu):
-            s = _state(NSTR, mu, phi_d, [tau], [1.0], pm, mu0, 0.0)
-            u = _uu_top(s, mu) * np.pi / mu0  # (mu, phi): reflectance factor
-            u0, u90, u180 = u[:, 0], u[:, 1], u[:, 2]
-            # u(φ) = a + b cos φ + c cos 2φ exactly (Legendre order 2)
-            rho[k, i, :, 0] = 0.25 * (u0 + u180) + 0.5 * u90
-            rho[k, i, :, 1] = 0.5 * (u0 - u180)
-            rho[k, i, :, 2] = 0.25 * (u0 + u180) - 0.5 * u90
+            s = _state(NSTR, up, phi_d, [tau], [1.0], pm, mu0, 0.0)
+            u = _uu_top(s, up)[:len(mu)] * np.pi / mu0  # (mu, phi): reflectance factor
+            rho[k, i] = _modes(u[:, 0], u[:, 1], u[:, 2])
+            # the sky at the bottom: π I↓/(μ₀ F) toward the source azimuth φ' (0: the Sun's side);
+            # DISORT's azimuth of a downward photon is φ' itself (phi_d 180, 90, 0 → φ' 180, 90, 0)
+            d = _uu_bottom(s, up)[len(mu):] * np.pi / mu0
+            sky[k, i] = _modes(d[:, 2], d[:, 1], d[:, 0])
             trans[k, i] = (np.asarray(s.rfldir)[1] + np.asarray(s.rfldn)[1]) / mu0
         # spherical albedo from the surface's coupling: F↓(A) = F↓(0) / (1 - S A)
         down = []
@@ -85,7 +102,7 @@ def rayleigh_tables() -> dict:
             s = _state(NSTR, mu[:1], [0.0], [tau], [1.0], pm, 1.0, albedo)
             down.append(np.asarray(s.rfldir)[1] + np.asarray(s.rfldn)[1])
         sph[k] = 1.0 - down[0] / down[1]
-    return {"tau": RAYLEIGH_TAU, "theta_deg": THETA_DEG, "rho_m": rho, "trans": trans, "sph": sph,
+    return {"tau": RAYLEIGH_TAU, "theta_deg": THETA_DEG, "rho_m": rho, "trans": trans, "sph": sph, "sky_m": sky,
             "depolarisation": np.array(rayleigh.DEPOLARISATION)}
 
 

@@ -18,9 +18,9 @@ Whitecaps (Lambertian): fraction W = 2.95e-6 U^3.52 (Monahan & O'Muircheartaigh 
 Oceanogr.* 10, 2094) of reflectance 0.22 (Koepke 1984, *Appl. Opt.* 23, 1816). Light leaving the
 water (Lambertian): the packaged open-ocean spectrum (USGS splib07 sea water, a directional-
 hemispherical reflectance that includes the surface's Fresnel reflection) less its Fresnel level,
-the spectrum's mean beyond 800 nm where water absorbs all that enters: 0.024 at 450 nm, 0.006 at
-550 nm, 0 at 865 nm (Morel & Maritorena 2001's clear ocean gives 0.024 and 0.006 at chlorophyll
-0.1 mg m⁻³). The total is W ρ_wc + (1 − W)(ρ_g + ρ_w). Neglected: the slopes' anisotropy with
+the spectrum's mean beyond 800 nm where water absorbs nearly all that enters: 0.026 at 450 nm,
+0.008 at 550 nm, 0.002 at 865 nm (Morel & Maritorena 2001's clear ocean gives ~0.024 and ~0.006
+at chlorophyll 0.1 mg m⁻³). The total is W ρ_wc + (1 − W)(ρ_g + ρ_w). Neglected: the slopes' anisotropy with
 wind direction (Cox & Munk's σ_u², σ_c²), polarisation, whitecaps' spectral fall in the near
 infrared (Frouin et al. 1996), the interface's effect on the angular shape of the water's light.
 """

@@ -23,6 +23,14 @@ CLOUD_PHI_DEG = np.arange(0.0, 181.0, 5.0)
 #: the plane-parallel cloud tabulated (scripts/make_earth_tables.py)
 CLOUD = {"tau": 10.0, "ssalb": 0.99999, "g": 0.85, "surface_albedo": 0.06}
 MAX_THETA_DEG = float(THETA_DEG[-1])
+#: Gauss–Legendre nodes in cos θ' on (0, 1) of the tabulated sky (the coupling's quadrature)
+SKY_ORDER = 48
+
+
+def sky_nodes() -> tuple[np.ndarray, np.ndarray]:
+    """(μ', weight) of the Gauss–Legendre rule on (0, 1) on which the sky is tabulated."""
+    x, w = np.polynomial.legendre.leggauss(SKY_ORDER)
+    return 0.5 * (x + 1.0), 0.5 * w
 
 
 @memoize(maxsize=2)
