@@ -172,7 +172,7 @@ def _uniform_physical_reflectance(m, s, t):
 def test_physical_earth_trace_matches_an_independent_quadrature():
     # the traced physical Earth (per facet: R toward the Moon's centre at the facet's centre) against
     # tests/independent.py's lat/lon double quadrature with R per pair of lunar point and Earth node,
-    # at θ = 90°: 1e-3 (the issue's bar). The quadrature's own convergence is checked by a finer rule
+    # at θ = 90°: 1e-3 (the issue's bar). The quadrature's own convergence is checked by a coarser rule
     from lunarviz.photometry.brdf import make_brdf
     from lunarviz.workflows.sweeps import SweepSettings, run_phase
     models = {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
@@ -180,13 +180,13 @@ def test_physical_earth_trace_matches_an_independent_quadrature():
     rows = {r["brdf"]: r for r in run_phase(s, s.tasks()[0])}
     ref = ind.mapped_irradiance(90.0, models, n_moon=(24, 16), n_earth=(32, 24),
                                 earth_reflectance=_uniform_physical_reflectance)
-    fine = ind.mapped_irradiance(90.0, models, n_moon=(32, 20), n_earth=(40, 32),
-                                 earth_reflectance=_uniform_physical_reflectance)
+    coarse = ind.mapped_irradiance(90.0, models, n_moon=(16, 12), n_earth=(24, 16),
+                                   earth_reflectance=_uniform_physical_reflectance)
     lam = SweepSettings(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(90.0,))
     lam_rows = {r["brdf"]: r for r in run_phase(lam, lam.tasks()[0])}
     for k in models:
-        assert fine[k][1] == pytest.approx(ref[k][1], rel=3e-4)
-        assert rows[k]["earthshine_W_m2"] == pytest.approx(fine[k][1], rel=1e-3), k
+        assert coarse[k][1] == pytest.approx(ref[k][1], rel=3e-4)  # the rule has converged (finer: 2e-5)
+        assert rows[k]["earthshine_W_m2"] == pytest.approx(ref[k][1], rel=1e-3), k  # measured 6e-5
         # the physics is visible: 9 % more earthshine than the Lambert Earth of the same albedo
         assert rows[k]["earthshine_W_m2"] / lam_rows[k]["earthshine_W_m2"] > 1.05
 
@@ -216,7 +216,7 @@ def test_coupling_over_a_non_lambert_surface_matches_disortpp(params):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("wavelength,sza", [(550.0, 30.0), (865.0, 60.0)])
+@pytest.mark.parametrize("wavelength,sza", [(865.0, 60.0)])  # the worst case measured (550/30°: ≤ 1.4 %)
 def test_ocean_under_rayleigh_matches_monte_carlo(wavelength, sza):
     # the ocean class at the top of the atmosphere against tests/rt_reference.py's forward Monte
     # Carlo with local estimates (a method of its own) over the same bare ocean (checked against
@@ -233,3 +233,44 @@ def test_ocean_under_rayleigh_matches_monte_carlo(wavelength, sza):
     got = toa_reflectance(surface_from_name("ocean"), wavelength, mu0, view[:, None], AZIMUTHS[None, :])
     assert np.all(np.abs(got / mc - 1) < 0.05)
     assert abs(np.mean(got / mc - 1)) < 0.01
+
+
+def test_bond_albedo_conserves_energy_and_matches_the_spherical_albedo():
+    # the Bond albedo integrates the disc's reflectance over every direction (bodies/physical_earth):
+    # a white Lambert Earth under a conservative Rayleigh layer returns all the light (1), and a
+    # black one returns the layer's spherical albedo S (a plane-parallel layer's Bond albedo), taken
+    # from the tables' own flux solution: two checks of the disc integral, the coupling and the
+    # tables at once. Measured 9e-7 and 2.5e-4 (the 16 × 8 direction rule); bars 1e-3
+    from lunarviz.bodies.physical_earth import bond_albedo
+    from lunarviz.bodies.surfaces import EarthSurface, map_frame
+    from lunarviz.earth_optics.atmosphere import spherical_albedo
+    from lunarviz.geometry.scene_geometry import SceneGeometry
+    sc = SceneGeometry(90.0)
+    frame = map_frame(sc, "earth", 0.0)
+    white, _ = bond_albedo(EarthSurface(brdf="physical", albedo=1.0), sc, frame, 550.0)
+    black, _ = bond_albedo(EarthSurface(brdf="physical", albedo=0.0), sc, frame, 550.0)
+    assert white == pytest.approx(1.0, abs=1e-3)
+    assert black == pytest.approx(spherical_albedo(float(rayleigh.optical_depth(550.0))), rel=1e-3)
+
+
+def test_lambert_earth_brdf_is_the_default_and_physical_changes_the_earthshine():
+    # --earth-brdf lambert is the default (every earlier number unchanged: the whole suite's other
+    # tests run it); physical changes the earthshine and not the moonshine
+    from lunarviz.workflows.sweeps import SweepSettings, run_phase
+    base = SweepSettings(brdfs=("dhg",), phases_deg=(60.0,))
+    assert base.earth_brdf == "lambert"
+    lam = run_phase(base, 60.0)[0]
+    phys_s = SweepSettings(brdfs=("dhg",), phases_deg=(60.0,), earth_brdf="physical",
+                           params={"earth": {"wavelength_nm": 450.0}})
+    phys = run_phase(phys_s, 60.0)[0]
+    assert phys["moonshine_W_m2"] == lam["moonshine_W_m2"]
+    assert phys["earthshine_W_m2"] > 1.05 * lam["earthshine_W_m2"]  # the blue sky adds light at 450 nm
+
+
+def test_earth_parameters_need_the_physical_earth():
+    from lunarviz.errors import LunarvizError
+    from lunarviz.workflows.sweeps import SweepSettings
+    with pytest.raises(LunarvizError, match="need --earth-brdf physical"):
+        SweepSettings(brdfs=("dhg",), params={"earth": {"wind_speed": 3.0}})
+    with pytest.raises(LunarvizError, match="earth.wind_speed"):
+        SweepSettings(brdfs=("dhg",), earth_brdf="physical", params={"earth": {"wind_speed": -1.0}})

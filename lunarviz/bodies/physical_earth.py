@@ -139,3 +139,41 @@ def albedo_toward_moon(surfaces, scene, wavelengths) -> np.ndarray:
     :class:`~lunarviz.bodies.surfaces.Surfaces` (its Earth's rotation gives the map frame)."""
     frame = map_frame(scene, "earth", surfaces.earth_rotation_deg)
     return albedo_toward(surfaces.earth, scene, frame, scene.moon, wavelengths)
+
+
+def _direction(scene, beta_deg, psi_deg) -> np.ndarray:
+    """Unit vector at angle β from the Sun seen from the Earth's centre, turned by ψ about the Sun
+    line from the half-plane that holds the Moon (ψ = 0; the Earth's pole where the Moon is on the line)."""
+    us = (scene.sun - scene.earth) / np.linalg.norm(scene.sun - scene.earth)
+    ref = scene.moon - scene.earth
+    ref = ref - (ref @ us) * us
+    if np.linalg.norm(ref) < 1e-9 * np.linalg.norm(scene.moon - scene.earth):
+        ref = np.array([0.0, 0.0, 1.0]) - us[2] * us
+    e1 = ref / np.linalg.norm(ref)
+    e2 = np.cross(us, e1)
+    b, p = np.radians(beta_deg), np.radians(psi_deg)
+    return np.cos(b) * us + np.sin(b) * (np.cos(p) * e1 + np.sin(p) * e2)
+
+
+def apparent_albedo(surface, scene, frame, beta_deg, psi_deg, wavelength_nm: float, rows: int = 90) -> float:
+    """The Earth's apparent albedo a(β, ψ) toward a distant viewer at phase angle β (turned ψ about
+    the Sun line): its intensity over a Lambert sphere's of albedo 1, ``I = a (2/3) R² E f_L(β)``."""
+    far = scene.earth + 1e3 * np.linalg.norm(scene.moon - scene.earth) * _direction(scene, beta_deg, psi_deg)
+    return float(albedo_toward(surface, scene, frame, far, [wavelength_nm], rows=rows)[0])
+
+
+def bond_albedo(surface, scene, frame, wavelength_nm: float, order: int = 16, azimuths: int = 8,
+                rows: int = 90) -> tuple[float, float]:
+    """(Bond albedo, geometric albedo) of the model Earth lit as in ``scene``: the reflected power
+    over all directions, ``A_B = (2 / 3π) ∫∫ a(β, ψ) f_L(β) sin β dβ dψ`` (Gauss–Legendre in β,
+    midpoints in ψ; a Lambert sphere of albedo A gives A), and ``p = (2/3) a(β → 0)`` (β = 0.5°)."""
+    from lunarviz.photometry.earth_phase import lambert_phase_function
+    x, w = np.polynomial.legendre.leggauss(order)
+    beta = 0.5 * np.pi * (x + 1.0)
+    psi = (np.arange(azimuths) + 0.5) * 360.0 / azimuths
+    total = 0.0
+    for b, wb in zip(beta, 0.5 * np.pi * w):
+        a = np.mean([apparent_albedo(surface, scene, frame, np.degrees(b), p, wavelength_nm, rows) for p in psi])
+        total += wb * a * float(lambert_phase_function(b)) * np.sin(b)
+    geometric = 2.0 / 3.0 * apparent_albedo(surface, scene, frame, 0.5, 0.0, wavelength_nm, rows)
+    return 2.0 / (3.0 * np.pi) * 2.0 * np.pi * total, geometric

@@ -260,7 +260,7 @@ def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    phases = tuple(float(p) for p in range(0, 181, 10 if quick else 5))
+    phases = tuple(float(p) for p in range(0, 181, 20 if quick else 5))
     rays, runs = (20_000, 4) if quick else (PAPER_RAYS, PAPER_RUNS)
     steps = ["Fig. 3", "BRDF test", "analytic", "reference", "deterministic", "Monte Carlo",
              "occluded", "figures", "screenshots"]
