@@ -564,6 +564,8 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
     if body == "earth":
         if surface is None or model is not None or moon_options:
             raise LunarvizError("brdf(body='earth') takes surface=..., not a lunar model or its options")
+        if not isinstance(atmosphere, bool):
+            raise LunarvizError(f"atmosphere={atmosphere!r} must be True or False")
         lam = _angles(wavelengths, "wavelength", 300.0, 2500.0)
         return earth_rows(surface, lam, inc, emi, azi, atmosphere=atmosphere, params=params)[0]
     if body != "moon":

@@ -459,7 +459,12 @@ def cmd_brdf(a):
         if a.model is not None:
             raise UsageError("--model names a lunar BRDF: the Earth takes --surface")
         if a.surface is None:
-            raise UsageError("--body earth needs --surface (black, lambert:A, ocean, land, snow or cloud)")
+            raise UsageError("--body earth needs --surface (black, lambert:A, ocean, land, vegetation, desert, snow "
+                             "or cloud)")
+        from lunarviz.options import BY_NAME
+        for name in ("moon_model", "h_function", "dhg_convention"):
+            if getattr(a, name) not in (None, BY_NAME[name].default):
+                raise UsageError(f"{BY_NAME[name].cli_flag} is the Moon's: --body earth does not take it")
         lam = parse_float_list(a.wavelengths, "wavelengths", 300.0, 2500.0)
         rows, settings = earth_rows(a.surface, lam, inc, emi, azi, atmosphere=not a.no_atmosphere,
                                     params=parse_params(a.param, ["earth"]).get("earth", {}))
@@ -472,7 +477,10 @@ def cmd_brdf(a):
         model_name = _brdf_list(a.model)
         if len(model_name) != 1:
             raise UsageError(f"--model takes one BRDF, got {a.model!r}")
-        params = parse_params(a.param, model_name).get(model_name[0], {})
+        parsed = parse_params(a.param, model_name)
+        if "earth" in parsed:
+            raise UsageError("--param earth.NAME is the Earth's: add --body earth (and --surface)")
+        params = parsed.get(model_name[0], {})
         model = make_brdf(model_name[0], dhg_convention=a.dhg_convention, h_function=a.h_function, params=params,
                           moon_model=a.moon_model)
         rows = lunar_rows(model, inc, emi, azi)

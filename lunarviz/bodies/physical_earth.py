@@ -111,10 +111,9 @@ def facet_reflectance(surface, body, frame, sun, target, wavelengths) -> np.ndar
 
 def albedo_toward(surface, scene, frame, target, wavelengths, rows: int = 180) -> np.ndarray:
     """(L,) the point Earth's albedo toward a distant ``target``: ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA``
-    on a grid of ``rows`` latitudes × 2 ``rows`` longitudes (midpoints), the Sun and the target
-    seen from the Earth's centre."""
-    us = (scene.sun - scene.earth) / np.linalg.norm(scene.sun - scene.earth)
-    ut = (target - scene.earth) / np.linalg.norm(target - scene.earth)
+    on a grid of ``rows`` latitudes × 2 ``rows`` longitudes (midpoints), μ_s, μ_t and R from each
+    place's own directions to the Sun and the target."""
+    radius = scene.radii["earth"]
     lat = np.radians(90.0 - (np.arange(rows) + 0.5) * 180.0 / rows)
     lon = np.radians(-180.0 + (np.arange(2 * rows) + 0.5) * 180.0 / rows)
     lam = np.atleast_1d(np.asarray(wavelengths, float))
@@ -124,11 +123,19 @@ def albedo_toward(surface, scene, frame, target, wavelengths, rows: int = 180) -
         d = np.stack([np.cos(la) * np.cos(lon), np.cos(la) * np.sin(lon),
                       np.broadcast_to(np.sin(la), (len(la), len(lon)))], -1).reshape(-1, 3)
         ds = d @ frame.T
-        w = np.clip(ds @ us, 0, None) * np.clip(ds @ ut, 0, None) * np.repeat(np.cos(la[:, 0]), len(lon))
+        # directions to the Sun and the target from each place (from the centre they are off by up
+        # to R_E/D ≈ 1° at the Moon, which R's steepness near the limb and terminator does not allow)
+        y = scene.earth + radius * ds
+        vs = scene.sun - y
+        vt = target - y
+        vs /= np.linalg.norm(vs, axis=1, keepdims=True)
+        vt /= np.linalg.norm(vt, axis=1, keepdims=True)
+        w = np.clip(np.einsum("ij,ij->i", ds, vs), 0, None) * np.clip(np.einsum("ij,ij->i", ds, vt), 0, None) \
+            * np.repeat(np.cos(la[:, 0]), len(lon))
         keep = np.flatnonzero(w > 0)
         if not len(keep):
             continue
-        r = reflectance(surface, weights_at(surface, d[keep]), d[keep], ds[keep], us, ut, lam)
+        r = reflectance(surface, weights_at(surface, d[keep]), d[keep], ds[keep], vs[keep], vt[keep], lam)
         num += w[keep] @ r
         den += float(w[keep].sum())
     return num / den if den > 0 else np.full(len(lam), np.nan)

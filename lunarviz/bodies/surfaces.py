@@ -425,6 +425,12 @@ class EarthSurface:
         if self.earth_params:
             from lunarviz.earth_optics.surfaces import earth_params
             earth_params(dict(self.earth_params))
+        if self.brdf == "physical":  # the classes carry their own albedos
+            for name, default in (("land_albedo", LAND_ALBEDO), ("ocean_albedo", OCEAN_ALBEDO),
+                                  ("cloud_albedo", CLOUD_ALBEDO)):
+                if getattr(self, name) != default:
+                    raise LunarvizError(f"--{name.replace('_', '-')} is the Lambert Earth's: --earth-brdf physical "
+                                        f"takes its classes' own (docs: the Earth as it reflects)")
         for name in ("albedo", "land_albedo", "ocean_albedo", "cloud_albedo"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.number)) and np.isfinite(v) and 0.0 <= v <= 1.0):

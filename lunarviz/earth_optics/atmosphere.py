@@ -36,9 +36,10 @@ from lunarviz.earth_optics.tables import RAYLEIGH_TAU, THETA_DEG, cubic_weights,
 
 def _tau_weights(tau):
     tau = np.asarray(tau, dtype=float)
-    if np.any(tau < RAYLEIGH_TAU[0] * (1 - 1e-12)) or np.any(tau > RAYLEIGH_TAU[-1] * (1 + 1e-12)):
-        raise LunarvizError(f"Rayleigh optical depth {float(np.max(tau)):.4g} is outside the tables' "
-                            f"{RAYLEIGH_TAU[0]:g}…{RAYLEIGH_TAU[-1]:g} (wavelengths 290–2500 nm at sea level)")
+    # below the first node the quantities over τ are held (single scattering: exact to O(τ))
+    if np.any(tau > RAYLEIGH_TAU[-1] * (1 + 1e-12)):
+        raise LunarvizError(f"Rayleigh optical depth {float(np.max(tau)):.4g} is beyond the tables' "
+                            f"{RAYLEIGH_TAU[-1]:g} (wavelengths below ~280 nm at sea level)")
     return cubic_weights(np.log(RAYLEIGH_TAU), np.log(tau))
 
 

@@ -8,7 +8,7 @@ Reflectance factor (Lucht, Schaaf & Strahler 2000, *IEEE TGRS* 38, 977, Eqs. 37�
 with φ = 0 the viewer on the Sun's side (the hot spot at θ = θ₀), K_vol the Ross-Thick kernel,
 K_geo the Li-Sparse-Reciprocal kernel with crown shape h/b = 2, b/r = 1. The shape is one case
 of the RAMI4ATM benchmark (Joint Research Centre; the weights f_iso = 0.209741, f_vol =
-0.004140, f_geo = 0.081384 at 865 nm that Eradiate's ``rtls`` plugin documents), scaled for each
+0.081384, f_geo = 0.004140 at 865 nm, the defaults of Eradiate's ``rtls`` plugin), scaled for each
 class so that its white-sky (bi-hemispherical) albedo equals the class's packaged spectral albedo
 at λ. The kernels grow without bound toward the horizon (sec θ terms; the model is fitted to
 zenith angles up to ~70°), so zenith angles beyond :data:`MAX_ZENITH_DEG` are held at it, and the
@@ -28,7 +28,7 @@ import numpy as np
 from lunarviz.caches import memoize
 
 #: RAMI4ATM kernel weights (f_iso, f_vol, f_geo), whose ratios give the shape
-RAMI4ATM_WEIGHTS = (0.209741, 0.004140, 0.081384)
+RAMI4ATM_WEIGHTS = (0.209741, 0.081384, 0.004140)
 #: white-sky integrals of the kernels unheld (Lucht et al. 2000, Table 1)
 WHITE_SKY = (1.0, 0.189184, -1.377622)
 HB, BR = 2.0, 1.0

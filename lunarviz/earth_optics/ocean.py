@@ -34,6 +34,8 @@ from scipy.special import erfc
 WATER_INDEX = 1.34
 #: whitecap reflectance (Koepke 1984)
 WHITECAP_REFLECTANCE = 0.22
+#: cos θ below which a direction is taken as the horizon (no glint: 90° to 1e-6 rad)
+GRAZING_MU = 1e-6
 #: wavelengths [nm] beyond which the packaged ocean spectrum is all Fresnel reflection
 FRESNEL_LEVEL_FROM_NM = 800.0
 
@@ -82,7 +84,7 @@ def glint(mu0, mu, phi_deg, wind_speed: float, shadowing: bool = True) -> np.nda
     if shadowing:
         sig = np.sqrt(sig2)
         out = out / (1.0 + _smith_lambda(mu0, sig) + _smith_lambda(mu, sig))
-    return np.where((mu0 > 0) & (mu > 0), out, 0.0)
+    return np.where((mu0 > GRAZING_MU) & (mu > GRAZING_MU), out, 0.0)
 
 
 def water_leaving(wavelength_nm) -> np.ndarray:

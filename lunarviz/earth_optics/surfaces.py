@@ -172,7 +172,7 @@ def earth_params(params: dict | None) -> dict:
             raise LunarvizError(f"earth parameter {k!r} is not one of {', '.join(EARTH_DEFAULTS)}")
         lo, hi = EARTH_RANGES[k]
         try:
-            v = float(v)
+            v = float("nan") if isinstance(v, bool) else float(v)
         except (TypeError, ValueError):
             v = float("nan")
         if not lo <= v <= hi:
@@ -184,6 +184,8 @@ def earth_params(params: dict | None) -> dict:
 def surface_from_name(text: str, wind_speed: float = EARTH_DEFAULTS["wind_speed"]) -> Surface:
     """A :class:`Surface` from ``black``, ``lambert:A``, ``ocean``, ``land``, ``vegetation``,
     ``desert``, ``snow`` or ``cloud``; a bad name or albedo raises one line naming it."""
+    if not isinstance(text, str):
+        raise LunarvizError(f"earth surface {text!r} must be a name such as 'ocean' or 'lambert:0.3'")
     name = text.strip().lower()
     if name == "black":
         return Surface("lambert", 0.0)

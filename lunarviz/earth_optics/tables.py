@@ -14,8 +14,8 @@ from lunarviz.caches import memoize
 from lunarviz.resources import DATA_DIR
 
 TABLE_DIR = DATA_DIR / "earth_optics"
-#: zenith-angle nodes of every table [deg]
-THETA_DEG = np.r_[np.arange(0.0, 88.0, 2.0), 89.0]
+#: zenith-angle nodes of every table [deg]: every 2° to 86°, then every 1° (R grows like 1/μ there)
+THETA_DEG = np.r_[np.arange(0.0, 86.5, 2.0), 87.0, 88.0, 89.0]
 #: Rayleigh optical depths tabulated: from 1e-4 (beyond 2.5 µm) to 2 (below 300 nm at 1100 hPa)
 RAYLEIGH_TAU = np.geomspace(1e-4, 2.0, 44)
 #: azimuth nodes of the cloud table [deg]; 0 = viewer on the Sun's side

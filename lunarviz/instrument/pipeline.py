@@ -161,7 +161,8 @@ def calibrate(settings, key, inst: Instrument, exposure_s: float, rates: dict | 
     from lunarviz.instrument.observation import instrument_camera, instrument_settings, optics_kernels
     from lunarviz.outputs.images import apply_optics
     settings = instrument_settings(settings, inst)
-    cal = replace(settings, earth_surface="uniform", clouds="none")
+    cal = replace(settings, earth_surface="uniform", clouds="none", earth_brdf="lambert",
+                  params={k: v for k, v in settings.params.items() if k != "earth"})  # the model Earth
     camera = instrument_camera(inst)
     if rates is None:
         from lunarviz.instrument.observation import observe

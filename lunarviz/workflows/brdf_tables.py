@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.errors import LunarvizError
 from lunarviz.photometry.brdf import half_angle_from_angles
 
 
@@ -43,6 +44,8 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     """Rows of the Earth's class ``surface`` (:func:`lunarviz.earth_optics.surfaces.surface_from_name`)
     at each wavelength [nm], and the settings that made them."""
     from lunarviz.earth_optics.surfaces import earth_params, surface_from_name, toa_reflectance
+    if "wavelength_nm" in (params or {}):
+        raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
     p = earth_params(params)
     s = surface_from_name(surface, wind_speed=p["wind_speed"])
     grid, phase = _geometry(inc, emi, azi)

@@ -70,13 +70,9 @@ class SweepSettings:
         if self.times is None and len(set(self.phases_deg)) != len(self.phases_deg):
             dup = next(p for p in self.phases_deg if list(self.phases_deg).count(p) > 1)
             raise LunarvizError(f"phase {dup:g} is listed twice")
+        self._check_physical_earth()
         for b in self.params:
-            if b == "earth":  # the physical Earth's parameters (--param earth.NAME=VALUE)
-                from lunarviz.earth_optics.surfaces import earth_params
-                earth_params(self.params[b])
-                if self.earth_brdf != "physical":
-                    raise LunarvizError("earth parameters (--param earth.NAME=VALUE) need --earth-brdf physical")
-            elif b not in self.brdfs:
+            if b != "earth" and b not in self.brdfs:
                 raise LunarvizError(f"params name BRDF {b!r}, which is not in this run ({', '.join(self.brdfs)})")
         if self.times is not None:
             from lunarviz.sky.ephemeris import time_list
@@ -205,6 +201,22 @@ class SweepSettings:
                     except LunarvizError as exc:
                         raise LunarvizError(f"band {label}: {exc}") from None
             parameters_at(self.moon_model, k, req.nodes, self.params.get(k), grey_model=b)
+
+    def _check_physical_earth(self) -> None:
+        """``--param earth.NAME`` only with ``--earth-brdf physical``, which takes its classes' own
+        albedos and spectra, not the Lambert Earth's options."""
+        from lunarviz.bodies.surfaces import EarthSurface
+        if "earth" in self.params:
+            from lunarviz.earth_optics.surfaces import earth_params
+            earth_params(self.params["earth"])
+            if self.earth_brdf != "physical":
+                raise LunarvizError("earth parameters (--param earth.NAME=VALUE) need --earth-brdf physical")
+            if "wavelength_nm" in self.params["earth"] and (self.wavelengths or self.bands):
+                raise LunarvizError("earth.wavelength_nm is a grey run's wavelength: a spectral run takes each "
+                                    "of its own")
+        if self.earth_brdf == "physical" and self.earth_spectra != BY_NAME["earth_spectra"].default:
+            raise LunarvizError("--earth-spectra is the Lambert Earth's: --earth-brdf physical takes its classes' own")
+        EarthSurface.from_options(self)  # the Lambert Earth's albedos refused with the physical one
 
     def brdf_models(self) -> dict:
         return {b: make_brdf(b, dhg_convention=self.dhg_convention, h_function=self.h_function,
@@ -343,7 +355,8 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
             # Earth (the nominal Lambert sphere): the Earth is what the inversion measures, so a
             # user's Earth mesh must not calibrate its own inversion (that is an identity)
             dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
-                                         earth_surface="uniform", clouds="none"))
+                                         earth_surface="uniform", clouds="none", earth_brdf="lambert",
+                                         earth_params=()))
             cal_ms = trace_path(dts, "moonshine", brdfs).mean
             cal_es = trace_path(dts, "earthshine", brdfs).mean
         for k in brdfs:
