@@ -58,7 +58,7 @@ def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, waveleng
     """(n, L) top-of-atmosphere reflectance factor toward the target of places with component
     ``weights`` (n, C) (:func:`lunarviz.spectral.earth.weights_at` or facet averages) at unit
     ``normals`` (n, 3) (``map_dirs``: the same in the map frame, for a clear-sky map's albedo)."""
-    p = dict(earth_params(dict(surface.earth_params)))
+    p = earth_params(dict(surface.earth_params))
     ms, mt, phi = _geometry(normals, to_sun, to_target)
     lit = np.flatnonzero((ms > 0) & (mt > 0))
     lam = np.atleast_1d(np.asarray(wavelengths, float))
@@ -72,7 +72,6 @@ def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, waveleng
         if not len(rows):
             continue
         if model is None:  # a clear-sky map: Lambert at the map's albedo, per place
-            model = Surface("lambert", 0.0)
             albedo = sample_map(surface.clear_map(), map_dirs[rows])
             frac = weights[rows, c] / np.maximum(albedo, 1e-300)  # weights_at folds the map into its weight
             for j, lj in enumerate(lam):
@@ -87,13 +86,10 @@ def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, waveleng
 
 
 def _lambert_map(wavelength, albedo, ms, mt, phi, params):
-    """R = ρ_R + T T A / (1 − S A) with A per place (the exact Lambert coupling)."""
+    """A clear-sky map's places: Lambert at their own albedo under the layer above the surface."""
     from lunarviz.earth_optics import rayleigh
-    from lunarviz.earth_optics.atmosphere import path_reflectance, spherical_albedo, transmittance
-    tau = float(rayleigh.optical_depth(wavelength, params["surface_hpa"]))
-    S = spherical_albedo(tau)
-    coupled = transmittance(tau, ms) * transmittance(tau, mt) * albedo / (1 - S * albedo)
-    return path_reflectance(tau, ms, mt, phi) + coupled
+    from lunarviz.earth_optics.atmosphere import lambert_toa
+    return lambert_toa(float(rayleigh.optical_depth(wavelength, params["surface_hpa"])), albedo, ms, mt, phi)
 
 
 def facet_reflectance(surface, body, frame, sun, target, wavelengths) -> np.ndarray:

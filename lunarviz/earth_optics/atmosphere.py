@@ -98,6 +98,14 @@ def direct(tau: float, mu) -> np.ndarray:
     return np.exp(-tau / np.cos(np.radians(theta_of(mu))))
 
 
+def lambert_toa(tau: float, albedo, mu0, mu, phi_deg) -> np.ndarray:
+    """R = ρ_R + T(μ₀) T(μ) A / (1 − S A): a Lambert surface of albedo A (a scalar, or an array
+    broadcast with the angles: a map) under the layer, exactly."""
+    S = spherical_albedo(tau)
+    return path_reflectance(tau, mu0, mu, phi_deg) + transmittance(tau, mu0) * transmittance(tau, mu) * albedo \
+        / (1.0 - S * albedo)
+
+
 def toa_reflectance(tau: float, surface, wavelength_nm: float, mu0, mu, phi_deg, geometry: dict | None = None
                     ) -> np.ndarray:
     """Top-of-atmosphere reflectance factor πL/(μ₀E₀) of ``surface`` (a
@@ -108,11 +116,11 @@ def toa_reflectance(tau: float, surface, wavelength_nm: float, mu0, mu, phi_deg,
     rs = surface.reflectance(wavelength_nm, mu0, mu, phi, geometry)
     if tau <= 0.0:
         return rs
-    rr = path_reflectance(tau, mu0, mu, phi)
-    T0, T1, S = transmittance(tau, mu0), transmittance(tau, mu), spherical_albedo(tau)
     bhr = surface.bihemispherical(wavelength_nm)
     if surface.lambertian:
-        return rr + T0 * T1 * bhr / (1.0 - S * bhr)
+        return lambert_toa(tau, bhr, mu0, mu, phi)
+    rr = path_reflectance(tau, mu0, mu, phi)
+    T0, T1, S = transmittance(tau, mu0), transmittance(tau, mu), spherical_albedo(tau)
     e0, e1 = direct(tau, mu0), direct(tau, mu)
     t0, t1 = T0 - e0, T1 - e1
     # the sky reflected toward the viewer, and the Sun's reflection scattered toward it (by
