@@ -172,7 +172,7 @@ def _add_executor_options(p, workers_help="local worker processes"):
 def _parser_sweep(sub):
     from lunarviz.workflows.sweeps import METHODS
     p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases",
-                           SCENE_GROUPS + ("analytic", "spectral"))
+                           SCENE_GROUPS + ("analytic", "accuracy", "spectral"))
     p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
     p.add_argument("--method", default="analytic", help=" | ".join(METHODS) + ": the paper's point-source "
                    "quadrature, Embree ray tracing of the meshes, or the exact extended-source reference")

@@ -70,6 +70,7 @@ GROUP_TITLES = {
     "sky": "the real sky (with --time or --time-range)",
     "meshes": "bodies as meshes",
     "surfaces": "surfaces (equirectangular maps in the body frame: .npy, .png, .tif)",
+    "accuracy": "accuracy (every method)",
     "trace": "the ray tracer (--method raytrace)",
     "analytic": "the analytic method",
     "spectral": "light in colour (without --wavelengths or --band a run is grey)",
@@ -236,7 +237,7 @@ OPTIONS: tuple[Option, ...] = (
     _o("sun_mesh", "path", None, "a closed mesh for the Sun (as for the Moon)", "meshes", metavar="FILE"),
     _o("mesh_units", "str", "m", "units of the mesh files' vertices (radius: multiples of the body's nominal "
        "radius)", "meshes", choices=MESH_UNITS, label="mesh units"),
-    _o("moon_level", "int", None, "the Moon's icosphere level (default 4, from the mesh study)", "meshes",
+    _o("moon_level", "int", None, "the Moon's icosphere level (default 4, or from --rtol in sweeps)", "meshes",
        lo=0, hi=MAX_LEVEL, flag="--mesh-level"),
     _o("earth_level", "int", None, "the Earth's icosphere level (default 6)", "meshes", lo=0, hi=MAX_LEVEL),
     _o("sun_level", "int", None, "the Sun's icosphere level (default 5)", "meshes", lo=0, hi=MAX_LEVEL),
@@ -247,21 +248,28 @@ OPTIONS: tuple[Option, ...] = (
     _o("shading", "str", "auto", "auto: exact sphere for the packaged icospheres, facet normals for user meshes; "
        "smooth: crease-limited interpolated normals on user meshes; flat: facets everywhere", "meshes",
        choices=SHADINGS),
+    # accuracy
+    _o("rtol", "float", None, "relative tolerance of the moonshine and earthshine: the mesh level or lune order, "
+       "beam orders, analytic order or Monte Carlo rays are chosen to meet it at least cost, from measured error "
+       "models (default: 1e-4 ray traced, 1e-6 analytic and reference; Monte Carlo: the paper's 50,000 rays); "
+       "settings given explicitly are kept; rows report the bound they meet (column rtol)", "accuracy", unit="1",
+       lo=1e-8, hi=0.5, label="relative tolerance"),
     # the ray tracer
     _o("estimator", "str", "deterministic", "the ray tracer's estimator: deterministic beams or Monte Carlo",
        "trace", choices=ESTIMATORS),
-    _o("rays", "int", 50_000, "Monte Carlo rays per path and run (the paper's 50,000; at most 1e9: memory is "
-       "bounded by chunks of 16,384 samples, run time is not)", "trace", lo=1, hi=10**9),
+    _o("rays", "int", None, "Monte Carlo rays per path and run (default: the paper's 50,000, or what --rtol needs; "
+       "at most 1e9: memory is bounded by chunks of 16,384 samples, run time is not)", "trace", lo=1, hi=10**9),
     _o("runs", "int", 1, "Monte Carlo runs per phase (their spread gives the standard deviations)", "trace", lo=1),
     _o("seed", "int", 0, "Monte Carlo seed (runs and chunks draw from (seed, run, path, chunk))", "trace", lo=0),
-    _o("earth_order", "int", 6, "Gauss order of the Earth's beams seen from each lunar sample", "trace",
-       lo=1, hi=64),
-    _o("sun_order", "int", 2, "Gauss order of the Sun's beams seen from each lunar sample", "trace", lo=1, hi=64),
+    _o("earth_order", "int", None, "Gauss order of the Earth's beams seen from each lunar sample (default 6, or "
+       "from --rtol in sweeps)", "trace", lo=1, hi=64),
+    _o("sun_order", "int", None, "Gauss order of the Sun's beams seen from each lunar sample (default 2, or from "
+       "--rtol in sweeps)", "trace", lo=1, hi=64),
     # the analytic method
     _o("grid", "str", "converged", "the analytic method's lunar surface grid: converged Gauss or the paper's",
        "analytic", choices=GRIDS),
-    _o("order", "int", None, "the analytic method's Gauss order (default 24; 96 with a lunar albedo map, which "
-       "it reads at its nodes)", "analytic", lo=2, hi=512),
+    _o("order", "int", None, "the analytic method's Gauss order (default: from --rtol; 96 with a lunar albedo map, "
+       "which it reads at its nodes)", "analytic", lo=2, hi=512),
     # surfaces
     _o("moon_albedo_map", "path", None, "per-facet lunar albedo: FILE scales each BRDF's albedo/w by map/mean; "
        "FILE:MEAN makes the map the albedo/w itself with area-weighted mean MEAN; 'synthetic' is the shipped "

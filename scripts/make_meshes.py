@@ -6,4 +6,4 @@
 from lunarviz.bodies.meshes import write_packaged_meshes
 
 if __name__ == "__main__":
-    print(write_packaged_meshes({"sun": [5], "earth": [6], "moon": [5, 6]}))
+    print(write_packaged_meshes({"sun": [5], "earth": [6], "moon": [2, 3, 4, 5, 6]}))

@@ -392,3 +392,103 @@ def mapped_irradiance(theta_deg, models, moon_albedo=None, earth_albedo=None, ea
             es += float(np.sum(L * geom[sl]))
         out[k] = (ms, es)
     return out
+
+
+def _smooth_gauss(lo, hi, n):
+    """Gauss nodes on [lo, hi] through φ = lo + (hi - lo)(3t² - 2t³): a length that closes like
+    √(hi - φ) or √(φ - lo) at an end (a ring tangent to a cap) becomes analytic in t."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    t = 0.5 * (x + 1.0)
+    return lo + (hi - lo) * t * t * (3 - 2 * t), (hi - lo) * 6 * t * (1 - t) * 0.5 * w
+
+
+def _lune_nodes(u_src, u_det, c_lo, c_hi, a_det, n_lat, n_lon):
+    """Unit normals and weights dΩ over {n·u_det > a_det} ∩ {n·u_src > c_lo} of the unit sphere,
+    cut where n·u_src = c_hi (the edge of the source's penumbra band). Latitude φ and longitude λ
+    about the pole u_src × u_det (both directions on the equator, so the region is symmetric in φ):
+    every boundary is λ = ±acos(c / cos φ) about its direction, an analytic function of φ between
+    the latitudes where it closes, and the rule splits φ there."""
+    p = np.cross(u_src, u_det)
+    if np.linalg.norm(p) < 1e-12:  # source and detector in one direction (earthshine from the geocentre)
+        p = np.cross(u_det, [1.0, 0, 0] if abs(u_det[0]) < 0.9 else [0, 1.0, 0])
+    p /= np.linalg.norm(p)
+    e0 = u_det
+    e1 = np.cross(p, e0)
+    lam_s = np.arctan2(u_src @ e1, u_src @ e0)
+    top = np.arccos(max(a_det, c_lo, 0.0))
+    closing = sorted({0.0, top, *[np.arccos(c) for c in (a_det, c_lo, c_hi) if 0 < c < 1 and np.arccos(c) < top]})
+    normals, weights = [], []
+    for f0, f1 in zip(closing[:-1], closing[1:]):
+        for phi, wphi in zip(*_smooth_gauss(f0, f1, n_lat)):
+            cp = np.cos(phi)
+            half = {c: np.arccos(np.clip(c / cp, -1, 1)) for c in (a_det, c_lo, c_hi)}
+            lo = max(-half[a_det], lam_s - half[c_lo])
+            hi = min(half[a_det], lam_s + half[c_lo])
+            if hi <= lo:
+                continue
+            cuts = sorted({lo, hi, *[v for v in (lam_s - half[c_hi], lam_s + half[c_hi]) if lo < v < hi]})
+            for l0, l1 in zip(cuts[:-1], cuts[1:]):
+                lam, wl = gauss_legendre(l0, l1, n_lon)
+                for sgn in (1.0, -1.0):  # both hemispheres
+                    n = (cp * np.cos(lam))[:, None] * e0 + (cp * np.sin(lam))[:, None] * e1 \
+                        + (sgn * np.sin(phi)) * p
+                    normals.append(n)
+                    weights.append(wl * wphi * cp)
+    return np.concatenate(normals), np.concatenate(weights)
+
+
+def extended_irradiance(theta_deg, models, n_lat=40, n_lon=24, sun_nodes=(8, 16), earth_order=12, chunk=512):
+    """``{brdf: (moonshine, earthshine)}`` [W m⁻²] with an *extended* Sun (a sphere of uniform
+    radiance Φ/(4π² R_S²), its disc integrated from every lunar point and cut at the point's
+    horizon) and an extended Lambert Earth lit by a point Sun (:func:`_earth_beams`), on the exact
+    lunar sphere; θ scene, detector at the Earth's centre, no occlusion. The lunar surface is
+    integrated by :func:`_lune_nodes` over the part lit by some of the source and seen by the
+    detector (not the library's cap rule: latitude and longitude about the Sun-detector pole)."""
+    sun, earth, moon = scene(theta_deg)
+    det = earth
+    R_M = C.R_MOON_M
+    out = {k: [0.0, 0.0] for k in models}
+    det_n = (moon - det) / np.linalg.norm(moon - det)
+    d_det = np.linalg.norm(det - moon)
+    u_det = (det - moon) / d_det
+    L_sun = C.PHI_SUN_W / (4 * np.pi**2 * C.R_SUN_M**2)
+    xr, wr = np.polynomial.legendre.leggauss(sun_nodes[0])
+    psi = (np.arange(sun_nodes[1]) + 0.5) * 2 * np.pi / sun_nodes[1]
+    for path, (src, R_src) in enumerate(((sun, C.R_SUN_M), (earth, C.R_EARTH_M))):
+        d_src = np.linalg.norm(src - moon)
+        nrm, w = _lune_nodes((src - moon) / d_src, u_det, (R_M - R_src) / d_src, (R_M + R_src) / d_src,
+                             R_M / d_det, n_lat, n_lon)
+        for a in range(0, len(nrm), chunk):
+            n = nrm[a:a + chunk]
+            x = moon + R_M * n
+            v = det - x
+            d = np.linalg.norm(v, axis=1)
+            o = v / d[:, None]
+            mu = np.clip(np.einsum("ij,ij->i", n, o), 0, None)
+            geom = mu * np.clip(-v @ det_n / d, 0, None) * w[a:a + chunk] * R_M**2 / d**2
+            if path == 0:  # the Sun's disc from x: polar Gauss in r (dΩ = sin r dr dψ), uniform in ψ
+                vs = sun - x
+                ds = np.linalg.norm(vs, axis=1)
+                ax = vs / ds[:, None]
+                rho = np.arcsin(C.R_SUN_M / ds)
+                helper = np.where(np.abs(ax[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+                e1 = np.cross(ax, helper)
+                e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+                e2 = np.cross(ax, e1)
+                r = 0.5 * rho[:, None] * (xr + 1)  # (B, R)
+                wr_b = 0.5 * rho[:, None] * wr * np.sin(r)
+                om = (np.cos(r)[..., None, None] * ax[:, None, None, :]
+                      + np.sin(r)[..., None, None] * (np.cos(psi)[None, None, :, None] * e1[:, None, None, :]
+                                                     + np.sin(psi)[None, None, :, None] * e2[:, None, None, :]))
+                om = om.reshape(len(x), -1, 3)
+                dOm = np.repeat(wr_b, len(psi), axis=1) * (2 * np.pi / len(psi))
+                L_b = np.full(dOm.shape, L_sun)
+            else:
+                om, dOm, L_b = _earth_beams(x, sun, earth, earth_order)
+            mu0 = np.clip(np.einsum("bkj,bj->bk", om, n), 0, None)
+            sh, ch = _half_angle(om, o[:, None, :])
+            mu_b = np.broadcast_to(mu[:, None], mu0.shape)
+            for k, model in models.items():
+                f = np.where(mu0 > 0, model.brdf(mu0, mu_b, sh, ch), 0.0)
+                out[k][path] += float(np.sum(np.sum(f * mu0 * L_b * dOm, axis=1) * geom))
+    return {k: tuple(v) for k, v in out.items()}

@@ -215,6 +215,25 @@ class SceneGeometry:
             return np.ones(len(p), dtype=bool)
         return ~segment_hits_sphere(det, p, self.earth, self.radii["earth"])
 
+    def moon_wholly_hidden(self, margin: float = 1e-3) -> bool:
+        """True when no point of the Moon can reach the detector: the whole lunar sphere is below
+        a site's horizon plane, or behind the Earth's disc seen from an outside detector, with
+        margins: the Moon grown by ``margin`` and the Earth shrunk by ten times it (1 %, more than
+        the 0.2 % by which a packaged icosphere of level ≥ 3 falls inside its sphere). Methods
+        may skip such a date: every lunar point is hidden anyway."""
+        v = self.moon - self.det
+        d = float(np.linalg.norm(v))
+        rho_m = float(np.arcsin(min(1.0, self.radii["moon"] * (1 + margin) / d)))
+        if self.horizon_normal is not None:
+            alt = np.pi / 2 - angle_between(np.asarray(self.horizon_normal, dtype=float), v)
+            return bool(alt < -rho_m)
+        if self.detector_inside("earth"):
+            return False
+        w = self.earth - self.det
+        de = float(np.linalg.norm(w))
+        rho_e = float(np.arcsin(min(1.0, self.radii["earth"] * (1 - 10 * margin) / de)))
+        return bool(de < d and angle_between(v, w) < rho_e - rho_m)
+
     def detector_inside(self, body: str) -> bool:
         """True when the detector sits in or on ``body`` (that body then does not block it)."""
         centre = {"sun": self.sun, "earth": self.earth, "moon": self.moon}[body]

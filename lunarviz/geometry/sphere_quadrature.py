@@ -13,6 +13,8 @@ All functions are vectorised over a batch B of independent rules.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 
@@ -27,7 +29,15 @@ def orthonormal_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def gauss_legendre(n: int):
-    """Gauss-Legendre nodes and weights of order ``n`` on [0, 1]."""
+    """Gauss-Legendre nodes and weights of order ``n`` on [0, 1] (computed once per order:
+    numpy's ``leggauss`` takes up to ~5 ms, and a dated sweep asks for the same few orders
+    thousands of times; fresh copies, so callers and compiled kernels see ordinary arrays)."""
+    x, w = _gauss_legendre(int(n))
+    return x.copy(), w.copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _gauss_legendre(n: int):
     x, w = np.polynomial.legendre.leggauss(n)
     return 0.5 * (x + 1.0), 0.5 * w
 

@@ -73,6 +73,8 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_es = shader.earthshine(earthshine_transport(sc, cal_st))
         uniform_albedo = a0
         method_fields = {"method": "analytic"}
+        from lunarviz.methods import accuracy
+        extra["rtol"] = float("nan") if settings._mapped_moon() else accuracy.analytic_bound(st.order)
     else:
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
         ts_set = settings.trace_settings(threads)
@@ -97,6 +99,8 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_es = {k: cal_e.get(k, zeros[None]) for k in brdfs}  # (1, L): the uniform Earth's unit sums
         method_fields = {"method": "raytrace", "estimator": ts_set.estimator}
         extra["rays"] = ms_r.rays + es_r.rays
+        from lunarviz.methods import accuracy
+        extra["rtol"] = accuracy.traced_bound(settings.trace_plan()["bounds"], ts, ms_r, es_r)
         if ts_set.estimator == "montecarlo":
             extra.update(runs=ts_set.runs, rays_per_run=ts_set.rays)
     return _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields,

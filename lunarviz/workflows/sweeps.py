@@ -8,6 +8,7 @@ so a sweep over three BRDFs costs one trace per phase. Tasks run in local worker
 
 from __future__ import annotations
 
+import math
 import multiprocessing
 import os
 import time
@@ -17,10 +18,11 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.methods import accuracy
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
-from lunarviz.options import BY_NAME, GROUPS, compose, from_settings_dict, group, validate
+from lunarviz.options import BY_NAME, DEFAULT_LEVELS, GROUPS, compose, from_settings_dict, group, validate
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.photometry.brdf import make_brdf
 
@@ -238,25 +240,87 @@ class SweepSettings:
         """One Lambert albedo over the whole Earth (the paper's)."""
         return self.earth_surface == "uniform" and self.clouds == "none" and self.earth_brdf == "lambert"
 
+    def _mapped_moon(self) -> bool:
+        """A lunar map with any contrast (a uniform map is the scalar)."""
+        if self.moon_albedo_map in (None, "none"):
+            return False
+        from lunarviz.bodies.surfaces import MoonAlbedoMap
+        return bool(np.ptp(MoonAlbedoMap.parse(self.moon_albedo_map).values()) > 0)
+
     def analytic_settings(self, model_earth: bool = False) -> AnalyticSettings:
         order = self.order
-        if order is None:  # 96 for a lunar map with any contrast (a uniform map is the scalar)
-            order = 24
-            if self.moon_albedo_map not in (None, "none"):
-                from lunarviz.bodies.surfaces import MoonAlbedoMap
-                if np.ptp(MoonAlbedoMap.parse(self.moon_albedo_map).values()) > 0:
-                    order = 96
+        if order is None:  # from the tolerance; 96 for a lunar map (no model: its nodes read the map)
+            order = 96 if self._mapped_moon() else accuracy.analytic_choice(self.rtol_or_default)[0]
         return AnalyticSettings(grid=self.grid, order=order, paper_step_deg=self.paper_step_deg,
                                 earth_law=self.earth_law, earth_albedo=self.earth_albedo,
                                 surfaces=self.surfaces(model_earth))
 
+    def reference_orders(self) -> tuple[int, int, float]:
+        """The exact reference's (outer, inner) orders and the bound they meet: from the
+        tolerance when one is given, else :attr:`reference_outer`, :attr:`reference_inner`."""
+        if self.rtol is not None:
+            return accuracy.reference_choice(self.rtol)
+        row = next((r for r in accuracy.error_models()["reference"]
+                    if (r["outer"], r["inner"]) == (self.reference_outer, self.reference_inner)), None)
+        bound = math.nan if row is None else accuracy.SAFETY * max(row["moonshine"], row["earthshine"])
+        return self.reference_outer, self.reference_inner, bound
+
+    @property
+    def rtol_or_default(self) -> float:
+        """The tolerance asked for, or the method's default (:data:`accuracy.DEFAULT_RTOL`)."""
+        return self.rtol if self.rtol is not None else accuracy.DEFAULT_RTOL.get(self.method, 1e-4)
+
+    def trace_plan(self) -> dict:
+        """What the tolerance chooses for the ray tracer: ``settings`` (the options left unset,
+        and ``lune_order``) and ``bounds`` ({(sample kind, path): bound},
+        :func:`lunarviz.methods.accuracy.trace_choice`). Monte Carlo: the rays, where a tolerance
+        is given and the rays are not. No model: a user's Moon mesh, a mapped or physical Earth
+        (bounds empty; an explicit tolerance is refused for a user's Moon mesh)."""
+        none = {"settings": {}, "bounds": {}}
+        if self.method != "raytrace":
+            return none
+        if self.estimator == "montecarlo":
+            if self.rays is None and self.rtol is not None:
+                return {"settings": {"rays": accuracy.montecarlo_rays(self.rtol, self.runs)}, "bounds": {}}
+            return none
+        if self.moon_mesh is not None:
+            if self.rtol is not None:
+                raise LunarvizError(f"--rtol {self.rtol:g}: the error models cover the packaged Moon, not a user's "
+                                    "Moon mesh (its facets are the model): give --sun-order and --earth-order")
+            return none
+        fixed = {k: getattr(self, k) for k in ("moon_level", "sun_order", "earth_order")
+                 if getattr(self, k) is not None}
+        mapped = self._mapped_moon()
+        if mapped and self.rtol is None:  # no level meets the default on a map: the former default, level 4
+            fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])
+        choice = accuracy.trace_choice(self.rtol_or_default, fixed, mapped)
+        settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
+                    if k not in fixed and choice.get(k) is not None}
+        # an explicit mesh level asks for the facets (mesh studies); otherwise the lune rule where it applies
+        settings["lune_order"] = None if "moon_level" in fixed else choice.get("lune_order")
+        modelled = self.earth_uniform and self.earth_brdf == "lambert" and self.earth_mesh is None \
+            and self.sun_mesh is None and self.shading == "auto"
+        bounds = choice.get("bounds", {}) if modelled else {}
+        if self.rtol is not None and bounds:
+            kinds = ("facets",) if settings["lune_order"] is None else ("lune",)
+            met = max(bounds.get((k, p), math.nan) for k in kinds for p in ("moonshine", "earthshine"))
+            if not met <= self.rtol:
+                import warnings
+
+                from lunarviz.errors import LunarvizWarning
+                warnings.warn(f"--rtol {self.rtol:g} is beyond the error models here: the most accurate setting "
+                              f"they hold meets {met:.1e} (rows report it)", LunarvizWarning, stacklevel=2)
+        return {"settings": settings, "bounds": bounds}
+
     def trace_settings(self, threads: int | None = None):
         """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
-        over several worker processes pass 1). Results do not depend on it."""
+        over several worker processes pass 1). Results do not depend on it. The tolerance's
+        choices (:meth:`trace_plan`) fill the options left unset."""
         from lunarviz.methods.tracer.settings import TraceSettings
+        kw = {o.name: getattr(self, o.name) for o in group(*TraceSettings.GROUPS)}
+        kw.update(self.trace_plan()["settings"])
         return TraceSettings(threads=threads, mapped_earth=self.mapped_earth,
-                             earth_params=tuple(sorted(self.params.get("earth", {}).items())),
-                             **{o.name: getattr(self, o.name) for o in group(*TraceSettings.GROUPS)})
+                             earth_params=tuple(sorted(self.params.get("earth", {}).items())), **kw)
 
     def observer_model(self):
         """The parsed observer (an orbit's epoch defaults to the first time)."""
@@ -321,6 +385,7 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
     if settings.method == "analytic":
         res = point if settings.analytic_settings() == cal_settings else \
             analytic_irradiance(sc, brdfs, settings.analytic_settings())
+        bound = math.nan if settings._mapped_moon() else accuracy.analytic_bound(settings.analytic_settings().order)
         for k, v in res.items():
             cal = point[k]
             rows.append({**base, "brdf": k, "method": "analytic",
@@ -329,8 +394,9 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
                          "_terms": alb.lunar_terms(sc, model_es(cal.earthshine_W_m2, cal.earthshine_unit_W_m2),
                                                    cal.moonshine_W_m2, a0)})
     elif settings.method == "reference":
-        res = reference_irradiance(sc, brdfs, ReferenceSettings(settings.reference_outer, settings.reference_inner,
-                                                                settings.earth_albedo, surfaces=settings.surfaces()))
+        outer, inner, bound = settings.reference_orders()
+        res = reference_irradiance(sc, brdfs, ReferenceSettings(outer, inner, settings.earth_albedo,
+                                                                surfaces=settings.surfaces()))
         for k, v in res.items():
             pt = point[k]
             rows.append({**base, "brdf": k, "method": "reference",
@@ -342,41 +408,7 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
                          "_terms_point": alb.lunar_terms(sc, model_es(pt.earthshine_W_m2, pt.earthshine_unit_W_m2),
                                                          pt.moonshine_W_m2, a0)})
     else:
-        from lunarviz.methods.tracer.estimators import TraceScene, trace_path
-        ts_set = settings.trace_settings(threads)
-        ts = TraceScene(sc, ts_set)
-        ms = trace_path(ts, "moonshine", brdfs)
-        es = trace_path(ts, "earthshine", brdfs)
-        if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
-            cal_ms = ms.mean
-            cal_es = {k: model_es(es.mean[k], es.mean_unit[k]) for k in brdfs}
-        else:
-            # lunar terms from a deterministic transport of the same scene with the *model*
-            # Earth (the nominal Lambert sphere): the Earth is what the inversion measures, so a
-            # user's Earth mesh must not calibrate its own inversion (that is an identity)
-            dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
-                                         earth_surface="uniform", clouds="none", earth_brdf="lambert",
-                                         earth_params=()))
-            cal_ms = trace_path(dts, "moonshine", brdfs).mean
-            cal_es = trace_path(dts, "earthshine", brdfs).mean
-        for k in brdfs:
-            row = {**base, "brdf": k, "method": "raytrace", "estimator": ts_set.estimator,
-                   "moonshine_W_m2": ms.mean[k], "earthshine_W_m2": es.mean[k],
-                   "earth_visible_lit_albedo": es.mean[k] / es.mean_unit[k] if es.mean_unit[k] else float("nan"),
-                   "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
-                   "_terms": alb.lunar_terms(sc, cal_es[k], cal_ms[k], settings.earth_albedo),
-                   "_terms_point": alb.lunar_terms(sc, model_es(point[k].earthshine_W_m2,
-                                                                point[k].earthshine_unit_W_m2),
-                                                   point[k].moonshine_W_m2, a0),
-                   "rays": ms.rays + es.rays}
-            if ts_set.estimator == "montecarlo":
-                row["moonshine_std_W_m2"] = ms.std[k]
-                row["earthshine_std_W_m2"] = es.std[k]
-                row["moonshine_sem_W_m2"] = ms.sem[k]
-                row["earthshine_sem_W_m2"] = es.sem[k]
-                row["runs"] = ts_set.runs
-                row["rays_per_run"] = ts_set.rays
-            rows.append(row)
+        rows, bound = _traced_rows(settings, sc, base, brdfs, point, model_es, threads)
     dt = time.perf_counter() - t0
     for r in rows:
         es_, ms_ = r["earthshine_W_m2"], r["moonshine_W_m2"]
@@ -394,7 +426,65 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
             r["extended_over_point_earthshine"] = es_ / pt_es \
                 if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
+        r["rtol"] = bound
     return rows
+
+
+def _traced_rows(settings: SweepSettings, sc, base: dict, brdfs: dict, point: dict, model_es, threads):
+    """The ray tracer's rows of one task (before the inversion's fields) and their bound."""
+    from lunarviz.methods.tracer.estimators import PathResult, TraceScene, trace_path
+    a0 = settings.earth_albedo
+    rows = []
+    ts_set = settings.trace_settings(threads)
+    if hidden_moon(settings, ts_set, sc):  # nothing of the Moon reaches the detector: nothing to trace
+        ts, ms, es, bound = None, PathResult.zero(brdfs), PathResult.zero(brdfs), 0.0
+    else:
+        ts = TraceScene(sc, ts_set)
+        ms = trace_path(ts, "moonshine", brdfs)
+        es = trace_path(ts, "earthshine", brdfs)
+        bound = accuracy.traced_bound(settings.trace_plan()["bounds"], ts, ms, es)
+    if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
+        cal_ms = ms.mean
+        cal_es = {k: model_es(es.mean[k], es.mean_unit[k]) for k in brdfs}
+    else:
+        # lunar terms from a deterministic transport of the same scene with the *model*
+        # Earth (the nominal Lambert sphere): the Earth is what the inversion measures, so a
+        # user's Earth mesh must not calibrate its own inversion (that is an identity)
+        # (at the deterministic tracer's default tolerance, unless a mesh level was asked for)
+        choice = {} if settings.moon_level is not None else accuracy.trace_choice(
+            accuracy.DEFAULT_RTOL["raytrace"], {}, settings._mapped_moon())
+        cal = {k: choice[k] for k in ("lune_order", "sun_order", "earth_order") if choice.get(k) is not None}
+        dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None, earth_surface="uniform",
+                                     clouds="none", earth_brdf="lambert", earth_params=(), **cal))
+        cal_ms = trace_path(dts, "moonshine", brdfs).mean
+        cal_es = trace_path(dts, "earthshine", brdfs).mean
+    for k in brdfs:
+        row = {**base, "brdf": k, "method": "raytrace", "estimator": ts_set.estimator,
+               "moonshine_W_m2": ms.mean[k], "earthshine_W_m2": es.mean[k],
+               "earth_visible_lit_albedo": es.mean[k] / es.mean_unit[k] if es.mean_unit[k] else float("nan"),
+               "earthshine_point_source_W_m2": point[k].earthshine_W_m2,
+               "_terms": alb.lunar_terms(sc, cal_es[k], cal_ms[k], settings.earth_albedo),
+               "_terms_point": alb.lunar_terms(sc, model_es(point[k].earthshine_W_m2,
+                                                            point[k].earthshine_unit_W_m2),
+                                               point[k].moonshine_W_m2, a0),
+               "rays": ms.rays + es.rays}
+        if ts_set.estimator == "montecarlo":
+            row["moonshine_std_W_m2"] = ms.std[k]
+            row["earthshine_std_W_m2"] = es.std[k]
+            row["moonshine_sem_W_m2"] = ms.sem[k]
+            row["earthshine_sem_W_m2"] = es.sem[k]
+            row["runs"] = ts_set.runs
+            row["rays_per_run"] = ts_set.rays
+        rows.append(row)
+    return rows, bound
+
+
+def hidden_moon(settings: SweepSettings, ts_set, sc: SceneGeometry) -> bool:
+    """A date whose whole Moon the observer's Earth (the packaged sphere, level ≥ 3) or horizon
+    hides (:meth:`SceneGeometry.moon_wholly_hidden`): its rows are zeros without a trace (a third
+    of the dates from a low orbit)."""
+    return settings.times is not None and ts_set.earth_mesh is None and ts_set.earth_level >= 3 \
+        and sc.moon_wholly_hidden()
 
 
 def _run_phase_star(args):
@@ -505,8 +595,11 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
             order.sort(key=lambda i: abs(float(phases[i]) - 180.0))  # (θ in [0, 360]: both crescents)
         results = [None] * len(phases)
         ex = ProcessPoolExecutor(workers, initializer=_default_sigterm)
+        # dates go to the workers in runs of consecutive times (one message per run, and each
+        # worker's caches serve neighbouring dates); phases one by one, costliest first
+        chunk = 1 if not settings.times else max(1, min(32, len(phases) // (workers * 8)))
         try:
-            for i, res in zip(order, ex.map(_run_phase_star, [(settings, phases[i]) for i in order])):
+            for i, res in zip(order, ex.map(_run_phase_star, [(settings, phases[i]) for i in order], chunksize=chunk)):
                 results[i] = res
                 if bar:
                     bar.update()

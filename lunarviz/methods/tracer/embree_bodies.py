@@ -21,7 +21,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
@@ -82,7 +81,7 @@ class EmbreeBody:
     (the documented fast path). Every other mesh is shaded on its facets.
     """
 
-    def __init__(self, mesh: trimesh.Trimesh, centre, threads: int | None = None, scale: float = 1.0,
+    def __init__(self, mesh, centre, threads: int | None = None, scale: float = 1.0,
                  rotation: np.ndarray | None = None):
         self.centre = np.asarray(centre, dtype=float)
         #: body-to-scene rotation (``None``: mesh axes are scene axes); vertices below are turned
@@ -374,7 +373,7 @@ GEOMETRY_CACHE_SIZE = 6
 _GEOMETRY_CACHE = BoundedCache(GEOMETRY_CACHE_SIZE)
 
 
-def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | None = None) -> dict:
+def _body_geometry(mesh, scale: float, rotation: np.ndarray | None = None) -> dict:
     """Body-centred geometry and Embree scene of ``mesh`` (vertices × ``scale`` [m], turned by
     ``rotation`` into scene axes), cached.
 
@@ -414,7 +413,7 @@ def _body_geometry(mesh: trimesh.Trimesh, scale: float, rotation: np.ndarray | N
     return geo
 
 
-def _is_convex(mesh: trimesh.Trimesh) -> bool:
+def _is_convex(mesh) -> bool:
     """Convexity by :func:`lunarviz.bodies.meshes.is_convex` (trimesh's test without its caches,
     which would take ~3 GB on a 5-million-facet mesh and stay alive with the cached mesh)."""
     from lunarviz.bodies.meshes import is_convex

@@ -82,6 +82,14 @@ class PathResult:
     #: (:class:`lunarviz.spectral.shading.SpectralShader`)
     spectral: dict = field(default_factory=dict)
 
+    @classmethod
+    def zero(cls, brdfs) -> "PathResult":
+        """The result of a path no light takes (a Moon the observer cannot see): zeros, no ray."""
+        z = {k: 0.0 for k in brdfs}
+        return cls(mean=dict(z), std=dict(z), run_values={k: [0.0] for k in brdfs},
+                   within_std={k: [0.0] for k in brdfs}, rays=0, seconds=0.0, sem=dict(z), spread=dict(z),
+                   mean_unit=dict(z))
+
 
 def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False, spectral=None) -> PathResult:
     """Trace ``path`` once per run and shade every BRDF from the one transport; ``spectral`` (a

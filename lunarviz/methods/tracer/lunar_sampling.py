@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.geometry.scene_geometry import unit
+from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.methods.tracer import settings as tuning
 from lunarviz.methods.tracer.settings import (
@@ -60,12 +60,15 @@ class LunarSampling:
         list(self._chunks_in_order(block, -(-F // tuning.FACET_BLOCK)))
         cand = np.flatnonzero(keep)
         self._kinks = kinks
-        hidden_view = not self.scene.detector_inside("earth") or self.scene.horizon_normal is not None
-        if self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view:
+        if self._edge_tests(body):
             def edges(i):
                 return [self._shadow_edges(cand[i * tuning.FACET_BLOCK:(i + 1) * tuning.FACET_BLOCK], c)]
-            for found in self._chunks_in_order(edges, -(-len(cand) // tuning.FACET_BLOCK)):
-                self._kinks[found] = True
+            found = np.concatenate([np.empty(0, np.int64), *self._chunks_in_order(
+                edges, -(-len(cand) // tuning.FACET_BLOCK))])
+            self._kinks[found] = True
+            self._edge_cache[body] = found
+        else:
+            self._edge_cache[body] = np.empty(0, np.int64)
         self._cand_cache[body] = (cand, self._kinks)
         return cand
 
@@ -155,11 +158,66 @@ class LunarSampling:
         per = 1 if self.moon.mode(self.settings.shading) == "flat" else 3
         return np.repeat(mean, per), np.repeat(sd, per)
 
+    def lune_rule_applies(self, body: str) -> bool:
+        """Whether ``body``'s lunar samples come from the lune rule (:meth:`lune_samples`): asked
+        for (``lune_order``), on the packaged exact sphere (never a user's mesh), without a lunar
+        map (its cells are edges inside the lune), and with no shadow or hidden-view edge across
+        the lit, visible lune (found on the facets, as for refinement: an eclipse's penumbra, the
+        Earth's limb hiding part of the Moon from an outside detector)."""
+        s = self.settings
+        if s.lune_order is None or self.moon.mode(s.shading) != "exact" or s.moon_map() is not None:
+            return False
+        if body == "sun" and self.eclipse_possible():  # the penumbra's edges are kinks inside the lune
+            return False
+        if not self._edge_tests(body):  # no body can shade or hide a part of the lune
+            return True
+        self.candidates(body)
+        return not self._edge_cache[body].size
+
+    def eclipse_possible(self) -> bool:
+        """With occlusion, whether the Earth's disc may overlap the Sun's from some lunar point
+        (a lunar eclipse, penumbral included): seen from the Moon's centre, the two discs come
+        closer than their radii plus the Moon's own parallax (its radius seen from the Earth),
+        with a margin. Conservative: false only where no lunar point can be shaded."""
+        if not self.settings.occlusion:
+            return False
+        sc = self.scene
+        vs, ve = sc.sun - sc.moon, sc.earth - sc.moon
+        ds, de = np.linalg.norm(vs), np.linalg.norm(ve)
+        reach = np.arcsin(min(1.0, sc.radii["sun"] / (ds - self.moon.bound))) \
+            + np.arcsin(min(1.0, self.earth.bound / (de - self.moon.bound))) + 2.0 * self.moon.bound / de
+        return bool(angle_between(vs, ve) < reach * (1 + 1e-3))
+
+    def _edge_tests(self, body: str) -> bool:
+        """Whether a cast-shadow or hidden-view edge can cross the lit, visible Moon: the Moon
+        shadows itself, the Earth may shade it (occlusion, moonshine), or the detector is outside
+        the Earth or on the ground (:meth:`candidates` then traces the edges)."""
+        sc = self.scene
+        hidden_view = not sc.detector_inside("earth") or sc.horizon_normal is not None
+        return self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view
+
+    def lune_samples(self, body: str):
+        """Lunar samples of the lune rule: product Gauss rules over the part of the exact sphere
+        that the detector sees and the source lights (``n·(S - M) > R_M - ρ``), split where the
+        source's disc crosses the horizon (``R_M ± ρ``) so the penumbra band is a segment of its
+        own (:func:`lunarviz.methods.analytic.lunar_surface_rule`; the exact reference uses the
+        same rule at a higher order). Every sample's light is still traced through Embree: the
+        rule only places the samples. Owners are -1 (no facet: per-facet arrays need facet
+        samples, see :func:`~lunarviz.methods.tracer.estimators.trace_path`)."""
+        from lunarviz.methods.analytic import lunar_surface_rule
+        c, R, _ = self._source(body)
+        sc = self.scene
+        x, n, dA = lunar_surface_rule(sc, c, R, self.settings.lune_order[0 if body == "sun" else 1])
+        return x, n, dA, np.full(len(x), -1, dtype=np.int64), None
+
     def lunar_samples(self, body: str):
         """Deterministic lunar samples: points, normals, areas, owning facets, and the lunar
-        map's value per sample (``None`` without a map; :meth:`sample_albedo`)."""
+        map's value per sample (``None`` without a map; :meth:`sample_albedo`); the lune rule's
+        samples where it applies (:meth:`lune_rule_applies`)."""
         M = self.moon
         s = self.settings
+        if self.lune_rule_applies(body):
+            return self.lune_samples(body)
         cand = self.candidates(body)
         if not s.refine:
             return (*M.surface_samples(cand, s.shading), self.sample_albedo(cand, 1))

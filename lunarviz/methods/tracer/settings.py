@@ -9,6 +9,7 @@ import numpy as np
 
 from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
+from lunarviz.methods.accuracy import DEFAULT_RAYS
 from lunarviz.options import DEFAULT_LEVELS, SHADINGS, compose, validate
 
 #: Shadow-ray origins are offset along the normal by this fraction of the body radius
@@ -42,6 +43,9 @@ TERMINATOR_SUB = 8
 #: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
 #: from the Moon (its beams; ``mapped_earth_transport``).
 EARTH_CELLS = 24
+#: Gauss orders of the Sun's and the Earth's beams when neither an order nor a tolerance is given
+#: (the former fixed defaults: 8.7e-5 with level 4 on the paper's scene)
+DEFAULT_ORDERS = {"sun": 2, "earth": 6}
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,12 @@ class TraceSettings:
     #: :meth:`TraceScene.mapped_earth_transport`) or ``beams`` (the uniform Earth's Gauss beams
     #: with each hit facet's albedo: ~2 % off at a map's edges; a diagnostic for comparisons)
     mapped_earth: str = "facets"
+    #: lunar samples from the lune rule of this Gauss order (one for both paths, or a pair:
+    #: moonshine, earthshine) where it applies (the packaged exact
+    #: sphere, no lunar map, no shadow edge across the lune:
+    #: :meth:`~lunarviz.methods.tracer.lunar_sampling.LunarSampling.lune_rule_applies`); ``None``:
+    #: samples on the facets (per-facet arrays, images and every other Moon take those)
+    lune_order: int | None = None
     #: the physical Earth's parameters (``--param earth.NAME=VALUE``) as sorted (name, value) pairs
     earth_params: tuple = ()
 
@@ -82,6 +92,16 @@ class TraceSettings:
         for body in ("moon", "earth", "sun"):  # None: the mesh study's default level
             if getattr(self, f"{body}_level") is None:
                 object.__setattr__(self, f"{body}_level", DEFAULT_LEVELS[body])
+        for name, value in (("sun_order", DEFAULT_ORDERS["sun"]), ("earth_order", DEFAULT_ORDERS["earth"]),
+                            ("rays", DEFAULT_RAYS)):  # None: the fixed default (sweeps resolve --rtol first)
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, value)
+        if self.lune_order is not None:
+            pair = self.lune_order if isinstance(self.lune_order, tuple) else (self.lune_order,) * 2
+            if len(pair) != 2 or not all(isinstance(o, (int, np.integer)) and 2 <= o <= 128 for o in pair):
+                raise LunarvizError(f"lune_order={self.lune_order!r} must be an integer in [2, 128], a pair of them "
+                                    "(moonshine, earthshine) or None")
+            object.__setattr__(self, "lune_order", tuple(int(o) for o in pair))
         if self.earth_rotation_deg is None:
             object.__setattr__(self, "earth_rotation_deg", 0.0)
         validate(self)
@@ -105,8 +125,12 @@ def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None =
 
 @memoize(maxsize=16)
 def _body_mesh_cached(body: str, level, key, units: str, radius: float | None):
-    from lunarviz.bodies.meshes import NOMINAL_RADII, analytic_sphere, load_user_mesh
-    nominal = NOMINAL_RADII[body] if radius is None else radius
     if key is not None:
+        from lunarviz.bodies.meshes import NOMINAL_RADII, load_user_mesh
+        nominal = NOMINAL_RADII[body] if radius is None else radius
         return load_user_mesh(key[0], body=body, units=units, nominal_radius=nominal)
-    return analytic_sphere(body, level, nominal)
+    from lunarviz.bodies.sphere_mesh import analytic_sphere  # (no trimesh for the packaged spheres)
+    if radius is None:
+        import lunarviz.constants as C
+        radius = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body]
+    return analytic_sphere(body, level, radius)

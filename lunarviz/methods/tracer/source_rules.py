@@ -112,23 +112,20 @@ class SourceRules:
             c, R, _ = self._source("sun")
             idx = np.flatnonzero(np.einsum("ij,ij->i", n, c - x) > -R)
             xo = x[idx] + n[idx] * (NORMAL_OFFSET * E.radius)
-            dirs, w = self.source_nodes(xo, n[idx], "sun", 2, eclipse=False)
-            B, K = w.shape
-            occ = np.zeros(B * K, dtype=bool)
-            rep_o, rep_d = np.repeat(xo, K, 0), dirs.reshape(-1, 3)
-            if self.settings.occlusion:
-                occ |= self.moon.occluded(rep_o, rep_d)
+            if earth_self:  # the Earth's own relief (the Moon is traced below, where it can matter)
+                dirs, w = self.source_nodes(xo, n[idx], "sun", 2, eclipse=False)
+                B, K = w.shape
+                occ = E.occluded(np.repeat(xo, K, 0), dirs.reshape(-1, 3)).reshape(B, K)
                 self._count(B * K)
-            if earth_self:
-                occ |= E.occluded(rep_o, rep_d)
-                self._count(B * K)
-            occ = occ.reshape(B, K)
-            tot = w.sum(1)
-            vis[idx] = np.where(tot > 0, (w * ~occ).sum(1) / np.where(tot > 0, tot, 1), 1.0)
+                tot = w.sum(1)
+                vis[idx] = np.where(tot > 0, (w * ~occ).sum(1) / np.where(tot > 0, tot, 1), 1.0)
             if self.settings.occlusion:
                 # facets from which the Moon's disc overlaps the Sun's (the Moon's shadow and
                 # penumbra on the Earth, a solar eclipse): the Moon's limb cuts the solar cone,
-                # and 8 beams round the partial Sun to steps; ECLIPSE_ORDER beams resolve it
+                # and 8 beams round the partial Sun to steps; ECLIPSE_ORDER beams resolve it.
+                # Elsewhere no beam toward the Sun can meet the Moon (its bounding sphere's disc
+                # is off the Sun's, with a margin): nothing to trace (most dates, every phase
+                # but new Moon)
                 sc = self.scene
                 vs, vm = sc.sun - xo, sc.moon - xo
                 ds, dm = np.linalg.norm(vs, axis=1), np.linalg.norm(vm, axis=1)

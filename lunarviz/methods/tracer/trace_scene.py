@@ -25,7 +25,11 @@ from lunarviz.methods.tracer.settings import (
     body_mesh_m,
 )
 from lunarviz.methods.tracer.source_rules import SourceRules
+from lunarviz.caches import BoundedCache
 from lunarviz.methods.transport import Transport
+
+#: per-facet lunar map values per (map, mesh, frame) (:meth:`TraceScene.moon_map_values`)
+MOON_MAP_VALUES = BoundedCache(8)
 
 
 class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarthTransport, MonteCarloTransport):
@@ -40,8 +44,12 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         nominal = {"moon": scene.r_moon, "earth": scene.r_earth, "sun": scene.r_sun}
         self.moon = EmbreeBody(body_mesh_m("moon", s.moon_level, s.moon_mesh, s.mesh_units, nominal["moon"]),
                                scene.moon, th, k, scene.rotation("moon"))
-        self.earth = EmbreeBody(body_mesh_m("earth", s.earth_level, s.earth_mesh, s.mesh_units, nominal["earth"]),
-                                scene.earth, th, k, scene.rotation("earth"))
+        earth_mesh = body_mesh_m("earth", s.earth_level, s.earth_mesh, s.mesh_units, nominal["earth"])
+        # the packaged Earth is an exact sphere: turning its tessellation with the date changes
+        # nothing it computes (maps are read through their frame at each facet's own position),
+        # so it keeps one orientation and one Embree scene for every date
+        packaged = bool(earth_mesh.metadata.get("lunarviz_analytic"))
+        self.earth = EmbreeBody(earth_mesh, scene.earth, th, k, None if packaged else scene.rotation("earth"))
         self.sun = EmbreeBody(body_mesh_m("sun", s.sun_level, s.sun_mesh, s.mesh_units, nominal["sun"]),
                               scene.sun, th, k)
         # ``shading`` is for the Moon and for user meshes; the packaged Sun and Earth spheres
@@ -58,6 +66,8 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         self._lock = threading.Lock()
         self._sun_vis_earth = None
         self._cand_cache: dict = {}
+        #: per body: candidate facets that a shadow or hidden-view edge crosses (``candidates``)
+        self._edge_cache: dict = {}
         self._moon_albedo = self._earth_albedo = None
         #: a spectral run's Earth components (:func:`lunarviz.spectral.earth.components`): the
         #: mapped Earth's transports then carry one beam array each (``e_beam_parts``)
@@ -74,9 +84,27 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         if amap is None:
             return None
         if self._moon_albedo is None:
-            from lunarviz.bodies.surfaces import map_frame, moon_facet_values
-            self._moon_albedo = moon_facet_values(amap, self.moon, map_frame(self.scene, "moon"))
+            self._moon_albedo = self.moon_map_values()
         return self._moon_albedo if spread else self._moon_albedo[0]
+
+    def moon_map_values(self):
+        """(mean, std) of the lunar map over each facet (:func:`lunarviz.bodies.surfaces.moon_facet_values`
+        over the whole mesh). On dates the Moon's mesh turns with the Moon, so a facet covers the
+        same part of the map at every date: the values are kept per map, mesh and frame for the
+        process (:data:`MOON_MAP_VALUES`), and a time series computes them once."""
+        from lunarviz.bodies.surfaces import map_frame, moon_facet_values
+        from lunarviz.caches import array_digest
+        M, amap = self.moon, self.settings.moon_map()
+        frame = map_frame(self.scene, "moon")
+        turned = M.rotation is not None and np.array_equal(frame, M.rotation)  # body frame: date-independent
+        mesh = M.geometry["mesh"]
+        key = (array_digest(amap.values()), amap.mean, array_digest(mesh.vertices, mesh.faces), float(M.radius),
+               "body" if turned else frame.tobytes())
+        got = MOON_MAP_VALUES.get(key)
+        if got is None:
+            got = moon_facet_values(amap, M, frame)
+            MOON_MAP_VALUES[key] = got
+        return got
 
     def earth_facet_albedo(self):
         """Per-facet Lambert albedo of the Earth (area averages of its surface and clouds), or

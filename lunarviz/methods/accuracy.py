@@ -1,0 +1,181 @@
+"""Accuracy as the input: the settings that meet a relative tolerance at least cost.
+
+The error models are measured, not derived: ``scripts/error_models.py`` runs every setting a
+tolerance may choose over the paper's scene (θ = 5-175° every 2.5°, three BRDFs, both paths)
+against the exact reference at a high order and keeps, per setting, the largest relative error
+and the time per phase in ``lunarviz/data/error_models.json`` (regenerate it when a method
+changes). A tolerance ``rtol`` takes the cheapest setting whose measured error is at most
+``rtol / SAFETY``; each row reports ``rtol``, the bound its own setting meets: ``SAFETY`` times
+that setting's measured error (the scene's geometry moves the error a little: dates, distances,
+observers; the factor covers it, see the tests).
+
+What the models cover, and what rows report where they do not:
+
+* ``raytrace`` (deterministic): the lune rule on the packaged exact-sphere Moon, with the facet
+  samples of an icosphere level as the fallback where the rule does not apply (an eclipse's
+  penumbra or an outside detector's Earth limb across the lune); a lunar map (the facets on the
+  mapped Moon, against the finest level: self-convergence). A user's Moon mesh, a mapped or
+  physical Earth: no model (the rows' ``rtol`` is NaN; the settings are the defaults).
+* ``montecarlo``: the ray count from each path's largest relative standard deviation of one
+  ray; rows report two standard errors of their mean.
+* ``analytic``: the Gauss order, against the method's own converged value (the analytic method
+  is the paper's point-source model: its distance from the extended reference is a model error).
+* ``reference``: its outer and inner orders, against higher orders.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from lunarviz.caches import memoize
+from lunarviz.resources import DATA_DIR
+
+#: a setting is chosen when its measured largest error is at most rtol / SAFETY
+SAFETY = 2.0
+#: each method's tolerance when none is given (the deterministic tracer's matches its former
+#: fixed defaults, level 4: 8.7e-5 on the paper's scene)
+DEFAULT_RTOL = {"raytrace": 1e-4, "analytic": 1e-6, "reference": 1e-6}
+#: Monte Carlo without a tolerance: the paper's 50,000 rays per run
+DEFAULT_RAYS = 50_000
+#: the source beam order of each path in the models
+SOURCE_ORDER = {"moonshine": "sun_order", "earthshine": "earth_order"}
+
+
+@memoize(maxsize=1)
+def error_models() -> dict:
+    """The measured error models (``lunarviz/data/error_models.json``)."""
+    return json.loads((DATA_DIR / "error_models.json").read_text())
+
+
+def _best(rows: list, limit: float, fixed: dict) -> dict | None:
+    """The cheapest row whose error is at most ``limit`` and whose settings agree with ``fixed``."""
+    ok = [r for r in rows if r["max_rel_error"] <= limit and all(r.get(k, v) == v for k, v in fixed.items())]
+    return min(ok, key=lambda r: r["seconds_per_phase"]) if ok else None
+
+
+def _most_accurate(rows: list, fixed: dict) -> dict | None:
+    ok = [r for r in rows if all(r.get(k, v) == v for k, v in fixed.items())]
+    return min(ok, key=lambda r: (r["max_rel_error"], r["seconds_per_phase"])) if ok else None
+
+
+def _paired(table: dict, key: str, rtol: float, fixed: dict) -> dict:
+    """The cheapest ``key`` value (lune order or level) with a source order per path that meets
+    ``rtol`` on both paths; the most accurate pair where none does."""
+    limit = rtol / SAFETY
+    values = sorted({r[key] for r in table["moonshine"]} & {r[key] for r in table["earthshine"]})
+    if key in fixed:
+        values = [v for v in values if v == fixed[key]]
+    best = None
+    for v in values:
+        pair = {p: _best(table[p], limit, {**_for(fixed, p), key: v}) for p in table}
+        if all(pair.values()):
+            cost = sum(r["seconds_per_phase"] for r in pair.values())
+            if best is None or cost < best[0]:
+                best = (cost, pair)
+    if best is None:  # nothing meets it: the most accurate the model has
+        pair = {p: _most_accurate(table[p], _for(fixed, p)) for p in table}
+        return {} if not all(pair.values()) else pair
+    return best[1]
+
+
+def _for(fixed: dict, path: str) -> dict:
+    """The fixed settings that concern ``path`` (the other path's source order does not)."""
+    other = SOURCE_ORDER["earthshine" if path == "moonshine" else "moonshine"]
+    return {k: v for k, v in fixed.items() if k != other}
+
+
+def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
+    """Settings for the deterministic tracer at ``rtol``: ``lune_order`` (the Sun's path, the
+    Earth's), ``moon_level``,
+    ``sun_order``, ``earth_order`` (those in ``fixed`` kept), and per path and sample kind the
+    bound each meets (``bounds``: {("lune"|"facets", path): bound})."""
+    m = error_models()
+    bounds = {}
+    if mapped_moon:  # the map's cells dominate: rows by level (the Earth's order is not the limit)
+        table = m["raytrace_facets_mapped"]
+        level = fixed.get("moon_level")
+        if level is None:
+            pair = _paired(table, "moon_level", rtol, {})
+            level = pair["moonshine"]["moon_level"] if pair else None
+        for p in ("moonshine", "earthshine"):
+            row = next((r for r in table[p] if r["moon_level"] == level), None)
+            bounds[("facets", p)] = SAFETY * row["max_rel_error"] if row else math.nan
+        return {"lune_order": None, "moon_level": level, "sun_order": fixed.get("sun_order"),
+                "earth_order": fixed.get("earth_order"), "bounds": bounds}
+    # the lune rule: each path its own order (one rule per path); the facets: one level for both
+    limit = rtol / SAFETY
+    lune = {p: _best(m["raytrace_lune"][p], limit, _for(fixed, p)) or
+            _most_accurate(m["raytrace_lune"][p], _for(fixed, p)) for p in ("moonshine", "earthshine")}
+    lune = lune if all(lune.values()) else {}
+    facets = _paired(m["raytrace_facets"], "moon_level", rtol, fixed)
+    out = {"lune_order": (lune["moonshine"]["lune_order"], lune["earthshine"]["lune_order"]) if lune else None,
+           "moon_level": facets["moonshine"]["moon_level"] if facets else fixed.get("moon_level")}
+    for name in ("sun_order", "earth_order"):  # one order serves both sample kinds: the larger
+        p = "moonshine" if name == "sun_order" else "earthshine"
+        got = [t[p][name] for t in (lune, facets) if t]
+        out[name] = fixed.get(name, max(got) if got else None)
+    # the bound each sample kind meets with the orders finally used (a row of the model, if any)
+    kinds = (("lune", m["raytrace_lune"], "lune_order"), ("facets", m["raytrace_facets"], "moon_level"))
+    for kind, table, key in kinds:
+        for i, p in enumerate(("moonshine", "earthshine")):
+            value = out[key][i] if kind == "lune" and out[key] is not None else out[key]
+            want = {key: value, SOURCE_ORDER[p]: out[SOURCE_ORDER[p]]}
+            row = next((r for r in table[p] if all(r.get(k) == v for k, v in want.items())), None)
+            bounds[(kind, p)] = SAFETY * row["max_rel_error"] if row else math.nan
+    out["bounds"] = bounds
+    return out
+
+
+def montecarlo_rays(rtol: float, runs: int) -> int:
+    """Rays per run so that two standard errors of the mean of ``runs`` runs are at most
+    ``rtol`` for both paths (each path's largest relative σ of one ray in the models)."""
+    sigma = max(error_models()["montecarlo_sigma_one_ray"].values())
+    return max(1, math.ceil((SAFETY * sigma / rtol) ** 2 / runs))
+
+
+def analytic_choice(rtol: float) -> tuple[int, float]:
+    """(order, bound) of the analytic method at ``rtol`` (the most accurate order if none meets it)."""
+    rows = error_models()["analytic"]
+    err = [(max(r["moonshine"], r["earthshine"]), r) for r in rows]
+    ok = [(r["seconds_per_phase"], r["order"], e) for e, r in err if e <= rtol / SAFETY]
+    if ok:
+        _, order, e = min(ok)
+    else:
+        e, r = min(err, key=lambda t: t[0])
+        order = r["order"]
+    return order, SAFETY * e
+
+
+def analytic_bound(order: int) -> float:
+    """The bound the analytic method's ``order`` meets (NaN outside the model)."""
+    r = next((r for r in error_models()["analytic"] if r["order"] == order), None)
+    return math.nan if r is None else SAFETY * max(r["moonshine"], r["earthshine"])
+
+
+def reference_choice(rtol: float) -> tuple[int, int, float]:
+    """(outer, inner, bound) of the exact reference at ``rtol``: the lowest orders in the model
+    that meet it, else the orders the model was measured against (bound: the next lower's error)."""
+    m = error_models()
+    rows = sorted(m["reference"], key=lambda r: (r["outer"], r["inner"]))
+    for r in rows:
+        e = max(r["moonshine"], r["earthshine"])
+        if e <= rtol / SAFETY:
+            return r["outer"], r["inner"], SAFETY * e
+    outer, inner = m["reference_orders"]
+    return outer, inner, SAFETY * max(rows[-1]["moonshine"], rows[-1]["earthshine"])
+
+
+def traced_bound(bounds: dict, ts, ms, es) -> float:
+    """The relative error bound a traced row meets: from ``bounds`` (:func:`trace_choice`'s, by
+    sample kind and path) for the kind each path took (lune rule or facets: ``ts``, the
+    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`); Monte Carlo: two standard errors of
+    the mean (``ms``, ``es``: the paths' results); NaN without a model."""
+    if ts.settings.estimator == "montecarlo":
+        rel = [r.sem[k] / r.mean[k] for r in (ms, es) for k in r.mean if r.mean[k] > 0]
+        return SAFETY * max(rel) if rel else math.nan
+    if ts.eclipse_possible():  # the models hold no eclipse (measured without occlusion)
+        return math.nan
+    got = [bounds.get(("lune" if ts.lune_rule_applies(body) else "facets", path), math.nan)
+           for path, body in (("moonshine", "sun"), ("earthshine", "earth"))]
+    return max(got) if not any(math.isnan(b) for b in got) else math.nan

@@ -1,0 +1,151 @@
+"""Accuracy as the input (``--rtol``): the settings a tolerance chooses meet it, against an
+independent reference; rows report their bound; dates in bulk equal dates one by one."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import independent as I
+from lunarviz.errors import LunarvizError
+from lunarviz.geometry.scene_geometry import SceneGeometry
+from lunarviz.methods import accuracy
+from lunarviz.workflows.sweeps import SweepSettings, run_phase, run_sweep
+
+BRDFS = ("lambert", "shg", "dhg")
+#: the thin crescent (175°), the full Moon (5°) and a quarter (90°): the lune rule's hardest
+#: and easiest phases for both paths (benchmarks/error_models/report.md)
+PHASES = (5.0, 90.0, 175.0)
+
+
+@pytest.fixture(scope="module")
+def independent_reference():
+    """tests/independent.py's extended-source integral (its own lunar rule, Sun-disc and Earth
+    rules; no lunarviz quadrature): converged to ≤ 2.2e-6 (earthshine at θ = 30°, from its
+    two orders 40×24 and 64×40 nodes; moonshine ≤ 2e-7), so a 1e-5 check has 4× headroom."""
+    models = SweepSettings(brdfs=BRDFS).brdf_models()
+    return {th: I.extended_irradiance(th, models) for th in PHASES}
+
+
+def _errors(rows, ref):
+    return [abs(r[key] / ref[r["theta_deg"]][r["brdf"]][i] - 1.0)
+            for r in rows for i, key in enumerate(("moonshine_W_m2", "earthshine_W_m2"))]
+
+
+@pytest.mark.parametrize("rtol", [1e-3, 1e-4, 1e-5])
+def test_raytrace_meets_the_tolerance_asked_for(rtol, independent_reference):
+    s = SweepSettings(method="raytrace", occlusion=False, brdfs=BRDFS, phases_deg=PHASES, rtol=rtol)
+    rows = run_sweep(s, workers=1)["rows"]
+    err = _errors(rows, independent_reference)
+    assert max(err) <= rtol, (rtol, max(err))
+    # each row reports the bound its own settings meet (≤ the tolerance), and the run met it
+    assert all(0 < r["rtol"] <= rtol for r in rows)
+    assert max(err) <= max(r["rtol"] for r in rows)
+
+
+def test_a_tighter_tolerance_is_never_worse(independent_reference):
+    """Refinement never makes a result worse: the error at each phase falls (or stays below the
+    tighter tolerance) as the tolerance tightens."""
+    worst = []
+    for rtol in (1e-3, 1e-4, 1e-5):
+        s = SweepSettings(method="raytrace", occlusion=False, brdfs=BRDFS, phases_deg=PHASES, rtol=rtol)
+        worst.append(max(_errors(run_sweep(s, workers=1)["rows"], independent_reference)))
+    assert worst[2] <= max(worst[1], 1e-5) and worst[1] <= max(worst[0], 1e-4)
+
+
+def test_the_lune_rule_is_ray_traced(monkeypatch):
+    """The lune rule only places lunar samples: with Embree answering "no hit" the moonshine
+    and the earthshine vanish."""
+    from lunarviz.methods.tracer import embree_bodies
+    s = SweepSettings(method="raytrace", occlusion=False, brdfs=("dhg",), phases_deg=(90.0,), rtol=1e-4)
+    assert s.trace_settings().lune_order is not None
+    real = run_phase(s, 90.0)[0]
+    monkeypatch.setattr(embree_bodies.EmbreeBody, "run_rays",
+                        lambda self, o32, d32, query, dists=None, scene=None:
+                        np.full(len(o32), -1, np.int32) if query == "INTERSECT" else np.zeros(len(o32), bool))
+    stubbed = run_phase(s, 90.0)[0]
+    assert real["moonshine_W_m2"] > 0 and stubbed["moonshine_W_m2"] == 0.0 and stubbed["earthshine_W_m2"] == 0.0
+
+
+@pytest.mark.parametrize("theta", [0.3, 0.6, 1.0, 1.4])
+def test_the_lune_rule_leaves_eclipses_to_the_facets(theta):
+    """In or near the Earth's shadow (occlusion on; the penumbra reaches 8,100 km from the axis at
+    the Moon, θ ≈ 1.5°) the shadow's edges are kinks inside the lune: facet samples (with their
+    eclipse rules) take over, and the rows report no bound (the models hold no eclipse)."""
+    from lunarviz.methods.tracer.estimators import TraceScene
+    s = SweepSettings(method="raytrace", brdfs=("lambert",), phases_deg=(theta, 90.0), rtol=1e-4)
+    ts_set = s.trace_settings()
+    assert not TraceScene(s.scene(theta), ts_set).lune_rule_applies("sun")
+    assert TraceScene(s.scene(90.0), ts_set).lune_rule_applies("sun")
+    assert math.isnan(run_phase(s, theta)[0]["rtol"])
+    assert not TraceScene(s.scene(theta), replace(ts_set, occlusion=False)).eclipse_possible()
+
+
+def test_rows_report_the_bound_of_every_method():
+    for method in ("analytic", "reference"):
+        rows = run_sweep(SweepSettings(method=method, brdfs=("dhg",), phases_deg=(60.0,)), workers=1)["rows"]
+        assert 0 < rows[0]["rtol"] <= accuracy.DEFAULT_RTOL[method]
+    # Monte Carlo: two standard errors of the mean, from the run itself
+    mc = SweepSettings(method="raytrace", estimator="montecarlo", rays=4000, runs=2, brdfs=("dhg",), phases_deg=(60.0,))
+    r = run_phase(mc, 60.0)[0]
+    want = 2 * max(r["moonshine_std_W_m2"] / r["moonshine_W_m2"], r["earthshine_std_W_m2"] / r["earthshine_W_m2"]) \
+        / math.sqrt(2)
+    assert r["rtol"] == pytest.approx(want, rel=1e-9)
+    # no model for a mapped Earth: NaN, never a number that was not measured
+    mapped = SweepSettings(method="raytrace", brdfs=("dhg",), phases_deg=(60.0,), earth_surface="landocean")
+    assert math.isnan(run_phase(mapped, 60.0)[0]["rtol"])
+
+
+def test_montecarlo_rays_from_the_tolerance():
+    s = SweepSettings(method="raytrace", estimator="montecarlo", brdfs=("lambert",), phases_deg=(90.0,), rtol=0.02)
+    ts = s.trace_settings()
+    sigma = max(accuracy.error_models()["montecarlo_sigma_one_ray"].values())
+    assert ts.rays == math.ceil((2 * sigma / 0.02) ** 2)
+    row = run_phase(s, 90.0)[0]
+    assert row["rtol"] <= 0.02  # the run's own two standard errors
+
+
+@pytest.mark.parametrize("bad", [0.0, -1e-3, 0.9, float("nan")])
+def test_a_bad_tolerance_is_refused(bad):
+    with pytest.raises(LunarvizError, match="relative tolerance"):
+        SweepSettings(method="raytrace", rtol=bad)
+
+
+def test_a_user_moon_mesh_has_no_error_model(tmp_path):
+    from lunarviz.bodies.shapes import ellipsoid
+    path = tmp_path / "moon.ply"
+    ellipsoid(1.0, 1.0, 0.98, level=3).export(path)
+    with pytest.raises(LunarvizError, match="user's Moon mesh"):
+        SweepSettings(method="raytrace", moon_mesh=str(path), mesh_units="radius", rtol=1e-4).trace_settings()
+
+
+def test_wholly_hidden_moon_geometry():
+    sc = SceneGeometry(90.0)
+    assert not sc.moon_wholly_hidden()  # the geocentre sees everything
+    moon = sc.moon
+    behind = SceneGeometry.from_vectors(sc.sun, moon, -moon / np.linalg.norm(moon) * 6.9e6)
+    assert behind.moon_wholly_hidden()  # 550 km above the point opposite the Moon
+    beside = SceneGeometry.from_vectors(sc.sun, moon, np.cross(moon, [1.0, 0, 0]) / np.linalg.norm(moon) * 6.9e6)
+    assert not beside.moon_wholly_hidden()
+
+
+def test_dates_in_bulk_equal_dates_one_by_one(monkeypatch):
+    """A time series (worker processes, batches of dates, caches shared between dates, hidden
+    Moons skipped) gives the rows of the same dates run one by one, each in a fresh cache."""
+    from lunarviz.caches import release_caches
+    from lunarviz.workflows import sweeps
+    s = SweepSettings(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map",
+                      times=("2026-03-03T00:00:00Z", "2026-03-03T00:30:00Z", "2026-03-03T01:00:00Z",
+                             "2026-03-03T01:30:00Z"), observer="orbit:550,97.6,0,0", rtol=1e-3)
+    bulk = run_sweep(s, workers=2)["rows"]
+    hidden = [r["moon_occulted"] for r in bulk]
+    assert any(hidden) and not all(hidden)
+    for t, r in zip(s.times, bulk):
+        release_caches()
+        monkeypatch.setattr(sweeps, "hidden_moon", lambda *a: False)  # trace even a hidden Moon
+        one = run_phase(s, t)[0]
+        for key in ("moonshine_W_m2", "earthshine_W_m2"):
+            assert one[key] == pytest.approx(r[key], rel=1e-12, abs=1e-300), (t, key)
