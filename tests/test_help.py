@@ -37,5 +37,6 @@ def test_every_option_has_help_and_the_examples_parse(command):
 
 def test_sweep_help_shows_defaults_and_units():
     text = _cli("sweep", "--help").stdout
-    assert "(default: 50000)" in text  # --rays
+    assert "(default: 1)" in text  # --runs
+    assert "paper's 50,000" in text  # --rays: a default that --rtol may replace, said in words
     assert "[deg]" in text and "examples:" in text

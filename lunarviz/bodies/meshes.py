@@ -387,12 +387,18 @@ def load_user_mesh(path, body: str = "moon", units: str = "m", nominal_radius: f
     return out
 
 
-def analytic_sphere(body: str, level: int, radius: float):
-    """The icosphere of ``body`` at ``level`` in metres, tagged as an analytic sphere
-    (:func:`lunarviz.bodies.sphere_mesh.analytic_sphere`, which reads the packaged ones without
-    trimesh)."""
-    from lunarviz.bodies.sphere_mesh import analytic_sphere as sphere
-    return sphere(body, level, radius)
+def analytic_sphere(body: str, level: int, radius: float) -> trimesh.Trimesh:
+    """The icosphere of ``body`` at ``level`` in metres, tagged as an analytic sphere.
+
+    The tag (``metadata["lunarviz_analytic"]``) is what allows the exact-sphere fast path
+    (shading on the exact sphere); it is set only here and in
+    :func:`lunarviz.bodies.sphere_mesh.packaged_sphere` (the packaged levels, read without
+    trimesh), for meshes generated as spheres, and never inferred from a user's vertices.
+    """
+    m = body_mesh(body, level)
+    out = trimesh.Trimesh(np.asarray(m.vertices) * radius, m.faces, process=False)
+    out.metadata["lunarviz_analytic"] = {"shape": "sphere", "radius": float(radius)}
+    return out
 
 
 def write_packaged_meshes(levels: dict[str, list[int]]) -> Path:

@@ -5,7 +5,7 @@ packaged spheres need none of it: their binary PLY files (``data/meshes``, writt
 :func:`lunarviz.bodies.meshes.write_packaged_meshes`) are read here with numpy, checked against
 the manifest's sha256, and put back on the unit sphere in float64 exactly as
 :func:`lunarviz.bodies.meshes.body_mesh` does through trimesh (the same vertices and faces). A
-level that is not packaged is built by trimesh (:func:`lunarviz.bodies.meshes.unit_icosphere`).
+level that is not packaged is built by trimesh (:func:`lunarviz.bodies.meshes.analytic_sphere`).
 """
 
 from __future__ import annotations
@@ -86,17 +86,13 @@ def unit_sphere_arrays(body: str, level: int) -> tuple[np.ndarray, np.ndarray] |
     return None
 
 
-def analytic_sphere(body: str, level: int, radius: float):
-    """The icosphere of ``body`` at ``level`` in metres, tagged as an analytic sphere (the tag
-    ``metadata["lunarviz_analytic"]`` allows the exact-sphere fast path; it is set only here and
-    never inferred from a user's vertices): a :class:`SphereMesh` from the packaged file, or
-    trimesh's icosphere where the level is not packaged."""
+def packaged_sphere(body: str, level: int, radius: float) -> SphereMesh | None:
+    """The packaged icosphere of ``body`` at ``level`` in metres, tagged as an analytic sphere
+    (the tag ``metadata["lunarviz_analytic"]`` allows the exact-sphere fast path; it is set only
+    for meshes generated as spheres, never inferred from a user's vertices), or ``None`` where
+    that level is not packaged (:func:`lunarviz.bodies.meshes.analytic_sphere` builds it)."""
     got = unit_sphere_arrays(body, int(level))
-    tag = {"shape": "sphere", "radius": float(radius)}
     if got is None:
-        from lunarviz.bodies.meshes import body_mesh
-        m = body_mesh(body, level)
-        v, f = np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)
-    else:
-        v, f = got
-    return SphereMesh(v * radius, f, {"lunarviz_analytic": tag})
+        return None
+    v, f = got
+    return SphereMesh(v * radius, f, {"lunarviz_analytic": {"shape": "sphere", "radius": float(radius)}})

@@ -179,3 +179,15 @@ def traced_bound(bounds: dict, ts, ms, es) -> float:
     got = [bounds.get(("lune" if ts.lune_rule_applies(body) else "facets", path), math.nan)
            for path, body in (("moonshine", "sun"), ("earthshine", "earth"))]
     return max(got) if not any(math.isnan(b) for b in got) else math.nan
+
+
+def calibration_settings(ts_set, moon_level_asked, mapped_moon: bool):
+    """The deterministic tracer's settings for an inversion's calibration (the *model* Earth, the
+    nominal Lambert sphere, on the same scene) where the run itself cannot calibrate (Monte Carlo,
+    a user's Earth mesh): ``ts_set`` with the model Earth, at the deterministic tracer's default
+    tolerance unless a mesh level was asked for (``moon_level_asked``)."""
+    from dataclasses import replace
+    choice = {} if moon_level_asked else trace_choice(DEFAULT_RTOL["raytrace"], {}, mapped_moon)
+    cal = {k: choice[k] for k in ("lune_order", "sun_order", "earth_order") if choice.get(k) is not None}
+    return replace(ts_set, estimator="deterministic", earth_mesh=None, earth_surface="uniform", clouds="none",
+                   earth_brdf="lambert", earth_params=(), **cal)

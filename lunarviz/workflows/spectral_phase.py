@@ -90,9 +90,9 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
             cal_ms, cal_es = ms, es
         else:  # the model Earth (the nominal sphere, uniform): as the grey run's calibration
-            dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None,
-                                         earth_surface="uniform", clouds="none", earth_brdf="lambert",
-                                         earth_params=()))
+            from lunarviz.methods import accuracy
+            dts = TraceScene(sc, accuracy.calibration_settings(ts_set, settings.moon_level is not None,
+                                                               settings._mapped_moon()))
             cal_m = trace_path(dts, "moonshine", brdfs, spectral=shader).spectral  # one trace each, all BRDFs
             cal_e = trace_path(dts, "earthshine", brdfs, spectral=shader).spectral
             cal_ms = {k: cal_m.get(k, zeros) for k in brdfs}

@@ -450,12 +450,8 @@ def _traced_rows(settings: SweepSettings, sc, base: dict, brdfs: dict, point: di
         # lunar terms from a deterministic transport of the same scene with the *model*
         # Earth (the nominal Lambert sphere): the Earth is what the inversion measures, so a
         # user's Earth mesh must not calibrate its own inversion (that is an identity)
-        # (at the deterministic tracer's default tolerance, unless a mesh level was asked for)
-        choice = {} if settings.moon_level is not None else accuracy.trace_choice(
-            accuracy.DEFAULT_RTOL["raytrace"], {}, settings._mapped_moon())
-        cal = {k: choice[k] for k in ("lune_order", "sun_order", "earth_order") if choice.get(k) is not None}
-        dts = TraceScene(sc, replace(ts_set, estimator="deterministic", earth_mesh=None, earth_surface="uniform",
-                                     clouds="none", earth_brdf="lambert", earth_params=(), **cal))
+        dts = TraceScene(sc, accuracy.calibration_settings(ts_set, settings.moon_level is not None,
+                                                           settings._mapped_moon()))
         cal_ms = trace_path(dts, "moonshine", brdfs).mean
         cal_es = trace_path(dts, "earthshine", brdfs).mean
     for k in brdfs:

@@ -96,6 +96,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     :class:`~lunarviz.spectral.shading.SpectralShader`) also shades every node wavelength from it."""
     s = ts.settings
     body = PATHS[path]
+    ts.per_facet = keep_facets  # per-facet arrays need facet samples (never the lune rule's)
     t0 = time.perf_counter()
     r0 = ts.rays_cast
     runs = 1 if s.estimator == "deterministic" else s.runs

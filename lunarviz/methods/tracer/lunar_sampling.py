@@ -160,12 +160,14 @@ class LunarSampling:
 
     def lune_rule_applies(self, body: str) -> bool:
         """Whether ``body``'s lunar samples come from the lune rule (:meth:`lune_samples`): asked
-        for (``lune_order``), on the packaged exact sphere (never a user's mesh), without a lunar
-        map (its cells are edges inside the lune), and with no shadow or hidden-view edge across
-        the lit, visible lune (found on the facets, as for refinement: an eclipse's penumbra, the
-        Earth's limb hiding part of the Moon from an outside detector)."""
+        for (``lune_order``), no per-facet arrays being kept (:attr:`per_facet`), on the packaged
+        exact sphere (never a user's mesh), without a lunar map's contrast (its cells are edges
+        inside the lune), with no eclipse possible (:meth:`eclipse_possible`) and no shadow or
+        hidden-view edge across the lit, visible lune (found on the facets, as for refinement:
+        the Earth's limb hiding part of the Moon from an outside detector)."""
         s = self.settings
-        if s.lune_order is None or self.moon.mode(s.shading) != "exact" or s.moon_map() is not None:
+        if s.lune_order is None or self.per_facet or self.moon.mode(s.shading) != "exact" \
+                or self._moon_map_contrast():
             return False
         if body == "sun" and self.eclipse_possible():  # the penumbra's edges are kinks inside the lune
             return False
@@ -208,7 +210,14 @@ class LunarSampling:
         c, R, _ = self._source(body)
         sc = self.scene
         x, n, dA = lunar_surface_rule(sc, c, R, self.settings.lune_order[0 if body == "sun" else 1])
-        return x, n, dA, np.full(len(x), -1, dtype=np.int64), None
+        fa = self.moon_facet_albedo(spread=True)  # a uniform map (no contrast): its one value everywhere
+        alb = None if fa is None else (np.full(len(x), fa[0][0]), np.zeros(len(x)))
+        return x, n, dA, np.full(len(x), -1, dtype=np.int64), alb
+
+    def _moon_map_contrast(self) -> bool:
+        """A lunar map whose facets differ (its cells are edges the lune rule does not know)."""
+        fa = self.moon_facet_albedo(spread=True)
+        return fa is not None and bool(np.ptp(fa[0]) > 0 or np.any(fa[1] > 0))
 
     def lunar_samples(self, body: str):
         """Deterministic lunar samples: points, normals, areas, owning facets, and the lunar

@@ -129,8 +129,12 @@ def _body_mesh_cached(body: str, level, key, units: str, radius: float | None):
         from lunarviz.bodies.meshes import NOMINAL_RADII, load_user_mesh
         nominal = NOMINAL_RADII[body] if radius is None else radius
         return load_user_mesh(key[0], body=body, units=units, nominal_radius=nominal)
-    from lunarviz.bodies.sphere_mesh import analytic_sphere  # (no trimesh for the packaged spheres)
+    from lunarviz.bodies.sphere_mesh import packaged_sphere  # (no trimesh for the packaged spheres)
     if radius is None:
         import lunarviz.constants as C
         radius = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body]
-    return analytic_sphere(body, level, radius)
+    mesh = packaged_sphere(body, level, radius)
+    if mesh is None:
+        from lunarviz.bodies.meshes import analytic_sphere
+        mesh = analytic_sphere(body, level, radius)
+    return mesh

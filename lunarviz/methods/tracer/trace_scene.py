@@ -66,6 +66,9 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         self._lock = threading.Lock()
         self._sun_vis_earth = None
         self._cand_cache: dict = {}
+        #: per-facet arrays are being accumulated (:func:`~lunarviz.methods.tracer.estimators.trace_path`'s
+        #: ``keep_facets``): lunar samples then come from the facets, never the lune rule
+        self.per_facet = False
         #: per body: candidate facets that a shadow or hidden-view edge crosses (``candidates``)
         self._edge_cache: dict = {}
         self._moon_albedo = self._earth_albedo = None
