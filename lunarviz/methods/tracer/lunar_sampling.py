@@ -192,11 +192,12 @@ class LunarSampling:
 
     def _edge_tests(self, body: str) -> bool:
         """Whether a cast-shadow or hidden-view edge can cross the lit, visible Moon: the Moon
-        shadows itself, the Earth may shade it (occlusion, moonshine), or the detector is outside
-        the Earth or on the ground (:meth:`candidates` then traces the edges)."""
+        shadows itself, the Earth may shade it (moonshine, where an eclipse is possible:
+        :meth:`eclipse_possible`), or the detector is outside the Earth or on the ground
+        (:meth:`candidates` then traces the edges)."""
         sc = self.scene
         hidden_view = not sc.detector_inside("earth") or sc.horizon_normal is not None
-        return self._self_shadows() or (self.settings.occlusion and body == "sun") or hidden_view
+        return self._self_shadows() or (body == "sun" and self.eclipse_possible()) or hidden_view
 
     def lune_samples(self, body: str):
         """Lunar samples of the lune rule: product Gauss rules over the part of the exact sphere
