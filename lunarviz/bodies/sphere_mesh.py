@@ -13,10 +13,9 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass, field
-from functools import lru_cache
-
 import numpy as np
 
+from lunarviz.caches import memoize
 from lunarviz.resources import MESH_DIR
 
 
@@ -59,7 +58,7 @@ def read_packaged_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     return v, rec["i"].astype(np.int64)
 
 
-@lru_cache(maxsize=16)
+@memoize(maxsize=16)
 def unit_sphere_arrays(body: str, level: int) -> tuple[np.ndarray, np.ndarray] | None:
     """Unit-sphere vertices (float64, renormalised) and faces of the packaged mesh of ``body`` at
     ``level``, or ``None`` where none is packaged, intact and readable here."""

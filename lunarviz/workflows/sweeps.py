@@ -290,14 +290,18 @@ class SweepSettings:
             return none
         fixed = {k: getattr(self, k) for k in ("moon_level", "sun_order", "earth_order")
                  if getattr(self, k) is not None}
-        mapped = self._mapped_moon()
-        if mapped and self.rtol is None:  # no level meets the default on a map: the former default, level 4
-            fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])
-        choice = accuracy.trace_choice(self.rtol_or_default, fixed, mapped)
+        asked_level = "moon_level" in fixed
+        if self.rtol is None:  # without a tolerance the facets keep the former default, level 4 (8.7e-5
+            fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])  # measured; the rows report 2x that)
+            if asked_level:  # a mesh level asked for without a tolerance: the former default orders too
+                from lunarviz.methods.tracer.settings import DEFAULT_ORDERS
+                fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
+                fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
+        choice = accuracy.trace_choice(self.rtol_or_default, fixed, self._mapped_moon())
         settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
                     if k not in fixed and choice.get(k) is not None}
         # an explicit mesh level asks for the facets (mesh studies); otherwise the lune rule where it applies
-        settings["lune_order"] = None if "moon_level" in fixed else choice.get("lune_order")
+        settings["lune_order"] = None if asked_level else choice.get("lune_order")
         modelled = self.earth_uniform and self.earth_brdf == "lambert" and self.earth_mesh is None \
             and self.sun_mesh is None and self.shading == "auto"
         bounds = choice.get("bounds", {}) if modelled else {}
