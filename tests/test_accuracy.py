@@ -149,3 +149,16 @@ def test_dates_in_bulk_equal_dates_one_by_one(monkeypatch):
         one = run_phase(s, t)[0]
         for key in ("moonshine_W_m2", "earthshine_W_m2"):
             assert one[key] == pytest.approx(r[key], rel=1e-12, abs=1e-300), (t, key)
+
+
+def test_a_tolerance_beyond_the_models_is_said_once():
+    """A lunar map's facets reach 5e-4 at the finest modelled level (benchmarks/error_models):
+    asking for 1e-4 warns before the run (the most accurate setting runs; rows report 5e-4)."""
+    from lunarviz.errors import LunarvizWarning
+    s = SweepSettings(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-4)
+    with pytest.warns(LunarvizWarning, match="beyond the error models"):
+        s.warn_unmet_tolerance()
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        SweepSettings(method="raytrace", brdfs=("dhg",), rtol=1e-4).warn_unmet_tolerance()  # met: silent

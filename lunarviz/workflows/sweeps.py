@@ -304,17 +304,22 @@ class SweepSettings:
         settings["lune_order"] = None if asked_level else choice.get("lune_order")
         modelled = self.earth_uniform and self.earth_brdf == "lambert" and self.earth_mesh is None \
             and self.sun_mesh is None and self.shading == "auto"
-        bounds = choice.get("bounds", {}) if modelled else {}
-        if self.rtol is not None and bounds:
-            kinds = ("facets",) if settings["lune_order"] is None else ("lune",)
-            met = max(bounds.get((k, p), math.nan) for k in kinds for p in ("moonshine", "earthshine"))
-            if not met <= self.rtol:
-                import warnings
+        return {"settings": settings, "bounds": choice.get("bounds", {}) if modelled else {}}
 
-                from lunarviz.errors import LunarvizWarning
-                warnings.warn(f"--rtol {self.rtol:g} is beyond the error models here: the most accurate setting "
-                              f"they hold meets {met:.1e} (rows report it)", LunarvizWarning, stacklevel=2)
-        return {"settings": settings, "bounds": bounds}
+    def warn_unmet_tolerance(self) -> None:
+        """Warn once, before a ray-traced run, when the tolerance asked for is beyond what the
+        error models hold (the most accurate setting runs; its rows report what it meets)."""
+        if self.method != "raytrace" or self.rtol is None or self.estimator != "deterministic":
+            return
+        plan = self.trace_plan()
+        kinds = ("facets",) if plan["settings"].get("lune_order") is None else ("lune",)
+        met = [plan["bounds"].get((k, p), math.nan) for k in kinds for p in ("moonshine", "earthshine")]
+        if plan["bounds"] and not max(met) <= self.rtol:
+            import warnings
+
+            from lunarviz.errors import LunarvizWarning
+            warnings.warn(f"--rtol {self.rtol:g} is beyond the error models here: the most accurate setting they "
+                          f"hold meets {max(met):.1e} (rows report it)", LunarvizWarning, stacklevel=3)
 
     def trace_settings(self, threads: int | None = None):
         """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
@@ -563,6 +568,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
     if scheduler is not None and executor != "dask":
         raise LunarvizError("--scheduler goes with --executor dask")
     phases = settings.tasks()
+    settings.warn_unmet_tolerance()
     t0 = time.perf_counter()
     if executor == "dask":
         client, cluster = dask_client(scheduler, None if workers is None else min(workers, len(phases)))
