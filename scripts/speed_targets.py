@@ -110,7 +110,9 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
     return {"time_range": rng_range, "options": opts, "dates": len(rows), "wall_s": wall,
             "seconds_per_date": wall / len(rows), "moon_centre_occulted": hidden,
             "one_by_one_checked": len(pick), "max_rel_difference_one_by_one": worst,
-            "bounds": [min(r["rtol"] for r in rows), max(r["rtol"] for r in rows)]}
+            "bounds": [min(b) for b in [[r["rtol"] for r in rows if r["rtol"] is not None]]] +
+                      [max(r["rtol"] for r in rows if r["rtol"] is not None)],
+            "dates_without_bound": sum(r["rtol"] is None for r in rows)}
 
 
 def paper_run(out: Path, quick: bool) -> dict:
@@ -162,7 +164,8 @@ def report(res: dict, out: Path) -> None:
                   f"`lunarviz sweep {' '.join(y['options'])} --time-range {y['time_range']}`: "
                   f"{y['dates']} dates in {y['wall_s']:.0f} s ({1e3 * y['seconds_per_date']:.0f} ms a date, "
                   f"{8760 * y['seconds_per_date'] / 60:.0f} min for 8,760; the Moon's centre hidden by the Earth at "
-                  f"{y['moon_centre_occulted']} dates). Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e}. The "
+                  f"{y['moon_centre_occulted']} dates). Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e} "
+                  f"(none at {y['dates_without_bound']} dates: eclipses, which the models do not hold). The "
                   f"same dates run one by one (a sample of {y['one_by_one_checked']}, fresh caches): largest relative "
                   f"difference {y['max_rel_difference_one_by_one']:.1e}.", ""]
     p = res.get("paper")
