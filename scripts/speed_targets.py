@@ -106,13 +106,12 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
             if a or b:
                 worst = max(worst, abs(a / b - 1.0))
     del sweeps
+    known = [r["rtol"] for r in rows if r["rtol"] is not None]  # (NaN, written as null: no model)
     print(f"{len(rows)} dates: {wall:.1f} s; one by one ({len(pick)} dates): max difference {worst:.1e}", flush=True)
     return {"time_range": rng_range, "options": opts, "dates": len(rows), "wall_s": wall,
             "seconds_per_date": wall / len(rows), "moon_centre_occulted": hidden,
             "one_by_one_checked": len(pick), "max_rel_difference_one_by_one": worst,
-            "bounds": [min(b) for b in [[r["rtol"] for r in rows if r["rtol"] is not None]]] +
-                      [max(r["rtol"] for r in rows if r["rtol"] is not None)],
-            "dates_without_bound": sum(r["rtol"] is None for r in rows)}
+            "bounds": [min(known), max(known)], "dates_without_bound": len(rows) - len(known)}
 
 
 def paper_run(out: Path, quick: bool) -> dict:
