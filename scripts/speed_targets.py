@@ -195,9 +195,9 @@ def main(argv=None) -> int:
         res.update({k: v for k, v in json.loads((out / "results.json").read_text()).items() if k != "quick"})
     if not a.skip_sweep:
         res["paper_sweep"] = paper_sweep(out, a.quick)
-    if not a.skip_year:  # the command (a lunar map) over a few days, and a year with the fitted Moon
+    if not a.skip_year:  # the command (a mapped, rough Moon) over a day; a year with the paper's DHG
         res["year_mapped_moon"] = year_of_dates(out, a.quick, "rolo-fit-map", days=1)
-        res["year"] = year_of_dates(out, a.quick, "rolo-fit", days=365)
+        res["year"] = year_of_dates(out, a.quick, "paper", days=365)
     if not a.skip_paper:
         res["paper"] = paper_run(out, a.quick)
     (out / "results.json").write_text(json.dumps(res, indent=1))

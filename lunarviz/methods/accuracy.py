@@ -29,6 +29,7 @@ import json
 import math
 
 from lunarviz.caches import memoize
+from lunarviz.errors import LunarvizError
 from lunarviz.resources import DATA_DIR
 
 #: a setting is chosen when its measured largest error is at most rtol / SAFETY
@@ -38,6 +39,12 @@ SAFETY = 2.0
 DEFAULT_RTOL = {"raytrace": 1e-4, "analytic": 1e-6, "reference": 1e-6}
 #: Monte Carlo without a tolerance: the paper's 50,000 rays per run
 DEFAULT_RAYS = 50_000
+#: the most rays per run a tolerance may ask for (the ``rays`` option's bound)
+MAX_RAYS = 10**9
+#: choices are nested: a tolerance takes at least the orders and level of NEST times it, up to LOOSEST
+#: (the cheapest setting per tolerance need not grow monotonically; refinement must never make a
+#: result worse)
+NEST, LOOSEST = 10.0, 1e-2
 #: the source beam order of each path in the models
 SOURCE_ORDER = {"moonshine": "sun_order", "earthshine": "earth_order"}
 
@@ -87,9 +94,9 @@ def _for(fixed: dict, path: str) -> dict:
 
 def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
     """Settings for the deterministic tracer at ``rtol``: ``lune_order`` (the Sun's path, the
-    Earth's), ``moon_level``,
-    ``sun_order``, ``earth_order`` (those in ``fixed`` kept), and per path and sample kind the
-    bound each meets (``bounds``: {("lune"|"facets", path): bound})."""
+    Earth's), ``moon_level``, ``sun_order``, ``earth_order`` (those in ``fixed`` kept; nested: at
+    least those of a looser tolerance, :data:`NEST`), and per path and sample kind the bound each
+    meets (``bounds``: {("lune"|"facets", path): bound})."""
     m = error_models()
     bounds = {}
     if mapped_moon:  # the map's cells dominate: rows by level (the Earth's order is not the limit)
@@ -101,8 +108,10 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
         for p in ("moonshine", "earthshine"):
             row = next((r for r in table[p] if r["moon_level"] == level), None)
             bounds[("facets", p)] = SAFETY * row["max_rel_error"] if row else math.nan
-        return {"lune_order": None, "moon_level": level, "sun_order": fixed.get("sun_order"),
-                "earth_order": fixed.get("earth_order"), "bounds": bounds}
+        row = {p: next((r for r in table[p] if r["moon_level"] == level), {}) for p in table}
+        return {"lune_order": None, "moon_level": level,
+                "sun_order": fixed.get("sun_order", row["moonshine"].get("sun_order")),
+                "earth_order": fixed.get("earth_order", row["earthshine"].get("earth_order")), "bounds": bounds}
     # the lune rule: each path its own order (one rule per path); the facets: one level for both
     limit = rtol / SAFETY
     lune = {p: _best(m["raytrace_lune"][p], limit, _for(fixed, p)) or
@@ -115,6 +124,13 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
         p = "moonshine" if name == "sun_order" else "earthshine"
         got = [t[p][name] for t in (lune, facets) if t]
         out[name] = fixed.get(name, max(got) if got else None)
+    if rtol * NEST < LOOSEST:  # nested: never fewer nodes than a looser tolerance takes
+        looser = trace_choice(rtol * NEST, fixed, False)
+        for key in ("moon_level", "sun_order", "earth_order"):
+            if out[key] is not None and looser[key] is not None:
+                out[key] = max(out[key], looser[key])
+        if out["lune_order"] is not None and looser["lune_order"] is not None:
+            out["lune_order"] = tuple(max(a, b) for a, b in zip(out["lune_order"], looser["lune_order"]))
     # the bound each sample kind meets with the orders finally used (a row of the model, if any)
     kinds = (("lune", m["raytrace_lune"], "lune_order"), ("facets", m["raytrace_facets"], "moon_level"))
     for kind, table, key in kinds:
@@ -131,7 +147,23 @@ def montecarlo_rays(rtol: float, runs: int) -> int:
     """Rays per run so that two standard errors of the mean of ``runs`` runs are at most
     ``rtol`` for both paths (each path's largest relative σ of one ray in the models)."""
     sigma = max(error_models()["montecarlo_sigma_one_ray"].values())
-    return max(1, math.ceil((SAFETY * sigma / rtol) ** 2 / runs))
+    rays = max(1, math.ceil((SAFETY * sigma / rtol) ** 2 / runs))
+    if rays > MAX_RAYS:
+        raise LunarvizError(f"--rtol {rtol:g} with Monte Carlo needs {rays:.2g} rays per run (at most "
+                            f"{MAX_RAYS:.0e}): give --runs {math.ceil(rays / MAX_RAYS * runs)} or more, or use the "
+                            "deterministic estimator")
+    return rays
+
+
+def in_model_range(scene) -> bool:
+    """Whether a scene lies inside the geometry the models were measured on: θ (the Sun-Earth-Moon
+    angle, also on dates) within the phases measured (5-175°). Nearer full or new Moon the lune or
+    the Earth's crescent gets thinner than any measured, the opposition surge sharper, and rows
+    report no bound."""
+    phases = error_models()["phases_deg"]
+    th = float(scene.theta_deg) % 360.0
+    th = min(th, 360.0 - th)
+    return min(phases) <= th <= max(phases)
 
 
 def analytic_choice(rtol: float) -> tuple[int, float]:
@@ -174,10 +206,16 @@ def traced_bound(bounds: dict, ts, ms, es) -> float:
     if ts.settings.estimator == "montecarlo":
         rel = [r.sem[k] / r.mean[k] for r in (ms, es) for k in r.mean if r.mean[k] > 0]
         return SAFETY * max(rel) if rel else math.nan
-    if ts.eclipse_possible():  # the models hold no eclipse (measured without occlusion)
+    if ts.eclipse_possible() or ts.moon_shadow_on_earth_possible():  # measured without occlusion
         return math.nan
-    got = [bounds.get(("lune" if ts.lune_rule_applies(body) else "facets", path), math.nan)
-           for path, body in (("moonshine", "sun"), ("earthshine", "earth"))]
+    got = []
+    for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
+        if ts.lune_rule_applies(body):
+            got.append(bounds.get(("lune", path), math.nan))
+        elif ts.edges_found(body):  # a horizon, an Earth limb or a cast shadow across the Moon: not measured
+            got.append(math.nan)
+        else:
+            got.append(bounds.get(("facets", path), math.nan))
     return max(got) if not any(math.isnan(b) for b in got) else math.nan
 
 

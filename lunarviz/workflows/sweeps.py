@@ -300,16 +300,40 @@ class SweepSettings:
         choice = accuracy.trace_choice(self.rtol_or_default, fixed, self._mapped_moon())
         settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
                     if k not in fixed and choice.get(k) is not None}
-        # an explicit mesh level asks for the facets (mesh studies); otherwise the lune rule where it applies
-        settings["lune_order"] = None if asked_level else choice.get("lune_order")
-        modelled = self.earth_uniform and self.earth_brdf == "lambert" and self.earth_mesh is None \
-            and self.sun_mesh is None and self.shading == "auto"
-        return {"settings": settings, "bounds": choice.get("bounds", {}) if modelled else {}}
+        # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
+        # roughness changes form where i = e, a kink inside the lune); otherwise the lune rule where it applies
+        rough = any(getattr(m, "rough", False) for m in self.brdf_models().values())
+        settings["lune_order"] = None if asked_level or rough else choice.get("lune_order")
+        return {"settings": settings, "bounds": choice.get("bounds", {}) if self.modelled() else {}}
+
+    def modelled(self) -> bool:
+        """Whether the error models hold for this run's bodies and photometry: they were measured
+        with the paper's BRDF presets (rolo-fit-map's on its own map, for the mapped Moon), no
+        parameter overrides, the uniform Lambert Earth and the packaged spheres shaded exactly."""
+        lunar_params = any(v for b, v in self.params.items() if b != "earth")
+        if self._mapped_moon():  # the mapped model is rolo-fit-map's, on its own map
+            from lunarviz.photometry.presets import moon_model_map
+            moon = self.moon_model == "rolo-fit-map" and self.moon_albedo_map == moon_model_map("rolo-fit-map")
+        else:
+            moon = self.moon_model == "paper"
+        return moon and not lunar_params and self.earth_uniform and self.earth_brdf == "lambert" \
+            and self.earth_mesh is None and self.sun_mesh is None and self.moon_mesh is None and self.shading == "auto"
 
     def warn_unmet_tolerance(self) -> None:
         """Warn once, before a ray-traced run, when the tolerance asked for is beyond what the
         error models hold (the most accurate setting runs; its rows report what it meets)."""
-        if self.method != "raytrace" or self.rtol is None or self.estimator != "deterministic":
+        if self.rtol is None:
+            return
+        if self.method in ("analytic", "reference"):
+            met = accuracy.analytic_choice(self.rtol)[1] if self.method == "analytic" else self.reference_orders()[2]
+            if not met <= self.rtol:
+                import warnings
+
+                from lunarviz.errors import LunarvizWarning
+                warnings.warn(f"--rtol {self.rtol:g} is beyond the {self.method} method's error model: its most "
+                              f"accurate orders meet {met:.1e} (rows report it)", LunarvizWarning, stacklevel=3)
+            return
+        if self.method != "raytrace" or self.estimator != "deterministic":
             return
         plan = self.trace_plan()
         kinds = ("facets",) if plan["settings"].get("lune_order") is None else ("lune",)
@@ -394,7 +418,8 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
     if settings.method == "analytic":
         res = point if settings.analytic_settings() == cal_settings else \
             analytic_irradiance(sc, brdfs, settings.analytic_settings())
-        bound = math.nan if settings._mapped_moon() else accuracy.analytic_bound(settings.analytic_settings().order)
+        bound = math.nan if settings._mapped_moon() or not settings.modelled() else \
+            accuracy.analytic_bound(settings.analytic_settings().order)
         for k, v in res.items():
             cal = point[k]
             rows.append({**base, "brdf": k, "method": "analytic",
@@ -404,6 +429,7 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
                                                    cal.moonshine_W_m2, a0)})
     elif settings.method == "reference":
         outer, inner, bound = settings.reference_orders()
+        bound = bound if settings.modelled() else math.nan
         res = reference_irradiance(sc, brdfs, ReferenceSettings(outer, inner, settings.earth_albedo,
                                                                 surfaces=settings.surfaces()))
         for k, v in res.items():
@@ -435,7 +461,7 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
             r["extended_over_point_earthshine"] = es_ / pt_es \
                 if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
-        r["rtol"] = bound
+        r["rtol"] = bound if accuracy.in_model_range(sc) else math.nan
     return rows
 
 

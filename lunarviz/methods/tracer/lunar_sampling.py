@@ -176,6 +176,23 @@ class LunarSampling:
         self.candidates(body)
         return not self._edge_cache[body].size
 
+    def edges_found(self, body: str) -> bool:
+        """Whether :meth:`candidates` found a cast-shadow or hidden-view edge across the Moon."""
+        return body in self._edge_cache and bool(self._edge_cache[body].size)
+
+    def moon_shadow_on_earth_possible(self) -> bool:
+        """With occlusion, whether the Moon's shadow may fall on the Earth (a solar eclipse, the
+        earthshine's source partly dark): seen from the Earth's centre, the Moon's and the Sun's
+        discs come closer than their radii plus the Earth's parallax, with a margin."""
+        if not self.settings.occlusion:
+            return False
+        sc = self.scene
+        vs, vm = sc.sun - sc.earth, sc.moon - sc.earth
+        ds, dm = np.linalg.norm(vs), np.linalg.norm(vm)
+        reach = np.arcsin(min(1.0, sc.radii["sun"] / ds)) \
+            + np.arcsin(min(1.0, self.moon.bound / (dm - self.earth.bound))) + 2.0 * self.earth.bound / dm
+        return bool(angle_between(vs, vm) < reach * (1 + 1e-3))
+
     def eclipse_possible(self) -> bool:
         """With occlusion, whether the Earth's disc may overlap the Sun's from some lunar point
         (a lunar eclipse, penumbral included): seen from the Moon's centre, the two discs come
