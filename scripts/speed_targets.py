@@ -164,7 +164,8 @@ def report(res: dict, out: Path) -> None:
                   f"{y['dates']} dates in {y['wall_s']:.0f} s ({1e3 * y['seconds_per_date']:.0f} ms a date, "
                   f"{8760 * y['seconds_per_date'] / 60:.0f} min for 8,760; the Moon's centre hidden by the Earth at "
                   f"{y['moon_centre_occulted']} dates). Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e} "
-                  f"(none at {y['dates_without_bound']} dates: eclipses, which the models do not hold). The "
+                  f"(none at {y['dates_without_bound']} dates: θ outside the measured 5-175° or an eclipse "
+                  "possible). The "
                   f"same dates run one by one (a sample of {y['one_by_one_checked']}, fresh caches): largest relative "
                   f"difference {y['max_rel_difference_one_by_one']:.1e}.", ""]
     p = res.get("paper")
