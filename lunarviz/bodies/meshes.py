@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from lunarviz.bodies.sphere_mesh import packaged_file
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BODIES, DEFAULT_LEVELS, MAX_LEVEL, MESH_UNITS  # noqa: F401 (DEFAULT_LEVELS: re-exported)
 from lunarviz.resources import MESH_DIR
@@ -52,15 +53,8 @@ def _sha256(path: Path) -> str:
 
 def packaged_mesh_path(body: str, level: int) -> Path | None:
     """Path of the packaged unit mesh for ``body`` at ``level`` if listed and intact."""
-    manifest = MESH_DIR / "manifest.json"
-    if not manifest.is_file():
-        return None
-    for entry in json.loads(manifest.read_text())["meshes"]:
-        if entry["body"] == body and entry["level"] == level:
-            p = MESH_DIR / entry["file"]
-            if p.is_file() and _sha256(p) == entry["sha256"]:
-                return p
-    return None
+    found = packaged_file(body, level)
+    return None if found is None else found[0]
 
 
 def body_mesh(body: str, level: int | None = None) -> trimesh.Trimesh:

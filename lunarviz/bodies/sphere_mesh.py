@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass, field
+from pathlib import Path
 import numpy as np
 
 from lunarviz.caches import memoize
@@ -58,10 +59,9 @@ def read_packaged_ply(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     return v, rec["i"].astype(np.int64)
 
 
-@memoize(maxsize=16)
-def unit_sphere_arrays(body: str, level: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """Unit-sphere vertices (float64, renormalised) and faces of the packaged mesh of ``body`` at
-    ``level``, or ``None`` where none is packaged, intact and readable here."""
+def packaged_file(body: str, level: int) -> tuple[Path, bytes] | None:
+    """The packaged unit mesh file of ``body`` at ``level`` and its bytes, if the manifest lists it
+    and its sha256 matches; else ``None``."""
     manifest = MESH_DIR / "manifest.json"
     if not manifest.is_file():
         return None
@@ -71,18 +71,24 @@ def unit_sphere_arrays(body: str, level: int) -> tuple[np.ndarray, np.ndarray] |
             if not p.is_file():
                 return None
             data = p.read_bytes()
-            if hashlib.sha256(data).hexdigest() != entry["sha256"]:
-                return None
-            got = read_packaged_ply(data)
-            if got is None:
-                return None
-            v = np.asarray(got[0], dtype=float)
-            v = v / np.linalg.norm(v, axis=1, keepdims=True)  # PLY stores float32: back on the sphere
-            v.flags.writeable = False
-            f = got[1]
-            f.flags.writeable = False
-            return v, f
+            return (p, data) if hashlib.sha256(data).hexdigest() == entry["sha256"] else None
     return None
+
+
+@memoize(maxsize=16)
+def unit_sphere_arrays(body: str, level: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Unit-sphere vertices (float64, renormalised) and faces of the packaged mesh of ``body`` at
+    ``level``, or ``None`` where none is packaged, intact and readable here."""
+    found = packaged_file(body, level)
+    got = None if found is None else read_packaged_ply(found[1])
+    if got is None:
+        return None
+    v = np.asarray(got[0], dtype=float)
+    v = v / np.linalg.norm(v, axis=1, keepdims=True)  # PLY stores float32: back on the sphere
+    v.flags.writeable = False
+    f = got[1]
+    f.flags.writeable = False
+    return v, f
 
 
 def packaged_sphere(body: str, level: int, radius: float) -> SphereMesh | None:

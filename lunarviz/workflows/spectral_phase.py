@@ -77,7 +77,8 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         extra["rtol"] = float("nan") if settings._mapped_moon() else accuracy.analytic_bound(st.order)
     else:
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
-        ts_set = settings.trace_settings(threads)
+        plan = settings.trace_plan()  # once per task: the settings and the bounds both come from it
+        ts_set = settings.trace_settings(threads, plan)
         ts = TraceScene(sc, ts_set)
         ts.earth_parts = names if mapped else None
         ts.earth_part_wavelengths = req.nodes if mapped and surface.physical else None
@@ -100,7 +101,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         method_fields = {"method": "raytrace", "estimator": ts_set.estimator}
         extra["rays"] = ms_r.rays + es_r.rays
         from lunarviz.methods import accuracy
-        extra["rtol"] = accuracy.traced_bound(settings.trace_plan()["bounds"], ts, ms_r, es_r)
+        extra["rtol"] = accuracy.traced_bound(plan["bounds"], ts, ms_r, es_r)
         if ts_set.estimator == "montecarlo":
             extra.update(runs=ts_set.runs, rays_per_run=ts_set.rays)
     return _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields,

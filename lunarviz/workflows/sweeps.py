@@ -345,13 +345,13 @@ class SweepSettings:
             warnings.warn(f"--rtol {self.rtol:g} is beyond the error models here: the most accurate setting they "
                           f"hold meets {max(met):.1e} (rows report it)", LunarvizWarning, stacklevel=3)
 
-    def trace_settings(self, threads: int | None = None):
+    def trace_settings(self, threads: int | None = None, plan: dict | None = None):
         """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
         over several worker processes pass 1). Results do not depend on it. The tolerance's
-        choices (:meth:`trace_plan`) fill the options left unset."""
+        choices (``plan``, :meth:`trace_plan` if not given) fill the options left unset."""
         from lunarviz.methods.tracer.settings import TraceSettings
         kw = {o.name: getattr(self, o.name) for o in group(*TraceSettings.GROUPS)}
-        kw.update(self.trace_plan()["settings"])
+        kw.update((self.trace_plan() if plan is None else plan)["settings"])
         return TraceSettings(threads=threads, mapped_earth=self.mapped_earth,
                              earth_params=tuple(sorted(self.params.get("earth", {}).items())), **kw)
 
@@ -470,14 +470,15 @@ def _traced_rows(settings: SweepSettings, sc, base: dict, brdfs: dict, point: di
     from lunarviz.methods.tracer.estimators import PathResult, TraceScene, trace_path
     a0 = settings.earth_albedo
     rows = []
-    ts_set = settings.trace_settings(threads)
+    plan = settings.trace_plan()  # once per task: the settings and the bounds both come from it
+    ts_set = settings.trace_settings(threads, plan)
     if hidden_moon(settings, ts_set, sc):  # nothing of the Moon reaches the detector: nothing to trace
         ts, ms, es, bound = None, PathResult.zero(brdfs), PathResult.zero(brdfs), 0.0
     else:
         ts = TraceScene(sc, ts_set)
         ms = trace_path(ts, "moonshine", brdfs)
         es = trace_path(ts, "earthshine", brdfs)
-        bound = accuracy.traced_bound(settings.trace_plan()["bounds"], ts, ms, es)
+        bound = accuracy.traced_bound(plan["bounds"], ts, ms, es)
     if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
         cal_ms = ms.mean
         cal_es = {k: model_es(es.mean[k], es.mean_unit[k]) for k in brdfs}
