@@ -28,6 +28,20 @@ def orthonormal_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, e2
 
 
+def polar_basis(axis: np.ndarray, phi_zero=None) -> tuple[np.ndarray, np.ndarray]:
+    """The directions φ = 0 and φ = 90° (B, 3) about ``axis`` (B, 3) of :func:`cap_rule`: φ = 0
+    toward ``phi_zero``'s azimuth where given (and not along the axis), else arbitrary."""
+    e1, e2 = orthonormal_basis(axis)
+    if phi_zero is None:
+        return e1, e2
+    pz = np.asarray(phi_zero, dtype=float)
+    pz = pz - np.einsum("bj,bj->b", pz, axis)[:, None] * axis
+    norm = np.linalg.norm(pz, axis=1, keepdims=True)
+    ok = norm > 1e-12
+    e1 = np.where(ok, pz / np.where(ok, norm, 1.0), e1)
+    return e1, np.cross(axis, e1)
+
+
 def gauss_legendre(n: int):
     """Gauss-Legendre nodes and weights of order ``n`` on [0, 1] (computed once per order:
     numpy's ``leggauss`` takes up to ~5 ms, and a dated sweep asks for the same few orders
@@ -43,7 +57,8 @@ def _gauss_legendre(n: int):
 
 
 def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int = 16,
-             n_phi: int = 16) -> tuple[np.ndarray, np.ndarray]:
+             n_phi: int = 16, phi_zero=None, crossings: bool = False,
+             structured: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Nodes and solid-angle weights over ``{n·axis ≥ cos_max} ∩ caps``, for a batch.
 
     Parameters
@@ -55,6 +70,13 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
         rule where the integrand has a kink (e.g. a penumbra edge).
     split_only : (B, k) bool or None.
     n_t, n_phi : Gauss points per t-segment and per φ-interval.
+    phi_zero : (B, 3) or None, a direction whose azimuth about ``axis`` is φ = 0 (default: an
+        arbitrary one). Put it opposite the caps' common azimuth and no ring's arc wraps through
+        φ = 0, so every (t-segment, φ-interval) block is one smooth patch.
+    crossings : also cut the t-range at the rings through the points where two cap boundaries
+        cross (there the order of a ring's breakpoints changes).
+    structured : return nodes (B, R, I, n_phi, 3) and weights (B, R, I, n_phi): R = S·n_t rings
+        (S t-segments of n_t rings), I φ-intervals per ring (inside ones first, in φ order).
 
     Returns
     -------
@@ -72,7 +94,7 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     if split_only is None:
         split_only = np.zeros((B, k), dtype=bool)
     split_only = np.broadcast_to(np.asarray(split_only, dtype=bool), (B, k))
-    e1, e2 = orthonormal_basis(axis)
+    e1, e2 = polar_basis(axis, phi_zero)
     t_max = np.arccos(np.clip(cos_max, -1.0, 1.0))
     # cap geometry in the polar frame
     ua = np.einsum("bkj,bj->bk", caps_u, axis)
@@ -80,7 +102,8 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     u2 = np.einsum("bkj,bj->bk", caps_u, e2)
     t_u = np.arctan2(np.hypot(u1, u2), ua)  # (B, k)
     phi_u = np.arctan2(u2, u1)
-    t, wt = _cap_rings(t_u, caps_c, t_max, n_t)
+    extra = _boundary_crossings(axis, caps_u, caps_c) if crossings else None
+    t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra)
     st, ct = np.sin(t), np.cos(t)
     p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only)
     fx, fw = gauss_legendre(n_phi)
@@ -92,21 +115,54 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     nodes = (ct[:, :, None, None, None] * axis[:, None, None, None, :]
              + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
                                  + sphi[..., None] * e2[:, None, None, None, :]))
+    if structured:
+        return nodes, w
     return nodes.reshape(B, -1, 3), w.reshape(B, -1)
 
 
-def _cap_rings(t_u, caps_c, t_max, n_t: int):
-    """Polar rings t (B, R) of :func:`cap_rule` and their weights ``dt·sin t`` (B, R): Gauss
-    segments between the polar radii where a ring becomes tangent to a cap boundary."""
+def _boundary_crossings(axis, caps_u, caps_c) -> np.ndarray:
+    """Polar angles t (B, 2·pairs) about ``axis`` of the points where two cap boundaries cross
+    (NaN where they do not): the line of the planes ``n·u_a = c_a``, ``n·u_b = c_b`` meets the
+    unit sphere at ``α u_a + β u_b ± γ u_a×u_b``."""
+    B, k = caps_c.shape
+    out = []
+    for a in range(k):
+        for b in range(a + 1, k):
+            ua, ub, ca, cb = caps_u[:, a], caps_u[:, b], caps_c[:, a], caps_c[:, b]
+            G = np.einsum("bj,bj->b", ua, ub)
+            det = 1.0 - G * G
+            ok = det > 1e-12
+            det = np.where(ok, det, 1.0)
+            al, be = (ca - cb * G) / det, (cb - ca * G) / det
+            p0 = al[:, None] * ua + be[:, None] * ub
+            x = np.cross(ua, ub)
+            g2 = (1.0 - np.einsum("bj,bj->b", p0, p0)) / np.where(ok, det, 1.0)
+            ok &= g2 >= 0.0
+            g = np.sqrt(np.where(ok, g2, 0.0))
+            for sgn in (1.0, -1.0):
+                p = p0 + sgn * g[:, None] * x
+                t = np.arccos(np.clip(np.einsum("bj,bj->b", p, axis), -1.0, 1.0))
+                out.append(np.where(ok, t, np.nan))
+    return np.stack(out, axis=1) if out else np.zeros((B, 0))
+
+
+def t_segments(t_u, caps_c, t_max, extra=None):
+    """The t-segments of :func:`cap_rule`: ``(t_lo, t_hi, tangent_lo, tangent_hi)`` (B, S), split
+    where a ring becomes tangent to a cap boundary (``tangent_*``: that end is tangent) and at
+    the polar angles ``extra`` (B, m; NaN: none), empty segments dropped."""
     B = t_u.shape[0]
     a = np.arccos(np.clip(caps_c, -1.0, 1.0))
     # t segments: split where a ring becomes tangent to a cap boundary
     cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
     real = np.tile((caps_c > -1.0) & (caps_c < 1.0), 3)  # a cap with |c| >= 1 has no boundary
     cand = np.where(real, np.clip(cand, 0.0, t_max[:, None]), 0.0)
-    pts = np.concatenate([np.zeros((B, 1)), cand, t_max[:, None]], axis=1)
+    if extra is not None and extra.shape[1]:  # crossings are cuts, not tangencies (plain Gauss ends)
+        cross = np.where(np.isfinite(extra), np.clip(extra, 0.0, t_max[:, None]), 0.0)
+    else:
+        cross = np.zeros((B, 0))
+    pts = np.concatenate([np.zeros((B, 1)), cand, cross, t_max[:, None]], axis=1)
     is_tangent = np.concatenate([np.zeros((B, 1), bool), (cand > 0) & (cand < t_max[:, None]),
-                                 np.zeros((B, 1), bool)], axis=1)
+                                 np.zeros(cross.shape, bool), np.zeros((B, 1), bool)], axis=1)
     srt = np.argsort(pts, axis=1, kind="stable")
     tb = np.take_along_axis(pts, srt, 1)
     sing = np.take_along_axis(is_tangent, srt, 1)
@@ -118,8 +174,15 @@ def _cap_rings(t_u, caps_c, t_max, n_t: int):
     sel = np.argsort(~nonempty, axis=1, kind="stable")[:, :keep]
     t_lo, t_hi = np.take_along_axis(t_lo, sel, 1), np.take_along_axis(t_hi, sel, 1)
     t_hi = np.where(np.take_along_axis(nonempty, sel, 1), t_hi, t_lo)
-    s_lo = np.take_along_axis(s_lo, sel, 1)[:, :, None]
-    s_hi = np.take_along_axis(s_hi, sel, 1)[:, :, None]
+    return t_lo, t_hi, np.take_along_axis(s_lo, sel, 1), np.take_along_axis(s_hi, sel, 1)
+
+
+def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None):
+    """Polar rings t (B, R) of :func:`cap_rule` and their weights ``dt·sin t`` (B, R): Gauss
+    segments between the polar radii where a ring becomes tangent to a cap boundary."""
+    B = t_u.shape[0]
+    t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra)
+    s_lo, s_hi = s_lo[:, :, None], s_hi[:, :, None]
     # Next to a tangent ring t* the φ-half-width of a ring behaves like √|t - t*|, so the ring
     # integral has a square-root singularity there; the substitution t - t* ∝ u² at such ends
     # (smoothstep 3u² - 2u³ when both ends are tangent) makes it analytic in u. Ends that are
@@ -175,6 +238,40 @@ def _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only):
     sel = np.argsort(~inside, axis=2, kind="stable")[:, :, :keep]
     p_lo, p_hi = np.take_along_axis(p_lo, sel, 2), np.take_along_axis(p_hi, sel, 2)
     return p_lo, p_hi, np.take_along_axis(inside, sel, 2)
+
+
+def rule_coordinates(points, axis, cos_max, caps_u, caps_c, split_only, phi_zero=None, crossings: bool = False):
+    """Where unit vectors ``points`` (P, 3) lie in one rule of :func:`cap_rule` (``axis`` (3,),
+    ``caps_u`` (k, 3), ``caps_c``, ``split_only`` (k,), as there): ``(segment, interval, u_t,
+    u_φ, inside)`` (P,), with ``u_t, u_φ ∈ [0, 1]`` the Gauss variables of the point's block
+    (the t-substitution at tangent ends inverted), ``inside`` False outside the region."""
+    p = np.asarray(points, dtype=float)
+    ax = np.asarray(axis, dtype=float)[None, :]
+    cu, cc = np.asarray(caps_u, float)[None], np.asarray(caps_c, float)[None]
+    so = np.asarray(split_only, bool)[None]
+    e1, e2 = polar_basis(ax, None if phi_zero is None else np.asarray(phi_zero, float)[None, :])
+    t = np.arccos(np.clip(p @ ax[0], -1.0, 1.0))
+    phi = np.mod(np.arctan2(p @ e2[0], p @ e1[0]), 2 * np.pi)
+    t_max = np.arccos(np.clip(np.atleast_1d(np.asarray(cos_max, float)), -1.0, 1.0))
+    ua, u1, u2 = (np.einsum("bkj,bj->bk", cu, v) for v in (ax, e1, e2))
+    t_u, phi_u = np.arctan2(np.hypot(u1, u2), ua), np.arctan2(u2, u1)
+    extra = _boundary_crossings(ax, cu, cc) if crossings else None
+    t_lo, t_hi, s_lo, s_hi = (a[0] for a in t_segments(t_u, cc, t_max, extra))
+    seg = np.clip(np.searchsorted(t_hi, t, side="right"), 0, len(t_hi) - 1)
+    inside = (t <= t_max[0]) & (t >= t_lo[seg]) & (t_hi[seg] > t_lo[seg])
+    v = np.clip((t - t_lo[seg]) / np.where(t_hi[seg] > t_lo[seg], t_hi[seg] - t_lo[seg], 1.0), 0.0, 1.0)
+    lo, hi = s_lo[seg], s_hi[seg]
+    u_t = np.where(lo & hi, 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * v, -1.0, 1.0)) / 3.0),
+                   np.where(lo, np.sqrt(v), np.where(hi, 1.0 - np.sqrt(1.0 - v), v)))
+    p_lo, p_hi, ins = (a[0] for a in _ring_intervals(np.sin(t)[None], np.cos(t)[None], t_u, phi_u, cc, so))
+    width = p_hi - p_lo
+    d = np.mod(phi[:, None] - p_lo, 2 * np.pi)
+    hit = ins & (d < width) & (width > 0)
+    interval = np.argmax(hit, axis=1)
+    inside &= hit.any(axis=1)
+    rows = np.arange(len(p))
+    u_phi = np.clip(d[rows, interval] / np.where(width[rows, interval] > 0, width[rows, interval], 1.0), 0.0, 1.0)
+    return seg, interval, u_t, u_phi, inside
 
 
 def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):

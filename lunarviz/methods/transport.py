@@ -46,6 +46,22 @@ class Transport:
     #: that is not linear in its albedo (Hapke's H-functions) is averaged over it (below)
     albedo_std: np.ndarray | None = None
 
+    def at_albedo_nodes(self, values: np.ndarray, factors: np.ndarray, absolute: bool) -> "Transport":
+        """Every sample repeated at each map value ``values[q]`` (Q,), its ``geom`` times
+        ``factors[:, q]`` (N, Q): the mapped lune rule's samples
+        (:mod:`lunarviz.geometry.mapped_lune`); no spread (the weights hold the map's cells)."""
+        Q = len(values)
+
+        def rep(a):
+            return None if a is None else np.repeat(a, Q, axis=0)
+        return Transport(mu0=rep(self.mu0), sin_hg=rep(self.sin_hg), cos_hg=rep(self.cos_hg),
+                         e_beam=rep(self.e_beam), mu=rep(self.mu), geom=rep(self.geom) * factors.reshape(-1),
+                         e_beam_free=rep(self.e_beam_free), e_beam_unit=rep(self.e_beam_unit),
+                         e_beam_parts=None if self.e_beam_parts is None else
+                         {k: rep(v) for k, v in self.e_beam_parts.items()},
+                         albedo=np.tile(np.asarray(values, dtype=float), len(self.mu)),
+                         albedo_absolute=absolute, albedo_std=None)
+
     def sample_albedo(self, brdf):
         """The BRDF's albedo parameter per sample ((N, 1), for ``albedo=``), or ``None``."""
         if self.albedo is None:

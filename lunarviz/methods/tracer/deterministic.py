@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.geometry.mapped_lune import AlbedoNodes
 from lunarviz.geometry.scene_geometry import unit
 from lunarviz.methods.sources import horizon_cuts_source
 from lunarviz.methods.tracer import ray_kernels
@@ -47,6 +48,11 @@ class DeterministicTransport:
             order = s.sun_order if body == "sun" else s.earth_order
             for g in self._rule_groups(x, n, body):
                 tr = self.beam_transport(x[g], n[g], o[g], mu[g], geom[g], body, order)
+                if isinstance(alb_all, AlbedoNodes):  # the mapped lune rule: shaded at every map value
+                    tr = tr.at_albedo_nodes(alb_all.values, alb_all.factors[sl][keep][g],
+                                            self.settings.moon_map().absolute)
+                    out.append((tr, np.repeat(owner[g], len(alb_all.values))))
+                    continue
                 if alb_all is not None:
                     self.with_moon_albedo(tr, values=(alb_all[0][sl][keep][g], alb_all[1][sl][keep][g]))
                 out.append((tr, owner[g]))

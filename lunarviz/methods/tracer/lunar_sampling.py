@@ -161,20 +161,34 @@ class LunarSampling:
     def lune_rule_applies(self, body: str) -> bool:
         """Whether ``body``'s lunar samples come from the lune rule (:meth:`lune_samples`): asked
         for (``lune_order``), no per-facet arrays being kept (:attr:`per_facet`), on the packaged
-        exact sphere (never a user's mesh), without a lunar map's contrast (its cells are edges
-        inside the lune), with no eclipse possible (:meth:`eclipse_possible`) and no shadow or
+        exact sphere (never a user's mesh), a lunar map's contrast in its weights where the blocks
+        allow (:meth:`_mapped_lune`), with no eclipse possible (:meth:`eclipse_possible`) and no shadow or
         hidden-view edge across the lit, visible lune (found on the facets, as for refinement:
         the Earth's limb hiding part of the Moon from an outside detector)."""
         s = self.settings
-        if s.lune_order is None or self.per_facet or self.moon.mode(s.shading) != "exact" \
-                or self._moon_map_contrast():
+        if s.lune_order is None or self.per_facet or self.moon.mode(s.shading) != "exact":
             return False
         if body == "sun" and self.eclipse_possible():  # the penumbra's edges are kinks inside the lune
             return False
-        if not self._edge_tests(body):  # no body can shade or hide a part of the lune
-            return True
-        self.candidates(body)
-        return not self._edge_cache[body].size
+        if self._edge_tests(body):  # a body may shade or hide a part of the lune: edges on the facets
+            self.candidates(body)
+            if self._edge_cache[body].size:
+                return False
+        return not self._moon_map_contrast() or self._mapped_lune(body) is not None
+
+    def _mapped_lune(self, body: str):
+        """The lune rule with the lunar map in its weights (:func:`lunarviz.geometry.mapped_lune.mapped_lune_rule`),
+        once per body; ``None`` where its blocks are not smooth patches (the facets then)."""
+        if body not in self._mapped_lune_cache:
+            from lunarviz.bodies.surfaces import map_frame
+            from lunarviz.geometry.mapped_lune import mapped_lune_rule
+            c, R, _ = self._source(body)
+            s = self.settings
+            values = np.asarray(s.moon_map().values(), dtype=float)
+            self._mapped_lune_cache[body] = mapped_lune_rule(
+                self.scene, c, R, s.lune_order[0 if body == "sun" else 1], values, map_frame(self.scene, "moon"),
+                bisector=s.lune_cut_i_e and body == "sun")
+        return self._mapped_lune_cache[body]
 
     def edges_found(self, body: str) -> bool:
         """Whether :meth:`candidates` found a cast-shadow or hidden-view edge across the Moon."""
@@ -223,7 +237,12 @@ class LunarSampling:
         own (:func:`lunarviz.methods.analytic.lunar_surface_rule`; the exact reference uses the
         same rule at a higher order). Every sample's light is still traced through Embree: the
         rule only places the samples. Owners are -1 (no facet: per-facet arrays need facet
-        samples, see :func:`~lunarviz.methods.tracer.estimators.trace_path`)."""
+        samples, see :func:`~lunarviz.methods.tracer.estimators.trace_path`). With a lunar map
+        the map's part is :class:`~lunarviz.geometry.mapped_lune.AlbedoNodes` (each sample shaded
+        at the map values it holds, weighted by the map's cells)."""
+        if self._moon_map_contrast():  # the map's cells in the weights: AlbedoNodes
+            x, n, dA, alb = self._mapped_lune(body)
+            return x, n, dA, np.full(len(x), -1, dtype=np.int64), alb
         from lunarviz.methods.analytic import lunar_surface_rule
         c, R, _ = self._source(body)
         sc = self.scene
