@@ -94,7 +94,7 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
         res = json.loads(f.read_text())
     rows = res["rows"]
     times = [r["time_utc"] for r in rows]
-    n_check = 8 if moon_model == "rolo-fit-map" else 40  # (a mapped Moon's date costs seconds)
+    n_check = 40
     pick = sorted(np.random.default_rng(27).choice(len(times), size=min(n_check, len(times)), replace=False))
     s = SweepSettings.from_dict(res["settings"])
     worst, hidden = 0.0, sum(bool(r.get("moon_occulted")) for r in rows)
@@ -186,6 +186,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--skip-year", action="store_true")
     ap.add_argument("--skip-paper", action="store_true")
+    ap.add_argument("--skip-paper-year", action="store_true", help="keep the year with the paper's DHG as it is")
     ap.add_argument("--skip-sweep", action="store_true")
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
@@ -196,9 +197,10 @@ def main(argv=None) -> int:
         res.update({k: v for k, v in json.loads((out / "results.json").read_text()).items() if k != "quick"})
     if not a.skip_sweep:
         res["paper_sweep"] = paper_sweep(out, a.quick)
-    if not a.skip_year:  # the command (a mapped, rough Moon) over a day; a year with the paper's DHG
-        res["year_mapped_moon"] = year_of_dates(out, a.quick, "rolo-fit-map", days=1)
-        res["year"] = year_of_dates(out, a.quick, "paper", days=365)
+    if not a.skip_year:  # the command (a mapped, rough Moon); the same year with the paper's DHG
+        res["year_mapped_moon"] = year_of_dates(out, a.quick, "rolo-fit-map", days=365)
+        if not a.skip_paper_year:
+            res["year"] = year_of_dates(out, a.quick, "paper", days=365)
     if not a.skip_paper:
         res["paper"] = paper_run(out, a.quick)
     (out / "results.json").write_text(json.dumps(res, indent=1))

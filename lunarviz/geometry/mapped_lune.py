@@ -42,10 +42,9 @@ from lunarviz.geometry.sphere_quadrature import cap_rule, gauss_legendre, rule_c
 #: Chebyshev nodes in the map's value (rough Hapke, rolo-fit-map at θ = 60°: 4 nodes err by 3e-4,
 #: 6 by 3e-6, 8 by 5e-8 against 10; the error falls ~100x per 2 nodes)
 ALBEDO_NODES = 8
-#: Gauss points per map-cell side (2: exact for cubics in sin(lat) and lon over a cell), and in
-#: the cells that a block's edge (terminator, limb, penumbra band, i = e) crosses
-CELL_NODES = 2
-EDGE_NODES = 8
+#: in the cells that a block's edge (terminator, limb, penumbra band, t-segment ring) crosses:
+#: Gauss lines, and points per piece of each line (:func:`_edge_cell_nodes`)
+EDGE_NODES = 4
 
 
 @dataclass
@@ -82,57 +81,24 @@ def chebyshev_nodes(lo: float, hi: float, q: int) -> np.ndarray:
     return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos((2 * k + 1) * np.pi / (2 * q))
 
 
-def lune_caps(scene, source: np.ndarray, source_radius: float, bisector: bool):
-    """The lune rule's geometry: pole (toward the detector), its cosine, the caps (lit: kept;
-    the penumbra band's far edge and, with ``bisector``, the circle i = e: cuts only) and φ = 0
-    opposite the source's azimuth."""
+def lune_caps(scene, source: np.ndarray, source_radius: float):
+    """The lune rule's geometry (as :func:`lunarviz.methods.analytic.lunar_surface_rule`): pole
+    (toward the detector), its cosine, the caps (lit: kept; the penumbra band's far edge: a cut)
+    and φ = 0 opposite the source's azimuth (so no ring's arc wraps through φ = 0)."""
     M, R = scene.moon, scene.radii["moon"]
     to_det, to_src = scene.det - M, source - M
     d_det, d_src = np.linalg.norm(to_det), np.linalg.norm(to_src)
     if d_det <= R:
         raise LunarvizError("the detector is inside the Moon")
     o, s = to_det / d_det, to_src / d_src
-    u = [s, s]
-    c = [(R - source_radius) / d_src, (R + source_radius) / d_src]
-    split = [False, True]
-    if bisector and np.linalg.norm(s - o) > 1e-9:
-        # i = e: n·(S - x)/|S - x| = n·(D - x)/|D - x|, with |S - x| ≈ d_src and |D - x| ≈ d_det
-        # (the rest is second order in R/d): the plane n·(s - o) = R/d_src - R/d_det
-        b = s - o
-        u.append(b / np.linalg.norm(b))
-        c.append((R / d_src - R / d_det) / np.linalg.norm(b))
-        split.append(True)
-    return o, R / d_det, np.array([u]), np.array([c]), np.array([split]), -s
-
-
-@functools.lru_cache(maxsize=4)
-def map_cell_nodes(shape: tuple[int, int], k: int):
-    """Gauss nodes of every cell of a lat/lon map of ``shape`` (rows from +90°, columns from
-    -180°): k×k per cell in (sin lat, lon), where the area element is exactly dμ dλ. Returns
-    unit vectors (cells, k², 3) in the map's frame and weights (cells, k²) [sr]."""
-    h, w = shape
-    g, gw = gauss_legendre(k)
-    mu_edges = np.sin(np.radians(90.0 - 180.0 * np.arange(h + 1) / h))  # decreasing
-    lon_edges = np.radians(-180.0 + 360.0 * np.arange(w + 1) / w)
-    dmu = mu_edges[:-1] - mu_edges[1:]  # (h,)
-    mu = mu_edges[1:, None] + dmu[:, None] * g  # (h, k)
-    dl = lon_edges[1] - lon_edges[0]
-    lon = lon_edges[:-1, None] + dl * g  # (w, k)
-    cl = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
-    M, L = mu[:, None, :, None], lon[None, :, None, :]  # (h, 1, k, 1), (1, w, 1, k)
-    C = cl[:, None, :, None]
-    d = np.stack(np.broadcast_arrays(C * np.cos(L), C * np.sin(L), M), axis=-1)  # (h, w, k, k, 3)
-    wts = (dmu[:, None] * gw)[:, None, :, None] * (dl * gw)[None, None, None, :]
-    wts = np.broadcast_to(wts, (h, w, k, k))
-    out = (d.reshape(h * w, k * k, 3), np.ascontiguousarray(wts).reshape(h * w, k * k))
-    for a in out:
-        a.setflags(write=False)
-    return out
+    if np.linalg.norm(s - o) < 1e-6:  # the source on the pole (to rounding): concentric caps, whole rings
+        s = o  # (else the caps' boundaries leave t-segments ~1e-8 rad wide with their own intervals)
+    caps_c = np.array([[(R - source_radius) / d_src, (R + source_radius) / d_src]])
+    return o, R / d_det, np.array([[s, s]]), caps_c, np.array([[False, True]]), -s
 
 
 def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int, values: np.ndarray,
-                     frame: np.ndarray, bisector: bool = False, cell_nodes: int = CELL_NODES,
-                     edge_nodes: int = EDGE_NODES, albedo_nodes: int = ALBEDO_NODES):
+                     frame: np.ndarray, edge_nodes: int = EDGE_NODES, albedo_nodes: int = ALBEDO_NODES):
     """Coarse nodes of the lune rule and the map's weights (module docstring).
 
     Parameters
@@ -140,16 +106,16 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     scene : SceneGeometry; source, source_radius : the source's centre [m] and radius [m].
     order : Gauss points per block side of the coarse rule (the one that is traced).
     values : the map (h, w), constant on its lat/lon cells; frame : ``x_scene = frame @ x_map``.
-    bisector : cut the blocks where i = e (a rough BRDF's kink).
-    cell_nodes, edge_nodes : Gauss points per cell side (cells that a block's edge crosses:
-        ``edge_nodes``, of which those outside the region drop out).
+    edge_nodes : in cells that a block's edge crosses, Gauss lines of constant longitude, each
+        cut where it crosses a block's edge and given this many points per piece
+        (:func:`_edge_cell_nodes`).
 
     Returns
     -------
     x (N, 3) [m], n (N, 3), dA (N,) [m²] (the coarse rule's areas) and :class:`AlbedoNodes`;
     ``None`` where the blocks are not smooth patches (a ring's arc wraps; callers fall back).
     """
-    geo = lune_caps(scene, source, source_radius, bisector)
+    geo = lune_caps(scene, source, source_radius)
     axis, cmax, cu, cc, split, zero = geo
     nc, wc = cap_rule(axis[None, :], [cmax], cu, cc, split, order, order, phi_zero=zero[None, :],
                       crossings=True, structured=True)
@@ -162,34 +128,46 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         return rule_coordinates(d @ frame.T, axis, cmax, cu[0], cc[0], split[0], zero, crossings=True)
 
     h, w = values.shape
-    pts, wts = map_cell_nodes((h, w), cell_nodes)
+    centres, area = _cell_centres((h, w))
     # cells the region may touch: centre within a cell's half-diagonal of the lit, visible caps
-    centre = pts.mean(axis=1) @ frame.T
+    cs = centres @ frame.T
     reach = np.sin(np.radians(0.75 * max(180.0 / h, 360.0 / w)))
-    near = (centre @ axis > cmax - reach) & (centre @ cu[0, 0] > cc[0, 0] - reach)
-    cells = np.flatnonzero(near)
-    seg, itv, ut, up, ins = (a.reshape(len(cells), -1) for a in locate(pts[cells].reshape(-1, 3)))
+    cells = np.flatnonzero((cs @ axis > cmax - reach) & (cs @ cu[0, 0] > cc[0, 0] - reach))
+    seg, itv, ut, up, ins = locate(centres[cells])
     block = np.where(ins, seg * n_iv + itv, -1)
-    # a cell whose nodes or corners lie in different blocks (or partly outside) holds an edge
+    # the cells' corners (grid vertices, each located once)
     corner_ids = _cell_corner_ids((h, w))[cells]  # (C, 4) into the (h + 1)·(w + 1) grid vertices
     used = np.unique(corner_ids)
-    cs, ci, *_, cins = locate(_grid_vertices((h, w))[used])
-    vblock = np.full((h + 1) * (w + 1), -1)
-    vblock[used] = np.where(cins, cs * n_iv + ci, -1)
-    allb = np.concatenate([block, vblock[corner_ids]], axis=1)
-    edge = (allb != allb[:, :1]).any(axis=1)
-    whole = ~edge & (allb[:, 0] >= 0)
+    nv = (h + 1) * (w + 1)
+    v_seg, v_itv, v_ut, v_up, v_in = (np.zeros(nv, a.dtype) for a in (seg, itv, ut, up, ins))
+    for full, part in zip((v_seg, v_itv, v_ut, v_up, v_in), locate(_grid_vertices((h, w))[used])):
+        full[used] = part
+    vblock = np.where(v_in, v_seg * n_iv + v_itv, -1)
+    # a cell whose centre and corners lie in different blocks (or partly outside) holds an edge
+    edge = (vblock[corner_ids] != block[:, None]).any(axis=1)
+    whole = ~edge & (block >= 0)
     m_cell = values.reshape(-1)[cells]
-    parts = [(block[whole].ravel(), ut[whole].ravel(), up[whole].ravel(), wts[cells[whole]].ravel(),
-              np.repeat(m_cell[whole], wts.shape[1]))]
+    vals = chebyshev_nodes(float(m_cell.min()), float(m_cell.max()), albedo_nodes) if len(cells) else np.array([1.0])
+    # whole cells: the rectangle rule in (sin lat, lon) with the centre (2/3 of the area) and the
+    # corners (1/12 each), exact for cubics like 2×2 Gauss points, with the corners shared by the
+    # cells around them (their weights summed per vertex): ~2 located points a cell, not 5
+    ell_cell = lagrange_matrix(vals, m_cell[whole]) * area[cells[whole]][:, None]
+    ell_v = np.zeros((nv, len(vals)))
+    np.add.at(ell_v, corner_ids[whole].ravel(), np.repeat(ell_cell / 12.0, 4, axis=0))
+    vw = np.flatnonzero(ell_v.any(axis=1))
+    parts = [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
+             (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
-        ep, ew = _sub_cell_nodes((h, w), cells[edge], edge_nodes)
-        s2, i2, ut2, up2, in2 = locate(ep.reshape(-1, 3))
-        mm = np.repeat(m_cell[edge], ew.shape[1])
-        parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], ew.ravel()[in2], mm[in2]))
-    blk, u_t, u_p, wp, mp = (np.concatenate(c) for c in zip(*parts))
-    vals = chebyshev_nodes(float(mp.min()), float(mp.max()), albedo_nodes) if len(mp) else np.array([1.0])
-    ell = lagrange_matrix(vals, mp) * wp[:, None]  # (P, Q)
+        t_lo, t_hi = _t_breaks(axis, cmax, cu, cc)
+        circles = [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] + \
+            [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]
+        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], [(frame.T @ u, c) for u, c in circles], edge_nodes)
+        s2, i2, ut2, up2, in2 = locate(ep)
+        mm = m_cell[edge][owner][in2]
+        parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))
+    blk, u_t, u_p, ell = (np.concatenate(c) for c in zip(*parts))
+    if blk.size and (blk.max() >= S * n_iv or (wc.reshape(S, order, n_iv, order)[:, 0, :, 0].ravel()[blk] == 0).any()):
+        return None  # a point in a block the coarse rule does not have: the facets
     g = gauss_legendre(order)[0]
     W = np.zeros((S, order, n_iv, order, len(vals)))
     for b in np.unique(blk):
@@ -201,6 +179,23 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
     R = scene.radii["moon"]
     return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=vals, factors=W[keep] / wc[keep][:, None])
+
+
+@functools.lru_cache(maxsize=4)
+def _cell_centres(shape):
+    """Every cell's centre in (sin lat, lon) as a unit vector in the map's frame (h·w, 3), and its
+    area Δ(sin lat)·Δlon [sr] (h·w,)."""
+    h, w = shape
+    mu_edges = np.sin(np.radians(90.0 - 180.0 * np.arange(h + 1) / h))
+    mu = 0.5 * (mu_edges[:-1] + mu_edges[1:])
+    lon = np.radians(-180.0 + 360.0 * (np.arange(w) + 0.5) / w)
+    M, L = np.meshgrid(mu, lon, indexing="ij")
+    c = np.sqrt(np.clip(1.0 - M * M, 0.0, None))
+    out = (np.stack([c * np.cos(L), c * np.sin(L), M], axis=-1).reshape(-1, 3),
+           np.repeat((mu_edges[:-1] - mu_edges[1:]) * np.radians(360.0 / w), w))
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 @functools.lru_cache(maxsize=4)
@@ -225,7 +220,91 @@ def _cell_corner_ids(shape):
     return out
 
 
-def _sub_cell_nodes(shape, cells, k):
-    """k×k Gauss nodes (C, k², 3) and weights of the given cells (as :func:`map_cell_nodes`)."""
-    pts, wts = map_cell_nodes(shape, k)
-    return pts[cells], wts[cells]
+def _t_breaks(axis, cmax, cu, cc):
+    """The t-segment bounds of the rule (:func:`~lunarviz.geometry.sphere_quadrature.t_segments`)."""
+    from lunarviz.geometry.sphere_quadrature import polar_basis, t_segments
+    e1, e2 = polar_basis(axis[None, :])
+    ua, u1, u2 = (np.einsum("bkj,bj->bk", cu, v) for v in (axis[None, :], e1, e2))
+    t_lo, t_hi, *_ = t_segments(np.arctan2(np.hypot(u1, u2), ua), cc, np.arccos(np.clip([cmax], -1, 1)))
+    return t_lo[0], t_hi[0]
+
+
+def _edge_cell_nodes(shape, cells, circles, k: int):
+    """Points (P, 3) in the map's frame, weights (P,) [sr] and owning cell (P,) over ``cells``.
+
+    Every block edge of the lune rule is a circle ``n·u = c`` of ``circles`` (the caps and the
+    rings t = const; u in the map's frame). Each cell takes k Gauss lines across the edges that
+    cross it (lines of constant longitude, cut in sin(lat), where the edges run more east-west;
+    lines of constant sin(lat), cut in longitude, where they run more north-south), each line cut
+    where it meets a circle (closed form) and given k Gauss points per piece: each piece lies in
+    one block, where the integrand is smooth, so no edge is point-sampled."""
+    h, w = shape
+    cells = np.asarray(cells)
+    row, col = cells // w, cells % w
+    lat = (np.radians(90.0 - 180.0 * (row + 1) / h), np.radians(90.0 - 180.0 * row / h))
+    mu_range = (np.sin(lat[0]), np.sin(lat[1]))
+    lon_range = (np.radians(-180.0 + 360.0 * col / w), np.radians(-180.0 + 360.0 * (col + 1) / w))
+    # which way the crossing edges run: compare their gradients north and east at the cell's centre
+    lat_c, lon_c = 0.5 * (lat[0] + lat[1]), 0.5 * (lon_range[0] + lon_range[1])
+    north, east = np.zeros(len(cells)), np.zeros(len(cells))
+    half = np.radians(0.75 * max(180.0 / h, 360.0 / w))
+    for u, c in circles:
+        g = np.cos(lat_c) * (u[0] * np.cos(lon_c) + u[1] * np.sin(lon_c)) + np.sin(lat_c) * u[2]
+        gn = -np.sin(lat_c) * (u[0] * np.cos(lon_c) + u[1] * np.sin(lon_c)) + np.cos(lat_c) * u[2]
+        ge = -u[0] * np.sin(lon_c) + u[1] * np.cos(lon_c)
+        near = np.abs(g - c) <= half * np.hypot(gn, ge) + 1e-12
+        north += np.where(near, np.abs(gn), 0.0)
+        east += np.where(near, np.abs(ge), 0.0)
+    along_lon = north >= east  # the edges run east-west: lines of constant longitude
+    out = []
+    for sel, cut_mu in ((np.flatnonzero(along_lon), True), (np.flatnonzero(~along_lon), False)):
+        p, wt, own = _lines(cells[sel], (mu_range[0][sel], mu_range[1][sel]), (lon_range[0][sel], lon_range[1][sel]),
+                            circles, k, cut_mu)
+        out.append((p, wt, sel[own]))  # owners back to indices into ``cells``
+    return tuple(np.concatenate(x) for x in zip(*out))
+
+
+def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool):
+    """:func:`_edge_cell_nodes` for cells whose lines all run one way: constant longitude (cut
+    in μ = sin lat) with ``cut_mu``, else constant μ (cut in longitude)."""
+    g, gw = gauss_legendre(k)
+    fixed_range, cut_range = (lon_range, mu_range) if cut_mu else (mu_range, lon_range)
+    fixed = fixed_range[0][:, None] + (fixed_range[1] - fixed_range[0])[:, None] * g  # (C, k) line positions
+    fixed_w = (fixed_range[1] - fixed_range[0])[:, None] * gw
+    lo = np.broadcast_to(cut_range[0][:, None], fixed.shape)
+    hi = np.broadcast_to(cut_range[1][:, None], fixed.shape)
+    cross = []
+    for u, c in circles:
+        if cut_mu:  # A cos lat + B sin lat = c along a meridian
+            A, B = u[0] * np.cos(fixed) + u[1] * np.sin(fixed), np.full(fixed.shape, u[2])
+            rho = np.hypot(A, B)
+            ok = np.abs(c) < rho
+            alpha = np.arccos(np.clip(c / np.where(ok, rho, 1.0), -1.0, 1.0))
+            roots = [np.sin(np.mod(np.arctan2(B, A) + sg * alpha + np.pi, 2 * np.pi) - np.pi) for sg in (1.0, -1.0)]
+            lat_ok = [np.abs(np.mod(np.arctan2(B, A) + sg * alpha + np.pi, 2 * np.pi) - np.pi) <= np.pi / 2
+                      for sg in (1.0, -1.0)]
+        else:  # along a parallel: cos lat (u_x cos λ + u_y sin λ) = c - u_z sin lat
+            cl = np.sqrt(np.clip(1.0 - fixed * fixed, 0.0, None))
+            rho = cl * np.hypot(u[0], u[1])
+            rhs = c - u[2] * fixed
+            ok = np.abs(rhs) < rho
+            alpha = np.arccos(np.clip(rhs / np.where(ok, rho, 1.0), -1.0, 1.0))
+            delta = np.arctan2(u[1], u[0])
+            # the root's longitude, shifted into the cell's range modulo 2π
+            roots = [np.mod(delta + sg * alpha - lo, 2 * np.pi) + lo for sg in (1.0, -1.0)]
+            lat_ok = [True, True]
+        for r, good in zip(roots, lat_ok):
+            cross.append(np.where(ok & good & (r > lo) & (r < hi), r, np.nan))
+    pts = np.stack([lo, hi, *cross], axis=-1)  # (C, k, 2 + 2·circles)
+    pts = np.sort(np.where(np.isnan(pts), lo[..., None], pts), axis=-1)
+    a, b = pts[..., :-1], pts[..., 1:]  # pieces (C, k, m)
+    cut = a[..., None] + (b - a)[..., None] * g  # (C, k, m, k)
+    wt = (b - a)[..., None] * gw * fixed_w[:, :, None, None]
+    fx = np.broadcast_to(fixed[:, :, None, None], cut.shape)
+    # pieces between two crossings of one circle met twice (a cap and the ring through it) are
+    # ~1e-16 wide: their points sit on the circle, where a ring's intervals are degenerate
+    live = np.broadcast_to((b - a)[..., None] > 1e-9 * (hi - lo)[:, :, None, None], cut.shape)
+    mu, lon = (cut[live], fx[live]) if cut_mu else (fx[live], cut[live])
+    cl = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
+    owner = np.broadcast_to(np.arange(len(cells))[:, None, None, None], cut.shape)[live]
+    return np.stack([cl * np.cos(lon), cl * np.sin(lon), mu], axis=1), wt[live], owner

@@ -257,6 +257,10 @@ def rule_coordinates(points, axis, cos_max, caps_u, caps_c, split_only, phi_zero
     t_u, phi_u = np.arctan2(np.hypot(u1, u2), ua), np.arctan2(u2, u1)
     extra = _boundary_crossings(ax, cu, cc) if crossings else None
     t_lo, t_hi, s_lo, s_hi = (a[0] for a in t_segments(t_u, cc, t_max, extra))
+    from lunarviz.geometry import quadrature_kernels
+    if quadrature_kernels.available() and (cc.shape[1] > 1 or so.any()):  # (the general ring intervals)
+        return quadrature_kernels.locate(p, ax[0], e1[0], e2[0], t_max[0], t_u[0], phi_u[0], cc[0], so[0],
+                                         t_lo, t_hi, s_lo, s_hi)
     seg = np.clip(np.searchsorted(t_hi, t, side="right"), 0, len(t_hi) - 1)
     inside = (t <= t_max[0]) & (t >= t_lo[seg]) & (t_hi[seg] > t_lo[seg])
     v = np.clip((t - t_lo[seg]) / np.where(t_hi[seg] > t_lo[seg], t_hi[seg] - t_lo[seg], 1.0), 0.0, 1.0)

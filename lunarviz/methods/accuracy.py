@@ -13,9 +13,12 @@ What the models cover, and what rows report where they do not:
 
 * ``raytrace`` (deterministic): the lune rule on the packaged exact-sphere Moon, with the facet
   samples of an icosphere level as the fallback where the rule does not apply (an eclipse's
-  penumbra or an outside detector's Earth limb across the lune); a lunar map (the facets on the
-  mapped Moon, against the finest level: self-convergence). A user's Moon mesh, a mapped or
-  physical Earth: no model (the rows' ``rtol`` is NaN; the settings are the defaults).
+  penumbra or an outside detector's Earth limb across the lune); a lunar map: with a tolerance
+  the mapped lune rule (the map's cells in its weights, :mod:`lunarviz.geometry.mapped_lune`;
+  ``scripts/mapped_lune_models.py``, against its order 48 with finer sums and sources), its
+  fallback and, without a tolerance, the facets on the mapped Moon (against the finest level:
+  self-convergence). A user's Moon mesh, a mapped or physical Earth: no model (the rows'
+  ``rtol`` is NaN; the settings are the defaults).
 * ``montecarlo``: the ray count from each path's largest relative standard deviation of one
   ray; rows report two standard errors of their mean.
 * ``analytic``: the Gauss order, against the method's own converged value (the analytic method
@@ -109,9 +112,18 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
             row = next((r for r in table[p] if r["moon_level"] == level), None)
             bounds[("facets", p)] = SAFETY * row["max_rel_error"] if row else math.nan
         row = {p: next((r for r in table[p] if r["moon_level"] == level), {}) for p in table}
-        return {"lune_order": None, "moon_level": level,
-                "sun_order": fixed.get("sun_order", row["moonshine"].get("sun_order")),
-                "earth_order": fixed.get("earth_order", row["earthshine"].get("earth_order")), "bounds": bounds}
+        out = {"lune_order": None, "moon_level": level,
+               "sun_order": fixed.get("sun_order", row["moonshine"].get("sun_order")),
+               "earth_order": fixed.get("earth_order", row["earthshine"].get("earth_order")), "bounds": bounds}
+        if "moon_level" not in fixed and "raytrace_lune_mapped" in m:  # the mapped lune rule
+            lune = {p: _best(m["raytrace_lune_mapped"][p], rtol / SAFETY, _for(fixed, p)) or
+                    _most_accurate(m["raytrace_lune_mapped"][p], _for(fixed, p)) for p in SOURCE_ORDER}
+            if all(lune.values()):
+                out["lune_order"] = (lune["moonshine"]["lune_order"], lune["earthshine"]["lune_order"])
+                for p, r in lune.items():
+                    bounds[("lune", p)] = SAFETY * r["max_rel_error"]
+                    out[SOURCE_ORDER[p]] = fixed.get(SOURCE_ORDER[p], max(out[SOURCE_ORDER[p]], r[SOURCE_ORDER[p]]))
+        return out
     # the lune rule: each path its own order (one rule per path); the facets: one level for both
     limit = rtol / SAFETY
     lune = {p: _best(m["raytrace_lune"][p], limit, _for(fixed, p)) or

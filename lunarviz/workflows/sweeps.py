@@ -302,8 +302,9 @@ class SweepSettings:
                     if k not in fixed and choice.get(k) is not None}
         # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
         # roughness changes form where i = e, a kink inside the lune); otherwise the lune rule where it applies
+        # (a mapped Moon's lune rule was measured with rolo-fit-map's rough presets)
         rough = any(getattr(m, "rough", False) for m in self.brdf_models().values())
-        settings["lune_order"] = None if asked_level or rough else choice.get("lune_order")
+        settings["lune_order"] = None if asked_level or rough and not self._mapped_moon() else choice.get("lune_order")
         return {"settings": settings, "bounds": choice.get("bounds", {}) if self.modelled() else {}}
 
     def modelled(self) -> bool:

@@ -9,8 +9,9 @@ from every lunar sample a beam toward the detector, weighted by μ cosδ dA / d�
 
 * Lunar samples. ``deterministic`` on the packaged exact-sphere Moon in a sweep: the lune rule,
   product Gauss rules over the lit, visible part of the sphere (``lune_order``, chosen by a
-  tolerance: :mod:`lunarviz.methods.accuracy`); elsewhere (a user's mesh, a lunar map, an eclipse,
-  per-facet arrays): one sample per facet (centroid), 16 per facet on the
+  tolerance: :mod:`lunarviz.methods.accuracy`), a lunar map's cells moved into its weights
+  (:mod:`lunarviz.geometry.mapped_lune`); elsewhere (a user's mesh, a lunar map without a
+  tolerance, an eclipse, per-facet arrays): one sample per facet (centroid), 16 per facet on the
   facets that straddle the terminator, its penumbra or the detector's limb (where the
   integrand has a kink), and up to 256 per facet across a thin crescent so that ≥ 64 samples
   span the lit and visible lune (adaptive refinement, ``lunar_refinement``). ``montecarlo``: N

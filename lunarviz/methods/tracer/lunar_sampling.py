@@ -186,8 +186,7 @@ class LunarSampling:
             s = self.settings
             values = np.asarray(s.moon_map().values(), dtype=float)
             self._mapped_lune_cache[body] = mapped_lune_rule(
-                self.scene, c, R, s.lune_order[0 if body == "sun" else 1], values, map_frame(self.scene, "moon"),
-                bisector=s.lune_cut_i_e and body == "sun")
+                self.scene, c, R, s.lune_order[0 if body == "sun" else 1], values, map_frame(self.scene, "moon"))
         return self._mapped_lune_cache[body]
 
     def edges_found(self, body: str) -> bool:

@@ -73,10 +73,6 @@ class TraceSettings:
     #: :meth:`~lunarviz.methods.tracer.lunar_sampling.LunarSampling.lune_rule_applies`); ``None``:
     #: samples on the facets (per-facet arrays, images and every other Moon take those)
     lune_order: int | None = None
-    #: on a mapped Moon, the lune rule with the map's cells in its weights
-    #: (:mod:`lunarviz.geometry.mapped_lune`; given explicitly: tolerances keep the facets there),
-    #: also cut where i = e with this flag (Hapke's roughness changes form there: a kink)
-    lune_cut_i_e: bool = False
     #: the physical Earth's parameters (``--param earth.NAME=VALUE``) as sorted (name, value) pairs
     earth_params: tuple = ()
 
@@ -112,9 +108,8 @@ class TraceSettings:
         for body, mode in self.body_shading:
             if body not in ("moon", "earth", "sun") or mode not in SHADINGS:
                 raise LunarvizError(f"body shading {body}={mode} is not valid")
-        for name in ("refine", "lune_cut_i_e"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise LunarvizError(f"{name}={getattr(self, name)!r} must be True or False")
+        if not isinstance(self.refine, (bool, np.bool_)):
+            raise LunarvizError(f"refine={self.refine!r} must be True or False")
         self.surface()
         self.moon_map()
         if self.mapped_earth not in ("facets", "beams"):

@@ -1,0 +1,111 @@
+"""Measure the mapped lune rule's error model and add it to the error models.
+
+    python scripts/mapped_lune_models.py [--quick]
+
+The lune rule on ``rolo-fit-map`` (its rough Hapke presets on the synthetic lunar map;
+:mod:`lunarviz.geometry.mapped_lune`): for each lune order, the largest relative error of the
+moonshine and of the earthshine over the paper's scene (θ = 5-175° every 10°, lambert, shg and
+dhg, no occlusion) and its time per phase (one thread), against the same rule at order 48 with
+finer sums over the cells that the rule's edges cut (8 lines and points) and finer source rules
+(Sun order 3, Earth order 10). Both sides sum the whole cells by the same rectangle rule (its
+error, exact for cubics: ≤ 1e-6 against the plain lune rule for a constant map, tests). Writes the
+``raytrace_lune_mapped`` section of ``lunarviz/data/error_models.json`` (the rest is kept) and
+``benchmarks/error_models/mapped_lune.md``. Independent checks of the rule itself (a brute-force
+sum over the map's cells, the facets, Embree stubbed): ``tests/test_mapped_lune.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+BRDFS = ("lambert", "shg", "dhg")
+PATHS = {"moonshine": "sun", "earthshine": "earth"}
+SOURCE = {"moonshine": "sun_order", "earthshine": "earth_order"}
+ORDERS = (8, 12, 16, 20, 24, 32)
+SOURCE_ORDERS = {"sun_order": 2, "earth_order": 7}
+REFERENCE = {"lune_order": 48, "sun_order": 3, "earth_order": 10}
+REFERENCE_EDGE_NODES = 8
+
+
+def _run(phases, base, brdfs, settings: dict, edge_nodes: int | None = None) -> dict:
+    """{(path, θ): (means, seconds, rays)} with the mapped lune rule at ``settings``."""
+    from lunarviz.geometry import mapped_lune
+    from lunarviz.geometry.scene_geometry import SceneGeometry
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
+    saved = mapped_lune.mapped_lune_rule.__defaults__
+    if edge_nodes:  # (edge_nodes, albedo_nodes): the reference's finer sums over the cut cells
+        mapped_lune.mapped_lune_rule.__defaults__ = (edge_nodes, saved[1])
+    try:
+        out = {}
+        for th in phases:
+            for path, body in PATHS.items():
+                ts = TraceScene(SceneGeometry(th), replace(base, **settings))
+                t0 = time.perf_counter()
+                r = trace_path(ts, path, brdfs)
+                if not ts.lune_rule_applies(body):
+                    raise SystemExit(f"θ = {th}: the mapped lune rule does not apply")
+                out[(path, th)] = (r.mean, time.perf_counter() - t0, r.rays)
+        return out
+    finally:
+        mapped_lune.mapped_lune_rule.__defaults__ = saved
+
+
+def measure(phases, orders) -> dict:
+    import lunarviz
+    st = lunarviz.Scene(phases=list(phases), moon_model="rolo-fit-map", brdfs=list(BRDFS)).settings("raytrace")
+    brdfs = st.brdf_models()
+    base = replace(st.trace_settings(threads=1), occlusion=False)
+    ref = _run(phases, base, brdfs, REFERENCE, REFERENCE_EDGE_NODES)
+    rows = {p: [] for p in PATHS}
+    for o in orders:
+        got = _run(phases, base, brdfs, {"lune_order": o, **SOURCE_ORDERS})
+        for p in PATHS:
+            err = max(abs(got[(p, th)][0][k] / ref[(p, th)][0][k] - 1.0) for th in phases for k in BRDFS)
+            rows[p].append({"lune_order": o, SOURCE[p]: SOURCE_ORDERS[SOURCE[p]], "max_rel_error": err,
+                            "rays_per_phase": float(np.mean([got[(p, th)][2] for th in phases])),
+                            "seconds_per_phase": float(np.mean([got[(p, th)][1] for th in phases]))})
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="three phases, two orders; print only")
+    a = ap.parse_args(argv)
+    phases = (30.0, 90.0, 150.0) if a.quick else tuple(float(t) for t in range(5, 176, 10))
+    orders = (8, 12) if a.quick else ORDERS
+    t0 = time.perf_counter()
+    rows = measure(phases, orders)
+    wall = time.perf_counter() - t0
+    lines = ["# The mapped lune rule's error model", "",
+             f"`python scripts/mapped_lune_models.py` ({wall:.0f} s, one thread): `rolo-fit-map` (rough Hapke on the "
+             f"synthetic map), θ = {phases[0]:g}-{phases[-1]:g}° ({len(phases)} phases), {', '.join(BRDFS)}, no "
+             f"occlusion; error against lune order {REFERENCE['lune_order']}, Sun order {REFERENCE['sun_order']}, Earth "
+             f"order {REFERENCE['earth_order']}, {REFERENCE_EDGE_NODES} lines and points a piece in cut cells.",
+             "",
+             "| path | lune order | source order | max relative error | rays per phase | seconds per phase |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for path, rs in rows.items():
+        for r in rs:
+            lines.append(f"| {path} | {r['lune_order']} | {r[SOURCE[path]]} | {r['max_rel_error']:.1e} | "
+                         f"{r['rays_per_phase']:.0f} | {r['seconds_per_phase']:.3f} |")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if a.quick:
+        return 0
+    f = ROOT / "lunarviz" / "data" / "error_models.json"
+    models = json.loads(f.read_text())
+    models["raytrace_lune_mapped"] = rows
+    f.write_text(json.dumps(models, indent=1) + "\n")
+    (ROOT / "benchmarks" / "error_models" / "mapped_lune.md").write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
