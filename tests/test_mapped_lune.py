@@ -155,7 +155,7 @@ def test_a_map_without_contrast_gives_the_plain_lune_rule(theta, limit):
     sc = SceneGeometry(theta)
     x, n, dA, an = mapped_lune_rule(sc, sc.sun, 1.0, 16, np.ones((180, 360)), map_frame(sc, "moon"))
     assert len(an.values) == 1
-    axis, cmax, cu, cc, split, _ = lune_caps(sc, sc.sun, 1.0)
+    axis, cmax, cu, cc, split, _, _ = lune_caps(sc, sc.sun, 1.0)
     nn, ww = cap_rule(axis[None], [cmax], cu, cc, split, 16, 16)
     o = (sc.det - sc.moon) / np.linalg.norm(sc.det - sc.moon)
     s = (sc.sun - sc.moon) / np.linalg.norm(sc.sun - sc.moon)

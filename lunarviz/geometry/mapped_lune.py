@@ -37,7 +37,8 @@ import functools
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.geometry.sphere_quadrature import cap_rule, gauss_legendre, rule_coordinates
+from lunarviz.geometry.sphere_quadrature import (cap_rule, gauss_legendre, kink_threshold, rule_coordinates,
+                                                 rule_segments)
 
 #: Chebyshev nodes in the map's value (rough Hapke, rolo-fit-map at θ = 60°: 4 nodes err by 3e-4,
 #: 6 by 3e-6, 8 by 5e-8 against 10; the error falls ~100x per 2 nodes)
@@ -81,10 +82,12 @@ def chebyshev_nodes(lo: float, hi: float, q: int) -> np.ndarray:
     return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos((2 * k + 1) * np.pi / (2 * q))
 
 
-def lune_caps(scene, source: np.ndarray, source_radius: float):
+def lune_caps(scene, source: np.ndarray, source_radius: float, kink: bool = False):
     """The lune rule's geometry (as :func:`lunarviz.methods.analytic.lunar_surface_rule`): pole
-    (toward the detector), its cosine, the caps (lit: kept; the penumbra band's far edge: a cut)
-    and φ = 0 opposite the source's azimuth (so no ring's arc wraps through φ = 0)."""
+    (toward the detector), its cosine, the caps (lit: kept; the penumbra band's far edge: a cut),
+    φ = 0 opposite the source's azimuth (so no ring's arc wraps through φ = 0) and, with ``kink``,
+    the cut where i = e (:func:`~lunarviz.geometry.sphere_quadrature.kink_threshold`: ``(R/d_src,
+    R/d_det)``; else None)."""
     M, R = scene.moon, scene.radii["moon"]
     to_det, to_src = scene.det - M, source - M
     d_det, d_src = np.linalg.norm(to_det), np.linalg.norm(to_src)
@@ -94,11 +97,13 @@ def lune_caps(scene, source: np.ndarray, source_radius: float):
     if np.linalg.norm(s - o) < 1e-6:  # the source on the pole (to rounding): concentric caps, whole rings
         s = o  # (else the caps' boundaries leave t-segments ~1e-8 rad wide with their own intervals)
     caps_c = np.array([[(R - source_radius) / d_src, (R + source_radius) / d_src]])
-    return o, R / d_det, np.array([[s, s]]), caps_c, np.array([[False, True]]), -s
+    return o, R / d_det, np.array([[s, s]]), caps_c, np.array([[False, True]]), -s, \
+        (R / d_src, R / d_det) if kink and np.linalg.norm(s - o) > 0 else None
 
 
 def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int, values: np.ndarray,
-                     frame: np.ndarray, edge_nodes: int = EDGE_NODES, albedo_nodes: int = ALBEDO_NODES):
+                     frame: np.ndarray, kink: bool = False, edge_nodes: int = EDGE_NODES,
+                     albedo_nodes: int = ALBEDO_NODES):
     """Coarse nodes of the lune rule and the map's weights (module docstring).
 
     Parameters
@@ -106,6 +111,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     scene : SceneGeometry; source, source_radius : the source's centre [m] and radius [m].
     order : Gauss points per block side of the coarse rule (the one that is traced).
     values : the map (h, w), constant on its lat/lon cells; frame : ``x_scene = frame @ x_map``.
+    kink : cut the blocks where i = e (Hapke's roughness changes form there: a rough BRDF's kink;
+        exact for a point source, whose beams' own kinks a small disc like the Sun's smooths).
     edge_nodes : in cells that a block's edge crosses, Gauss lines of constant longitude, each
         cut where it crosses a block's edge and given this many points per piece
         (:func:`_edge_cell_nodes`).
@@ -115,17 +122,16 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     x (N, 3) [m], n (N, 3), dA (N,) [m²] (the coarse rule's areas) and :class:`AlbedoNodes`;
     ``None`` where the blocks are not smooth patches (a ring's arc wraps; callers fall back).
     """
-    geo = lune_caps(scene, source, source_radius)
-    axis, cmax, cu, cc, split, zero = geo
+    axis, cmax, cu, cc, split, zero, kink = lune_caps(scene, source, source_radius, kink)
     nc, wc = cap_rule(axis[None, :], [cmax], cu, cc, split, order, order, phi_zero=zero[None, :],
-                      crossings=True, structured=True)
+                      crossings=True, structured=True, kink=kink)
     S, n_iv = wc.shape[1] // order, wc.shape[2]
     wc = wc[0].reshape(S, order, n_iv, order)
     if not np.array_equal((wc > 0).any(axis=(1, 3)), (wc > 0).all(axis=(1, 3))):
         return None  # a block is empty on some rings only: not one smooth patch
 
     def locate(d):  # map-frame unit vectors → block coordinates
-        return rule_coordinates(d @ frame.T, axis, cmax, cu[0], cc[0], split[0], zero, crossings=True)
+        return rule_coordinates(d @ frame.T, axis, cmax, cu[0], cc[0], split[0], zero, crossings=True, kink=kink)
 
     h, w = values.shape
     centres, area = _cell_centres((h, w))
@@ -158,10 +164,12 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     parts = [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
              (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
-        t_lo, t_hi = _t_breaks(axis, cmax, cu, cc)
+        t_lo, t_hi = rule_segments(axis, cmax, cu[0], cc[0], split[0], crossings=True, kink=kink)
         circles = [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] + \
             [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]
-        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], [(frame.T @ u, c) for u, c in circles], edge_nodes)
+        curve = None if kink is None else (frame.T @ cu[0, 0], frame.T @ axis, kink)
+        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], [(frame.T @ u, c) for u, c in circles], edge_nodes,
+                                         curve)
         s2, i2, ut2, up2, in2 = locate(ep)
         mm = m_cell[edge][owner][in2]
         parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))
@@ -220,24 +228,16 @@ def _cell_corner_ids(shape):
     return out
 
 
-def _t_breaks(axis, cmax, cu, cc):
-    """The t-segment bounds of the rule (:func:`~lunarviz.geometry.sphere_quadrature.t_segments`)."""
-    from lunarviz.geometry.sphere_quadrature import polar_basis, t_segments
-    e1, e2 = polar_basis(axis[None, :])
-    ua, u1, u2 = (np.einsum("bkj,bj->bk", cu, v) for v in (axis[None, :], e1, e2))
-    t_lo, t_hi, *_ = t_segments(np.arctan2(np.hypot(u1, u2), ua), cc, np.arccos(np.clip([cmax], -1, 1)))
-    return t_lo[0], t_hi[0]
-
-
-def _edge_cell_nodes(shape, cells, circles, k: int):
+def _edge_cell_nodes(shape, cells, circles, k: int, curve=None):
     """Points (P, 3) in the map's frame, weights (P,) [sr] and owning cell (P,) over ``cells``.
 
     Every block edge of the lune rule is a circle ``n·u = c`` of ``circles`` (the caps and the
     rings t = const; u in the map's frame). Each cell takes k Gauss lines across the edges that
     cross it (lines of constant longitude, cut in sin(lat), where the edges run more east-west;
     lines of constant sin(lat), cut in longitude, where they run more north-south), each line cut
-    where it meets a circle (closed form) and given k Gauss points per piece: each piece lies in
-    one block, where the integrand is smooth, so no edge is point-sampled."""
+    where it meets a circle (closed form) or the kink ``curve`` ``(u, o, (a_s, a_d))``: ``n·u =
+    kink_threshold(angle(n, o))``, found by bisection) and given k Gauss points per piece: each
+    piece lies in one block, where the integrand is smooth, so no edge is point-sampled."""
     h, w = shape
     cells = np.asarray(cells)
     row, col = cells // w, cells % w
@@ -255,16 +255,37 @@ def _edge_cell_nodes(shape, cells, circles, k: int):
         near = np.abs(g - c) <= half * np.hypot(gn, ge) + 1e-12
         north += np.where(near, np.abs(gn), 0.0)
         east += np.where(near, np.abs(ge), 0.0)
+    if curve is not None:  # the kink curve's gradient, by differences (it is not a circle)
+        F = _curve_value(curve)
+
+        def at(la, lo):
+            return np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], axis=-1)
+        d = 1e-4
+        g = F(at(lat_c, lon_c))
+        gn = (F(at(lat_c + d, lon_c)) - F(at(lat_c - d, lon_c))) / (2 * d)
+        ge = (F(at(lat_c, lon_c + d)) - F(at(lat_c, lon_c - d))) / (2 * d) / np.maximum(np.cos(lat_c), 1e-12)
+        near = np.abs(g) <= half * np.hypot(gn, ge) + 1e-12
+        north += np.where(near, np.abs(gn), 0.0)
+        east += np.where(near, np.abs(ge), 0.0)
     along_lon = north >= east  # the edges run east-west: lines of constant longitude
     out = []
     for sel, cut_mu in ((np.flatnonzero(along_lon), True), (np.flatnonzero(~along_lon), False)):
         p, wt, own = _lines(cells[sel], (mu_range[0][sel], mu_range[1][sel]), (lon_range[0][sel], lon_range[1][sel]),
-                            circles, k, cut_mu)
+                            circles, k, cut_mu, curve)
         out.append((p, wt, sel[own]))  # owners back to indices into ``cells``
     return tuple(np.concatenate(x) for x in zip(*out))
 
 
-def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool):
+def _curve_value(curve):
+    """``n ↦ n·u - kink_threshold(angle(n, o))`` for the kink ``curve`` (map-frame unit vectors)."""
+    u, o, (a_s, a_d) = curve
+
+    def F(n):
+        return n @ u - kink_threshold(np.arccos(np.clip(n @ o, -1.0, 1.0)), a_s, a_d)
+    return F
+
+
+def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool, curve=None):
     """:func:`_edge_cell_nodes` for cells whose lines all run one way: constant longitude (cut
     in μ = sin lat) with ``cut_mu``, else constant μ (cut in longitude)."""
     g, gw = gauss_legendre(k)
@@ -295,6 +316,8 @@ def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool):
             lat_ok = [True, True]
         for r, good in zip(roots, lat_ok):
             cross.append(np.where(ok & good & (r > lo) & (r < hi), r, np.nan))
+    if curve is not None:
+        cross += _curve_crossings(_curve_value(curve), fixed, lo, hi, cut_mu)
     pts = np.stack([lo, hi, *cross], axis=-1)  # (C, k, 2 + 2·circles)
     pts = np.sort(np.where(np.isnan(pts), lo[..., None], pts), axis=-1)
     a, b = pts[..., :-1], pts[..., 1:]  # pieces (C, k, m)
@@ -308,3 +331,28 @@ def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool):
     cl = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
     owner = np.broadcast_to(np.arange(len(cells))[:, None, None, None], cut.shape)[live]
     return np.stack([cl * np.cos(lon), cl * np.sin(lon), mu], axis=1), wt[live], owner
+
+
+def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: int = 40) -> list:
+    """Where each line (``fixed`` (C, k), running from ``lo`` to ``hi`` in μ or longitude) meets
+    ``F = 0``: a sign change between ``samples`` + 1 points, then bisection (≤ one crossing per
+    sub-interval; NaN where none)."""
+    def point(v):
+        mu, lon = (v, fixed) if cut_mu else (fixed, v)
+        c = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
+        return np.stack([c * np.cos(lon), c * np.sin(lon), mu], axis=-1)
+    edges = lo[..., None] + (hi - lo)[..., None] * np.linspace(0.0, 1.0, samples + 1)  # (C, k, s + 1)
+    val = np.stack([F(point(edges[..., j])) for j in range(samples + 1)], axis=-1)
+    out = []
+    for j in range(samples):
+        a, b = edges[..., j].copy(), edges[..., j + 1].copy()
+        fa = val[..., j]
+        change = np.sign(fa) * np.sign(val[..., j + 1]) < 0
+        for _ in range(steps):
+            m = 0.5 * (a + b)
+            fm = F(point(m))
+            left = np.sign(fm) == np.sign(fa)
+            a, fa = np.where(left, m, a), np.where(left, fm, fa)
+            b = np.where(left, b, m)
+        out.append(np.where(change, 0.5 * (a + b), np.nan))
+    return out

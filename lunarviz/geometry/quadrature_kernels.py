@@ -15,10 +15,11 @@ def available() -> bool:
     return _NUMBA
 
 
-def _locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo, s_hi,
+def _locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo, s_hi, kink_c, kink_j,
             seg_out, itv_out, ut_out, up_out, in_out):
     """For each unit vector p[i]: its t-segment, φ-interval (inside ones counted in φ order),
-    Gauss variables and whether it lies in the rule's region (see ``rule_coordinates``)."""
+    Gauss variables and whether it lies in the rule's region (see ``rule_coordinates``); cap
+    ``kink_j`` (if ≥ 0) has the threshold ``kink_c[i]`` at each point."""
     two_pi = 2.0 * np.pi
     k = caps_c.shape[0]
     S = t_lo.shape[0]
@@ -50,7 +51,7 @@ def _locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo,
         br[1] = two_pi
         for j in range(k):
             den = st * np.sin(t_u[j])
-            num = caps_c[j] - ctt * np.cos(t_u[j])
+            num = (kink_c[i] if j == kink_j else caps_c[j]) - ctt * np.cos(t_u[j])
             if abs(den) > 1e-300:
                 q = num / den
             else:
@@ -89,14 +90,14 @@ def _locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo,
             count += 1
 
 
-def locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo, s_hi):
+def locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo, s_hi, kink_c, kink_j: int):
     """Run the kernel; returns ``(segment, interval, u_t, u_φ, inside)`` (P,)."""
     n = len(p)
     seg, itv = np.zeros(n, np.int64), np.zeros(n, np.int64)
     ut, up, ins = np.zeros(n), np.zeros(n), np.zeros(n, np.bool_)
     _locate(np.ascontiguousarray(p, dtype=np.float64), axis, e1, e2, float(t_max), t_u, phi_u, caps_c,
             np.asarray(split, np.bool_), t_lo, t_hi, np.asarray(s_lo, np.bool_), np.asarray(s_hi, np.bool_),
-            seg, itv, ut, up, ins)
+            np.asarray(kink_c, np.float64), int(kink_j), seg, itv, ut, up, ins)
     return seg, itv, ut, up, ins
 
 

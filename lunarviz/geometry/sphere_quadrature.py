@@ -58,7 +58,7 @@ def _gauss_legendre(n: int):
 
 def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int = 16,
              n_phi: int = 16, phi_zero=None, crossings: bool = False,
-             structured: bool = False) -> tuple[np.ndarray, np.ndarray]:
+             structured: bool = False, kink=None) -> tuple[np.ndarray, np.ndarray]:
     """Nodes and solid-angle weights over ``{n·axis ≥ cos_max} ∩ caps``, for a batch.
 
     Parameters
@@ -77,6 +77,10 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
         cross (there the order of a ring's breakpoints changes).
     structured : return nodes (B, R, I, n_phi, 3) and weights (B, R, I, n_phi): R = S·n_t rings
         (S t-segments of n_t rings), I φ-intervals per ring (inside ones first, in φ order).
+    kink : ``(a_s, a_d)`` or None (B = 1 only): also cut where ``n·u_0 = kink_threshold(t, a_s,
+        a_d)`` (u_0 the first cap's direction; a curve, not a circle: its tangent and crossing
+        rings are found numerically). About the detector, this is where the angles to a source
+        at distance R/a_s along u_0 and to the detector at distance R/a_d are equal (i = e).
 
     Returns
     -------
@@ -102,10 +106,14 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     u2 = np.einsum("bkj,bj->bk", caps_u, e2)
     t_u = np.arctan2(np.hypot(u1, u2), ua)  # (B, k)
     phi_u = np.arctan2(u2, u1)
-    extra = _boundary_crossings(axis, caps_u, caps_c) if crossings else None
-    t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra)
+    caps_c, split_only, t_u, phi_u, extra, tangent = _with_kink(kink, caps_c, split_only, t_u, phi_u, t_max)
+    if crossings:
+        cross = _boundary_crossings(axis, caps_u, caps_c[:, :caps_u.shape[1]])
+        extra = cross if extra is None else np.concatenate([extra, cross], axis=1)
+        tangent = None if tangent is None else np.concatenate([tangent, np.zeros(cross.shape, bool)], axis=1)
+    t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent)
     st, ct = np.sin(t), np.cos(t)
-    p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only)
+    p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t), split_only)
     fx, fw = gauss_legendre(n_phi)
     phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
     wphi = ((p_hi - p_lo) * inside)[..., None] * fw
@@ -118,6 +126,54 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     if structured:
         return nodes, w
     return nodes.reshape(B, -1, 3), w.reshape(B, -1)
+
+
+def kink_threshold(t, a_s: float, a_d: float):
+    """``n·u_0`` where i = e on a sphere of radius R seen from the detector at distance R/a_d along
+    the pole, at polar angle t, for a source at R/a_s along u_0: cos e = (cos t - a_d)/√(1 - 2 a_d
+    cos t + a_d²) exactly (it depends on t alone), and cos i = z - a_s(1 - z²) + O(a_s²) for
+    z = n·u_0, so z = v + a_s(1 - v²) with v = cos e."""
+    y = np.cos(t)
+    v = (y - a_d) / np.sqrt(1.0 - 2.0 * a_d * y + a_d * a_d)
+    return v + a_s * (1.0 - v * v)
+
+
+def _with_kink(kink, caps_c, split_only, t_u, phi_u, t_max):
+    """The caps with the kink curve appended (a cut about the first cap's direction; static
+    threshold 2, so the closed-form tangencies skip it) and its tangent rings and crossings
+    with the caps about the same direction (numerical: ``extra``, ``tangent`` flags)."""
+    if kink is None:
+        return caps_c, split_only, t_u, phi_u, None, None
+    if caps_c.shape[0] != 1:
+        raise ValueError("a kink cut takes one rule (B = 1)")
+    a_s, a_d = kink
+    tu = float(t_u[0, 0])
+    grid = np.linspace(0.0, float(t_max[0]), 2049)[1:-1]
+    same = [float(c) for c, u in zip(caps_c[0], t_u[0]) if abs(u - tu) < 1e-12 and -1.0 < c < 1.0]
+    fns = [(lambda t: kink_threshold(t, a_s, a_d) - np.cos(t - tu), True),  # tangent rings (|q| = 1)
+           (lambda t: kink_threshold(t, a_s, a_d) - np.cos(t + tu), True)]
+    fns += [(lambda t, c=c: kink_threshold(t, a_s, a_d) - c, False) for c in same]  # crossings
+    roots, flags = [], []
+    for f, tangent in fns:
+        v = f(grid)
+        for i in np.flatnonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0):
+            lo, hi = grid[i], grid[i + 1]
+            for _ in range(60):  # bisection to rounding
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if np.sign(f(mid)) == np.sign(f(lo)) else (lo, mid)
+            roots.append(0.5 * (lo + hi))
+            flags.append(tangent)
+    return (np.concatenate([caps_c, [[2.0]]], axis=1), np.concatenate([split_only, [[True]]], axis=1),
+            np.concatenate([t_u, t_u[:, :1]], axis=1), np.concatenate([phi_u, phi_u[:, :1]], axis=1),
+            np.array([roots]).reshape(1, -1), np.array([flags], bool).reshape(1, -1))
+
+
+def _ring_thresholds(caps_c, kink, t):
+    """Thresholds per ring (B, R, k): the caps' own, and the kink curve's at each ring's t."""
+    c = np.broadcast_to(caps_c[:, None, :], (t.shape[0], t.shape[1], caps_c.shape[1])).copy()
+    if kink is not None:
+        c[:, :, -1] = kink_threshold(t, *kink)
+    return c
 
 
 def _boundary_crossings(axis, caps_u, caps_c) -> np.ndarray:
@@ -146,10 +202,11 @@ def _boundary_crossings(axis, caps_u, caps_c) -> np.ndarray:
     return np.stack(out, axis=1) if out else np.zeros((B, 0))
 
 
-def t_segments(t_u, caps_c, t_max, extra=None):
+def t_segments(t_u, caps_c, t_max, extra=None, tangent=None):
     """The t-segments of :func:`cap_rule`: ``(t_lo, t_hi, tangent_lo, tangent_hi)`` (B, S), split
     where a ring becomes tangent to a cap boundary (``tangent_*``: that end is tangent) and at
-    the polar angles ``extra`` (B, m; NaN: none), empty segments dropped."""
+    the polar angles ``extra`` (B, m; NaN: none; tangent where ``tangent`` (B, m) says so),
+    empty segments dropped."""
     B = t_u.shape[0]
     a = np.arccos(np.clip(caps_c, -1.0, 1.0))
     # t segments: split where a ring becomes tangent to a cap boundary
@@ -161,8 +218,10 @@ def t_segments(t_u, caps_c, t_max, extra=None):
     else:
         cross = np.zeros((B, 0))
     pts = np.concatenate([np.zeros((B, 1)), cand, cross, t_max[:, None]], axis=1)
+    cross_tangent = np.zeros(cross.shape, bool) if tangent is None or not cross.shape[1] else \
+        tangent & (cross > 0) & (cross < t_max[:, None])
     is_tangent = np.concatenate([np.zeros((B, 1), bool), (cand > 0) & (cand < t_max[:, None]),
-                                 np.zeros(cross.shape, bool), np.zeros((B, 1), bool)], axis=1)
+                                 cross_tangent, np.zeros((B, 1), bool)], axis=1)
     srt = np.argsort(pts, axis=1, kind="stable")
     tb = np.take_along_axis(pts, srt, 1)
     sing = np.take_along_axis(is_tangent, srt, 1)
@@ -177,11 +236,11 @@ def t_segments(t_u, caps_c, t_max, extra=None):
     return t_lo, t_hi, np.take_along_axis(s_lo, sel, 1), np.take_along_axis(s_hi, sel, 1)
 
 
-def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None):
+def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None):
     """Polar rings t (B, R) of :func:`cap_rule` and their weights ``dt·sin t`` (B, R): Gauss
     segments between the polar radii where a ring becomes tangent to a cap boundary."""
     B = t_u.shape[0]
-    t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra)
+    t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
     s_lo, s_hi = s_lo[:, :, None], s_hi[:, :, None]
     # Next to a tangent ring t* the φ-half-width of a ring behaves like √|t - t*|, so the ring
     # integral has a square-root singularity there; the substitution t - t* ∝ u² at such ends
@@ -202,11 +261,12 @@ def _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only):
     """φ-intervals ``(p_lo, p_hi, inside)`` (B, R, I) of every ring of :func:`cap_rule`: the
     ring cut at every cap's boundary, ``inside`` where an interval lies in every constraint cap."""
     B, R = st.shape
-    k = caps_c.shape[1]
+    k = caps_c.shape[-1]
+    cr = caps_c if caps_c.ndim == 3 else caps_c[:, None, :]  # thresholds per ring (B, R, k) or per rule
     # φ breakpoints on every ring for every cap
     stu, ctu = np.sin(t_u)[:, None, :], np.cos(t_u)[:, None, :]
     den = st[:, :, None] * stu
-    num = caps_c[:, None, :] - ct[:, :, None] * ctu
+    num = cr - ct[:, :, None] * ctu
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(np.abs(den) > 1e-300, num / den, np.where(num < 0, -np.inf, np.inf))
     hw = np.arccos(np.clip(q, -1.0, 1.0))  # half-width of the arc inside each cap (π: whole ring)
@@ -230,7 +290,7 @@ def _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only):
     for j in range(k):
         ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + \
             st[:, :, None] * stu[:, :, j:j + 1] * np.cos(pm - pu[:, :, j:j + 1])
-        ok = ndotu > caps_c[:, None, j:j + 1]
+        ok = ndotu > cr[:, :, j:j + 1]
         inside &= ok | split_only[:, None, j:j + 1]
     # keep only intervals that are inside somewhere (and non-empty)
     inside &= p_hi > p_lo
@@ -240,34 +300,58 @@ def _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only):
     return p_lo, p_hi, np.take_along_axis(inside, sel, 2)
 
 
-def rule_coordinates(points, axis, cos_max, caps_u, caps_c, split_only, phi_zero=None, crossings: bool = False):
-    """Where unit vectors ``points`` (P, 3) lie in one rule of :func:`cap_rule` (``axis`` (3,),
-    ``caps_u`` (k, 3), ``caps_c``, ``split_only`` (k,), as there): ``(segment, interval, u_t,
-    u_φ, inside)`` (P,), with ``u_t, u_φ ∈ [0, 1]`` the Gauss variables of the point's block
-    (the t-substitution at tangent ends inverted), ``inside`` False outside the region."""
-    p = np.asarray(points, dtype=float)
+def _one_rule(axis, cos_max, caps_u, caps_c, split_only, phi_zero, crossings: bool, kink):
+    """One rule's polar frame and caps (the kink appended), and its extra t-cuts, as
+    :func:`cap_rule` builds them."""
     ax = np.asarray(axis, dtype=float)[None, :]
     cu, cc = np.asarray(caps_u, float)[None], np.asarray(caps_c, float)[None]
     so = np.asarray(split_only, bool)[None]
     e1, e2 = polar_basis(ax, None if phi_zero is None else np.asarray(phi_zero, float)[None, :])
-    t = np.arccos(np.clip(p @ ax[0], -1.0, 1.0))
-    phi = np.mod(np.arctan2(p @ e2[0], p @ e1[0]), 2 * np.pi)
     t_max = np.arccos(np.clip(np.atleast_1d(np.asarray(cos_max, float)), -1.0, 1.0))
     ua, u1, u2 = (np.einsum("bkj,bj->bk", cu, v) for v in (ax, e1, e2))
     t_u, phi_u = np.arctan2(np.hypot(u1, u2), ua), np.arctan2(u2, u1)
-    extra = _boundary_crossings(ax, cu, cc) if crossings else None
-    t_lo, t_hi, s_lo, s_hi = (a[0] for a in t_segments(t_u, cc, t_max, extra))
+    cc, so, t_u, phi_u, extra, tangent = _with_kink(kink, cc, so, t_u, phi_u, t_max)
+    if crossings:
+        cross = _boundary_crossings(ax, cu, cc[:, :cu.shape[1]])
+        extra = cross if extra is None else np.concatenate([extra, cross], axis=1)
+        tangent = None if tangent is None else np.concatenate([tangent, np.zeros(cross.shape, bool)], axis=1)
+    return ax, e1, e2, t_max, cc, so, t_u, phi_u, extra, tangent
+
+
+def rule_segments(axis, cos_max, caps_u, caps_c, split_only, crossings: bool = False, kink=None):
+    """The t-segment bounds ``(t_lo, t_hi)`` (S,) of one rule of :func:`cap_rule` (arguments as
+    for :func:`rule_coordinates`)."""
+    *_, t_max, cc, _, t_u, _, extra, tangent = _one_rule(axis, cos_max, caps_u, caps_c, split_only, None,
+                                                         crossings, kink)
+    t_lo, t_hi, _, _ = t_segments(t_u, cc, t_max, extra, tangent)
+    return t_lo[0], t_hi[0]
+
+
+def rule_coordinates(points, axis, cos_max, caps_u, caps_c, split_only, phi_zero=None, crossings: bool = False,
+                     kink=None):
+    """Where unit vectors ``points`` (P, 3) lie in one rule of :func:`cap_rule` (``axis`` (3,),
+    ``caps_u`` (k, 3), ``caps_c``, ``split_only`` (k,), ``kink`` as there): ``(segment, interval,
+    u_t, u_φ, inside)`` (P,), with ``u_t, u_φ ∈ [0, 1]`` the Gauss variables of the point's block
+    (the t-substitution at tangent ends inverted), ``inside`` False outside the region."""
+    p = np.asarray(points, dtype=float)
+    ax, e1, e2, t_max, cc, so, t_u, phi_u, extra, tangent = _one_rule(axis, cos_max, caps_u, caps_c, split_only,
+                                                                      phi_zero, crossings, kink)
+    t = np.arccos(np.clip(p @ ax[0], -1.0, 1.0))
+    phi = np.mod(np.arctan2(p @ e2[0], p @ e1[0]), 2 * np.pi)
+    t_lo, t_hi, s_lo, s_hi = (a[0] for a in t_segments(t_u, cc, t_max, extra, tangent))
     from lunarviz.geometry import quadrature_kernels
     if quadrature_kernels.available() and (cc.shape[1] > 1 or so.any()):  # (the general ring intervals)
+        kink_c = kink_threshold(t, *kink) if kink is not None else np.zeros(len(t))
         return quadrature_kernels.locate(p, ax[0], e1[0], e2[0], t_max[0], t_u[0], phi_u[0], cc[0], so[0],
-                                         t_lo, t_hi, s_lo, s_hi)
+                                         t_lo, t_hi, s_lo, s_hi, kink_c, cc.shape[1] - 1 if kink else -1)
     seg = np.clip(np.searchsorted(t_hi, t, side="right"), 0, len(t_hi) - 1)
     inside = (t <= t_max[0]) & (t >= t_lo[seg]) & (t_hi[seg] > t_lo[seg])
     v = np.clip((t - t_lo[seg]) / np.where(t_hi[seg] > t_lo[seg], t_hi[seg] - t_lo[seg], 1.0), 0.0, 1.0)
     lo, hi = s_lo[seg], s_hi[seg]
     u_t = np.where(lo & hi, 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * v, -1.0, 1.0)) / 3.0),
                    np.where(lo, np.sqrt(v), np.where(hi, 1.0 - np.sqrt(1.0 - v), v)))
-    p_lo, p_hi, ins = (a[0] for a in _ring_intervals(np.sin(t)[None], np.cos(t)[None], t_u, phi_u, cc, so))
+    p_lo, p_hi, ins = (a[0] for a in _ring_intervals(np.sin(t)[None], np.cos(t)[None], t_u, phi_u,
+                                                     _ring_thresholds(cc, kink, t[None]), so))
     width = p_hi - p_lo
     d = np.mod(phi[:, None] - p_lo, 2 * np.pi)
     hit = ins & (d < width) & (width > 0)

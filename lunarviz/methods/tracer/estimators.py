@@ -101,6 +101,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     s = ts.settings
     body = PATHS[path]
     ts.per_facet = keep_facets  # per-facet arrays need facet samples (never the lune rule's)
+    ts.rough_brdf = any(getattr(b, "rough", False) for b in brdfs.values())
     t0 = time.perf_counter()
     r0 = ts.rays_cast
     runs = 1 if s.estimator == "deterministic" else s.runs

@@ -71,7 +71,10 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         self.per_facet = False
         #: per body: candidate facets that a shadow or hidden-view edge crosses (``candidates``)
         self._edge_cache: dict = {}
-        self._mapped_lune_cache: dict = {}  # body -> the mapped lune rule (or None: facets)
+        self._mapped_lune_cache: dict = {}  # (body, cut at i = e) -> the mapped lune rule (or None: facets)
+        #: a BRDF being shaded has Hapke's roughness (its kink at i = e: the mapped lune rule cuts
+        #: there); set by :func:`~lunarviz.methods.tracer.estimators.trace_path`
+        self.rough_brdf = False
         self._moon_albedo = self._earth_albedo = None
         #: a spectral run's Earth components (:func:`lunarviz.spectral.earth.components`): the
         #: mapped Earth's transports then carry one beam array each (``e_beam_parts``)
