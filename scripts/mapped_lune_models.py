@@ -40,8 +40,12 @@ def _run(phases, base, brdfs, settings: dict, edge_nodes: int | None = None) -> 
     from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     saved = mapped_lune.mapped_lune_rule.__defaults__
-    if edge_nodes:  # (edge_nodes, albedo_nodes): the reference's finer sums over the cut cells
-        mapped_lune.mapped_lune_rule.__defaults__ = (edge_nodes, saved[1])
+    if edge_nodes:  # the reference's finer sums over the cut cells (the other defaults kept)
+        import inspect
+        names = [p for p, v in inspect.signature(mapped_lune.mapped_lune_rule).parameters.items()
+                 if v.default is not inspect.Parameter.empty]
+        mapped_lune.mapped_lune_rule.__defaults__ = tuple(edge_nodes if n == "edge_nodes" else d
+                                                          for n, d in zip(names, saved))
     try:
         out = {}
         for th in phases:

@@ -333,26 +333,26 @@ def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool, curve=None
     return np.stack([cl * np.cos(lon), cl * np.sin(lon), mu], axis=1), wt[live], owner
 
 
-def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: int = 40) -> list:
+def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: int = 30) -> list:
     """Where each line (``fixed`` (C, k), running from ``lo`` to ``hi`` in μ or longitude) meets
-    ``F = 0``: a sign change between ``samples`` + 1 points, then bisection (≤ one crossing per
-    sub-interval; NaN where none)."""
-    def point(v):
-        mu, lon = (v, fixed) if cut_mu else (fixed, v)
+    ``F = 0``: a sign change between ``samples`` + 1 points, then bisection on those alone
+    (≤ one crossing per sub-interval; NaN where none; 30 halvings of a 1/8-cell step: ~1e-11)."""
+    def point(v, fx):
+        mu, lon = np.broadcast_arrays(*((v, fx) if cut_mu else (fx, v)))
         c = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
         return np.stack([c * np.cos(lon), c * np.sin(lon), mu], axis=-1)
     edges = lo[..., None] + (hi - lo)[..., None] * np.linspace(0.0, 1.0, samples + 1)  # (C, k, s + 1)
-    val = np.stack([F(point(edges[..., j])) for j in range(samples + 1)], axis=-1)
+    val = F(point(edges, fixed[..., None]))
     out = []
     for j in range(samples):
-        a, b = edges[..., j].copy(), edges[..., j + 1].copy()
-        fa = val[..., j]
-        change = np.sign(fa) * np.sign(val[..., j + 1]) < 0
+        root = np.full(fixed.shape, np.nan)
+        idx = np.nonzero(np.sign(val[..., j]) * np.sign(val[..., j + 1]) < 0)
+        a, b, fa, fx = edges[..., j][idx], edges[..., j + 1][idx], val[..., j][idx], fixed[idx]
         for _ in range(steps):
             m = 0.5 * (a + b)
-            fm = F(point(m))
+            fm = F(point(m, fx))
             left = np.sign(fm) == np.sign(fa)
-            a, fa = np.where(left, m, a), np.where(left, fm, fa)
-            b = np.where(left, b, m)
-        out.append(np.where(change, 0.5 * (a + b), np.nan))
+            a, fa, b = np.where(left, m, a), np.where(left, fm, fa), np.where(left, b, m)
+        root[idx] = 0.5 * (a + b)
+        out.append(root)
     return out

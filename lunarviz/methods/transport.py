@@ -45,11 +45,18 @@ class Transport:
     #: the map's standard deviation over each sample's area (same units as ``albedo``): a BRDF
     #: that is not linear in its albedo (Hapke's H-functions) is averaged over it (below)
     albedo_std: np.ndarray | None = None
+    #: the mapped lune rule's map (:mod:`lunarviz.geometry.mapped_lune`): ``(values (Q,), factors
+    #: (N, Q))``: each sample shaded at every map value, weighted by its factor (``albedo_absolute``
+    #: as above); ``None``: ``albedo`` per sample or none
+    albedo_nodes: tuple | None = None
 
-    def at_albedo_nodes(self, values: np.ndarray, factors: np.ndarray, absolute: bool) -> "Transport":
-        """Every sample repeated at each map value ``values[q]`` (Q,), its ``geom`` times
-        ``factors[:, q]`` (N, Q): the mapped lune rule's samples
-        (:mod:`lunarviz.geometry.mapped_lune`); no spread (the weights hold the map's cells)."""
+    def expanded(self) -> "Transport":
+        """The same samples with :attr:`albedo_nodes` spelt out: each sample repeated at every map
+        value ``values[q]``, its ``geom`` times ``factors[:, q]`` (for shaders that take a map value
+        per sample, e.g. :mod:`lunarviz.spectral.shading`); ``self`` without nodes."""
+        if self.albedo_nodes is None:
+            return self
+        values, factors = self.albedo_nodes
         Q = len(values)
 
         def rep(a):
@@ -60,7 +67,34 @@ class Transport:
                          e_beam_parts=None if self.e_beam_parts is None else
                          {k: rep(v) for k, v in self.e_beam_parts.items()},
                          albedo=np.tile(np.asarray(values, dtype=float), len(self.mu)),
-                         albedo_absolute=absolute, albedo_std=None)
+                         albedo_absolute=self.albedo_absolute, albedo_std=None)
+
+    def _node_radiances(self, brdf):
+        """:meth:`radiances` with :attr:`albedo_nodes`: the BRDF at every map value (the geometry's
+        part of a rough Hapke computed once, broadcast over the values), each sample's radiance
+        the factor-weighted sum over them."""
+        from lunarviz.bodies.surfaces import map_scale
+        from lunarviz.photometry import shading_kernels
+        from lunarviz.photometry.brdf import Lambert
+        values, factors = self.albedo_nodes
+        w = np.asarray(values, dtype=float) * map_scale(self.albedo_absolute, brdf)
+        N = len(self.mu)
+        compiled = shading_kernels.available() and (shading_kernels.hapke_codes(brdf) is not None
+                                                    or type(brdf) is Lambert)
+        if compiled:
+            L, U = np.zeros(N), None if self.e_beam_unit is None else np.zeros(N)
+            for q, wq in enumerate(w):
+                lq, uq = Transport(mu0=self.mu0, sin_hg=self.sin_hg, cos_hg=self.cos_hg, e_beam=self.e_beam,
+                                   mu=self.mu, geom=self.geom, e_beam_unit=self.e_beam_unit,
+                                   albedo=np.full(N, wq), albedo_absolute=True).radiances(brdf)
+                L += lq * factors[:, q]
+                if U is not None:
+                    U += uq * factors[:, q]
+            return L, U
+        rf = brdf.radiance_factor(self.mu0[:, None, :], self.mu[:, None, None], self.sin_hg[:, None, :],
+                                  self.cos_hg[:, None, :], albedo=w[None, :, None])  # (N, Q, K)
+        L = np.einsum("nqk,nk,nq->n", rf, self.e_beam, factors)
+        return L, None if self.e_beam_unit is None else np.einsum("nqk,nk,nq->n", rf, self.e_beam_unit, factors)
 
     def sample_albedo(self, brdf):
         """The BRDF's albedo parameter per sample ((N, 1), for ``albedo=``), or ``None``."""
@@ -92,6 +126,8 @@ class Transport:
         """Radiance toward the detector [W m⁻² sr⁻¹] and, for earthshine, the same for an
         Earth of albedo 1 (``None`` without ``e_beam_unit``); one BRDF evaluation for both."""
         from lunarviz.photometry import shading_kernels
+        if self.albedo_nodes is not None:
+            return self._node_radiances(brdf)
         if shading_kernels.available() and shading_kernels.hapke_codes(brdf) is not None:
             # compiled: one pass over the beams, no (N, K) temporaries (lunarviz.photometry.shading_kernels)
             args = (brdf, self.mu0, self.mu, self.sin_hg, self.cos_hg, self.e_beam, self.e_beam_unit)

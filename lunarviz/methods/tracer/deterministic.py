@@ -49,9 +49,9 @@ class DeterministicTransport:
             for g in self._rule_groups(x, n, body):
                 tr = self.beam_transport(x[g], n[g], o[g], mu[g], geom[g], body, order)
                 if isinstance(alb_all, AlbedoNodes):  # the mapped lune rule: shaded at every map value
-                    tr = tr.at_albedo_nodes(alb_all.values, alb_all.factors[sl][keep][g],
-                                            self.settings.moon_map().absolute)
-                    out.append((tr, np.repeat(owner[g], len(alb_all.values))))
+                    tr.albedo_nodes = (alb_all.values, alb_all.factors[sl][keep][g])
+                    tr.albedo_absolute = self.settings.moon_map().absolute
+                    out.append((tr, owner[g]))
                     continue
                 if alb_all is not None:
                     self.with_moon_albedo(tr, values=(alb_all[0][sl][keep][g], alb_all[1][sl][keep][g]))
