@@ -187,6 +187,7 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-year", action="store_true")
     ap.add_argument("--skip-paper", action="store_true")
     ap.add_argument("--skip-paper-year", action="store_true", help="keep the year with the paper's DHG as it is")
+    ap.add_argument("--mapped-days", type=int, default=365, help="days of the mapped Moon's hourly dates")
     ap.add_argument("--skip-sweep", action="store_true")
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
@@ -198,7 +199,7 @@ def main(argv=None) -> int:
     if not a.skip_sweep:
         res["paper_sweep"] = paper_sweep(out, a.quick)
     if not a.skip_year:  # the command (a mapped, rough Moon); the same year with the paper's DHG
-        res["year_mapped_moon"] = year_of_dates(out, a.quick, "rolo-fit-map", days=365)
+        res["year_mapped_moon"] = year_of_dates(out, a.quick, "rolo-fit-map", days=a.mapped_days)
         if not a.skip_paper_year:
             res["year"] = year_of_dates(out, a.quick, "paper", days=365)
     if not a.skip_paper:
