@@ -90,7 +90,8 @@ def main(argv=None) -> int:
     lines = ["# The mapped lune rule's error model", "",
              f"`python scripts/mapped_lune_models.py` ({wall:.0f} s, one thread): `rolo-fit-map` (rough Hapke on the "
              f"synthetic map), θ = {phases[0]:g}-{phases[-1]:g}° ({len(phases)} phases), {', '.join(BRDFS)}, no "
-             f"occlusion; error against lune order {REFERENCE['lune_order']}, Sun order {REFERENCE['sun_order']}, Earth "
+             f"occlusion; error against lune order {REFERENCE['lune_order']}, Sun order {REFERENCE['sun_order']}, "
+             f"Earth "
              f"order {REFERENCE['earth_order']}, {REFERENCE_EDGE_NODES} lines and points a piece in cut cells.",
              "",
              "| path | lune order | source order | max relative error | rays per phase | seconds per phase |",

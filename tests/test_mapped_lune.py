@@ -146,12 +146,13 @@ def test_a_tolerance_on_the_mapped_moon_takes_the_mapped_lune_rule():
         "lune_order"] is None
 
 
-@pytest.mark.parametrize("theta, limit", [(10.0, 1e-8), (60.0, 1e-8), (150.0, 1e-7), (175.0, 3e-6)])
+@pytest.mark.parametrize("theta, limit", [(10.0, 1e-8), (60.0, 1e-8), (150.0, 1e-7), (175.0, 3e-6), (179.3, 1e-7)])
 def test_a_map_without_contrast_gives_the_plain_lune_rule(theta, limit):
     """A constant map (one albedo node) and μ0·μ lit by a point Sun: the weights (the whole cells'
     rectangle rule, the cut cells' lines split at every block edge) against the plain lune rule's
-    sum (exact to ~1e-12 for this polynomial integrand). Measured 2.6e-10, 1.4e-9, 3.2e-8 and
-    9.8e-7 (the thin crescent, θ = 175°); limits ~3x."""
+    sum (exact to ~1e-12 for this polynomial integrand). Measured 2.6e-10, 1.4e-9, 3.2e-8, 9.8e-7
+    (θ = 175°) and 2e-10 (θ = 179.3°: a lune thinner than a cell, which slipped between a cell's
+    centre and corners before cells near an edge were cut too: -4.6e-3); limits ~3x or 1e-7."""
     sc = SceneGeometry(theta)
     x, n, dA, an = mapped_lune_rule(sc, sc.sun, 1.0, 16, np.ones((180, 360)), map_frame(sc, "moon"))
     assert len(an.values) == 1

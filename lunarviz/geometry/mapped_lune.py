@@ -15,24 +15,23 @@ separate them:
 
 So ``I ≈ Σ_ij Σ_q r(m_q; g(x_ij)) W_ij^q`` with ``W_ij^q = ∫ ℓ_i(u_t) ℓ_j(u_φ) ℓ_q(m(x)) dA``:
 the coarse nodes are traced once and shaded at the Q map values; the map enters only the
-weights. They are summed over the map's own cells (Gauss points in sin(lat) and lon, where the
-area element is exact and the map constant: no aliasing of the cells' edges), each point placed
-in its block by :func:`~lunarviz.geometry.sphere_quadrature.rule_coordinates`; cells that a
-block's edge crosses take a finer grid of points, those outside the lune dropping out.
-
-Known limit: that point sampling of the edge cells errs as (point spacing / lune width)²: with a
-constant map, against the plain lune rule, 2.5e-7 at θ = 10°, 1.9e-6 at 60°, 4.6e-5 at 150° and
-4.2e-4 at 170° (tests/test_mapped_lune.py). Tolerances (``--rtol``) therefore do not choose this
-rule yet; it runs where ``TraceSettings.lune_order`` is given on a mapped Moon. The fix is a rule
-in the block's own coordinates over each cut cell. Cost: ~0.1-0.3 s per path and date (locating
-~10⁵ cell points), more than tracing its nodes.
+weights. They are summed over the map's own cells in (sin lat, lon), where the area element is
+exact and the map constant (no aliasing of the cells' edges), each point placed in its block by
+:func:`~lunarviz.geometry.sphere_quadrature.rule_coordinates`: whole cells by their centre and
+corners (exact for cubics; corners shared); cells that a block edge crosses or passes near
+(terminator, limb, penumbra band, t-rings, the kink) along lines cut at every edge (closed form
+for circles, bisection for the kink) with Gauss points per piece. Checks: a constant map against
+the plain lune rule ≤ 7e-7 from θ = 10° to 179.5°; a brute-force cell sum; the facets
+(tests/test_mapped_lune.py). Cost: 0.05-0.4 s per path and date (locating ~10⁵ cell points and
+one GEMM per block), more than tracing the nodes. The model behind ``--rtol`` was measured on
+``rolo-fit-map`` (w·m in 0.29-0.57); for maps spanning much wider albedos the 8 albedo nodes err
+more (a map of w·m in 0.05-0.9: 1.5e-5; rows on other maps carry no bound anyway).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -113,8 +112,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     values : the map (h, w), constant on its lat/lon cells; frame : ``x_scene = frame @ x_map``.
     kink : cut the blocks where i = e (Hapke's roughness changes form there: a rough BRDF's kink;
         exact for a point source, whose beams' own kinks a small disc like the Sun's smooths).
-    edge_nodes : in cells that a block's edge crosses, Gauss lines of constant longitude, each
-        cut where it crosses a block's edge and given this many points per piece
+    edge_nodes : in cells that a block's edge crosses, Gauss lines (of constant longitude or
+        sin(lat)), each cut where it crosses a block's edge and given this many points per piece
         (:func:`_edge_cell_nodes`).
 
     Returns
@@ -149,8 +148,13 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     for full, part in zip((v_seg, v_itv, v_ut, v_up, v_in), locate(_grid_vertices((h, w))[used])):
         full[used] = part
     vblock = np.where(v_in, v_seg * n_iv + v_itv, -1)
-    # a cell whose centre and corners lie in different blocks (or partly outside) holds an edge
-    edge = (vblock[corner_ids] != block[:, None]).any(axis=1)
+    # a cell whose centre and corners lie in different blocks (or partly outside), or that a block
+    # edge passes within (a lune thinner than a cell slips between those five points), holds an edge
+    t_lo, t_hi = rule_segments(axis, cmax, cu[0], cc[0], split[0], crossings=True, kink=kink)
+    circles = [(frame.T @ u, c) for u, c in [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] +
+               [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]]
+    curve = None if kink is None else (frame.T @ cu[0, 0], frame.T @ axis, kink)
+    edge = (vblock[corner_ids] != block[:, None]).any(axis=1) | _edges_near((h, w), cells, circles, curve)[0]
     whole = ~edge & (block >= 0)
     m_cell = values.reshape(-1)[cells]
     vals = chebyshev_nodes(float(m_cell.min()), float(m_cell.max()), albedo_nodes) if len(cells) else np.array([1.0])
@@ -164,12 +168,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     parts = [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
              (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
-        t_lo, t_hi = rule_segments(axis, cmax, cu[0], cc[0], split[0], crossings=True, kink=kink)
-        circles = [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] + \
-            [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]
-        curve = None if kink is None else (frame.T @ cu[0, 0], frame.T @ axis, kink)
-        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], [(frame.T @ u, c) for u, c in circles], edge_nodes,
-                                         curve)
+        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], circles, edge_nodes, curve)
         s2, i2, ut2, up2, in2 = locate(ep)
         mm = m_cell[edge][owner][in2]
         parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))
@@ -244,18 +243,36 @@ def _edge_cell_nodes(shape, cells, circles, k: int, curve=None):
     lat = (np.radians(90.0 - 180.0 * (row + 1) / h), np.radians(90.0 - 180.0 * row / h))
     mu_range = (np.sin(lat[0]), np.sin(lat[1]))
     lon_range = (np.radians(-180.0 + 360.0 * col / w), np.radians(-180.0 + 360.0 * (col + 1) / w))
-    # which way the crossing edges run: compare their gradients north and east at the cell's centre
-    lat_c, lon_c = 0.5 * (lat[0] + lat[1]), 0.5 * (lon_range[0] + lon_range[1])
-    north, east = np.zeros(len(cells)), np.zeros(len(cells))
+    _, north, east = _edges_near(shape, cells, circles, curve)
+    along_lon = north >= east  # the edges run east-west: lines of constant longitude
+    out = []
+    for sel, cut_mu in ((np.flatnonzero(along_lon), True), (np.flatnonzero(~along_lon), False)):
+        p, wt, own = _lines(cells[sel], (mu_range[0][sel], mu_range[1][sel]), (lon_range[0][sel], lon_range[1][sel]),
+                            circles, k, cut_mu, curve)
+        out.append((p, wt, sel[own]))  # owners back to indices into ``cells``
+    return tuple(np.concatenate(x) for x in zip(*out))
+
+
+def _edges_near(shape, cells, circles, curve=None):
+    """Whether an edge passes within each cell (its value at the cell's centre closer to the
+    edge's than the cell's half-diagonal times its gradient), and the summed north and east
+    gradients of the edges that do (which way they run)."""
+    h, w = shape
+    row, col = cells // w, cells % w
+    lat_c = np.radians(90.0 - 180.0 * (row + 0.5) / h)
+    lon_c = np.radians(-180.0 + 360.0 * (col + 0.5) / w)
     half = np.radians(0.75 * max(180.0 / h, 360.0 / w))
+    north, east = np.zeros(len(cells)), np.zeros(len(cells))
+    hit = np.zeros(len(cells), dtype=bool)
     for u, c in circles:
         g = np.cos(lat_c) * (u[0] * np.cos(lon_c) + u[1] * np.sin(lon_c)) + np.sin(lat_c) * u[2]
         gn = -np.sin(lat_c) * (u[0] * np.cos(lon_c) + u[1] * np.sin(lon_c)) + np.cos(lat_c) * u[2]
         ge = -u[0] * np.sin(lon_c) + u[1] * np.cos(lon_c)
         near = np.abs(g - c) <= half * np.hypot(gn, ge) + 1e-12
+        hit |= near
         north += np.where(near, np.abs(gn), 0.0)
         east += np.where(near, np.abs(ge), 0.0)
-    if curve is not None:  # the kink curve's gradient, by differences (it is not a circle)
+    if curve is not None:  # the kink curve: its gradient by differences (it is not a circle)
         F = _curve_value(curve)
 
         def at(la, lo):
@@ -264,16 +281,11 @@ def _edge_cell_nodes(shape, cells, circles, k: int, curve=None):
         g = F(at(lat_c, lon_c))
         gn = (F(at(lat_c + d, lon_c)) - F(at(lat_c - d, lon_c))) / (2 * d)
         ge = (F(at(lat_c, lon_c + d)) - F(at(lat_c, lon_c - d))) / (2 * d) / np.maximum(np.cos(lat_c), 1e-12)
-        near = np.abs(g) <= half * np.hypot(gn, ge) + 1e-12
+        near = np.abs(g) <= 1.5 * half * np.hypot(gn, ge) + 1e-12
+        hit |= near
         north += np.where(near, np.abs(gn), 0.0)
         east += np.where(near, np.abs(ge), 0.0)
-    along_lon = north >= east  # the edges run east-west: lines of constant longitude
-    out = []
-    for sel, cut_mu in ((np.flatnonzero(along_lon), True), (np.flatnonzero(~along_lon), False)):
-        p, wt, own = _lines(cells[sel], (mu_range[0][sel], mu_range[1][sel]), (lon_range[0][sel], lon_range[1][sel]),
-                            circles, k, cut_mu, curve)
-        out.append((p, wt, sel[own]))  # owners back to indices into ``cells``
-    return tuple(np.concatenate(x) for x in zip(*out))
+    return hit, north, east
 
 
 def _curve_value(curve):
