@@ -154,7 +154,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     circles = [(frame.T @ u, c) for u, c in [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] +
                [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]]
     curve = None if kink is None else (frame.T @ cu[0, 0], frame.T @ axis, kink)
-    edge = (vblock[corner_ids] != block[:, None]).any(axis=1) | _edges_near((h, w), cells, circles, curve)[0]
+    near, north, east = _edges_near((h, w), cells, circles, curve)
+    edge = (vblock[corner_ids] != block[:, None]).any(axis=1) | near
     whole = ~edge & (block >= 0)
     m_cell = values.reshape(-1)[cells]
     vals = chebyshev_nodes(float(m_cell.min()), float(m_cell.max()), albedo_nodes) if len(cells) else np.array([1.0])
@@ -168,12 +169,12 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     parts = [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
              (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
-        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], circles, edge_nodes, curve)
+        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], circles, edge_nodes, curve)
         s2, i2, ut2, up2, in2 = locate(ep)
         mm = m_cell[edge][owner][in2]
         parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))
     blk, u_t, u_p, ell = (np.concatenate(c) for c in zip(*parts))
-    if blk.size and (blk.max() >= S * n_iv or (wc.reshape(S, order, n_iv, order)[:, 0, :, 0].ravel()[blk] == 0).any()):
+    if blk.size and (blk.max() >= S * n_iv or (wc[:, 0, :, 0].ravel()[blk] == 0).any()):
         return None  # a point in a block the coarse rule does not have: the facets
     g = gauss_legendre(order)[0]
     W = np.zeros((S, order, n_iv, order, len(vals)))
@@ -227,13 +228,14 @@ def _cell_corner_ids(shape):
     return out
 
 
-def _edge_cell_nodes(shape, cells, circles, k: int, curve=None):
+def _edge_cell_nodes(shape, cells, along_lon, circles, k: int, curve=None):
     """Points (P, 3) in the map's frame, weights (P,) [sr] and owning cell (P,) over ``cells``.
 
     Every block edge of the lune rule is a circle ``n·u = c`` of ``circles`` (the caps and the
     rings t = const; u in the map's frame). Each cell takes k Gauss lines across the edges that
-    cross it (lines of constant longitude, cut in sin(lat), where the edges run more east-west;
-    lines of constant sin(lat), cut in longitude, where they run more north-south), each line cut
+    cross it (``along_lon``, from :func:`_edges_near`: lines of constant longitude, cut in
+    sin(lat), where the edges run more east-west; else lines of constant sin(lat), cut in
+    longitude, where they run more north-south), each line cut
     where it meets a circle (closed form) or the kink ``curve`` ``(u, o, (a_s, a_d))``: ``n·u =
     kink_threshold(angle(n, o))``, found by bisection) and given k Gauss points per piece: each
     piece lies in one block, where the integrand is smooth, so no edge is point-sampled."""
@@ -243,8 +245,6 @@ def _edge_cell_nodes(shape, cells, circles, k: int, curve=None):
     lat = (np.radians(90.0 - 180.0 * (row + 1) / h), np.radians(90.0 - 180.0 * row / h))
     mu_range = (np.sin(lat[0]), np.sin(lat[1]))
     lon_range = (np.radians(-180.0 + 360.0 * col / w), np.radians(-180.0 + 360.0 * (col + 1) / w))
-    _, north, east = _edges_near(shape, cells, circles, curve)
-    along_lon = north >= east  # the edges run east-west: lines of constant longitude
     out = []
     for sel, cut_mu in ((np.flatnonzero(along_lon), True), (np.flatnonzero(~along_lon), False)):
         p, wt, own = _lines(cells[sel], (mu_range[0][sel], mu_range[1][sel]), (lon_range[0][sel], lon_range[1][sel]),
@@ -313,9 +313,8 @@ def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool, curve=None
             rho = np.hypot(A, B)
             ok = np.abs(c) < rho
             alpha = np.arccos(np.clip(c / np.where(ok, rho, 1.0), -1.0, 1.0))
-            roots = [np.sin(np.mod(np.arctan2(B, A) + sg * alpha + np.pi, 2 * np.pi) - np.pi) for sg in (1.0, -1.0)]
-            lat_ok = [np.abs(np.mod(np.arctan2(B, A) + sg * alpha + np.pi, 2 * np.pi) - np.pi) <= np.pi / 2
-                      for sg in (1.0, -1.0)]
+            lats = [np.mod(np.arctan2(B, A) + sg * alpha + np.pi, 2 * np.pi) - np.pi for sg in (1.0, -1.0)]
+            roots, lat_ok = [np.sin(la) for la in lats], [np.abs(la) <= np.pi / 2 for la in lats]
         else:  # along a parallel: cos lat (u_x cos λ + u_y sin λ) = c - u_z sin lat
             cl = np.sqrt(np.clip(1.0 - fixed * fixed, 0.0, None))
             rho = cl * np.hypot(u[0], u[1])

@@ -106,11 +106,8 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     u2 = np.einsum("bkj,bj->bk", caps_u, e2)
     t_u = np.arctan2(np.hypot(u1, u2), ua)  # (B, k)
     phi_u = np.arctan2(u2, u1)
-    caps_c, split_only, t_u, phi_u, extra, tangent = _with_kink(kink, caps_c, split_only, t_u, phi_u, t_max)
-    if crossings:
-        cross = _boundary_crossings(axis, caps_u, caps_c[:, :caps_u.shape[1]])
-        extra = cross if extra is None else np.concatenate([extra, cross], axis=1)
-        tangent = None if tangent is None else np.concatenate([tangent, np.zeros(cross.shape, bool)], axis=1)
+    caps_c, split_only, t_u, phi_u, extra, tangent = _cuts(axis, caps_u, caps_c, split_only, t_u, phi_u, t_max,
+                                                           crossings, kink)
     t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent)
     st, ct = np.sin(t), np.cos(t)
     p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t), split_only)
@@ -166,6 +163,18 @@ def _with_kink(kink, caps_c, split_only, t_u, phi_u, t_max):
     return (np.concatenate([caps_c, [[2.0]]], axis=1), np.concatenate([split_only, [[True]]], axis=1),
             np.concatenate([t_u, t_u[:, :1]], axis=1), np.concatenate([phi_u, phi_u[:, :1]], axis=1),
             np.array([roots]).reshape(1, -1), np.array([flags], bool).reshape(1, -1))
+
+
+def _cuts(axis, caps_u, caps_c, split_only, t_u, phi_u, t_max, crossings: bool, kink):
+    """The caps with the kink appended (:func:`_with_kink`) and the extra t-cuts: the kink's
+    rings and, with ``crossings``, the rings where two caps' boundaries cross
+    (:func:`_boundary_crossings`), with their tangent flags."""
+    caps_c, split_only, t_u, phi_u, extra, tangent = _with_kink(kink, caps_c, split_only, t_u, phi_u, t_max)
+    if crossings:
+        cross = _boundary_crossings(axis, caps_u, caps_c[:, :caps_u.shape[1]])
+        extra = cross if extra is None else np.concatenate([extra, cross], axis=1)
+        tangent = None if tangent is None else np.concatenate([tangent, np.zeros(cross.shape, bool)], axis=1)
+    return caps_c, split_only, t_u, phi_u, extra, tangent
 
 
 def _ring_thresholds(caps_c, kink, t):
@@ -310,11 +319,7 @@ def _one_rule(axis, cos_max, caps_u, caps_c, split_only, phi_zero, crossings: bo
     t_max = np.arccos(np.clip(np.atleast_1d(np.asarray(cos_max, float)), -1.0, 1.0))
     ua, u1, u2 = (np.einsum("bkj,bj->bk", cu, v) for v in (ax, e1, e2))
     t_u, phi_u = np.arctan2(np.hypot(u1, u2), ua), np.arctan2(u2, u1)
-    cc, so, t_u, phi_u, extra, tangent = _with_kink(kink, cc, so, t_u, phi_u, t_max)
-    if crossings:
-        cross = _boundary_crossings(ax, cu, cc[:, :cu.shape[1]])
-        extra = cross if extra is None else np.concatenate([extra, cross], axis=1)
-        tangent = None if tangent is None else np.concatenate([tangent, np.zeros(cross.shape, bool)], axis=1)
+    cc, so, t_u, phi_u, extra, tangent = _cuts(ax, cu, cc, so, t_u, phi_u, t_max, crossings, kink)
     return ax, e1, e2, t_max, cc, so, t_u, phi_u, extra, tangent
 
 
