@@ -6,8 +6,9 @@ The lune rule on ``rolo-fit-map`` (its rough Hapke presets on the synthetic luna
 :mod:`lunarviz.geometry.mapped_lune`): for each lune order, the largest relative error of the
 moonshine and of the earthshine over the paper's scene (θ = 5-175° every 10°, lambert, shg and
 dhg, no occlusion) and its time per phase (one thread), against the same rule at order 48 with
-finer sums over the cells that the rule's edges cut (8 lines and points) and finer source rules
-(Sun order 3, Earth order 10). Both sides sum the whole cells by the same rectangle rule (its
+finer sums over the cells that the rule's edges cut (8 lines and points), every block at the full
+order (no thin blocks: ``mapped_lune.THIN_WIDTH``) and finer source rules (Sun order 3, Earth
+order 10). Both sides sum the whole cells by the same rectangle rule (its
 error, exact for cubics: ≤ 1e-6 against the plain lune rule for a constant map, tests). Writes the
 ``raytrace_lune_mapped`` section of ``lunarviz/data/error_models.json`` (the rest is kept) and
 ``benchmarks/error_models/mapped_lune.md``. Independent checks of the rule itself (a brute-force
@@ -32,20 +33,21 @@ ORDERS = (8, 12, 16, 20, 24, 32)
 SOURCE_ORDERS = {"sun_order": 2, "earth_order": 7}
 REFERENCE = {"lune_order": 48, "sun_order": 3, "earth_order": 10}
 REFERENCE_EDGE_NODES = 8
+#: the reference rule's own settings (mapped_lune_rule's keywords): finer cut-cell sums, full orders
+REFERENCE_RULE = {"edge_nodes": REFERENCE_EDGE_NODES, "thin": False}
 
 
-def _run(phases, base, brdfs, settings: dict, edge_nodes: int | None = None) -> dict:
+def _run(phases, base, brdfs, settings: dict, rule: dict | None = None) -> dict:
     """{(path, θ): (means, seconds, rays)} with the mapped lune rule at ``settings``."""
     from lunarviz.geometry import mapped_lune
     from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     saved = mapped_lune.mapped_lune_rule.__defaults__
-    if edge_nodes:  # the reference's finer sums over the cut cells (the other defaults kept)
+    if rule:  # the reference rule's keywords (the other defaults kept)
         import inspect
         names = [p for p, v in inspect.signature(mapped_lune.mapped_lune_rule).parameters.items()
                  if v.default is not inspect.Parameter.empty]
-        mapped_lune.mapped_lune_rule.__defaults__ = tuple(edge_nodes if n == "edge_nodes" else d
-                                                          for n, d in zip(names, saved))
+        mapped_lune.mapped_lune_rule.__defaults__ = tuple(rule.get(n, d) for n, d in zip(names, saved))
     try:
         out = {}
         for th in phases:
@@ -66,7 +68,7 @@ def measure(phases, orders) -> dict:
     st = lunarviz.Scene(phases=list(phases), moon_model="rolo-fit-map", brdfs=list(BRDFS)).settings("raytrace")
     brdfs = st.brdf_models()
     base = replace(st.trace_settings(threads=1), occlusion=False)
-    ref = _run(phases, base, brdfs, REFERENCE, REFERENCE_EDGE_NODES)
+    ref = _run(phases, base, brdfs, REFERENCE, REFERENCE_RULE)
     rows = {p: [] for p in PATHS}
     for o in orders:
         got = _run(phases, base, brdfs, {"lune_order": o, **SOURCE_ORDERS})
@@ -92,7 +94,8 @@ def main(argv=None) -> int:
              f"synthetic map), θ = {phases[0]:g}-{phases[-1]:g}° ({len(phases)} phases), {', '.join(BRDFS)}, no "
              f"occlusion; error against lune order {REFERENCE['lune_order']}, Sun order {REFERENCE['sun_order']}, "
              f"Earth "
-             f"order {REFERENCE['earth_order']}, {REFERENCE_EDGE_NODES} lines and points a piece in cut cells.",
+             f"order {REFERENCE['earth_order']}, {REFERENCE_EDGE_NODES} lines and points a piece in cut cells, "
+             f"every block at full order (no thin blocks).",
              "",
              "| path | lune order | source order | max relative error | rays per phase | seconds per phase |",
              "| --- | --- | --- | --- | --- | --- |"]

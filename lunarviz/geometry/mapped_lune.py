@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.geometry import quadrature_kernels
 from lunarviz.geometry.sphere_quadrature import (cap_rule, gauss_legendre, kink_threshold, rule_coordinates,
                                                  rule_segments)
 
@@ -44,7 +45,19 @@ from lunarviz.geometry.sphere_quadrature import (cap_rule, gauss_legendre, kink_
 ALBEDO_NODES = 8
 #: in the cells that a block's edge (terminator, limb, penumbra band, t-segment ring) crosses:
 #: Gauss lines, and points per piece of each line (:func:`_edge_cell_nodes`)
-EDGE_NODES = 4
+EDGE_NODES = 3
+#: blocks thinner than this [rad of arc] one way (t-segments between nearby tangent rings, the
+#: penumbra band's own segments, slivers) and the penumbra band's blocks across it take a
+#: quarter of the rule's order that way, at least THIN_ORDER (cap_rule's ``thin``): across 3° a
+#: smooth integrand needs no more, and the band holds ~ρ² ≈ 2e-5 of the Sun's path. They were
+#: half the nodes of an order-24 moonshine rule and most of its beams (the band's nodes take
+#: 72-512 beams each: the Sun partly below their horizon). Measured (tests/test_mapped_lune.py):
+#: ≤ 5e-7 against full orders for θ = 5-175°, converging with the order as the rest
+THIN_WIDTH = np.radians(3.0)
+THIN_ORDER = 6
+#: ... where such a block (or t-segment) holds under this share of the region's solid angle
+#: (a crescent near new Moon is thin as a whole and keeps its orders)
+THIN_SHARE = 0.05
 
 
 @dataclass
@@ -60,9 +73,7 @@ def lagrange_matrix(nodes: np.ndarray, points: np.ndarray) -> np.ndarray:
     """``L[p, i] = ℓ_i(points[p])``: the Lagrange basis of ``nodes`` at ``points`` (barycentric
     form; exact 1 where a point is a node)."""
     nodes, points = np.asarray(nodes, float), np.asarray(points, float)
-    diff = nodes[:, None] - nodes[None, :]
-    np.fill_diagonal(diff, 1.0)
-    bw = 1.0 / diff.prod(axis=1)
+    bw = quadrature_kernels.barycentric_weights(nodes)
     d = points[:, None] - nodes[None, :]
     hit = d == 0.0
     d = np.where(hit, 1.0, d)
@@ -102,7 +113,7 @@ def lune_caps(scene, source: np.ndarray, source_radius: float, kink: bool = Fals
 
 def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int, values: np.ndarray,
                      frame: np.ndarray, kink: bool = False, edge_nodes: int = EDGE_NODES,
-                     albedo_nodes: int = ALBEDO_NODES):
+                     albedo_nodes: int = ALBEDO_NODES, thin: bool = True):
     """Coarse nodes of the lune rule and the map's weights (module docstring).
 
     Parameters
@@ -115,6 +126,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     edge_nodes : in cells that a block's edge crosses, Gauss lines (of constant longitude or
         sin(lat)), each cut where it crosses a block's edge and given this many points per piece
         (:func:`_edge_cell_nodes`).
+    thin : thin blocks take fewer nodes (:data:`THIN_WIDTH`; False: ``order`` everywhere).
 
     Returns
     -------
@@ -122,11 +134,16 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     ``None`` where the blocks are not smooth patches (a ring's arc wraps; callers fall back).
     """
     axis, cmax, cu, cc, split, zero, kink = lune_caps(scene, source, source_radius, kink)
-    nc, wc = cap_rule(axis[None, :], [cmax], cu, cc, split, order, order, phi_zero=zero[None, :],
-                      crossings=True, structured=True, kink=kink)
+    nc, wc, (t_ord, p_ord) = cap_rule(axis[None, :], [cmax], cu, cc, split, order, order, phi_zero=zero[None, :],
+                                      crossings=True, structured=True, kink=kink,
+                                      thin=(THIN_WIDTH, max(THIN_ORDER, -(-order // 4)), THIN_SHARE) if thin
+                                      else (0.0, order, 0.0))
     S, n_iv = wc.shape[1] // order, wc.shape[2]
+    t_ord, p_ord = t_ord[0], p_ord[0]  # (S,), (S, n_iv): Gauss points per block in t and in φ
     wc = wc[0].reshape(S, order, n_iv, order)
-    if not np.array_equal((wc > 0).any(axis=(1, 3)), (wc > 0).all(axis=(1, 3))):
+    used = (np.arange(order)[None, :, None, None] < t_ord[:, None, None, None]) & \
+        (np.arange(order)[None, None, None, :] < p_ord[:, None, :, None])
+    if not np.array_equal((wc > 0).any(axis=(1, 3)), ((wc > 0) | ~used).all(axis=(1, 3))):
         return None  # a block is empty on some rings only: not one smooth patch
 
     def locate(d):  # map-frame unit vectors → block coordinates
@@ -142,7 +159,9 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     block = np.where(ins, seg * n_iv + itv, -1)
     # the cells' corners (grid vertices, each located once)
     corner_ids = _cell_corner_ids((h, w))[cells]  # (C, 4) into the (h + 1)·(w + 1) grid vertices
-    used = np.unique(corner_ids)
+    used = np.zeros((h + 1) * (w + 1), dtype=bool)
+    used[corner_ids] = True
+    used = np.flatnonzero(used)
     nv = (h + 1) * (w + 1)
     v_seg, v_itv, v_ut, v_up, v_in = (np.zeros(nv, a.dtype) for a in (seg, itv, ut, up, ins))
     for full, part in zip((v_seg, v_itv, v_ut, v_up, v_in), locate(_grid_vertices((h, w))[used])):
@@ -163,8 +182,9 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     # corners (1/12 each), exact for cubics like 2×2 Gauss points, with the corners shared by the
     # cells around them (their weights summed per vertex): ~2 located points a cell, not 5
     ell_cell = lagrange_matrix(vals, m_cell[whole]) * area[cells[whole]][:, None]
-    ell_v = np.zeros((nv, len(vals)))
-    np.add.at(ell_v, corner_ids[whole].ravel(), np.repeat(ell_cell / 12.0, 4, axis=0))
+    corners = corner_ids[whole].ravel()
+    ell_v = np.stack([np.bincount(corners, weights=np.repeat(ell_cell[:, q] / 12.0, 4), minlength=nv)
+                      for q in range(len(vals))], axis=1)
     vw = np.flatnonzero(ell_v.any(axis=1))
     parts = [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
              (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
@@ -176,13 +196,20 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     blk, u_t, u_p, ell = (np.concatenate(c) for c in zip(*parts))
     if blk.size and (blk.max() >= S * n_iv or (wc[:, 0, :, 0].ravel()[blk] == 0).any()):
         return None  # a point in a block the coarse rule does not have: the facets
-    g = gauss_legendre(order)[0]
     W = np.zeros((S, order, n_iv, order, len(vals)))
-    for b in np.unique(blk):
-        sel = blk == b
-        Lt, Lp = lagrange_matrix(g, u_t[sel]), lagrange_matrix(g, u_p[sel])
-        A = (Lt[:, :, None] * ell[sel][:, None, :]).reshape(len(Lt), -1)  # (P, order·Q)
-        W[b // n_iv, :, b % n_iv] = (A.T @ Lp).reshape(order, len(vals), order).transpose(0, 2, 1)  # one GEMM
+    srt = np.argsort(blk, kind="stable")  # the points of each block together, in their order
+    bounds = np.searchsorted(blk[srt], np.arange(S * n_iv + 1))
+    use_kernel = quadrature_kernels.available()
+    for b in np.flatnonzero(np.diff(bounds)):
+        sel = srt[bounds[b]:bounds[b + 1]]
+        mt, mp = int(t_ord[b // n_iv]), int(p_ord[b // n_iv, b % n_iv])
+        gt, gp = gauss_legendre(mt)[0], gauss_legendre(mp)[0]
+        if use_kernel:
+            A, Lp = quadrature_kernels.block_design(u_t[sel], u_p[sel], ell[sel], gt, gp)
+        else:
+            Lt, Lp = lagrange_matrix(gt, u_t[sel]), lagrange_matrix(gp, u_p[sel])
+            A = (Lt[:, :, None] * ell[sel][:, None, :]).reshape(len(Lt), -1)  # (P, mt·Q)
+        W[b // n_iv, :mt, b % n_iv, :mp] = (A.T @ Lp).reshape(mt, len(vals), mp).transpose(0, 2, 1)  # one GEMM
     keep = wc > 0
     nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
     R = scene.radii["moon"]
@@ -264,10 +291,12 @@ def _edges_near(shape, cells, circles, curve=None):
     half = np.radians(0.75 * max(180.0 / h, 360.0 / w))
     north, east = np.zeros(len(cells)), np.zeros(len(cells))
     hit = np.zeros(len(cells), dtype=bool)
+    cla, sla, clo, slo = np.cos(lat_c), np.sin(lat_c), np.cos(lon_c), np.sin(lon_c)
     for u, c in circles:
-        g = np.cos(lat_c) * (u[0] * np.cos(lon_c) + u[1] * np.sin(lon_c)) + np.sin(lat_c) * u[2]
-        gn = -np.sin(lat_c) * (u[0] * np.cos(lon_c) + u[1] * np.sin(lon_c)) + np.cos(lat_c) * u[2]
-        ge = -u[0] * np.sin(lon_c) + u[1] * np.cos(lon_c)
+        horizontal = u[0] * clo + u[1] * slo
+        g = cla * horizontal + sla * u[2]
+        gn = -sla * horizontal + cla * u[2]
+        ge = -u[0] * slo + u[1] * clo
         near = np.abs(g - c) <= half * np.hypot(gn, ge) + 1e-12
         hit |= near
         north += np.where(near, np.abs(gn), 0.0)
@@ -331,23 +360,25 @@ def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool, curve=None
         cross += _curve_crossings(_curve_value(curve), fixed, lo, hi, cut_mu)
     pts = np.stack([lo, hi, *cross], axis=-1)  # (C, k, 2 + 2·circles)
     pts = np.sort(np.where(np.isnan(pts), lo[..., None], pts), axis=-1)
-    a, b = pts[..., :-1], pts[..., 1:]  # pieces (C, k, m)
-    cut = a[..., None] + (b - a)[..., None] * g  # (C, k, m, k)
-    wt = (b - a)[..., None] * gw * fixed_w[:, :, None, None]
-    fx = np.broadcast_to(fixed[:, :, None, None], cut.shape)
+    a, b = pts[..., :-1], pts[..., 1:]  # pieces (C, k, m), most of them empty (no crossing)
     # pieces between two crossings of one circle met twice (a cap and the ring through it) are
     # ~1e-16 wide: their points sit on the circle, where a ring's intervals are degenerate
-    live = np.broadcast_to((b - a)[..., None] > 1e-9 * (hi - lo)[:, :, None, None], cut.shape)
-    mu, lon = (cut[live], fx[live]) if cut_mu else (fx[live], cut[live])
+    cell, line, piece = np.nonzero(b - a > 1e-9 * (hi - lo)[..., None])  # the live pieces, in order
+    a, b = a[cell, line, piece][:, None], b[cell, line, piece][:, None]
+    cut = (a + (b - a) * g).ravel()  # (live pieces · k) points along the lines
+    wt = ((b - a) * gw * fixed_w[cell, line][:, None]).ravel()
+    fx = np.repeat(fixed[cell, line], k)
+    mu, lon = (cut, fx) if cut_mu else (fx, cut)
     cl = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
-    owner = np.broadcast_to(np.arange(len(cells))[:, None, None, None], cut.shape)[live]
-    return np.stack([cl * np.cos(lon), cl * np.sin(lon), mu], axis=1), wt[live], owner
+    return np.stack([cl * np.cos(lon), cl * np.sin(lon), mu], axis=1), wt, np.repeat(cell, k)
 
 
-def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: int = 30) -> list:
+def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: int = 12) -> list:
     """Where each line (``fixed`` (C, k), running from ``lo`` to ``hi`` in μ or longitude) meets
-    ``F = 0``: a sign change between ``samples`` + 1 points, then bisection on those alone
-    (≤ one crossing per sub-interval; NaN where none; 30 halvings of a 1/8-cell step: ~1e-11)."""
+    ``F = 0``: a sign change between ``samples`` + 1 points, then the Illinois variant of regula
+    falsi on those alone (bracketing, superlinear: F is smooth across a 1/8-cell step, so 12
+    steps reach rounding where 30 halvings reached ~1e-11; ≤ one crossing per sub-interval;
+    NaN where none)."""
     def point(v, fx):
         mu, lon = np.broadcast_arrays(*((v, fx) if cut_mu else (fx, v)))
         c = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
@@ -359,11 +390,18 @@ def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: in
         root = np.full(fixed.shape, np.nan)
         idx = np.nonzero(np.sign(val[..., j]) * np.sign(val[..., j + 1]) < 0)
         a, b, fa, fx = edges[..., j][idx], edges[..., j + 1][idx], val[..., j][idx], fixed[idx]
+        fb, side = val[..., j + 1][idx], np.zeros(len(a))
         for _ in range(steps):
-            m = 0.5 * (a + b)
+            den = fb - fa
+            m = np.where(den != 0.0, (a * fb - b * fa) / np.where(den != 0.0, den, 1.0), 0.5 * (a + b))
+            m = np.where((m > a) & (m < b), m, 0.5 * (a + b))  # (a rounded secant: halve instead)
             fm = F(point(m, fx))
-            left = np.sign(fm) == np.sign(fa)
-            a, fa, b = np.where(left, m, a), np.where(left, fm, fa), np.where(left, b, m)
-        root[idx] = 0.5 * (a + b)
+            left = np.sign(fm) == np.sign(fa)  # the root lies in [m, b]
+            # Illinois: halve the value at an end kept twice in a row, so both ends converge
+            fb = np.where(left, np.where(side == 1, 0.5 * fb, fb), fm)
+            fa = np.where(left, fm, np.where(side == -1, 0.5 * fa, fa))
+            side = np.where(left, 1, -1)
+            a, b = np.where(left, m, a), np.where(left, b, m)
+        root[idx] = np.where(np.abs(fa) < np.abs(fb), a, b)
         out.append(root)
     return out

@@ -1,7 +1,14 @@
-"""Compiled :func:`lunarviz.geometry.sphere_quadrature.rule_coordinates`: one pass per point,
-the same arithmetic as the numpy path (its ring breakpoints, sorted; its interval midpoint test),
-so the same blocks and coordinates to rounding (tests/test_mapped_lune.py compares them).
-Used by the mapped lune rule, which locates ~10⁵ map points per path and date."""
+"""Compiled kernels of the mapped lune rule (:mod:`lunarviz.geometry.mapped_lune`), which
+locates ~10⁵ map points per path and date and sums them into each block's weights:
+
+* :func:`locate`, compiled :func:`lunarviz.geometry.sphere_quadrature.rule_coordinates`: one pass
+  per point, the same arithmetic as the numpy path (its ring breakpoints, sorted; its interval
+  midpoint test), so the same blocks and coordinates to rounding;
+* :func:`block_design`: a block's Lagrange rows in u_t and u_φ (barycentric form, as
+  :func:`lunarviz.geometry.mapped_lune.lagrange_matrix`) and their product with the points'
+  albedo-node factors, written once (numpy built three temporaries of that size).
+
+tests/test_mapped_lune.py compares both with their numpy paths."""
 
 from __future__ import annotations
 
@@ -101,9 +108,58 @@ def locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo, 
     return seg, itv, ut, up, ins
 
 
+def _lagrange_row(x, nodes, bw, out):
+    """``out[i] = ℓ_i(x)`` on ``nodes`` with barycentric weights ``bw`` (exactly 1 at a node)."""
+    n = len(nodes)
+    for i in range(n):
+        if x == nodes[i]:
+            for j in range(n):
+                out[j] = 0.0
+            out[i] = 1.0
+            return
+    total = 0.0
+    for i in range(n):
+        out[i] = bw[i] / (x - nodes[i])
+        total += out[i]
+    for i in range(n):
+        out[i] /= total
+
+
+def _block_design(u_t, u_p, ell, gt, bt, gp, bp, A, Lp):
+    mt, q = len(gt), ell.shape[1]
+    row = np.empty(mt)
+    for k in range(len(u_t)):
+        _lagrange_row(u_t[k], gt, bt, row)
+        for i in range(mt):
+            for j in range(q):
+                A[k, i * q + j] = row[i] * ell[k, j]
+        _lagrange_row(u_p[k], gp, bp, Lp[k])
+
+
+def barycentric_weights(nodes: np.ndarray) -> np.ndarray:
+    """``1/Π_{j≠i}(x_i - x_j)``: the barycentric weights of Lagrange interpolation on ``nodes``."""
+    diff = nodes[:, None] - nodes[None, :]
+    np.fill_diagonal(diff, 1.0)
+    return 1.0 / diff.prod(axis=1)
+
+
+def block_design(u_t, u_p, ell, gt, gp):
+    """``(A, Lp)`` of one block: ``A[k, i·Q + q] = ℓ_i(u_t[k]) ell[k, q]`` (P, mt·Q) on the
+    nodes ``gt`` and ``Lp[k, j] = ℓ_j(u_p[k])`` (P, mp) on ``gp``, so the block's weights are
+    ``A.T @ Lp`` (one GEMM)."""
+    P = len(u_t)
+    A, Lp = np.empty((P, len(gt) * ell.shape[1])), np.empty((P, len(gp)))
+    _block_design(np.ascontiguousarray(u_t, dtype=np.float64), np.ascontiguousarray(u_p, dtype=np.float64),
+                  np.ascontiguousarray(ell, dtype=np.float64), gt, barycentric_weights(gt), gp,
+                  barycentric_weights(gp), A, Lp)
+    return A, Lp
+
+
 _NUMBA = compiled.available()
 if _NUMBA:
     try:
         _locate = compiled.jit(_locate, nogil=True)
+        _lagrange_row = compiled.jit(_lagrange_row, nogil=True)
+        _block_design = compiled.jit(_block_design, nogil=True)
     except Exception:  # noqa: BLE001 (a numba that cannot compile: the numpy path)
         _NUMBA = False

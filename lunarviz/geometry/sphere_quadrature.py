@@ -58,7 +58,7 @@ def _gauss_legendre(n: int):
 
 def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int = 16,
              n_phi: int = 16, phi_zero=None, crossings: bool = False,
-             structured: bool = False, kink=None) -> tuple[np.ndarray, np.ndarray]:
+             structured: bool = False, kink=None, thin=None):
     """Nodes and solid-angle weights over ``{n·axis ≥ cos_max} ∩ caps``, for a batch.
 
     Parameters
@@ -81,10 +81,16 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
         a_d)`` (u_0 the first cap's direction; a curve, not a circle: its tangent and crossing
         rings are found numerically). About the detector, this is where the angles to a source
         at distance R/a_s along u_0 and to the detector at distance R/a_d are equal (i = e).
+    thin : ``(width, order, share)`` or None (with ``structured`` only): blocks narrower than
+        ``width`` [rad of arc] in t (a t-segment) or in φ (an interval's widest ring), and the
+        penumbra band's blocks across φ, that hold under ``share`` of the region's solid angle
+        (:func:`_thin_orders`), take ``order`` Gauss points that way instead of ``n_t``/``n_phi``;
+        their unused slots have zero weight.
 
     Returns
     -------
     nodes : (B, M, 3) unit vectors; weights : (B, M) solid angle [sr] (0 outside the region).
+    With ``thin``, also the orders ``(t_orders (B, S), phi_orders (B, S, I))`` actually used.
     """
     axis = np.asarray(axis, dtype=float)
     B = axis.shape[0]
@@ -108,10 +114,19 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     phi_u = np.arctan2(u2, u1)
     caps_c, split_only, t_u, phi_u, extra, tangent = _cuts(axis, caps_u, caps_c, split_only, t_u, phi_u, t_max,
                                                            crossings, kink)
-    t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent)
+    t_orders = None
+    if thin is not None:  # the blocks at full order first: their widths and shares of the region
+        t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent)
+        st, ct = np.sin(t), np.cos(t)
+        p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t), split_only)
+        t_orders, phi_orders = _thin_orders(t_u, caps_c, t_max, extra, tangent, st, ct, wt, phi_u, split_only, kink,
+                                            p_lo, p_hi, inside, n_t, n_phi, thin)
+    t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent, t_orders)
     st, ct = np.sin(t), np.cos(t)
     p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t), split_only)
     fx, fw = gauss_legendre(n_phi)
+    if thin is not None:
+        fx, fw = _padded_gauss(n_phi, np.repeat(phi_orders, n_t, axis=1))  # (B, R, I, n_phi)
     phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
     wphi = ((p_hi - p_lo) * inside)[..., None] * fw
     w = wt[:, :, None, None] * wphi
@@ -120,9 +135,52 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     nodes = (ct[:, :, None, None, None] * axis[:, None, None, None, :]
              + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
                                  + sphi[..., None] * e2[:, None, None, None, :]))
+    if thin is not None:
+        return nodes, w, (t_orders, phi_orders)
     if structured:
         return nodes, w
     return nodes.reshape(B, -1, 3), w.reshape(B, -1)
+
+
+def _padded_gauss(n: int, orders: np.ndarray):
+    """Gauss-Legendre nodes and weights on [0, 1] of ``orders`` (any shape, each ≤ n) in n slots
+    (..., n): the unused slots at the node 1/2 with weight 0."""
+    table_x, table_w = np.full((n + 1, n), 0.5), np.zeros((n + 1, n))
+    for m in np.unique(orders):
+        table_x[m, :m], table_w[m, :m] = gauss_legendre(int(m))
+    return table_x[orders], table_w[orders]
+
+
+def _thin_orders(t_u, caps_c, t_max, extra, tangent, st, ct, wt, phi_u, split_only, kink, p_lo, p_hi, inside,
+                 n_t: int, n_phi: int, thin):
+    """Gauss orders of :func:`cap_rule`'s blocks, from its full-order rings and intervals: in t
+    (B, S), ``thin[1]`` for a t-segment narrower than ``thin[0]`` [rad]; across φ (B, S, I),
+    ``thin[1]`` for a block whose widest ring's arc is under ``thin[0]`` or that lies in a
+    penumbra band (its middle node outside a split-only cap that is not the kink: the source
+    partly below the horizon, so the integrand is O(ρ); its profile across the band is smooth
+    inside, with (·)^{3/2} ends); ``n_t``/``n_phi`` otherwise. Only where the segment or block
+    holds under ``thin[2]`` of the region's solid angle: a region that is thin as a whole (a
+    crescent near new Moon) keeps its orders, as its integrand varies across it."""
+    B, R, n_iv = p_lo.shape
+    S = R // n_t
+    width, order, share_max = thin
+    area = (wt[..., None] * (p_hi - p_lo) * inside).reshape(B, S, n_t, n_iv).sum(axis=2)  # (B, S, I) [sr]
+    share = area / np.maximum(area.sum(axis=(1, 2), keepdims=True), 1e-300)
+    t_lo, t_hi, _, _ = t_segments(t_u, caps_c, t_max, extra, tangent)
+    t_orders = np.where((t_hi - t_lo < width) & (share.sum(axis=2) < share_max), min(order, n_t), n_t)
+    arc = ((p_hi - p_lo) * st[..., None]).reshape(B, S, n_t, n_iv).max(axis=2)
+    band = np.zeros((B, S, n_iv), dtype=bool)
+    thr = _ring_thresholds(caps_c, kink, np.arccos(np.clip(ct, -1.0, 1.0)))
+    pm = 0.5 * (p_lo + p_hi)
+    stu, ctu = np.sin(t_u)[:, None, :], np.cos(t_u)[:, None, :]
+    for j in range(caps_c.shape[1]):
+        if not split_only[:, j].any() or (kink is not None and j == caps_c.shape[1] - 1):
+            continue
+        ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + st[:, :, None] * stu[:, :, j:j + 1] * \
+            np.cos(pm - phi_u[:, None, j:j + 1])
+        below = (ndotu < thr[:, :, j:j + 1]) & split_only[:, None, j:j + 1]
+        band |= below.reshape(B, S, n_t, n_iv)[:, :, n_t // 2]
+    return t_orders, np.where(((arc < width) | band) & (share < share_max), min(order, n_phi), n_phi)
 
 
 def kink_threshold(t, a_s: float, a_d: float):
@@ -245,9 +303,10 @@ def t_segments(t_u, caps_c, t_max, extra=None, tangent=None):
     return t_lo, t_hi, np.take_along_axis(s_lo, sel, 1), np.take_along_axis(s_hi, sel, 1)
 
 
-def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None):
+def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None, orders=None):
     """Polar rings t (B, R) of :func:`cap_rule` and their weights ``dt·sin t`` (B, R): Gauss
-    segments between the polar radii where a ring becomes tangent to a cap boundary."""
+    segments between the polar radii where a ring becomes tangent to a cap boundary (``orders``
+    (B, S) ≤ n_t points in a segment, the rest of its n_t rings weightless; default n_t)."""
     B = t_u.shape[0]
     t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
     s_lo, s_hi = s_lo[:, :, None], s_hi[:, :, None]
@@ -255,7 +314,7 @@ def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None):
     # integral has a square-root singularity there; the substitution t - t* ∝ u² at such ends
     # (smoothstep 3u² - 2u³ when both ends are tangent) makes it analytic in u. Ends that are
     # not tangent keep plain Gauss-Legendre (exact for polynomials of degree 2n - 1).
-    u, gw = gauss_legendre(n_t)
+    u, gw = gauss_legendre(n_t) if orders is None else _padded_gauss(n_t, orders)
     f_both, j_both = u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u)
     f_lo, j_lo = u * u, 2.0 * u
     f_hi, j_hi = 1.0 - (1.0 - u) ** 2, 2.0 * (1.0 - u)
