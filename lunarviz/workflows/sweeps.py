@@ -628,7 +628,7 @@ def run_sweep(settings: SweepSettings, workers: int | None = None, progress: boo
         if not settings.times:
             order.sort(key=lambda i: abs(float(phases[i]) - 180.0))  # (θ in [0, 360]: both crescents)
         results = [None] * len(phases)
-        ex = ProcessPoolExecutor(workers, initializer=_default_sigterm)
+        ex = ProcessPoolExecutor(workers, initializer=_worker_init)
         # dates go to the workers in runs of consecutive times (one message per run, and each
         # worker's caches serve neighbouring dates); phases one by one, costliest first
         chunk = 1 if not settings.times else max(1, min(32, len(phases) // (workers * 8)))
@@ -664,10 +664,16 @@ def _quiet_pool_teardown() -> None:
     threading.excepthook = hook
 
 
-def _default_sigterm() -> None:
-    """In a worker: SIGTERM ends it at once, silently (the parent ends its workers that way)."""
+def _worker_init() -> None:
+    """In a worker: SIGTERM ends it at once, silently (the parent ends its workers that way), and
+    BLAS runs on one thread: each worker is one of ``cpu_count`` single-threaded processes, and
+    OpenBLAS's own threads (one per core by default) fought the other workers for the cores (a
+    mapped Moon's dates, whose weights are GEMMs: 1.47 s a date on 2 workers, 0.94 s with one
+    BLAS thread each; ``benchmarks/speed``)."""
     import signal
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(1)
 
 
 def _warm_before_fork(settings: SweepSettings) -> None:
