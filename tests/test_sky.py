@@ -382,3 +382,32 @@ def test_moon_shadow_on_the_earth_matches_disc_overlap():
     assert sel.sum() > 1000
     err = np.abs(vis[sel] - expect[sel])
     assert err.mean() < 5e-3 and err.max() < 0.04
+
+
+def test_earth_limb_check_never_skips_a_limb_across_the_moon():
+    """From a 550 km orbit the facets' hidden-view edges are traced only where the Earth's disc
+    may cover part of the Moon's (``earth_may_hide_moon``, a conservative test on the bounding
+    spheres). Around a moonset and a moonrise behind the Earth (2026-01-01 ~04:00 and ~04:21),
+    every 10 s: wherever the test says no, tracing the edges anyway finds none; the traced edges
+    do appear in the scan (so the comparison can fail), and visible dates skip the tracing."""
+    import datetime as dt
+    from lunarviz.methods.tracer.estimators import TraceScene
+    s = SweepSettings(times=("2026-01-01T00:00:00Z",), brdfs=("dhg",), method="raytrace", moon_model="rolo-fit-map",
+                      rtol=1e-4, observer="orbit:550,97.6,0,0")
+    ts_set = s.trace_settings(1, s.trace_plan())
+    found_any, skipped = False, 0
+    for start in (dt.datetime(2026, 1, 1, 3, 59, 0), dt.datetime(2026, 1, 1, 4, 20, 30)):
+        for k in range(12):
+            sc, _ = s.scene_and_fields((start + dt.timedelta(seconds=10 * k)).strftime("%Y-%m-%dT%H:%M:%SZ"))
+            if sc.moon_wholly_hidden():
+                continue
+            ts = TraceScene(sc, ts_set)
+            edges = ts._shadow_edges(ts.candidates("sun"), ts._source("sun")[0])
+            found_any |= edges.size > 0
+            if not ts.earth_may_hide_moon():
+                skipped += 1
+                assert edges.size == 0
+    assert found_any and skipped > 0
+    sc, _ = s.scene_and_fields("2026-01-01T02:00:00Z")
+    ts = TraceScene(sc, ts_set)
+    assert not ts.earth_may_hide_moon() and ts.lune_rule_applies("sun") and "sun" not in ts._edge_cache

@@ -226,11 +226,24 @@ class LunarSampling:
     def _edge_tests(self, body: str) -> bool:
         """Whether a cast-shadow or hidden-view edge can cross the lit, visible Moon: the Moon
         shadows itself, the Earth may shade it (moonshine, where an eclipse is possible:
-        :meth:`eclipse_possible`), or the detector is outside the Earth or on the ground
+        :meth:`eclipse_possible`), the detector is on the ground, or it is outside the Earth and
+        the Earth's disc may cover part of the Moon's (:meth:`earth_may_hide_moon`)
         (:meth:`candidates` then traces the edges)."""
         sc = self.scene
-        hidden_view = not sc.detector_inside("earth") or sc.horizon_normal is not None
+        hidden_view = (not sc.detector_inside("earth") and self.earth_may_hide_moon()) or sc.horizon_normal is not None
         return self._self_shadows() or (body == "sun" and self.eclipse_possible()) or hidden_view
+
+    def earth_may_hide_moon(self) -> bool:
+        """From a detector outside the Earth, whether the Earth's disc may cover some of the
+        Moon's: their bounding spheres' angular radii, grown by 0.1 %, against the angle between
+        their centres (with a 0.1 % margin). Conservative: false only where no sight line from
+        the Moon to the detector can meet the Earth, so no hidden-view edge needs tracing (from
+        a 550 km orbit: all dates but those within ~0.3° of moonrise or moonset behind the Earth)."""
+        sc = self.scene
+        v, w = sc.moon - sc.det, sc.earth - sc.det
+        reach = np.arcsin(min(1.0, self.moon.bound * (1 + 1e-3) / np.linalg.norm(v))) \
+            + np.arcsin(min(1.0, self.earth.bound * (1 + 1e-3) / np.linalg.norm(w)))
+        return bool(angle_between(v, w) < reach * (1 + 1e-3))
 
     def lune_samples(self, body: str):
         """Lunar samples of the lune rule: product Gauss rules over the part of the exact sphere
