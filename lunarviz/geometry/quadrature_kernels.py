@@ -31,6 +31,7 @@ def _locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo,
     k = caps_c.shape[0]
     S = t_lo.shape[0]
     br = np.empty(2 * k + 2)
+    stu, ctu = np.sin(t_u), np.cos(t_u)  # (the same values the numpy path takes, once)
     for i in range(p.shape[0]):
         in_out[i] = False
         ct = p[i, 0] * axis[0] + p[i, 1] * axis[1] + p[i, 2] * axis[2]
@@ -57,8 +58,8 @@ def _locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo,
         br[0] = 0.0
         br[1] = two_pi
         for j in range(k):
-            den = st * np.sin(t_u[j])
-            num = (kink_c[i] if j == kink_j else caps_c[j]) - ctt * np.cos(t_u[j])
+            den = st * stu[j]
+            num = (kink_c[i] if j == kink_j else caps_c[j]) - ctt * ctu[j]
             if abs(den) > 1e-300:
                 q = num / den
             else:
@@ -81,7 +82,7 @@ def _locate(p, axis, e1, e2, t_max, t_u, phi_u, caps_c, split, t_lo, t_hi, s_lo,
             for j in range(k):
                 if split[j]:
                     continue
-                ndotu = ctt * np.cos(t_u[j]) + st * np.sin(t_u[j]) * np.cos(pm - phi_u[j])
+                ndotu = ctt * ctu[j] + st * stu[j] * np.cos(pm - phi_u[j])
                 if not ndotu > caps_c[j]:
                     ok = False
                     break
