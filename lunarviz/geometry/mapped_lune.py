@@ -196,7 +196,19 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     blk, u_t, u_p, ell = (np.concatenate(c) for c in zip(*parts))
     if blk.size and (blk.max() >= S * n_iv or (wc[:, 0, :, 0].ravel()[blk] == 0).any()):
         return None  # a point in a block the coarse rule does not have: the facets
-    W = np.zeros((S, order, n_iv, order, len(vals)))
+    W = _block_weights(blk, u_t, u_p, ell, (S, order, n_iv), t_ord, p_ord)
+    keep = wc > 0
+    nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
+    R = scene.radii["moon"]
+    return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=vals, factors=W[keep] / wc[keep][:, None])
+
+
+def _block_weights(blk, u_t, u_p, ell, shape, t_ord, p_ord) -> np.ndarray:
+    """``W`` (S, order, n_iv, order, Q): each block's ``Σ_p ℓ_i(u_t,p) ℓ_j(u_φ,p) ell[p, q]`` over
+    the points ``blk`` places in it, on its own Gauss orders (``t_ord`` (S,), ``p_ord`` (S, n_iv);
+    the unused slots stay 0): one GEMM per block."""
+    S, order, n_iv = shape
+    W = np.zeros((S, order, n_iv, order, ell.shape[1]))
     srt = np.argsort(blk, kind="stable")  # the points of each block together, in their order
     bounds = np.searchsorted(blk[srt], np.arange(S * n_iv + 1))
     use_kernel = quadrature_kernels.available()
@@ -209,11 +221,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         else:
             Lt, Lp = lagrange_matrix(gt, u_t[sel]), lagrange_matrix(gp, u_p[sel])
             A = (Lt[:, :, None] * ell[sel][:, None, :]).reshape(len(Lt), -1)  # (P, mt·Q)
-        W[b // n_iv, :mt, b % n_iv, :mp] = (A.T @ Lp).reshape(mt, len(vals), mp).transpose(0, 2, 1)  # one GEMM
-    keep = wc > 0
-    nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
-    R = scene.radii["moon"]
-    return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=vals, factors=W[keep] / wc[keep][:, None])
+        W[b // n_iv, :mt, b % n_iv, :mp] = (A.T @ Lp).reshape(mt, ell.shape[1], mp).transpose(0, 2, 1)
+    return W
 
 
 @functools.lru_cache(maxsize=4)
