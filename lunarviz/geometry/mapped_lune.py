@@ -44,7 +44,9 @@ from lunarviz.geometry.sphere_quadrature import (cap_rule, gauss_legendre, kink_
 #: 6 by 3e-6, 8 by 5e-8 against 10; the error falls ~100x per 2 nodes)
 ALBEDO_NODES = 8
 #: in the cells that a block's edge (terminator, limb, penumbra band, t-segment ring) crosses:
-#: Gauss lines, and points per piece of each line (:func:`_edge_cell_nodes`)
+#: Gauss lines, and points per piece of each line (:func:`_edge_cell_nodes`): 3 against 8 differ
+#: by ≤ 4e-8 for θ ≤ 120° and up to 1e-6 at θ = 175° (4: 4.4e-7 there), far under the rule's
+#: own error at the orders ``--rtol`` takes (benchmarks/error_models/mapped_lune.md)
 EDGE_NODES = 3
 #: blocks thinner than this [rad of arc] one way (t-segments between nearby tangent rings, the
 #: penumbra band's own segments, slivers) and the penumbra band's blocks across it take a
@@ -52,12 +54,13 @@ EDGE_NODES = 3
 #: smooth integrand needs no more, and the band holds ~ρ² ≈ 2e-5 of the Sun's path. They were
 #: half the nodes of an order-24 moonshine rule and most of its beams (the band's nodes take
 #: 72-512 beams each: the Sun partly below their horizon). Measured (tests/test_mapped_lune.py):
-#: ≤ 5e-7 against full orders for θ = 5-175°, converging with the order as the rest
+#: ≤ 1e-7 against full orders for θ = 5-176° (orders 16-32)
 THIN_WIDTH = np.radians(3.0)
 THIN_ORDER = 6
 #: ... where such a block (or t-segment) holds under this share of the region's solid angle
-#: (a crescent near new Moon is thin as a whole and keeps its orders)
-THIN_SHARE = 0.05
+#: (a crescent near new Moon is thin as a whole and keeps its orders; at 5 % the band's blocks
+#: of θ = 172-175° crescents were thinned and erred by up to 1.9e-6, not converging)
+THIN_SHARE = 0.01
 
 
 @dataclass

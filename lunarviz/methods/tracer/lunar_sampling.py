@@ -241,6 +241,8 @@ class LunarSampling:
         a 550 km orbit: all dates but those within ~0.3° of moonrise or moonset behind the Earth)."""
         sc = self.scene
         v, w = sc.moon - sc.det, sc.earth - sc.det
+        if np.linalg.norm(w) <= self.earth.bound * (1 + 1e-3):  # within the mesh's bounding sphere: any way
+            return True
         reach = np.arcsin(min(1.0, self.moon.bound * (1 + 1e-3) / np.linalg.norm(v))) \
             + np.arcsin(min(1.0, self.earth.bound * (1 + 1e-3) / np.linalg.norm(w)))
         return bool(angle_between(v, w) < reach * (1 + 1e-3))
