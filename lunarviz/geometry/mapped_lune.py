@@ -144,9 +144,9 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     S, n_iv = wc.shape[1] // order, wc.shape[2]
     t_ord, p_ord = t_ord[0], p_ord[0]  # (S,), (S, n_iv): Gauss points per block in t and in φ
     wc = wc[0].reshape(S, order, n_iv, order)
-    used = (np.arange(order)[None, :, None, None] < t_ord[:, None, None, None]) & \
-        (np.arange(order)[None, None, None, :] < p_ord[:, None, :, None])
-    if not np.array_equal((wc > 0).any(axis=(1, 3)), ((wc > 0) | ~used).all(axis=(1, 3))):
+    slots = (np.arange(order)[None, :, None, None] < t_ord[:, None, None, None]) & \
+        (np.arange(order)[None, None, None, :] < p_ord[:, None, :, None])  # each block's own Gauss points
+    if not np.array_equal((wc > 0).any(axis=(1, 3)), ((wc > 0) | ~slots).all(axis=(1, 3))):
         return None  # a block is empty on some rings only: not one smooth patch
 
     def locate(d):  # map-frame unit vectors → block coordinates

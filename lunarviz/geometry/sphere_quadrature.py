@@ -117,9 +117,9 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     t_orders = None
     if thin is not None:  # the blocks at full order first: their widths and shares of the region
         t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent)
-        st, ct = np.sin(t), np.cos(t)
-        p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t), split_only)
-        t_orders, phi_orders = _thin_orders(t_u, caps_c, t_max, extra, tangent, st, ct, wt, phi_u, split_only, kink,
+        p_lo, p_hi, inside = _ring_intervals(np.sin(t), np.cos(t), t_u, phi_u, _ring_thresholds(caps_c, kink, t),
+                                             split_only)
+        t_orders, phi_orders = _thin_orders(t_u, caps_c, t_max, extra, tangent, t, wt, phi_u, split_only, kink,
                                             p_lo, p_hi, inside, n_t, n_phi, thin)
     t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent, t_orders)
     st, ct = np.sin(t), np.cos(t)
@@ -142,6 +142,13 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     return nodes.reshape(B, -1, 3), w.reshape(B, -1)
 
 
+def _cap_dot(st, ct, t_u, phi_u, phi, j: int):
+    """``n·u_j`` (B, R, I) for cap j at the rings' polar angles (``st``, ``ct`` (B, R)) and
+    azimuths ``phi`` (B, R, I) about the rule's axis (``t_u``, ``phi_u`` (B, k): the caps' own)."""
+    return ct[:, :, None] * np.cos(t_u)[:, None, j:j + 1] + \
+        st[:, :, None] * np.sin(t_u)[:, None, j:j + 1] * np.cos(phi - phi_u[:, None, j:j + 1])
+
+
 def _padded_gauss(n: int, orders: np.ndarray):
     """Gauss-Legendre nodes and weights on [0, 1] of ``orders`` (any shape, each ≤ n) in n slots
     (..., n): the unused slots at the node 1/2 with weight 0."""
@@ -151,7 +158,7 @@ def _padded_gauss(n: int, orders: np.ndarray):
     return table_x[orders], table_w[orders]
 
 
-def _thin_orders(t_u, caps_c, t_max, extra, tangent, st, ct, wt, phi_u, split_only, kink, p_lo, p_hi, inside,
+def _thin_orders(t_u, caps_c, t_max, extra, tangent, t, wt, phi_u, split_only, kink, p_lo, p_hi, inside,
                  n_t: int, n_phi: int, thin):
     """Gauss orders of :func:`cap_rule`'s blocks, from its full-order rings and intervals: in t
     (B, S), ``thin[1]`` for a t-segment narrower than ``thin[0]`` [rad]; across φ (B, S, I),
@@ -163,6 +170,7 @@ def _thin_orders(t_u, caps_c, t_max, extra, tangent, st, ct, wt, phi_u, split_on
     crescent near new Moon) keeps its orders, as its integrand varies across it."""
     B, R, n_iv = p_lo.shape
     S = R // n_t
+    st, ct = np.sin(t), np.cos(t)
     width, order, share_max = thin
     area = (wt[..., None] * (p_hi - p_lo) * inside).reshape(B, S, n_t, n_iv).sum(axis=2)  # (B, S, I) [sr]
     share = area / np.maximum(area.sum(axis=(1, 2), keepdims=True), 1e-300)
@@ -170,15 +178,12 @@ def _thin_orders(t_u, caps_c, t_max, extra, tangent, st, ct, wt, phi_u, split_on
     t_orders = np.where((t_hi - t_lo < width) & (share.sum(axis=2) < share_max), min(order, n_t), n_t)
     arc = ((p_hi - p_lo) * st[..., None]).reshape(B, S, n_t, n_iv).max(axis=2)
     band = np.zeros((B, S, n_iv), dtype=bool)
-    thr = _ring_thresholds(caps_c, kink, np.arccos(np.clip(ct, -1.0, 1.0)))
+    thr = _ring_thresholds(caps_c, kink, t)
     pm = 0.5 * (p_lo + p_hi)
-    stu, ctu = np.sin(t_u)[:, None, :], np.cos(t_u)[:, None, :]
     for j in range(caps_c.shape[1]):
         if not split_only[:, j].any() or (kink is not None and j == caps_c.shape[1] - 1):
             continue
-        ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + st[:, :, None] * stu[:, :, j:j + 1] * \
-            np.cos(pm - phi_u[:, None, j:j + 1])
-        below = (ndotu < thr[:, :, j:j + 1]) & split_only[:, None, j:j + 1]
+        below = (_cap_dot(st, ct, t_u, phi_u, pm, j) < thr[:, :, j:j + 1]) & split_only[:, None, j:j + 1]
         band |= below.reshape(B, S, n_t, n_iv)[:, :, n_t // 2]
     return t_orders, np.where(((arc < width) | band) & (share < share_max), min(order, n_phi), n_phi)
 
@@ -356,10 +361,7 @@ def _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only):
     pm = 0.5 * (p_lo + p_hi)
     inside = np.ones(pm.shape, dtype=bool)
     for j in range(k):
-        ndotu = ct[:, :, None] * ctu[:, :, j:j + 1] + \
-            st[:, :, None] * stu[:, :, j:j + 1] * np.cos(pm - pu[:, :, j:j + 1])
-        ok = ndotu > cr[:, :, j:j + 1]
-        inside &= ok | split_only[:, None, j:j + 1]
+        inside &= (_cap_dot(st, ct, t_u, phi_u, pm, j) > cr[:, :, j:j + 1]) | split_only[:, None, j:j + 1]
     # keep only intervals that are inside somewhere (and non-empty)
     inside &= p_hi > p_lo
     keep = max(int(inside.sum(2).max(initial=0)), 1)
