@@ -38,8 +38,9 @@ def memoize(maxsize: int):
 
 
 class BoundedCache:
-    """An insertion-ordered mapping of at most ``maxsize`` entries (the oldest is dropped
-    first), registered for :func:`release_caches`."""
+    """A mapping of at most ``maxsize`` entries, the least recently used dropped first (a dated
+    sweep adds a turned Moon at every date: dropping the oldest instead evicted the Sun and the
+    Earth, used at every date too, every few dates), registered for :func:`release_caches`."""
 
     def __init__(self, maxsize: int):
         self.maxsize = maxsize
@@ -47,7 +48,15 @@ class BoundedCache:
         _CLEARERS.append(self._data.clear)
 
     def get(self, key, default=None):
-        return self._data.get(key, default)
+        try:
+            value = self._data[key]
+        except KeyError:
+            return default
+        try:
+            self._data.move_to_end(key)
+        except KeyError:  # (dropped meanwhile by another thread: the value is still good)
+            pass
+        return value
 
     def __contains__(self, key) -> bool:
         return key in self._data

@@ -7,8 +7,9 @@ The lune rule on ``rolo-fit-map`` (its rough Hapke presets on the synthetic luna
 moonshine and of the earthshine over the paper's scene (θ = 5-175° every 10°, lambert, shg and
 dhg, no occlusion) and its time per phase (one thread), against the same rule at order 48 with
 finer sums over the cells that the rule's edges cut (8 lines and points), every block at the full
-order (no thin blocks: ``mapped_lune.THIN_WIDTH``) and finer source rules (Sun order 3, Earth
-order 10). Both sides sum the whole cells by the same rectangle rule (its
+order (no thin blocks: ``mapped_lune.THIN_WIDTH``), every whole cell by its own rule (no
+panels: ``mapped_lune.PANEL_CELLS``) and finer source rules (Sun order 3, Earth
+order 10). Both sides sum the whole cells outside panels by the same rectangle rule (its
 error, exact for cubics: ≤ 1e-6 against the plain lune rule for a constant map, tests). Writes the
 ``raytrace_lune_mapped`` section of ``lunarviz/data/error_models.json`` (the rest is kept) and
 ``benchmarks/error_models/mapped_lune.md``. Independent checks of the rule itself (a brute-force
@@ -34,7 +35,7 @@ SOURCE_ORDERS = {"sun_order": 2, "earth_order": 7}
 REFERENCE = {"lune_order": 48, "sun_order": 3, "earth_order": 10}
 REFERENCE_EDGE_NODES = 8
 #: the reference rule's own settings (mapped_lune_rule's keywords): finer cut-cell sums, full orders
-REFERENCE_RULE = {"edge_nodes": REFERENCE_EDGE_NODES, "thin": False}
+REFERENCE_RULE = {"edge_nodes": REFERENCE_EDGE_NODES, "thin": False, "panels": False}
 
 
 def _run(phases, base, brdfs, settings: dict, rule: dict | None = None) -> dict:

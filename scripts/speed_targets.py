@@ -79,18 +79,28 @@ def paper_sweep(out: Path, quick: bool) -> dict:
     return {"phases": phases, "checked_phases_deg": checked, "independent_reference_s": ref_s, "rows": rows}
 
 
-def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days: int = 365) -> dict:
+def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days: int = 365, every: int = 1) -> dict:
+    """Hourly dates of ``days`` days of 2026 from the issue's orbit; with ``every`` > 1 only every
+    ``every``-th of those days (all its hours: a sample spread over the Moon's phases and the
+    seasons, where the first days alone sit at one phase)."""
     from lunarviz.caches import release_caches
     from lunarviz.workflows import sweeps
     from lunarviz.workflows.sweeps import SweepSettings, run_phase
     import datetime as dt
     last = dt.date(2026, 1, 1) + dt.timedelta(days=(1 if quick else days) - 1)
-    rng_range = f"2026-01-01T00:00,{last.isoformat()}T23:00,1h"
     opts = ["--method", "raytrace", "--brdf", "dhg", "--moon-model", moon_model, "--rtol", "1e-4",
             "--observer", "orbit:550,97.6,0,0"]
+    if every > 1 and not quick:
+        t0 = dt.datetime(2026, 1, 1)
+        stamps = [t0 + dt.timedelta(days=d, hours=h) for d in range(0, days, every) for h in range(24)]
+        when = ["--time", ",".join(t.strftime("%Y-%m-%dT%H:%M") for t in stamps)]
+        rng_range = f"every hour of one day in {every} of 2026 (days 1, {1 + every}, {1 + 2 * every}, ...)"
+    else:
+        rng_range = f"2026-01-01T00:00,{last.isoformat()}T23:00,1h"
+        when = ["--time-range", rng_range]
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "year.json"
-        wall = lunarviz("sweep", *opts, "--time-range", rng_range, "--quiet", "--out", str(f))
+        wall = lunarviz("sweep", *opts, *when, "--quiet", "--out", str(f))
         res = json.loads(f.read_text())
     rows = res["rows"]
     times = [r["time_utc"] for r in rows]
@@ -160,7 +170,9 @@ def report(res: dict, out: Path) -> None:
         if not y:
             continue
         lines += [f"## Dates in bulk ({y['dates']} dates)", "",
-                  f"`lunarviz sweep {' '.join(y['options'])} --time-range {y['time_range']}`: "
+                  f"`lunarviz sweep {' '.join(y['options'])} "
+                  + (f"--time-range {y['time_range']}`: " if y["time_range"][0].isdigit()
+                     else f"--time T1,T2,...` at {y['time_range']}: ") +
                   f"{y['dates']} dates in {y['wall_s']:.0f} s ({1e3 * y['seconds_per_date']:.0f} ms a date, "
                   f"{8760 * y['seconds_per_date'] / 60:.0f} min for 8,760; the Moon's centre hidden by the Earth at "
                   f"{y['moon_centre_occulted']} dates). Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e} "
@@ -188,6 +200,8 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-paper", action="store_true")
     ap.add_argument("--skip-paper-year", action="store_true", help="keep the year with the paper's DHG as it is")
     ap.add_argument("--mapped-days", type=int, default=365, help="days of the mapped Moon's hourly dates")
+    ap.add_argument("--mapped-every", type=int, default=1,
+                    help="the mapped Moon's dates on one day in this many (all its hours; default every day)")
     ap.add_argument("--skip-sweep", action="store_true")
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
@@ -199,7 +213,8 @@ def main(argv=None) -> int:
     if not a.skip_sweep:
         res["paper_sweep"] = paper_sweep(out, a.quick)
     if not a.skip_year:  # the issue's command (a mapped, rough Moon); the same year with the paper's DHG
-        res["year_mapped_moon"] = year_of_dates(out, a.quick, "rolo-fit-map", days=a.mapped_days)
+        res["year_mapped_moon"] = year_of_dates(out, a.quick, "rolo-fit-map", days=a.mapped_days,
+                                                every=a.mapped_every)
         if not a.skip_paper_year:
             res["year"] = year_of_dates(out, a.quick, "paper", days=365)
     if not a.skip_paper:

@@ -17,20 +17,24 @@ So ``I ≈ Σ_ij Σ_q r(m_q; g(x_ij)) W_ij^q`` with ``W_ij^q = ∫ ℓ_i(u_t) �
 the coarse nodes are traced once and shaded at the Q map values; the map enters only the
 weights. They are summed over the map's own cells in (sin lat, lon), where the area element is
 exact and the map constant (no aliasing of the cells' edges), each point placed in its block by
-:func:`~lunarviz.geometry.sphere_quadrature.rule_coordinates`: whole cells by their centre and
-corners (exact for cubics; corners shared); cells that a block edge crosses or passes near
+:func:`~lunarviz.geometry.sphere_quadrature.rule_coordinates`: whole panels of cells that no
+block edge comes near by a body-fixed rule whose weights against the cells are summed once per
+map (:func:`_panel_rule`); other whole cells by their centre and corners (exact for cubics;
+corners shared); cells that a block edge crosses or passes near
 (terminator, limb, penumbra band, t-rings, the kink) along lines cut at every edge (closed form
 for circles, bisection for the kink) with Gauss points per piece. Checks: a constant map against
 the plain lune rule ≤ 7e-7 from θ = 10° to 179.5°; a brute-force cell sum; the facets
-(tests/test_mapped_lune.py). Cost: 0.05-0.4 s per path and date (locating ~10⁵ cell points and
-one GEMM per block), more than tracing the nodes. The model behind ``--rtol`` was measured on
-``rolo-fit-map`` (w·m in 0.29-0.57); for maps spanning much wider albedos the 8 albedo nodes err
-more (a map of w·m in 0.05-0.9: 1.5e-5; rows on other maps carry no bound anyway).
+(tests/test_mapped_lune.py). Cost: 0.04-0.2 s per path and date (locating 2-8·10⁴ points, most
+of them in the cut cells, and one GEMM per block), more than tracing the nodes. The model
+behind ``--rtol`` was measured on ``rolo-fit-map`` (w·m in 0.29-0.57); for maps spanning much
+wider albedos the 8 albedo nodes err more (a map of w·m in 0.05-0.9: 1.5e-5; rows on other maps
+carry no bound anyway).
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +65,16 @@ THIN_ORDER = 6
 #: (a crescent near new Moon is thin as a whole and keeps its orders; at 5 % the band's blocks
 #: of θ = 172-175° crescents were thinned and erred by up to 1.9e-6, not converging)
 THIN_SHARE = 0.01
+#: whole panels: squares of PANEL_CELLS × PANEL_CELLS map cells that no block edge comes near take
+#: a body-fixed rule, PANEL_NODES² points at Gauss nodes in (sin lat, lon) whose weights against
+#: the map's cells are summed once per map (:func:`_panel_rule`), in place of each cell's centre
+#: and corners (~2 located points a cell): the interpolant of the coarse rule is a smooth
+#: function across a panel, its polynomial of degree PANEL_NODES - 1 errs by ~(panel/2)^PANEL_NODES
+#: times its derivatives (tests/test_mapped_lune.py: panels against cells)
+PANEL_CELLS = 4
+PANEL_NODES = 3
+#: ... in latitudes up to this [deg] (nearer the map's poles (sin lat, lon) squeeze a panel)
+PANEL_MAX_LAT = 66.0
 
 
 @dataclass
@@ -116,7 +130,7 @@ def lune_caps(scene, source: np.ndarray, source_radius: float, kink: bool = Fals
 
 def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int, values: np.ndarray,
                      frame: np.ndarray, kink: bool = False, edge_nodes: int = EDGE_NODES,
-                     albedo_nodes: int = ALBEDO_NODES, thin: bool = True):
+                     albedo_nodes: int = ALBEDO_NODES, thin: bool = True, panels: bool = True):
     """Coarse nodes of the lune rule and the map's weights (module docstring).
 
     Parameters
@@ -130,6 +144,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         sin(lat)), each cut where it crosses a block's edge and given this many points per piece
         (:func:`_edge_cell_nodes`).
     thin : thin blocks take fewer nodes (:data:`THIN_WIDTH`; False: ``order`` everywhere).
+    panels : whole panels of cells take their body-fixed rule (:data:`PANEL_CELLS`; False: every
+        cell its centre and corners).
 
     Returns
     -------
@@ -153,11 +169,24 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         return rule_coordinates(d @ frame.T, axis, cmax, cu[0], cc[0], split[0], zero, crossings=True, kink=kink)
 
     h, w = values.shape
+    # the blocks' edges: circles n·u = c in the map's frame (the caps, the t-segments' rings) and the kink
+    t_lo, t_hi = rule_segments(axis, cmax, cu[0], cc[0], split[0], crossings=True, kink=kink)
+    circles = [(frame.T @ u, c) for u, c in [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] +
+               [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]]
+    curve = None if kink is None else (frame.T @ cu[0, 0], frame.T @ axis, kink)
+    # one set of albedo nodes for the whole map (the panels' weights are summed once per map)
+    vals = chebyshev_nodes(float(values.min()), float(values.max()), albedo_nodes)
     centres, area = _cell_centres((h, w))
     # cells the region may touch: centre within a cell's half-diagonal of the lit, visible caps
     cs = centres @ frame.T
     reach = np.sin(np.radians(0.75 * max(180.0 / h, 360.0 / w)))
     cells = np.flatnonzero((cs @ axis > cmax - reach) & (cs @ cu[0, 0] > cc[0, 0] - reach))
+    parts = []
+    if panels:  # whole panels: their body-fixed rule, and their cells out of the cell sums below
+        found = _whole_panels(values, vals, frame, axis, cmax, cu[0, 0], cc[0, 0], circles, curve, locate, n_iv)
+        if found is not None:
+            parts.append(found[0])
+            cells = np.setdiff1d(cells, found[1], assume_unique=True)
     seg, itv, ut, up, ins = locate(centres[cells])
     block = np.where(ins, seg * n_iv + itv, -1)
     # the cells' corners (grid vertices, each located once)
@@ -172,15 +201,10 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     vblock = np.where(v_in, v_seg * n_iv + v_itv, -1)
     # a cell whose centre and corners lie in different blocks (or partly outside), or that a block
     # edge passes within (a lune thinner than a cell slips between those five points), holds an edge
-    t_lo, t_hi = rule_segments(axis, cmax, cu[0], cc[0], split[0], crossings=True, kink=kink)
-    circles = [(frame.T @ u, c) for u, c in [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] +
-               [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]]
-    curve = None if kink is None else (frame.T @ cu[0, 0], frame.T @ axis, kink)
     near, north, east = _edges_near((h, w), cells, circles, curve)
     edge = (vblock[corner_ids] != block[:, None]).any(axis=1) | near
     whole = ~edge & (block >= 0)
     m_cell = values.reshape(-1)[cells]
-    vals = chebyshev_nodes(float(m_cell.min()), float(m_cell.max()), albedo_nodes) if len(cells) else np.array([1.0])
     # whole cells: the rectangle rule in (sin lat, lon) with the centre (2/3 of the area) and the
     # corners (1/12 each), exact for cubics like 2×2 Gauss points, with the corners shared by the
     # cells around them (their weights summed per vertex): ~2 located points a cell, not 5
@@ -189,8 +213,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     ell_v = np.stack([np.bincount(corners, weights=np.repeat(ell_cell[:, q] / 12.0, 4), minlength=nv)
                       for q in range(len(vals))], axis=1)
     vw = np.flatnonzero(ell_v.any(axis=1))
-    parts = [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
-             (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
+    parts += [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
+              (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
         ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], circles, edge_nodes, curve)
         s2, i2, ut2, up2, in2 = locate(ep)
@@ -204,6 +228,100 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
     R = scene.radii["moon"]
     return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=vals, factors=W[keep] / wc[keep][:, None])
+
+
+def _whole_panels(values, vals, frame, axis, cmax, lit_u, lit_c, circles, curve, locate, n_iv):
+    """The panels (:func:`_panel_rule`) wholly inside one block of the rule: centre inside the
+    lit (``lit_u·u > lit_c``), visible (``axis·u > cmax``) caps, no block edge within 1.25 panel
+    half-diagonals (:func:`_edges_near_at`), at least three of those from the rule's pole (where
+    the blocks' coordinates are singular), and all their points located in one block, within half
+    its φ-range (not across a whole ring's seam). Returns the part ``(block, u_t, u_φ, ell)`` of
+    their points and their cells, or ``None`` without panels."""
+    pan = _panel_rule(values, tuple(vals))
+    if pan is None:
+        return None
+    h, w = values.shape
+    half = 1.25 * np.radians(0.75 * PANEL_CELLS * max(180.0 / h, 360.0 / w))
+    c = pan.centres @ frame.T
+    sel = np.flatnonzero((c @ axis > cmax) & (c @ lit_u > lit_c) & (c @ axis < np.cos(3.0 * half)))
+    sel = sel[~_edges_near_at(pan.lat[sel], pan.lon[sel], half, circles, curve)[0]]
+    kk = pan.points.shape[1]
+    seg, itv, ut, up, ins = locate(pan.points[sel].reshape(-1, 3))
+    blk = np.where(ins, seg * n_iv + itv, -1).reshape(-1, kk)
+    ok = (blk[:, :1] >= 0).ravel() & (blk == blk[:, :1]).all(axis=1) & (np.ptp(up.reshape(-1, kk), axis=1) < 0.5)
+    pts = np.repeat(ok, kk)
+    return (blk[ok].ravel(), ut[pts], up[pts], pan.weights[sel[ok]].reshape(-1, len(vals))), pan.cells[sel[ok]].ravel()
+
+
+@dataclass(frozen=True)
+class PanelRule:
+    """The body-fixed rule of a map's panels (:data:`PANEL_CELLS` square, up to
+    :data:`PANEL_MAX_LAT`): K = :data:`PANEL_NODES` Gauss nodes in sin(lat) and in longitude."""
+
+    lat: np.ndarray  # (N,) panel centres' latitudes [rad]
+    lon: np.ndarray  # (N,) ... and longitudes [rad]
+    centres: np.ndarray  # (N, 3) ... as unit vectors in the map's frame
+    cells: np.ndarray  # (N, PANEL_CELLS²) the map cells of each panel (row-major ids)
+    points: np.ndarray  # (N, K², 3) its nodes, unit vectors in the map's frame
+    weights: np.ndarray  # (N, K², Q) ∫ φ_k(μ, λ) ℓ_q(m(μ, λ)) dμ dλ over the panel [sr]
+
+
+_PANEL_RULES: dict = {}
+
+
+def _panel_rule(values: np.ndarray, vals: tuple) -> PanelRule | None:
+    """The map's :class:`PanelRule` for albedo nodes ``vals`` (memoised on the map's bytes).
+
+    On a panel, the interpolant through its K×K nodes, ``Σ_k p(x_k) φ_k(μ, λ)`` with ``φ_k`` the
+    product of the K-point Lagrange bases in μ = sin(lat) and in λ, stands for the integrand p;
+    so ``∫ p ℓ_q(m) dA ≈ Σ_k p(x_k) W_kq`` with ``W_kq = Σ_cells ℓ_q(m_c) ∫_cell φ_k dμ dλ``:
+    each cell's integral is exact (K Gauss points a cell in μ and in λ: φ_k has degree K - 1 in
+    each), and the map enters only through its cells' values. ``None`` where the map's shape is
+    not a whole number of panels."""
+    values = np.ascontiguousarray(values, dtype=float)
+    h, w = values.shape
+    P, K = PANEL_CELLS, PANEL_NODES
+    if h % P or w % P:
+        return None
+    key = (hashlib.blake2b(values.tobytes(), digest_size=16).hexdigest(), values.shape, vals, P, K)
+    if key in _PANEL_RULES:
+        return _PANEL_RULES[key]
+    g, gw = gauss_legendre(K)
+    lat_edges = 90.0 - 180.0 * np.arange(h + 1) / h
+    rows = np.flatnonzero(np.maximum(np.abs(lat_edges[:-P:P]), np.abs(lat_edges[P::P])) <= PANEL_MAX_LAT)
+    mu_edges = np.sin(np.radians(lat_edges))  # decreasing
+    lon_edges = np.radians(-180.0 + 360.0 * np.arange(w + 1) / w)
+
+    def moments(edges_lo, edges_hi, nodes):
+        """``∫ ℓ_a`` over each cell [lo, hi] for the Lagrange basis on ``nodes`` (K Gauss points a cell)."""
+        x = edges_lo[:, None] + (edges_hi - edges_lo)[:, None] * g  # (P, K)
+        return (lagrange_matrix(nodes, x.ravel()).reshape(P, K, K) * ((edges_hi - edges_lo)[:, None] * gw)[:, :, None]
+                ).sum(axis=1).T  # (K nodes, P cells)
+    cols = np.arange(w // P)
+    lon_lo, lon_hi = lon_edges[:-1][:P], lon_edges[1:][:P]  # the first panel column's cells (all alike)
+    lon_nodes = lon_edges[0] + (lon_edges[P] - lon_edges[0]) * g
+    I_lon = moments(lon_lo, lon_hi, lon_nodes)  # (K, P)
+    ell = lagrange_matrix(np.asarray(vals), values.ravel()).reshape(h // P, P, w // P, P, len(vals))[rows]
+    mu_nodes = mu_edges[(rows + 1) * P][:, None] + (mu_edges[rows * P] - mu_edges[(rows + 1) * P])[:, None] * g
+    I_mu = np.stack([moments(mu_edges[r * P + 1:(r + 1) * P + 1], mu_edges[r * P:(r + 1) * P], mu_nodes[i])
+                     for i, r in enumerate(rows)])  # (R, K, P): cells' μ ranges, increasing μ in the moments
+    W = np.einsum("rai,bj,ricjq->rcabq", I_mu, I_lon, ell)  # (R, C, K, K, Q)
+    lon_n = (lon_nodes - lon_edges[0])[None, :] + lon_edges[cols * P][:, None]  # (C, K)
+    cl = np.sqrt(1.0 - mu_nodes * mu_nodes)  # (R, K)
+    M, C, L = (np.broadcast_to(a, (len(rows), len(cols), K, K)) for a in
+               (mu_nodes[:, None, :, None], cl[:, None, :, None], lon_n[None, :, None, :]))
+    pts = np.stack([C * np.cos(L), C * np.sin(L), M], axis=-1)
+    lat_c = np.radians(0.5 * (lat_edges[rows * P] + lat_edges[(rows + 1) * P]))
+    lon_c = 0.5 * (lon_edges[cols * P] + lon_edges[(cols + 1) * P])
+    La, Lo = (a.ravel() for a in np.meshgrid(lat_c, lon_c, indexing="ij"))
+    ids = np.arange(h * w).reshape(h // P, P, w // P, P)[rows].transpose(0, 2, 1, 3).reshape(-1, P * P)
+    rule = PanelRule(lat=La, lon=Lo, centres=np.stack([np.cos(La) * np.cos(Lo), np.cos(La) * np.sin(Lo), np.sin(La)],
+                                                      axis=1),
+                     cells=ids, points=pts.reshape(-1, K * K, 3), weights=W.reshape(-1, K * K, len(vals)))
+    if len(_PANEL_RULES) >= 4:
+        _PANEL_RULES.pop(next(iter(_PANEL_RULES)))
+    _PANEL_RULES[key] = rule
+    return rule
 
 
 def _block_weights(blk, u_t, u_p, ell, shape, t_ord, p_ord) -> np.ndarray:
@@ -298,11 +416,14 @@ def _edges_near(shape, cells, circles, curve=None):
     gradients of the edges that do (which way they run)."""
     h, w = shape
     row, col = cells // w, cells % w
-    lat_c = np.radians(90.0 - 180.0 * (row + 0.5) / h)
-    lon_c = np.radians(-180.0 + 360.0 * (col + 0.5) / w)
-    half = np.radians(0.75 * max(180.0 / h, 360.0 / w))
-    north, east = np.zeros(len(cells)), np.zeros(len(cells))
-    hit = np.zeros(len(cells), dtype=bool)
+    return _edges_near_at(np.radians(90.0 - 180.0 * (row + 0.5) / h), np.radians(-180.0 + 360.0 * (col + 0.5) / w),
+                          np.radians(0.75 * max(180.0 / h, 360.0 / w)), circles, curve)
+
+
+def _edges_near_at(lat_c, lon_c, half, circles, curve=None):
+    """:func:`_edges_near` around points (lat_c, lon_c) [rad], within ``half`` [rad]."""
+    north, east = np.zeros(len(lat_c)), np.zeros(len(lat_c))
+    hit = np.zeros(len(lat_c), dtype=bool)
     cla, sla, clo, slo = np.cos(lat_c), np.sin(lat_c), np.cos(lon_c), np.sin(lon_c)
     for u, c in circles:
         horizontal = u[0] * clo + u[1] * slo

@@ -41,6 +41,7 @@ def default_threads() -> int:
 
 
 _SERIAL = threading.local()
+_SCENE_LOCK = threading.Lock()
 
 
 @contextmanager
@@ -101,7 +102,21 @@ class EmbreeBody:
         self.shading_override: str | None = None
         #: when a list, every float32 batch sent to Embree is appended (benchmarks only)
         self.recorder: list | None = None
-        self._scene = geo["scene"]
+
+    @property
+    def _scene(self):
+        """The mesh's Embree scene, built on first use (once per geometry): a dated sweep turns
+        the Moon at every time, and the lune rule on its exact sphere never traces its mesh
+        (~20 ms a date on a level-6 Moon)."""
+        geo = self.geometry
+        if geo["scene"] is None:
+            with _SCENE_LOCK:  # (chunks are traced on several threads)
+                if geo["scene"] is None:
+                    scene = rtcore_scene.EmbreeScene()
+                    TriangleMesh(scene=scene, vertices=geo["vertices"].astype(EMBREE_DTYPE),
+                                 indices=geo["faces"].astype(np.int32))
+                    geo["scene"] = scene
+        return geo["scene"]
 
     def mode(self, shading: str) -> str:
         """Resolve ``auto|flat|smooth`` for this body to ``exact|flat|interp``.
@@ -365,9 +380,9 @@ class EmbreeBody:
         return out
 
 
-#: body geometries kept (insertion-ordered; the oldest is dropped first): a θ sweep needs three
-#: entries (one per body), a dated sweep turns the Moon and the Earth at every time and never
-#: reuses them (each Earth at level 6 holds ~100 MB with its Embree scenes: 16 entries made dated
+#: body geometries kept (the least recently used dropped first): a θ sweep needs three entries
+#: (one per body), a dated sweep turns the Moon at every time and never reuses it (the packaged
+#: Earth keeps one orientation; the Sun and the Earth stay, used at every date) (each Earth at level 6 holds ~100 MB with its Embree scenes: 16 entries made dated
 #: sweeps take 3 GB)
 GEOMETRY_CACHE_SIZE = 6
 _GEOMETRY_CACHE = BoundedCache(GEOMETRY_CACHE_SIZE)
@@ -403,12 +418,10 @@ def _body_geometry(mesh, scale: float, rotation: np.ndarray | None = None) -> di
     rad = np.linalg.norm(vertices, axis=1)
     sphere_radius = float(tag["radius"]) * scale if tag and tag.get("shape") == "sphere" else None
     convex = bool(tag is not None or _is_convex(mesh))
-    scene = rtcore_scene.EmbreeScene()
-    TriangleMesh(scene=scene, vertices=vertices.astype(EMBREE_DTYPE), indices=faces.astype(np.int32))
     geo = {"mesh": mesh, "vertices": vertices, "faces": faces, "bound": float(rad.max()),
            "areas": areas, "normals": normals, "centroids_local": centroids,
            "convex": convex, "mean_radius": float(rad.mean()),
-           "sphere_radius": sphere_radius, "scene": scene, "outer": None, "corner_normals": None}
+           "sphere_radius": sphere_radius, "scene": None, "outer": None, "corner_normals": None}
     _GEOMETRY_CACHE[key] = geo
     return geo
 
