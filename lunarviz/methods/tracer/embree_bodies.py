@@ -382,8 +382,8 @@ class EmbreeBody:
 
 #: body geometries kept (the least recently used dropped first): a θ sweep needs three entries
 #: (one per body), a dated sweep turns the Moon at every time and never reuses it (the packaged
-#: Earth keeps one orientation; the Sun and the Earth stay, used at every date) (each Earth at level 6 holds ~100 MB with its Embree scenes: 16 entries made dated
-#: sweeps take 3 GB)
+#: Earth keeps one orientation; the Sun and the Earth stay, used at every date); each Earth at
+#: level 6 holds ~100 MB with its Embree scenes (16 entries made dated sweeps take 3 GB)
 GEOMETRY_CACHE_SIZE = 6
 _GEOMETRY_CACHE = BoundedCache(GEOMETRY_CACHE_SIZE)
 
