@@ -47,6 +47,44 @@ def test_kernel_matches_numpy(name, kw):
         np.testing.assert_allclose(Lu, (rf * eu).sum(1), rtol=1e-13, atol=0)
 
 
+ROUGH = [("dhg", {"params": {"theta_bar": 20.0}}), ("shg", {"params": {"theta_bar": 35.0, "xi": 0.3}}),
+         ("dhg", {"h_function": "hapke2002", "params": {"theta_bar": 10.0}}),
+         ("dhg", {"dhg_convention": "hapke2012", "params": {"theta_bar": 25.0, "Bc0": 0.4, "hc": 0.06}}),
+         ("dhg", {"params": {"theta_bar": 30.0, "h": 0.0}})]
+
+
+@pytest.mark.parametrize("name, kw", ROUGH)
+def test_rough_kernel_at_albedo_nodes_matches_numpy(name, kw):
+    """The mapped lune rule's compiled rough Hapke (rough_kernels: each beam's geometry once,
+    the H-functions per map value) against the numpy reference (Hapke._rough_r broadcast over
+    the values, as Transport takes it without numba): relative to each sample's largest term,
+    to rounding (1e-12: the kernel takes sin i as √(1 - μ0²) where numpy takes sin(arccos μ0)),
+    with grazing and normal incidence and emission, i = e, g = 0 and π, dark beams."""
+    from lunarviz.photometry import rough_kernels
+    rng = np.random.default_rng(4)
+    N, K, Q = 2000, 12, 8
+    mu0, mu = rng.uniform(-0.2, 1, (N, K)), rng.uniform(0, 1, N)
+    mu0[:40], mu0[40:80], mu[80:120], mu[120:160] = 0.0, 1.0, 0.0, 1.0
+    mu0[160:200] = mu[160:200, None]
+    g = rng.uniform(0, np.pi, (N, K))
+    g[200:240], g[240:260] = 0.0, np.pi
+    sh, ch = np.sin(g / 2), np.cos(g / 2)
+    e = rng.uniform(0, 1, (N, K))
+    e[rng.random((N, K)) < 0.3] = 0
+    eu = 2 * e + (e == 0) * rng.uniform(0, 1, (N, K))
+    w, F = np.linspace(0.15, 0.65, Q), rng.uniform(-0.2, 1, (N, Q))
+    m = make_brdf(name, **kw)
+    assert rough_kernels.handles(m)
+    rf = m.radiance_factor(np.clip(mu0, 0, 1)[:, None, :], mu[:, None, None], sh[:, None, :], ch[:, None, :],
+                           albedo=w[None, :, None])  # (N, Q, K)
+    L, Lu = rough_kernels.rough_node_radiances(m, mu0, mu, sh, ch, e, eu, w, F)
+    for got, beams in ((L, e), (Lu, eu)):
+        want = np.einsum("nqk,nk,nq->n", rf, beams, F)
+        scale = np.einsum("nqk,nk,nq->n", np.abs(rf), beams, np.abs(F))
+        assert np.all(np.abs(got - want) <= 1e-12 * scale)
+    assert not rough_kernels.handles(make_brdf("dhg")) and not rough_kernels.handles(make_brdf("lambert"))
+
+
 def test_models_the_kernel_leaves_to_numpy():
     assert shading_kernels.hapke_codes(make_brdf("lambert")) is None
     assert shading_kernels.hapke_codes(make_brdf("dhg", h_function="exact")) is None

@@ -79,6 +79,10 @@ class Transport:
         values, factors = self.albedo_nodes
         w = np.asarray(values, dtype=float) * map_scale(self.albedo_absolute, brdf)
         N = len(self.mu)
+        from lunarviz.photometry import rough_kernels
+        if rough_kernels.handles(brdf):  # compiled: each beam's geometry once, the H-functions per value
+            return rough_kernels.rough_node_radiances(brdf, self.mu0, self.mu, self.sin_hg, self.cos_hg,
+                                                      self.e_beam, self.e_beam_unit, w, factors)
         compiled = shading_kernels.available() and (shading_kernels.hapke_codes(brdf) is not None
                                                     or type(brdf) is Lambert)
         if compiled:

@@ -46,6 +46,27 @@ def _h(x, w, hcode):
     return 1.0 / (1.0 - w * (r0 * x + 0.5 * (1.0 - 2.0 * r0 * x) * xlog))
 
 
+def _surge_phase(s_, c_, h, B0, pcode, p1, p2):
+    """``[1 + B(g)] p(g)`` from sin(g/2), cos(g/2): the surge ``B0 h/(h + tan(g/2))`` and the
+    SHG (p1 = |ξ|, p2 = 1 for a backward lobe) or DHG (p1 = b, p2 = c; pcode 1 the paper's
+    convention, 2 Hapke 2012's) phase function."""
+    num = h * c_
+    den = num + s_
+    if den <= 0.0:
+        B = B0 if s_ <= 0.0 else 0.0
+    else:
+        B = B0 * num / den
+    if pcode == 0:
+        P = _lobe(p1, s_ if p2 > 0.5 else c_)
+    else:
+        fwd = _lobe(p1, c_)
+        bwd = _lobe(p1, s_)
+        wp = 0.5 * (1.0 + p2)
+        wm = 0.5 * (1.0 - p2)
+        P = wp * fwd + wm * bwd if pcode == 1 else wp * bwd + wm * fwd
+    return (1.0 + B) * P
+
+
 def _hapke_sum(mu0, mu, sh, ch, e, e_unit, albedo, w0, h, B0, pcode, p1, p2, hcode, has_unit, has_albedo,
                out, out_unit):
     n, k = mu0.shape
@@ -65,28 +86,13 @@ def _hapke_sum(mu0, mu, sh, ch, e, e_unit, albedo, w0, h, B0, pcode, p1, p2, hco
             s = m0 + m
             if s <= 0.0:
                 continue
-            s_ = sh[i, j]
-            c_ = ch[i, j]
-            num = h * c_
-            den = num + s_
-            if den <= 0.0:
-                B = B0 if s_ <= 0.0 else 0.0
-            else:
-                B = B0 * num / den
             if pcode == LAMBERT:  # radiance factor (w/π)·μ0 (Lambert.radiance_factor)
                 rf = w / np.pi * m0
                 acc += rf * ej
                 acc_u += rf * eu
                 continue
-            if pcode == 0:  # SHG: p1 = |ξ|, p2 = 1 for a backward lobe (ξ < 0)
-                P = _lobe(p1, s_ if p2 > 0.5 else c_)
-            else:  # DHG: p1 = b, p2 = c
-                fwd = _lobe(p1, c_)
-                bwd = _lobe(p1, s_)
-                wp = 0.5 * (1.0 + p2)
-                wm = 0.5 * (1.0 - p2)
-                P = wp * fwd + wm * bwd if pcode == 1 else wp * bwd + wm * fwd
-            rf = w / four_pi * (m0 / s) * ((1.0 + B) * P + _h(m0, w, hcode) * hm - 1.0)
+            rf = w / four_pi * (m0 / s) * (_surge_phase(sh[i, j], ch[i, j], h, B0, pcode, p1, p2)
+                                           + _h(m0, w, hcode) * hm - 1.0)
             acc += rf * ej
             acc_u += rf * eu
         out[i] = acc
@@ -100,19 +106,27 @@ if _NUMBA:
     try:
         _lobe = compiled.jit(_lobe, inline="always")
         _h = compiled.jit(_h, inline="always")
+        _surge_phase = compiled.jit(_surge_phase, inline="always")
         _hapke_sum = compiled.jit(_hapke_sum, nogil=True)
     except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
         _NUMBA = False
 
 
-#: the Henyey-Greenstein lobe and Hapke's H-functions for other compiled kernels
-#: (:mod:`lunarviz.spectral.kernels`), inlined there as here
-hg_lobe, h_value = _lobe, _h
+#: the Henyey-Greenstein lobe, Hapke's H-functions and the surge times the phase function for
+#: other compiled kernels (:mod:`lunarviz.spectral.kernels`, :mod:`lunarviz.photometry.rough_kernels`),
+#: inlined there as here
+hg_lobe, h_value, surge_phase = _lobe, _h, _surge_phase
 
 
 def hapke_codes(model) -> tuple[int, float, float, int] | None:
     """(phase code, p1, p2, H code) for a smooth Hapke model the kernel handles, else ``None``."""
-    if not isinstance(model, Hapke) or model.rough or model.h_function not in ("hapke1981", "hapke2002"):
+    return None if getattr(model, "rough", False) else phase_codes(model)
+
+
+def phase_codes(model) -> tuple[int, float, float, int] | None:
+    """(phase code, p1, p2, H code) of a Hapke model, smooth or rough, with an SHG or DHG phase
+    function and the Hapke 1981 or 2002 H-function, else ``None``."""
+    if not isinstance(model, Hapke) or model.h_function not in ("hapke1981", "hapke2002"):
         return None
     hcode = H1981 if model.h_function == "hapke1981" else H2002
     ph = model.phase

@@ -792,6 +792,8 @@ def warm_up() -> None:
     if not _NUMBA:
         return
     shading_kernels.warm_up()
+    from lunarviz.photometry import rough_kernels
+    rough_kernels.warm_up()
     one = np.ones((1, 1))
     beam_angles(np.ones((1, 1, 3)), np.ones((1, 3)), np.ones((1, 3)))
     sphere_refine(np.ones((1, 3)), np.ones((1, 3)), 1.0, np.zeros(1, np.int64), np.zeros(3))
