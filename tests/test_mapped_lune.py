@@ -296,12 +296,13 @@ def test_panel_rule_integrates_quadratics_against_the_map_exactly():
     cell = (values * Imu[:, None] * Ilon[None, :]).ravel()
     want = cell[pan.cells].sum(axis=1)
     assert np.max(np.abs(got / want - 1)) < 1e-12
-    assert np.all(np.abs(np.degrees(pan.lat)) + 2.0 <= mapped_lune.PANEL_MAX_LAT)  # (panels' centres)
+    half = 0.5 * mapped_lune.PANEL_CELLS * 180.0 / h  # a panel's half height [deg]
+    assert np.all(np.abs(np.degrees(pan.lat)) + half <= mapped_lune.PANEL_MAX_LAT + 1e-9)
 
 
 @pytest.mark.parametrize("scene, body, least", [
     (lambda: SceneGeometry(10.0), "sun", 2000), (lambda: SceneGeometry(60.0), "sun", 2000),
-    (lambda: SceneGeometry(120.0), "sun", 1000), (lambda: SceneGeometry(160.0), "sun", 16),
+    (lambda: SceneGeometry(120.0), "sun", 1000), (lambda: SceneGeometry(150.0), "sun", 300),
     (lambda: SceneGeometry(60.0), "earth", 2000),
     (lambda: _dated_leo_scene("2026-01-03T10:00:00Z"), "sun", 2000),
     (lambda: _dated_leo_scene("2026-01-03T10:00:00Z"), "earth", 2000),
@@ -311,8 +312,8 @@ def test_whole_panels_give_the_cells_integral(scene, body, least, monkeypatch):
     rule) in place of every cell's centre and corners: the synthetic map under a disc-lit
     Lommel-Seeliger law (the Sun's path cut at the kink, as for a rough BRDF), order 16, against
     the same rule without panels. Measured ≤ 3e-8 (a quadratic's error across 4° of a smooth
-    integrand, times the map's contrast); limit 2e-7. ``least``: the panels' cells found (so the
-    test covers them; a 20° crescent holds two panels)."""
+    integrand, times the map's contrast); limit 2e-7. ``least``: about half the panels' cells
+    found (so the test covers them; a 30° crescent holds 38 panels)."""
     from lunarviz.geometry import mapped_lune
     sc = scene()
     values = np.asarray(MoonAlbedoMap.parse("synthetic").values(), float)
@@ -335,3 +336,61 @@ def test_whole_panels_give_the_cells_integral(scene, body, least, monkeypatch):
     panels = integral(True)
     assert found and found[0] >= least
     assert abs(panels / cells - 1) < 2e-7
+
+
+@pytest.mark.parametrize("scene, body", [
+    (lambda: SceneGeometry(10.0), "sun"), (lambda: SceneGeometry(60.0), "sun"), (lambda: SceneGeometry(140.0), "sun"),
+    (lambda: SceneGeometry(60.0), "earth"), (lambda: _dated_leo_scene("2026-04-12T10:00:00Z"), "sun"),
+    (lambda: _dated_leo_scene("2026-07-28T11:00:00Z"), "sun"),
+    (lambda: _dated_leo_scene("2026-07-28T11:00:00Z"), "earth")])
+def test_no_block_edge_crosses_a_whole_panel(scene, body, monkeypatch):
+    """Every panel the rule takes whole, sampled on 12×12 points spanning its cells (edges and
+    corners included): each block edge (the caps and t-rings, circles n·u = c in the map's frame;
+    the i = e curve) keeps one sign over all of them, so no edge passes through a panel between
+    its 3×3 nodes (the integrand test above is smooth across the terminator band and i = e, so it
+    would hardly see one)."""
+    from lunarviz.geometry import mapped_lune
+    sc = scene()
+    values = np.asarray(MoonAlbedoMap.parse("synthetic").values(), float)
+    seen = []
+    original = mapped_lune._whole_panels
+
+    def spy(*args):
+        out = original(*args)
+        seen.append((args, out))
+        return out
+    monkeypatch.setattr(mapped_lune, "_whole_panels", spy)
+    mapped_lune_rule(sc, getattr(sc, body), sc.radii[body], 16, values, map_frame(sc, "moon"), kink=body == "sun")
+    (args, out), = seen
+    circles, curve = args[7], args[8]
+    P = mapped_lune.PANEL_CELLS
+    cells = out[1].reshape(-1, P * P)
+    assert len(cells) > 10
+    h, w = values.shape
+    row, col = cells.min(axis=1) // w, cells.min(axis=1) % w  # each panel's north-west cell
+    t = np.linspace(0.0, 1.0, 12)
+    mu_n, mu_s = np.sin(np.radians(90.0 - 180.0 * row / h)), np.sin(np.radians(90.0 - 180.0 * (row + P) / h))
+    lon_w = np.radians(-180.0 + 360.0 * col / w)
+    mu = mu_s[:, None, None] + (mu_n - mu_s)[:, None, None] * t[None, :, None]
+    lon = lon_w[:, None, None] + np.radians(360.0 * P / w) * t[None, None, :]
+    mu, lon = np.broadcast_arrays(mu, lon)
+    c = np.sqrt(1.0 - mu * mu)
+    pts = np.stack([c * np.cos(lon), c * np.sin(lon), mu], axis=-1).reshape(len(cells), -1, 3)
+    edges = [pts @ u - cc for u, cc in circles]
+    if curve is not None:
+        edges.append(mapped_lune._curve_value(curve)(pts.reshape(-1, 3)).reshape(len(cells), -1))
+    for g in edges:
+        assert np.all((g > 0).all(axis=1) | (g < 0).all(axis=1))
+
+
+def test_a_map_of_round_off_contrast_takes_one_albedo_node():
+    """A map whose values differ by round-off (1e-15: Chebyshev nodes would round onto each
+    other, and the Lagrange weights were NaN) takes one node, its middle; the weights are those
+    of a constant map (found by review)."""
+    sc = SceneGeometry(60.0)
+    flat = np.ones((180, 360))
+    near = flat + 1e-15 * np.random.default_rng(0).random(flat.shape)
+    a = mapped_lune_rule(sc, sc.sun, 1.0, 12, near, map_frame(sc, "moon"))[3]
+    b = mapped_lune_rule(sc, sc.sun, 1.0, 12, flat, map_frame(sc, "moon"))[3]
+    assert len(a.values) == 1 and np.all(np.isfinite(a.factors))
+    np.testing.assert_allclose(a.factors, b.factors, rtol=1e-12, atol=0)
