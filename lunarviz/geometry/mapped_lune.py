@@ -165,8 +165,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     """
     axis, cmax, cu, cc, split, zero, kink = lune_caps(scene, source, source_radius, kink)
     if edge_nodes is None:  # the lune's width: π less the source's angle from the pole
-        wide = np.pi - np.arccos(np.clip(axis @ cu[0, 0], -1.0, 1.0)) >= WIDE_LUNE
-        edge_nodes = EDGE_NODES_WIDE if wide else EDGE_NODES
+        edge_nodes = EDGE_NODES_WIDE if np.pi - np.arccos(np.clip(axis @ cu[0, 0], -1, 1)) >= WIDE_LUNE else EDGE_NODES
     nc, wc, (t_ord, p_ord) = cap_rule(axis[None, :], [cmax], cu, cc, split, order, order, phi_zero=zero[None, :],
                                       crossings=True, structured=True, kink=kink,
                                       thin=(THIN_WIDTH, max(THIN_ORDER, -(-order // 4)), THIN_SHARE) if thin
@@ -183,11 +182,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         return rule_coordinates(d @ frame.T, axis, cmax, cu[0], cc[0], split[0], zero, crossings=True, kink=kink)
 
     h, w = values.shape
-    # the blocks' edges: circles n·u = c in the map's frame (the caps, the t-segments' rings) and the kink
-    t_lo, t_hi = rule_segments(axis, cmax, cu[0], cc[0], split[0], crossings=True, kink=kink)
-    circles = [(frame.T @ u, c) for u, c in [(cu[0, 0], cc[0, 0]), (cu[0, 1], cc[0, 1]), (axis, cmax)] +
-               [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]]
-    curve = None if kink is None else (frame.T @ cu[0, 0], frame.T @ axis, kink)
+    circles, curve = _block_edges(axis, cmax, cu[0], cc[0], split[0], kink, frame)
     # one set of albedo nodes for the whole map (the panels' weights are summed once per map): the
     # nodes span values the lune may not hold, which moves the result within the interpolation's
     # error in m (8 nodes over rolo-fit-map's range: 5e-8; docstring)
@@ -205,16 +200,9 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
             cells = np.setdiff1d(cells, found[1], assume_unique=True)
     seg, itv, ut, up, ins = locate(centres[cells])
     block = np.where(ins, seg * n_iv + itv, -1)
-    # the cells' corners (grid vertices, each located once)
     corner_ids = _cell_corner_ids((h, w))[cells]  # (C, 4) into the (h + 1)·(w + 1) grid vertices
-    used = np.zeros((h + 1) * (w + 1), dtype=bool)
-    used[corner_ids] = True
-    used = np.flatnonzero(used)
     nv = (h + 1) * (w + 1)
-    v_seg, v_itv, v_ut, v_up, v_in = (np.zeros(nv, a.dtype) for a in (seg, itv, ut, up, ins))
-    for full, part in zip((v_seg, v_itv, v_ut, v_up, v_in), locate(_grid_vertices((h, w))[used])):
-        full[used] = part
-    vblock = np.where(v_in, v_seg * n_iv + v_itv, -1)
+    vblock, v_ut, v_up = _located_vertices((h, w), corner_ids, locate, n_iv)
     # a cell whose centre and corners lie in different blocks (or partly outside), or that a block
     # edge passes within (a lune thinner than a cell slips between those five points), holds an edge
     near, north, east = _edges_near((h, w), cells, circles, curve)
@@ -244,6 +232,31 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
     R = scene.radii["moon"]
     return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=vals, factors=W[keep] / wc[keep][:, None])
+
+
+def _block_edges(axis, cmax, caps_u, caps_c, split, kink, frame):
+    """The rule's block edges in the map's frame: circles ``(u, c)``, ``n·u = c`` (the lit cap,
+    the penumbra band's far edge, the visible cap, the t-segments' rings) and the kink curve
+    ``(u_source, u_pole, kink)`` (``None`` without a kink; :func:`_curve_value`)."""
+    t_lo, t_hi = rule_segments(axis, cmax, caps_u, caps_c, split, crossings=True, kink=kink)
+    circles = [(frame.T @ u, c) for u, c in [(caps_u[0], caps_c[0]), (caps_u[1], caps_c[1]), (axis, cmax)] +
+               [(axis, np.cos(t)) for t in np.unique(np.concatenate([t_lo, t_hi]))]]
+    return circles, None if kink is None else (frame.T @ caps_u[0], frame.T @ axis, kink)
+
+
+def _located_vertices(shape, corner_ids, locate, n_iv):
+    """The block (-1 outside), u_t and u_φ of every grid vertex (h + 1)·(w + 1) that
+    ``corner_ids`` uses, each located once (others: block -1)."""
+    h, w = shape
+    nv = (h + 1) * (w + 1)
+    used = np.zeros(nv, dtype=bool)
+    used[corner_ids] = True
+    used = np.flatnonzero(used)
+    seg, itv, ut, up, ins = locate(_grid_vertices((h, w))[used])
+    vblock, v_ut, v_up = np.full(nv, -1, np.int64), np.zeros(nv), np.zeros(nv)
+    vblock[used] = np.where(ins, seg * n_iv + itv, -1)
+    v_ut[used], v_up[used] = ut, up
+    return vblock, v_ut, v_up
 
 
 def _whole_panels(values, vals, frame, axis, cmax, lit_u, lit_c, circles, curve, locate, n_iv):
