@@ -22,11 +22,6 @@ from lunarviz.photometry import shading_kernels
 from lunarviz.photometry.shading_kernels import h_value, surge_phase
 
 
-def available() -> bool:
-    """Whether the compiled kernel is in use."""
-    return _NUMBA
-
-
 def _rough_nodes_sum(mu0, mu, sh, ch, e, e_unit, w_nodes, factors, h, B0, pcode, p1, p2, hcode, theta_bar,
                      Bc0, hc, has_unit, out, out_unit):
     n, k = mu0.shape
