@@ -84,6 +84,24 @@ def test_a_mapped_moon_runs_the_orders_its_model_was_measured_with():
     assert s.trace_settings().earth_order == row["earth_order"]
 
 
+def test_the_mapped_lune_rule_takes_its_own_source_orders():
+    """The mapped lune rule's beams take the source orders of the rows its bounds come from (the
+    lune rule's model), the facets theirs (``raytrace_facets_mapped``): each bound describes the
+    orders that run."""
+    from lunarviz.methods.tracer.estimators import TraceScene
+    s = SweepSettings(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-4, phases_deg=(90.0,))
+    ts_set = s.trace_settings(threads=1)
+    table = accuracy.error_models()["raytrace_lune_mapped"]
+    for i, (path, key) in enumerate((("moonshine", "sun_order"), ("earthshine", "earth_order"))):
+        row = next(r for r in table[path] if r["lune_order"] == ts_set.lune_order[i]
+                   and r[key] == ts_set.lune_source_orders[i])
+        assert s.trace_plan()["bounds"][("lune", path)] == accuracy.SAFETY * row["max_rel_error"]
+    ts = TraceScene(s.scene(90.0), ts_set)
+    assert ts.lune_rule_applies("earth") and ts.beam_order("earth") == ts_set.lune_source_orders[1]
+    facets = TraceScene(s.scene(90.0), replace(ts_set, lune_order=None))
+    assert facets.beam_order("earth") == ts_set.earth_order != ts_set.lune_source_orders[1]
+
+
 def test_montecarlo_beyond_its_ray_limit_says_what_to_do():
     with pytest.raises(LunarvizError, match="--runs"):
         SweepSettings(method="raytrace", estimator="montecarlo", rtol=1e-5).trace_settings()

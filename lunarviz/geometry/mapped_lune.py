@@ -6,9 +6,10 @@ terminator, at the source's penumbra band and, for a rough BRDF, where i = e) an
 map, constant on cells of ~1° (its edges are everywhere inside the lune). Two interpolations
 separate them:
 
-* in the map value: ``r(m; g) ≈ Σ_q r(m_q; g) ℓ_q(m)``, Lagrange polynomials ``ℓ_q`` on Q
-  Chebyshev nodes ``m_q`` spanning the values met (Hapke's reflectance is analytic in w, with
-  its nearest singularity at w = 1; Lambert is linear: exact);
+* in the map value: ``r(m; g) ≈ Σ_q r(m_q; g) ℓ_q(γ(m))``, Lagrange polynomials ``ℓ_q`` on Q
+  Chebyshev nodes spanning the map's values in γ = √(1 - w), w the BRDF's single-scattering
+  albedo at m (Hapke's reflectance is analytic in w but for a branch point at w = 1, which γ
+  removes: 6 nodes in γ err as 8 in m; Lambert is a polynomial in γ of degree 2: exact);
 * in the position: within each block of the coarse rule (a tensor grid of Gauss nodes in the
   block's coordinates u_t, u_φ ∈ [0, 1]), ``r(m_q; g(x))`` is smooth and its polynomial
   interpolant through the coarse nodes converges spectrally.
@@ -45,9 +46,15 @@ from lunarviz.geometry import quadrature_kernels
 from lunarviz.geometry.sphere_quadrature import (cap_rule, gauss_legendre, kink_threshold, rule_coordinates,
                                                  rule_segments)
 
-#: Chebyshev nodes in the map's value (rough Hapke, rolo-fit-map at θ = 60°: 4 nodes err by 3e-4,
-#: 6 by 3e-6, 8 by 5e-8 against 10; the error falls ~100x per 2 nodes)
+#: Chebyshev nodes in the map's value m (rough Hapke, rolo-fit-map's DHG, w·m up to 0.57, 400
+#: geometries with μ₀, μ down to 0.02: 4 nodes err by 4e-4, 6 by 4e-6, 8 by 4e-8; the error falls
+#: ~100x per 2 nodes: the reflectance's nearest singularity, a branch point at w = 1, is near)
 ALBEDO_NODES = 8
+#: ... in γ = √(1 - w) (:func:`albedo_coordinate`), where that branch point is gone (Hapke's
+#: H-functions are rational in γ, their poles at γ ≤ -1/2; the factor w = 1 - γ² is a
+#: polynomial): the same geometries err by 3e-5 (4 nodes), 1e-6 (5), 3e-8 (6), 3e-11 (8), so 6
+#: match the 8 in m; used where the shaded BRDFs' scale from m to w is known (``albedo_scale``)
+GAMMA_NODES = 6
 #: in the cells that a block's edge (terminator, limb, penumbra band, t-segment ring) crosses:
 #: Gauss lines, and points per piece of each line (:func:`_edge_cell_nodes`): 3 against 8 differ
 #: by ≤ 4e-8 for θ ≤ 120° and up to 1e-6 at θ = 175° (4: 4.4e-7 there), far under the rule's
@@ -119,6 +126,13 @@ def chebyshev_nodes(lo: float, hi: float, q: int) -> np.ndarray:
     return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos((2 * k + 1) * np.pi / (2 * q))
 
 
+def albedo_coordinate(values: np.ndarray, albedo_scale: float) -> np.ndarray:
+    """The variable the albedo nodes interpolate in: γ = √(1 - w) for w = ``albedo_scale`` · m
+    (``albedo_scale`` > 0), else the map's value m itself."""
+    values = np.asarray(values, dtype=float)
+    return np.sqrt(np.clip(1.0 - albedo_scale * values, 0.0, None)) if albedo_scale > 0 else values
+
+
 def lune_caps(scene, source: np.ndarray, source_radius: float, kink: bool = False):
     """The lune rule's geometry (as :func:`lunarviz.methods.analytic.lunar_surface_rule`): pole
     (toward the detector), its cosine, the caps (lit: kept; the penumbra band's far edge: a cut),
@@ -140,7 +154,8 @@ def lune_caps(scene, source: np.ndarray, source_radius: float, kink: bool = Fals
 
 def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int, values: np.ndarray,
                      frame: np.ndarray, kink: bool = False, edge_nodes: int | None = None,
-                     albedo_nodes: int = ALBEDO_NODES, thin: bool = True, panels: bool = True):
+                     albedo_nodes: int | None = None, thin: bool = True, panels: bool = True,
+                     albedo_scale: float = 0.0):
     """Coarse nodes of the lune rule and the map's weights (module docstring).
 
     Parameters
@@ -157,6 +172,10 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     thin : thin blocks take fewer nodes (:data:`THIN_WIDTH`; False: ``order`` everywhere).
     panels : whole panels of cells take their body-fixed rule (:data:`PANEL_CELLS`; False: every
         cell its centre and corners).
+    albedo_scale : the factor from the map's values to the shaded BRDFs' single-scattering albedo
+        w (the largest, where several non-linear BRDFs are shaded): the albedo nodes are then
+        Chebyshev points in γ = √(1 - w) (:func:`albedo_coordinate`); 0: in the map's value.
+    albedo_nodes : how many (``None``: :data:`GAMMA_NODES` in γ, :data:`ALBEDO_NODES` in m).
 
     Returns
     -------
@@ -182,11 +201,16 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         return rule_coordinates(d @ frame.T, axis, cmax, cu[0], cc[0], split[0], zero, crossings=True, kink=kink)
 
     h, w = values.shape
+    if not albedo_scale * float(values.max()) < 1.0:  # (w ≥ 1 somewhere: no γ; the BRDF refuses it anyway)
+        albedo_scale = 0.0
+    if albedo_nodes is None:
+        albedo_nodes = GAMMA_NODES if albedo_scale > 0 else ALBEDO_NODES
+    coords = albedo_coordinate(values, albedo_scale)
     circles, curve = _block_edges(axis, cmax, cu[0], cc[0], split[0], kink, frame)
     # one set of albedo nodes for the whole map (the panels' weights are summed once per map): the
     # nodes span values the lune may not hold, which moves the result within the interpolation's
-    # error in m (8 nodes over rolo-fit-map's range: 5e-8; docstring)
-    vals = chebyshev_nodes(float(values.min()), float(values.max()), albedo_nodes)
+    # error in m (8 nodes over rolo-fit-map's range: 5e-8; docstring); ``vals`` in the coordinate
+    vals = chebyshev_nodes(float(coords.min()), float(coords.max()), albedo_nodes)
     centres, area = _cell_centres((h, w))
     # cells the region may touch: centre within a cell's half-diagonal of the lit, visible caps
     cs = centres @ frame.T
@@ -194,7 +218,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     cells = np.flatnonzero((cs @ axis > cmax - reach) & (cs @ cu[0, 0] > cc[0, 0] - reach))
     parts = []
     if panels:  # whole panels: their body-fixed rule, and their cells out of the cell sums below
-        found = _whole_panels(values, vals, frame, axis, cmax, cu[0, 0], cc[0, 0], circles, curve, locate, n_iv)
+        found = _whole_panels(coords, vals, frame, axis, cmax, cu[0, 0], cc[0, 0], circles, curve, locate, n_iv)
         if found is not None:
             parts.append(found[0])
             cells = np.setdiff1d(cells, found[1], assume_unique=True)
@@ -208,7 +232,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     near, north, east = _edges_near((h, w), cells, circles, curve)
     edge = (vblock[corner_ids] != block[:, None]).any(axis=1) | near
     whole = ~edge & (block >= 0)
-    m_cell = values.reshape(-1)[cells]
+    m_cell = coords.reshape(-1)[cells]
     # whole cells: the rectangle rule in (sin lat, lon) with the centre (2/3 of the area) and the
     # corners (1/12 each), exact for cubics like 2×2 Gauss points, with the corners shared by the
     # cells around them (their weights summed per vertex): ~2 located points a cell, not 5
@@ -231,7 +255,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     keep = wc > 0
     nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
     R = scene.radii["moon"]
-    return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=vals, factors=W[keep] / wc[keep][:, None])
+    m_nodes = (1.0 - vals * vals) / albedo_scale if albedo_scale > 0 else vals  # the nodes as map values
+    return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=m_nodes, factors=W[keep] / wc[keep][:, None])
 
 
 def _block_edges(axis, cmax, caps_u, caps_c, split, kink, frame):

@@ -97,7 +97,8 @@ def _for(fixed: dict, path: str) -> dict:
 
 def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
     """Settings for the deterministic tracer at ``rtol``: ``lune_order`` (the Sun's path, the
-    Earth's), ``moon_level``, ``sun_order``, ``earth_order`` (those in ``fixed`` kept; nested: at
+    Earth's), ``moon_level``, ``sun_order``, ``earth_order`` (with a lunar map, those of the
+    facets; the lune rule's own source orders are ``lune_source_orders``; those in ``fixed`` kept; nested: at
     least those of a looser tolerance, :data:`NEST`), and per path and sample kind the bound each
     meets (``bounds``: {("lune"|"facets", path): bound})."""
     m = error_models()
@@ -122,7 +123,9 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
                 out["lune_order"] = (lune["moonshine"]["lune_order"], lune["earthshine"]["lune_order"])
                 for p, r in lune.items():
                     bounds[("lune", p)] = SAFETY * r["max_rel_error"]
-                    out[SOURCE_ORDER[p]] = fixed.get(SOURCE_ORDER[p], max(out[SOURCE_ORDER[p]], r[SOURCE_ORDER[p]]))
+                # each sample kind its own source orders (the lune rule's beams, the facets'), as measured
+                out["lune_source_orders"] = tuple(fixed.get(SOURCE_ORDER[p], lune[p][SOURCE_ORDER[p]])
+                                                  for p in ("moonshine", "earthshine"))
         return out
     # the lune rule: each path its own order (one rule per path); the facets: one level for both
     limit = rtol / SAFETY
@@ -238,6 +241,7 @@ def calibration_settings(ts_set, moon_level_asked, mapped_moon: bool):
     tolerance unless a mesh level was asked for (``moon_level_asked``)."""
     from dataclasses import replace
     choice = {} if moon_level_asked else trace_choice(DEFAULT_RTOL["raytrace"], {}, mapped_moon)
-    cal = {k: choice[k] for k in ("lune_order", "sun_order", "earth_order") if choice.get(k) is not None}
+    cal = {k: choice[k] for k in ("lune_order", "sun_order", "earth_order", "lune_source_orders")
+           if choice.get(k) is not None}
     return replace(ts_set, estimator="deterministic", earth_mesh=None, earth_surface="uniform", clouds="none",
                    earth_brdf="lambert", earth_params=(), **cal)

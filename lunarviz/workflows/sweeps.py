@@ -305,6 +305,8 @@ class SweepSettings:
         # (a mapped Moon's lune rule was measured with rolo-fit-map's rough presets)
         rough = any(getattr(m, "rough", False) for m in self.brdf_models().values())
         settings["lune_order"] = None if asked_level or rough and not self._mapped_moon() else choice.get("lune_order")
+        if settings["lune_order"] is not None and choice.get("lune_source_orders") is not None:
+            settings["lune_source_orders"] = choice["lune_source_orders"]
         return {"settings": settings, "bounds": choice.get("bounds", {}) if self.modelled() else {}}
 
     def modelled(self) -> bool:

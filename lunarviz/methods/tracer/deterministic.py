@@ -32,7 +32,6 @@ class DeterministicTransport:
         queries run while another's rules and beams are built (both cores busy).
         The chunks and their order are the same for any thread count, so are the results,
         bit for bit (tests/test_trace.py)."""
-        s = self.settings
         x_all, n_all, dA_all, owner_all, alb_all = self.lunar_samples(body)
         self._warm_shared(body)
 
@@ -45,7 +44,7 @@ class DeterministicTransport:
             out = []
             if len(x) == 0:
                 return out
-            order = s.sun_order if body == "sun" else s.earth_order
+            order = self.beam_order(body)
             for g in self._rule_groups(x, n, body):
                 tr = self.beam_transport(x[g], n[g], o[g], mu[g], geom[g], body, order)
                 if isinstance(alb_all, AlbedoNodes):  # the mapped lune rule: shaded at every map value
@@ -60,6 +59,14 @@ class DeterministicTransport:
 
         starts = list(range(0, len(x_all), tuning.CHUNK))
         yield from self._chunks_in_order(lambda i: chunk(starts[i]), len(starts))
+
+    def beam_order(self, body: str) -> int:
+        """The Gauss order of ``body``'s beams: the lune rule's own (``lune_source_orders``) where
+        its samples are used, else ``sun_order`` or ``earth_order``."""
+        s = self.settings
+        if s.lune_source_orders is not None and self.lune_rule_applies(body):
+            return s.lune_source_orders[0 if body == "sun" else 1]
+        return s.sun_order if body == "sun" else s.earth_order
 
     def _warm_shared(self, body: str) -> None:
         """Fill the scene's lazy caches before chunks are traced on several threads."""

@@ -95,6 +95,19 @@ class PathResult:
                    mean_unit=dict(z))
 
 
+def _albedo_scale(ts: TraceScene, brdfs: dict) -> float:
+    """The factor from the lunar map's values to the single-scattering albedo w of the BRDFs
+    being shaded that are not linear in it (the largest: its reflectance's branch point at w = 1
+    is the nearest), for the mapped lune rule's albedo nodes in γ = √(1 - w); 0 (nodes in the map's
+    value) without a map or such a BRDF, or in a spectral run (whose w varies with wavelength)."""
+    from lunarviz.bodies.surfaces import map_scale
+    amap = ts.settings.moon_map()
+    if amap is None:
+        return 0.0
+    return max((map_scale(amap.absolute, b) for b in brdfs.values() if not getattr(b, "linear_in_albedo", False)),
+               default=0.0)
+
+
 def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False, spectral=None) -> PathResult:
     """Trace ``path`` once per run and shade every BRDF from the one transport; ``spectral`` (a
     :class:`~lunarviz.spectral.shading.SpectralShader`) also shades every node wavelength from it."""
@@ -102,6 +115,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     body = PATHS[path]
     ts.per_facet = keep_facets  # per-facet arrays need facet samples (never the lune rule's)
     ts.rough_brdf = any(getattr(b, "rough", False) for b in brdfs.values())
+    ts.albedo_scale = 0.0 if spectral is not None else _albedo_scale(ts, brdfs)
     t0 = time.perf_counter()
     r0 = ts.rays_cast
     runs = 1 if s.estimator == "deterministic" else s.runs

@@ -180,7 +180,7 @@ class LunarSampling:
         """The lune rule with the lunar map in its weights (:func:`lunarviz.geometry.mapped_lune.mapped_lune_rule`),
         cut where i = e for the Sun's path when a BRDF being shaded is rough (:attr:`rough_brdf`),
         once per body; ``None`` where its blocks are not smooth patches (the facets then)."""
-        key = (body, self.rough_brdf and body == "sun")
+        key = (body, self.rough_brdf and body == "sun", self.albedo_scale)
         if key not in self._mapped_lune_cache:
             from lunarviz.bodies.surfaces import map_frame
             from lunarviz.geometry.mapped_lune import mapped_lune_rule
@@ -189,7 +189,7 @@ class LunarSampling:
             values = np.asarray(s.moon_map().values(), dtype=float)
             self._mapped_lune_cache[key] = mapped_lune_rule(
                 self.scene, c, R, s.lune_order[0 if body == "sun" else 1], values, map_frame(self.scene, "moon"),
-                kink=key[1])
+                kink=key[1], albedo_scale=self.albedo_scale)
         return self._mapped_lune_cache[key]
 
     def edges_found(self, body: str) -> bool:

@@ -73,6 +73,10 @@ class TraceSettings:
     #: :meth:`~lunarviz.methods.tracer.lunar_sampling.LunarSampling.lune_rule_applies`); ``None``:
     #: samples on the facets (per-facet arrays, images and every other Moon take those)
     lune_order: int | None = None
+    #: the Gauss orders (Sun, Earth) of the beams from the lune rule's samples, where the tolerance
+    #: chose them from the lune rule's own error model (:func:`~lunarviz.methods.accuracy.trace_choice`);
+    #: ``None``: ``sun_order`` and ``earth_order``, which the facets' samples always take
+    lune_source_orders: tuple | None = None
     #: the physical Earth's parameters (``--param earth.NAME=VALUE``) as sorted (name, value) pairs
     earth_params: tuple = ()
 

@@ -75,6 +75,7 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         #: a BRDF being shaded has Hapke's roughness (its kink at i = e: the mapped lune rule cuts
         #: there); set by :func:`~lunarviz.methods.tracer.estimators.trace_path`
         self.rough_brdf = False
+        self.albedo_scale = 0.0  # from the lunar map to the shaded BRDFs' w (trace_path sets both)
         self._moon_albedo = self._earth_albedo = None
         #: a spectral run's Earth components (:func:`lunarviz.spectral.earth.components`): the
         #: mapped Earth's transports then carry one beam array each (``e_beam_parts``)
