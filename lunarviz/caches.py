@@ -2,8 +2,8 @@
 
 Caches are keyed by content, never by object identity: hashable argument values (levels,
 names, numbers) and, for files, :func:`file_key` (path, size and modification time) for
-:func:`memoize`; a digest of a mesh's vertices and faces (:func:`array_digest`) for
-:class:`BoundedCache`.
+:func:`memoize`; a digest of a mesh's vertices and faces (:func:`mesh_digest`) or of arrays
+(:func:`array_digest`) for :class:`BoundedCache`.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import trimesh
 
 #: the ``clear`` of every registered cache
 _CLEARERS: list[Callable[[], None]] = []
@@ -93,6 +94,18 @@ def array_digest(*arrays: np.ndarray) -> str:
         h.update(f"{a.dtype.str}{a.shape}".encode())
         h.update(a.view(np.uint8).reshape(-1) if a.size else b"")
     return h.hexdigest()
+
+
+def mesh_digest(mesh) -> tuple:
+    """A content key of a trimesh mesh's vertices and faces: trimesh's own fast hashes of its
+    tracked arrays (computed once, and again only after the array changes), with their dtypes
+    and shapes; :func:`array_digest` for arrays that trimesh does not track. A dated sweep keys
+    the same three meshes at every date (BLAKE2b of a level-6 Moon: 5 ms each time)."""
+    out = []
+    for a in (mesh.vertices, mesh.faces):
+        h = hash(a) if isinstance(a, trimesh.caching.TrackedArray) else array_digest(a)
+        out += [h, a.dtype.str, a.shape]
+    return tuple(out)
 
 
 def release_caches() -> None:

@@ -155,7 +155,7 @@ def lune_caps(scene, source: np.ndarray, source_radius: float, kink: bool = Fals
 def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int, values: np.ndarray,
                      frame: np.ndarray, kink: bool = False, edge_nodes: int | None = None,
                      albedo_nodes: int | None = None, thin: bool = True, panels: bool = True,
-                     albedo_scale: float = 0.0):
+                     albedo_scale: float = 0.0, cut_rings: bool = False):
     """Coarse nodes of the lune rule and the map's weights (module docstring).
 
     Parameters
@@ -176,6 +176,8 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         w (the largest, where several non-linear BRDFs are shaded): the albedo nodes are then
         Chebyshev points in γ = √(1 - w) (:func:`albedo_coordinate`); 0: in the map's value.
     albedo_nodes : how many (``None``: :data:`GAMMA_NODES` in γ, :data:`ALBEDO_NODES` in m).
+    cut_rings : cut cells at the t-segments' rings too, as at the integrand's own edges (the error
+        model's reference; False: a cell or panel astride a ring takes each point's own block).
 
     Returns
     -------
@@ -207,6 +209,12 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         albedo_nodes = GAMMA_NODES if albedo_scale > 0 else ALBEDO_NODES
     coords = albedo_coordinate(values, albedo_scale)
     circles, curve = _block_edges(axis, cmax, cu[0], cc[0], split[0], kink, frame)
+    # the integrand's own edges (the caps' circles: terminator, the penumbra band's far edge, the
+    # limb; the kink) cut cells and keep panels away; the t-rings only part the coarse rule's
+    # blocks, across which the integrand is smooth: a cell or panel astride one takes each point
+    # in its own block (that block's interpolant, as accurate there as the other's)
+    hard = circles if cut_rings else circles[:3]
+    sides = _side_codes(hard, curve)
     # one set of albedo nodes for the whole map (the panels' weights are summed once per map): the
     # nodes span values the lune may not hold, which moves the result within the interpolation's
     # error in m (8 nodes over rolo-fit-map's range: 5e-8; docstring); ``vals`` in the coordinate
@@ -218,7 +226,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     cells = np.flatnonzero((cs @ axis > cmax - reach) & (cs @ cu[0, 0] > cc[0, 0] - reach))
     parts = []
     if panels:  # whole panels: their body-fixed rule, and their cells out of the cell sums below
-        found = _whole_panels(coords, vals, frame, axis, cmax, cu[0, 0], cc[0, 0], circles, curve, locate, n_iv)
+        found = _whole_panels(coords, vals, frame, axis, cmax, cu[0, 0], cc[0, 0], hard, curve, sides, locate, n_iv)
         if found is not None:
             parts.append(found[0])
             cells = np.setdiff1d(cells, found[1], assume_unique=True)
@@ -227,10 +235,12 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     corner_ids = _cell_corner_ids((h, w))[cells]  # (C, 4) into the (h + 1)·(w + 1) grid vertices
     nv = (h + 1) * (w + 1)
     vblock, v_ut, v_up = _located_vertices((h, w), corner_ids, locate, n_iv)
-    # a cell whose centre and corners lie in different blocks (or partly outside), or that a block
-    # edge passes within (a lune thinner than a cell slips between those five points), holds an edge
-    near, north, east = _edges_near((h, w), cells, circles, curve)
-    edge = (vblock[corner_ids] != block[:, None]).any(axis=1) | near
+    # a cell whose centre and corners lie on different sides of an edge (or partly outside), or
+    # that an edge passes within (a lune thinner than a cell slips between those five points),
+    # holds an edge
+    near, north, east = _edges_near((h, w), cells, hard, curve)
+    corner_sides = sides(_grid_vertices((h, w))[corner_ids.ravel()]).reshape(-1, 4)
+    edge = near | (vblock[corner_ids] < 0).any(axis=1) | (corner_sides != sides(centres[cells])[:, None]).any(axis=1)
     whole = ~edge & (block >= 0)
     m_cell = coords.reshape(-1)[cells]
     # whole cells: the rectangle rule in (sin lat, lon) with the centre (2/3 of the area) and the
@@ -244,7 +254,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     parts += [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
               (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
-        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], circles, edge_nodes, curve)
+        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], hard, edge_nodes, curve)
         s2, i2, ut2, up2, in2 = locate(ep)
         mm = m_cell[edge][owner][in2]
         parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))
@@ -269,6 +279,21 @@ def _block_edges(axis, cmax, caps_u, caps_c, split, kink, frame):
     return circles, None if kink is None else (frame.T @ caps_u[0], frame.T @ axis, kink)
 
 
+def _side_codes(circles, curve):
+    """``p ↦`` which side of each edge (``circles``, ``n·u = c``; the kink ``curve``,
+    :func:`_curve_value`) the map-frame unit vectors p (P, 3) lie on, one bit an edge."""
+    F = None if curve is None else _curve_value(curve)
+
+    def sides(p):
+        code = np.zeros(len(p), np.int64)
+        for i, (u, c) in enumerate(circles):
+            code |= (p @ u > c).astype(np.int64) << i
+        if F is not None:
+            code |= (F(p) > 0).astype(np.int64) << len(circles)
+        return code
+    return sides
+
+
 def _located_vertices(shape, corner_ids, locate, n_iv):
     """The block (-1 outside), u_t and u_φ of every grid vertex (h + 1)·(w + 1) that
     ``corner_ids`` uses, each located once (others: block -1)."""
@@ -284,15 +309,16 @@ def _located_vertices(shape, corner_ids, locate, n_iv):
     return vblock, v_ut, v_up
 
 
-def _whole_panels(values, vals, frame, axis, cmax, lit_u, lit_c, circles, curve, locate, n_iv):
-    """The panels (:func:`_panel_rule`) wholly inside one block of the rule: centre inside the
-    lit (``lit_u·u > lit_c``), visible (``axis·u > cmax``) caps, no block edge within 1.25 panel
-    half-diagonals (:func:`_edges_near_at`), at least three of those from the rule's pole (where
-    the blocks' coordinates are singular), and all their nodes located in one block, within half
-    its φ-range. (A whole ring's seam at φ = 0 may still cross a panel between its nodes: it is
-    no edge of the integrand, whose interpolant is continuous across it to its own accuracy;
-    dropping such panels moved results by ≤ 4e-11.) Returns the part ``(block, u_t, u_φ, ell)``
-    of their nodes and their cells, or ``None`` without panels."""
+def _whole_panels(values, vals, frame, axis, cmax, lit_u, lit_c, circles, curve, sides, locate, n_iv):
+    """The panels (:func:`_panel_rule`) wholly inside the region, on one side of every edge of
+    the integrand: centre inside the lit (``lit_u·u > lit_c``), visible (``axis·u > cmax``)
+    caps, no edge (``circles``, the kink ``curve``) within 1.25 panel half-diagonals
+    (:func:`_edges_near_at`), at least three of those from the rule's pole (where the blocks'
+    coordinates are singular), and all their nodes located inside, with the centre's ``sides``.
+    The nodes may lie in different blocks (a t-ring or a whole ring's seam at φ = 0 between
+    them): no edge of the integrand, whose blocks' interpolants each stand for it to their own
+    accuracy. Returns the part ``(block, u_t, u_φ, ell)`` of their nodes and their cells, or
+    ``None`` without panels."""
     pan = _panel_rule(values, tuple(vals))
     if pan is None:
         return None
@@ -302,9 +328,11 @@ def _whole_panels(values, vals, frame, axis, cmax, lit_u, lit_c, circles, curve,
     sel = np.flatnonzero((c @ axis > cmax) & (c @ lit_u > lit_c) & (c @ axis < np.cos(3.0 * half)))
     sel = sel[~_edges_near_at(pan.lat[sel], pan.lon[sel], half, circles, curve)[0]]
     kk = pan.points.shape[1]
-    seg, itv, ut, up, ins = locate(pan.points[sel].reshape(-1, 3))
+    nodes = pan.points[sel].reshape(-1, 3)
+    seg, itv, ut, up, ins = locate(nodes)
     blk = np.where(ins, seg * n_iv + itv, -1).reshape(-1, kk)
-    ok = (blk[:, :1] >= 0).ravel() & (blk == blk[:, :1]).all(axis=1) & (np.ptp(up.reshape(-1, kk), axis=1) < 0.5)
+    sd = sides(nodes).reshape(-1, kk)
+    ok = (blk >= 0).all(axis=1) & (sd == sd[:, :1]).all(axis=1)
     pts = np.repeat(ok, kk)
     return (blk[ok].ravel(), ut[pts], up[pts], pan.weights[sel[ok]].reshape(-1, len(vals))), pan.cells[sel[ok]].ravel()
 

@@ -120,27 +120,39 @@ def _point_source_transport(scene, x, n, dA, source, e_normal) -> Transport:
                      e_beam=np.where(lit, e_normal, 0.0)[:, None], mu=mu, geom=geom)
 
 
-def moonshine_transport(scene: SceneGeometry, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
-    """Sun → Moon → detector with a point Sun (paper Eq. 6, 10, 11)."""
-    if settings.grid == "paper":
+def moonshine_transport(scene: SceneGeometry, settings: AnalyticSettings = AnalyticSettings(),
+                        rule: tuple | None = None) -> Transport:
+    """Sun → Moon → detector with a point Sun (paper Eq. 6, 10, 11); on ``rule`` (see
+    :func:`analytic_irradiance`) where given."""
+    if rule is not None:
+        x, n, dA = rule[:3]
+    elif settings.grid == "paper":
         x, n, dA = paper_grid(scene, settings.paper_step_deg)
     else:
         x, n, dA = lunar_surface_rule(scene, scene.sun, 0.0, settings.order)
     tr = _point_source_transport(scene, x, n, dA, scene.sun, scene.solar_irradiance_at(x))
-    return _with_moon_map(tr, scene, x, settings)
+    return _with_moon_map(tr, scene, x, settings, rule)
 
 
-def _with_moon_map(tr: Transport, scene, x, settings) -> Transport:
+def _with_moon_map(tr: Transport, scene, x, settings, rule: tuple | None = None) -> Transport:
+    """The lunar map on ``tr``: read at the nodes x, or ``rule``'s map weights (its AlbedoNodes)."""
     sf = settings.surfaces
     if sf is not None and sf.moon_map is not None:
-        tr.albedo = sf.moon_values_at(scene, x)
+        if rule is not None:
+            tr.albedo_nodes = (rule[3].values, rule[3].factors)
+        else:
+            tr.albedo = sf.moon_values_at(scene, x)
         tr.albedo_absolute = sf.moon_map.absolute
     return tr
 
 
-def earthshine_transport(scene: SceneGeometry, settings: AnalyticSettings = AnalyticSettings()) -> Transport:
-    """Sun → Earth → Moon → detector with a point Earth of Lambert-sphere intensity (Eq. 7-9)."""
-    if settings.grid == "paper":
+def earthshine_transport(scene: SceneGeometry, settings: AnalyticSettings = AnalyticSettings(),
+                         rule: tuple | None = None) -> Transport:
+    """Sun → Earth → Moon → detector with a point Earth of Lambert-sphere intensity (Eq. 7-9); on
+    ``rule`` (see :func:`analytic_irradiance`) where given."""
+    if rule is not None:
+        x, n, dA = rule[:3]
+    elif settings.grid == "paper":
         x, n, dA = paper_grid(scene, settings.paper_step_deg)
     else:
         x, n, dA = lunar_surface_rule(scene, scene.earth, 0.0, settings.order)
@@ -159,7 +171,7 @@ def earthshine_transport(scene: SceneGeometry, settings: AnalyticSettings = Anal
         albedo = sf.earth_albedo_toward(scene, scene.moon)
     tr = _point_source_transport(scene, x, n, dA, E, albedo * unit_intensity / d2)
     tr.e_beam_unit = np.where(tr.mu0 > 0, (unit_intensity / d2)[:, None], 0.0)  # lit: μ0 > 0, as e_beam
-    return _with_moon_map(tr, scene, x, settings)
+    return _with_moon_map(tr, scene, x, settings, rule)
 
 
 @dataclass(frozen=True)
@@ -178,10 +190,18 @@ class DetectorIrradiance:
         return self.earthshine_W_m2 / u if u else float("nan")
 
 
-def analytic_irradiance(scene: SceneGeometry, brdfs: dict, settings: AnalyticSettings = AnalyticSettings()
-                        ) -> dict[str, DetectorIrradiance]:
-    """Moonshine and earthshine at the detector for each named BRDF (one transport each)."""
-    ms = moonshine_transport(scene, settings)
-    es = earthshine_transport(scene, settings)
+def analytic_irradiance(scene: SceneGeometry, brdfs: dict, settings: AnalyticSettings = AnalyticSettings(),
+                        rules: dict | None = None) -> dict[str, DetectorIrradiance]:
+    """Moonshine and earthshine at the detector for each named BRDF (one transport each).
+
+    ``rules`` ({"sun": rule, "earth": rule}, optional): each path's lunar rule, ``(x, n, dA,
+    AlbedoNodes)`` of :func:`lunarviz.geometry.mapped_lune.mapped_lune_rule`, in place of the
+    settings' grid: the mapped lune rule of the ray tracer's extended source, whose region holds
+    the point source's (its lit cap reaches past the point's terminator by the source's
+    angular radius; the point-source integrand is 0 there) and whose weights hold the map's cells
+    exactly, where the nodes of ``order`` read the map at points (3e-3 at order 96)."""
+    rules = rules or {}
+    ms = moonshine_transport(scene, settings, rules.get("sun"))
+    es = earthshine_transport(scene, settings, rules.get("earth"))
     return {k: DetectorIrradiance(ms.detector_irradiance(b), *es.detector_irradiances(b))
             for k, b in brdfs.items()}

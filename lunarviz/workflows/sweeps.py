@@ -20,7 +20,7 @@ import numpy as np
 from lunarviz.errors import LunarvizError
 from lunarviz.methods import accuracy
 from lunarviz.geometry.scene_geometry import SceneGeometry
-from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
+from lunarviz.methods.analytic import AnalyticSettings, DetectorIrradiance, analytic_irradiance
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 from lunarviz.options import BY_NAME, DEFAULT_LEVELS, GROUPS, compose, from_settings_dict, group, validate
 from lunarviz.photometry import albedo_inversion as alb
@@ -417,7 +417,7 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
         """Earthshine of the model Earth (uniform albedo a0) on the same transport."""
         return es if uniform else a0 * es_unit
     cal_settings = replace(settings.analytic_settings(), grid="converged", earth_law="lambert")
-    point = analytic_irradiance(sc, brdfs, cal_settings)
+    point = None if settings.method == "raytrace" else analytic_irradiance(sc, brdfs, cal_settings)
     if settings.method == "analytic":
         res = point if settings.analytic_settings() == cal_settings else \
             analytic_irradiance(sc, brdfs, settings.analytic_settings())
@@ -446,7 +446,7 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
                          "_terms_point": alb.lunar_terms(sc, model_es(pt.earthshine_W_m2, pt.earthshine_unit_W_m2),
                                                          pt.moonshine_W_m2, a0)})
     else:
-        rows, bound = _traced_rows(settings, sc, base, brdfs, point, model_es, threads)
+        rows, bound = _traced_rows(settings, sc, base, brdfs, cal_settings, model_es, threads)
     dt = time.perf_counter() - t0
     for r in rows:
         es_, ms_ = r["earthshine_W_m2"], r["moonshine_W_m2"]
@@ -468,8 +468,11 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
     return rows
 
 
-def _traced_rows(settings: SweepSettings, sc, base: dict, brdfs: dict, point: dict, model_es, threads):
-    """The ray tracer's rows of one task (before the inversion's fields) and their bound."""
+def _traced_rows(settings: SweepSettings, sc, base: dict, brdfs: dict, cal_settings, model_es, threads):
+    """The ray tracer's rows of one task (before the inversion's fields) and their bound. The
+    point-source calibration (``cal_settings``) runs on the mapped lune rule the trace used where it
+    used one (:meth:`~lunarviz.methods.tracer.lunar_sampling.LunarSampling.mapped_rule_used`: the
+    map's cells exact in its weights), else on the analytic grid."""
     from lunarviz.methods.tracer.estimators import PathResult, TraceScene, trace_path
     a0 = settings.earth_albedo
     rows = []
@@ -482,6 +485,11 @@ def _traced_rows(settings: SweepSettings, sc, base: dict, brdfs: dict, point: di
         ms = trace_path(ts, "moonshine", brdfs)
         es = trace_path(ts, "earthshine", brdfs)
         bound = accuracy.traced_bound(plan["bounds"], ts, ms, es)
+    if ts is None:  # (the Moon wholly hidden: the point sources' sight lines are blocked too)
+        point = {k: DetectorIrradiance(0.0, 0.0, 0.0) for k in brdfs}
+    else:
+        rules = {b: r for b in ("sun", "earth") if (r := ts.mapped_rule_used(b)) is not None}
+        point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
     if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
         cal_ms = ms.mean
         cal_es = {k: model_es(es.mean[k], es.mean_unit[k]) for k in brdfs}

@@ -24,7 +24,7 @@ import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-from lunarviz.caches import BoundedCache, array_digest
+from lunarviz.caches import BoundedCache, mesh_digest
 from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.methods.tracer.ray_kernels import ray_batch32
 
@@ -397,7 +397,7 @@ def _body_geometry(mesh, scale: float, rotation: np.ndarray | None = None) -> di
     time). Keyed by the mesh's content (vertices, faces, analytic tag), the scale and the rotation.
     """
     tag = mesh.metadata.get("lunarviz_analytic") if mesh.metadata else None
-    key = (array_digest(mesh.vertices, mesh.faces), repr(tag), float(scale),
+    key = (mesh_digest(mesh), repr(tag), float(scale),
            None if rotation is None else rotation.tobytes())
     hit = _GEOMETRY_CACHE.get(key)
     if hit is not None:

@@ -192,6 +192,14 @@ class LunarSampling:
                 kink=key[1], albedo_scale=self.albedo_scale)
         return self._mapped_lune_cache[key]
 
+    def mapped_rule_used(self, body: str):
+        """The mapped lune rule (:meth:`_mapped_lune`: x, n, dA, AlbedoNodes) that ``body``'s
+        deterministic samples came from, or ``None`` (no map contrast, the facets, Monte Carlo)."""
+        s = self.settings
+        if s.estimator != "deterministic" or not self.lune_rule_applies(body) or not self._moon_map_contrast():
+            return None
+        return self._mapped_lune(body)
+
     def edges_found(self, body: str) -> bool:
         """Whether :meth:`candidates` found a cast-shadow or hidden-view edge across the Moon."""
         return body in self._edge_cache and bool(self._edge_cache[body].size)

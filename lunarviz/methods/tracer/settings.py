@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
@@ -84,8 +85,8 @@ class TraceSettings:
         """The parsed lunar albedo map, or ``None``."""
         if self.moon_albedo_map is None:
             return None
-        from lunarviz.bodies.surfaces import MoonAlbedoMap
-        return MoonAlbedoMap.parse(self.moon_albedo_map)
+        src = Path(str(self.moon_albedo_map).strip())  # (its name, and a file's content key when it is one)
+        return _parsed_moon_map(self.moon_albedo_map, file_key(src) if src.is_file() else None)
 
     def surface(self):
         """The Earth's :class:`~lunarviz.bodies.surfaces.EarthSurface`."""
@@ -125,6 +126,14 @@ def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None =
     or the packaged icosphere at ``level`` tagged as an analytic sphere of ``radius``.
     Cached by the file's content key (a rewritten file is read again) and the arguments."""
     return _body_mesh_cached(body, level, None if path is None else file_key(path), units, radius)
+
+
+@memoize(maxsize=8)
+def _parsed_moon_map(text: str, key: tuple | None):
+    """:meth:`MoonAlbedoMap.parse` of ``text`` (``key``: the file's :func:`file_key`, where the whole
+    text names a file): parsed and checked once, not at every one of a trace's many calls."""
+    from lunarviz.bodies.surfaces import MoonAlbedoMap
+    return MoonAlbedoMap.parse(text)
 
 
 @memoize(maxsize=16)

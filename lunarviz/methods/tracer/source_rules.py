@@ -99,14 +99,16 @@ class SourceRules:
         return gamma < (rho_s + rho_e) * (1 + 1e-6)
 
     def sun_visibility_of_earth(self) -> np.ndarray:
-        """Fraction of the Sun each Earth facet sees past the Moon (with occlusion) and past
-        the Earth itself (a non-convex Earth mesh, with self-shadowing); 1 otherwise."""
+        """Fraction of the Sun each Earth facet sees past the Moon (with occlusion, where its
+        shadow may fall on the Earth: :meth:`moon_shadow_on_earth_possible`) and past the Earth
+        itself (a non-convex Earth mesh, with self-shadowing); 1 otherwise."""
         if self._sun_vis_earth is not None:
             return self._sun_vis_earth
         E = self.earth
         vis = np.ones(E.n_faces)
         earth_self = self.settings.self_shadow and not E.convex
-        if self.settings.occlusion or earth_self:
+        moon_shadow = self.settings.occlusion and self.moon_shadow_on_earth_possible()
+        if moon_shadow or earth_self:
             n = E.normals_for(self.settings.shading)
             x = E.centroids
             c, R, _ = self._source("sun")
@@ -119,7 +121,7 @@ class SourceRules:
                 self._count(B * K)
                 tot = w.sum(1)
                 vis[idx] = np.where(tot > 0, (w * ~occ).sum(1) / np.where(tot > 0, tot, 1), 1.0)
-            if self.settings.occlusion:
+            if moon_shadow:
                 # facets from which the Moon's disc overlaps the Sun's (the Moon's shadow and
                 # penumbra on the Earth, a solar eclipse): the Moon's limb cuts the solar cone,
                 # and 8 beams round the partial Sun to steps; ECLIPSE_ORDER beams resolve it.

@@ -101,12 +101,12 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         same part of the map at every date: the values are kept per map, mesh and frame for the
         process (:data:`MOON_MAP_VALUES`), and a time series computes them once."""
         from lunarviz.bodies.surfaces import map_frame, moon_facet_values
-        from lunarviz.caches import array_digest
+        from lunarviz.caches import file_key, mesh_digest
         M, amap = self.moon, self.settings.moon_map()
         frame = map_frame(self.scene, "moon")
         turned = M.rotation is not None and np.array_equal(frame, M.rotation)  # body frame: date-independent
         mesh = M.geometry["mesh"]
-        key = (array_digest(amap.values()), amap.mean, array_digest(mesh.vertices, mesh.faces), float(M.radius),
+        key = (file_key(amap.source()), amap.mean, mesh_digest(mesh), float(M.radius),
                "body" if turned else frame.tobytes())
         got = MOON_MAP_VALUES.get(key)
         if got is None:
