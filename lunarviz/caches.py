@@ -97,15 +97,26 @@ def array_digest(*arrays: np.ndarray) -> str:
 
 
 def mesh_digest(mesh) -> tuple:
-    """A content key of a trimesh mesh's vertices and faces: trimesh's own fast hashes of its
-    tracked arrays (computed once, and again only after the array changes), with their dtypes
-    and shapes; :func:`array_digest` for arrays that trimesh does not track. A dated sweep keys
-    the same three meshes at every date (BLAKE2b of a level-6 Moon: 5 ms each time)."""
-    out = []
-    for a in (mesh.vertices, mesh.faces):
-        h = hash(a) if isinstance(a, trimesh.caching.TrackedArray) else array_digest(a)
-        out += [h, a.dtype.str, a.shape]
-    return tuple(out)
+    """A content key of a mesh's vertices and faces, computed once where they cannot change: a
+    dated sweep keys the same three meshes at every date (BLAKE2b of a level-6 Moon: 5 ms each
+    time). Read-only arrays that own their data (the packaged spheres'): their
+    :func:`array_digest`, kept on the mesh; a trimesh mesh's tracked arrays: trimesh's own fast
+    hashes (recomputed only after a change), with their dtypes and shapes; else
+    :func:`array_digest` every time."""
+    arrays = (mesh.vertices, mesh.faces)
+    if all(type(a) is np.ndarray and not a.flags.writeable and a.base is None for a in arrays):
+        memo = getattr(mesh, "_lunarviz_digest", None)
+        if memo is not None and memo[0] is arrays[0] and memo[1] is arrays[1]:
+            return memo[2]
+        key = (array_digest(*arrays),)
+        try:
+            object.__setattr__(mesh, "_lunarviz_digest", (*arrays, key))  # (frozen dataclasses too)
+        except AttributeError:  # (a mesh type without attributes of its own)
+            pass
+        return key
+    if all(isinstance(a, trimesh.caching.TrackedArray) for a in arrays):
+        return tuple(x for a in arrays for x in (hash(a), a.dtype.str, a.shape))
+    return (array_digest(*arrays),)
 
 
 def release_caches() -> None:

@@ -4,7 +4,7 @@
 
 The lune rule on ``rolo-fit-map`` (its rough Hapke presets on the synthetic lunar map;
 :mod:`lunarviz.geometry.mapped_lune`): for each lune order, the largest relative error of the
-moonshine and of the earthshine over the paper's scene (θ = 5-175° every 10°, lambert, shg and
+moonshine and of the earthshine over the paper's scene (θ = 5-175° every 5°, lambert, shg and
 dhg, no occlusion) and its time per phase (one thread), against the same rule at order 48 with
 finer sums over the cells that the rule's edges cut (8 lines and points), every block at the full
 order (no thin blocks: ``mapped_lune.THIN_WIDTH``), every whole cell by its own rule (no
@@ -31,28 +31,42 @@ BRDFS = ("lambert", "shg", "dhg")
 PATHS = {"moonshine": "sun", "earthshine": "earth"}
 SOURCE = {"moonshine": "sun_order", "earthshine": "earth_order"}
 ORDERS = (8, 12, 16, 20, 24, 32)
-#: the source orders measured with each lune order (the Sun's: 2; the Earth's: 6 and 7, where
-#: the plain lune rule's 1.7e-5 and 4.6e-6 leave the map's share to decide)
-SOURCE_ORDERS = ({"sun_order": 2, "earth_order": 7}, {"sun_order": 2, "earth_order": 6})
+#: the source orders measured with each lune order (the Sun's 2; the Earth's 7: at 6 the
+#: earthshine erred by 5.6-8.8e-5 at lune orders 20-32 in this model, where the plain lune rule's
+#: 1.7e-5 would have left room)
+SOURCE_ORDERS = ({"sun_order": 2, "earth_order": 7},)
 REFERENCE = {"lune_order": 48, "sun_order": 3, "earth_order": 10}
 REFERENCE_EDGE_NODES = 8
 #: the reference rule's own settings (mapped_lune_rule's keywords): finer cut-cell sums, full
 #: orders, 8 albedo nodes in γ (3e-11 in the reflectance, mapped_lune.GAMMA_NODES)
-REFERENCE_RULE = {"edge_nodes": REFERENCE_EDGE_NODES, "thin": False, "panels": False, "albedo_nodes": 8}
+REFERENCE_RULE = {"edge_nodes": REFERENCE_EDGE_NODES, "thin": False, "panels": False, "albedo_nodes": 8,
+                  "cut_rings": True}
+#: the phases measured [deg]: every 5° (each row keeps its error at each, ``errors_by_phase``: a
+#: date takes the orders that its own θ's neighbours need, accuracy.trace_choice)
+PHASES = tuple(float(t) for t in range(5, 176, 5))
 
 
-def _run(phases, base, brdfs, settings: dict, rule: dict | None = None) -> dict:
-    """{(path, θ): (means, seconds, rays)} with the mapped lune rule at ``settings``."""
+def with_rule(rule: dict | None, fn):
+    """``fn()`` with the mapped lune rule's keyword defaults set to ``rule`` (the others kept)."""
     from lunarviz.geometry import mapped_lune
-    from lunarviz.geometry.scene_geometry import SceneGeometry
-    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     saved = mapped_lune.mapped_lune_rule.__defaults__
-    if rule:  # the reference rule's keywords (the other defaults kept)
+    if rule:
         import inspect
         names = [p for p, v in inspect.signature(mapped_lune.mapped_lune_rule).parameters.items()
                  if v.default is not inspect.Parameter.empty]
         mapped_lune.mapped_lune_rule.__defaults__ = tuple(rule.get(n, d) for n, d in zip(names, saved))
     try:
+        return fn()
+    finally:
+        mapped_lune.mapped_lune_rule.__defaults__ = saved
+
+
+def _run(phases, base, brdfs, settings: dict, rule: dict | None = None) -> dict:
+    """{(path, θ): (means, seconds, rays)} with the mapped lune rule at ``settings``."""
+    from lunarviz.geometry.scene_geometry import SceneGeometry
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
+
+    def run():
         out = {}
         for th in phases:
             for path, body in PATHS.items():
@@ -63,8 +77,7 @@ def _run(phases, base, brdfs, settings: dict, rule: dict | None = None) -> dict:
                     raise SystemExit(f"θ = {th}: the mapped lune rule does not apply")
                 out[(path, th)] = (r.mean, time.perf_counter() - t0, r.rays)
         return out
-    finally:
-        mapped_lune.mapped_lune_rule.__defaults__ = saved
+    return with_rule(rule, run)
 
 
 def measure(phases, orders) -> dict:
@@ -80,18 +93,31 @@ def measure(phases, orders) -> dict:
             for p in PATHS:
                 if any(r["lune_order"] == o and r[SOURCE[p]] == sources[SOURCE[p]] for r in rows[p]):
                     continue  # (this path's source order measured already)
-                err = max(abs(got[(p, th)][0][k] / ref[(p, th)][0][k] - 1.0) for th in phases for k in BRDFS)
-                rows[p].append({"lune_order": o, SOURCE[p]: sources[SOURCE[p]], "max_rel_error": err,
+                by_phase = [max(abs(got[(p, th)][0][k] / ref[(p, th)][0][k] - 1.0) for k in BRDFS) for th in phases]
+                rows[p].append({"lune_order": o, SOURCE[p]: sources[SOURCE[p]], "max_rel_error": max(by_phase),
+                                "phases_deg": list(phases), "errors_by_phase": by_phase,
                                 "rays_per_phase": float(np.mean([got[(p, th)][2] for th in phases])),
                                 "seconds_per_phase": float(np.mean([got[(p, th)][1] for th in phases]))})
     return rows
+
+
+def _by_phase_table(rows: dict, phases) -> list:
+    """The errors at each phase (the rows' ``errors_by_phase``): what a date's own θ chooses from."""
+    out = ["", "Largest relative error over the BRDFs at each phase (a date's orders come from its θ's "
+           "neighbours: accuracy.trace_choice):", ""]
+    cols = [(p, r) for p, rs in rows.items() for r in rs]
+    out.append("| θ [deg] | " + " | ".join(f"{p[:5]} {r['lune_order']}" for p, r in cols) + " |")
+    out.append("| --- " * (len(cols) + 1) + "|")
+    for i, th in enumerate(phases):
+        out.append(f"| {th:g} | " + " | ".join(f"{r['errors_by_phase'][i]:.1e}" for _, r in cols) + " |")
+    return out
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="three phases, two orders; print only")
     a = ap.parse_args(argv)
-    phases = (30.0, 90.0, 150.0) if a.quick else tuple(float(t) for t in range(5, 176, 10))
+    phases = (30.0, 90.0, 150.0) if a.quick else PHASES
     orders = (8, 12) if a.quick else ORDERS
     t0 = time.perf_counter()
     rows = measure(phases, orders)
@@ -102,7 +128,7 @@ def main(argv=None) -> int:
              f"occlusion; error against lune order {REFERENCE['lune_order']}, Sun order {REFERENCE['sun_order']}, "
              f"Earth "
              f"order {REFERENCE['earth_order']}, {REFERENCE_EDGE_NODES} lines and points a piece in cut cells, "
-             f"every block at full order (no thin blocks).",
+             f"every block at full order (no thin blocks), cells cut at the t-rings too, 8 albedo nodes in γ.",
              "",
              "| path | lune order | source order | max relative error | rays per phase | seconds per phase |",
              "| --- | --- | --- | --- | --- | --- |"]
@@ -110,6 +136,7 @@ def main(argv=None) -> int:
         for r in rs:
             lines.append(f"| {path} | {r['lune_order']} | {r[SOURCE[path]]} | {r['max_rel_error']:.1e} | "
                          f"{r['rays_per_phase']:.0f} | {r['seconds_per_phase']:.3f} |")
+    lines += _by_phase_table(rows, phases)
     text = "\n".join(lines) + "\n"
     print(text)
     if a.quick:

@@ -102,6 +102,28 @@ def test_the_mapped_lune_rule_takes_its_own_source_orders():
     assert facets.beam_order("earth") == ts_set.earth_order != ts_set.lune_source_orders[1]
 
 
+def test_a_tasks_orders_come_from_its_own_phase():
+    """The mapped lune rule's model was measured phase by phase (every 5°, errors_by_phase): a
+    task at θ takes the cheapest orders whose largest error at the phases within
+    PHASE_WINDOW_DEG of θ meets rtol / SAFETY, and reports that error times SAFETY; outside the
+    phases (and without θ) the largest over all of them, as before."""
+    table = accuracy.error_models()["raytrace_lune_mapped"]
+    row = next(r for r in table["moonshine"] if r["lune_order"] == 16)
+    phases, errs = np.array(row["phases_deg"]), np.array(row["errors_by_phase"])
+    assert np.diff(phases).max() <= 5.0 and accuracy.row_error(row) == row["max_rel_error"] == errs.max()
+    assert accuracy.row_error(row, 92.0) == errs[(phases >= 85) & (phases <= 100)].max()
+    assert accuracy.row_error(row, 178.0) == errs.max() and accuracy.row_error(row, -92.0) == accuracy.row_error(row, 92.0)
+    whole = accuracy.trace_choice(1e-4, {}, True)
+    cheaper = 0
+    for theta in np.arange(5.0, 176.0, 2.5):
+        c = accuracy.trace_choice(1e-4, {}, True, theta)
+        for i, path in enumerate(("moonshine", "earthshine")):
+            r = next(r for r in table[path] if r["lune_order"] == c["lune_order"][i])
+            assert c["bounds"][("lune", path)] == accuracy.SAFETY * accuracy.row_error(r, theta) <= 1e-4
+        cheaper += sum(c["lune_order"]) < sum(whole["lune_order"])
+    assert cheaper > 20  # (most phases need less than the worst phase's orders)
+
+
 def test_montecarlo_beyond_its_ray_limit_says_what_to_do():
     with pytest.raises(LunarvizError, match="--runs"):
         SweepSettings(method="raytrace", estimator="montecarlo", rtol=1e-5).trace_settings()

@@ -100,4 +100,7 @@ def packaged_sphere(body: str, level: int, radius: float) -> SphereMesh | None:
     if got is None:
         return None
     v, f = got
-    return SphereMesh(v * radius, f, {"lunarviz_analytic": {"shape": "sphere", "radius": float(radius)}})
+    vertices, faces = v * radius, np.array(f, dtype=np.int64, order="C")  # (owning their data)
+    for a in (vertices, faces):  # (shared through the mesh cache: nothing may change them)
+        a.setflags(write=False)
+    return SphereMesh(vertices, faces, {"lunarviz_analytic": {"shape": "sphere", "radius": float(radius)}})

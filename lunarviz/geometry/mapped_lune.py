@@ -254,7 +254,9 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     parts += [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
               (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
-        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], hard, edge_nodes, curve)
+        (lit_u, lit_c), (vis_u, vis_c) = circles[0], circles[2]  # the region: lit (any of the disc) and seen
+        ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], hard, edge_nodes, curve,
+                                         inside=lambda p: (p @ lit_u > lit_c) & (p @ vis_u > vis_c))
         s2, i2, ut2, up2, in2 = locate(ep)
         mm = m_cell[edge][owner][in2]
         parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))
@@ -471,7 +473,7 @@ def _cell_corner_ids(shape):
     return out
 
 
-def _edge_cell_nodes(shape, cells, along_lon, circles, k: int, curve=None):
+def _edge_cell_nodes(shape, cells, along_lon, circles, k: int, curve=None, inside=None):
     """Points (P, 3) in the map's frame, weights (P,) [sr] and owning cell (P,) over ``cells``.
 
     Every block edge of the lune rule is a circle ``n·u = c`` of ``circles`` (the caps and the
@@ -481,7 +483,9 @@ def _edge_cell_nodes(shape, cells, along_lon, circles, k: int, curve=None):
     longitude, where they run more north-south), each line cut
     where it meets a circle (closed form) or the kink ``curve`` ``(u, o, (a_s, a_d))``: ``n·u =
     kink_threshold(angle(n, o))``, found by bisection) and given k Gauss points per piece: each
-    piece lies in one block, where the integrand is smooth, so no edge is point-sampled."""
+    piece lies in one block, where the integrand is smooth, so no edge is point-sampled.
+    ``inside`` (``p ↦ bool``, optional): the region's test; pieces whose midpoint fails it (each
+    lies wholly on one side of every edge) take no points."""
     h, w = shape
     cells = np.asarray(cells)
     row, col = cells // w, cells % w
@@ -491,7 +495,7 @@ def _edge_cell_nodes(shape, cells, along_lon, circles, k: int, curve=None):
     out = []
     for sel, cut_mu in ((np.flatnonzero(along_lon), True), (np.flatnonzero(~along_lon), False)):
         p, wt, own = _lines(cells[sel], (mu_range[0][sel], mu_range[1][sel]), (lon_range[0][sel], lon_range[1][sel]),
-                            circles, k, cut_mu, curve)
+                            circles, k, cut_mu, curve, inside)
         out.append((p, wt, sel[own]))  # owners back to indices into ``cells``
     return tuple(np.concatenate(x) for x in zip(*out))
 
@@ -545,7 +549,7 @@ def _curve_value(curve):
     return F
 
 
-def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool, curve=None):
+def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool, curve=None, inside=None):
     """:func:`_edge_cell_nodes` for cells whose lines all run one way: constant longitude (cut
     in μ = sin lat) with ``cut_mu``, else constant μ (cut in longitude)."""
     g, gw = gauss_legendre(k)
@@ -584,20 +588,28 @@ def _lines(cells, mu_range, lon_range, circles, k: int, cut_mu: bool, curve=None
     # ~1e-16 wide: their points sit on the circle, where a ring's intervals are degenerate
     cell, line, piece = np.nonzero(b - a > 1e-9 * (hi - lo)[..., None])  # the live pieces, in order
     a, b = a[cell, line, piece][:, None], b[cell, line, piece][:, None]
+    if inside is not None:  # pieces outside the region (each wholly in or out): none of their points
+        live = inside(_line_points(0.5 * (a + b).ravel(), fixed[cell, line], cut_mu))
+        cell, line, a, b = cell[live], line[live], a[live], b[live]
     cut = (a + (b - a) * g).ravel()  # (live pieces · k) points along the lines
     wt = ((b - a) * gw * fixed_w[cell, line][:, None]).ravel()
-    fx = np.repeat(fixed[cell, line], k)
+    return _line_points(cut, np.repeat(fixed[cell, line], k), cut_mu), wt, np.repeat(cell, k)
+
+
+def _line_points(cut, fx, cut_mu: bool) -> np.ndarray:
+    """Unit vectors (map frame) at ``cut`` along lines of constant longitude ``fx`` (``cut_mu``:
+    ``cut`` is μ = sin lat), else of constant μ ``fx`` (``cut``: longitudes)."""
     mu, lon = (cut, fx) if cut_mu else (fx, cut)
     cl = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))
-    return np.stack([cl * np.cos(lon), cl * np.sin(lon), mu], axis=1), wt, np.repeat(cell, k)
+    return np.stack([cl * np.cos(lon), cl * np.sin(lon), mu], axis=1)
 
 
-def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: int = 12) -> list:
+def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: int = 6) -> list:
     """Where each line (``fixed`` (C, k), running from ``lo`` to ``hi`` in μ or longitude) meets
     ``F = 0``: a sign change between ``samples`` + 1 points, then the Illinois variant of regula
-    falsi on those alone (bracketing, superlinear: F is smooth across a 1/8-cell step, so 12
-    steps reach rounding where 30 halvings reached ~1e-11; ≤ one crossing per sub-interval;
-    NaN where none)."""
+    falsi on those alone (bracketing, superlinear: F is smooth across a 1/8-cell step, so 6
+    steps put every root within 1e-12 of a cell of F = 0, tests/test_mapped_lune.py, where 4
+    did not and 30 halvings reached ~1e-11; ≤ one crossing per sub-interval; NaN where none)."""
     def point(v, fx):
         mu, lon = np.broadcast_arrays(*((v, fx) if cut_mu else (fx, v)))
         c = np.sqrt(np.clip(1.0 - mu * mu, 0.0, None))

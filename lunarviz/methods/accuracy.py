@@ -31,6 +31,8 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+
 from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.resources import DATA_DIR
@@ -50,6 +52,10 @@ MAX_RAYS = 10**9
 NEST, LOOSEST = 10.0, 1e-2
 #: the source beam order of each path in the models
 SOURCE_ORDER = {"moonshine": "sun_order", "earthshine": "earth_order"}
+#: a model row measured phase by phase (``errors_by_phase``) bounds a scene at θ by its largest
+#: error at the phases within this many degrees of θ (at 5° steps the two either side of it,
+#: three at a measured phase): the error swings with θ between the measured phases
+PHASE_WINDOW_DEG = 10.0
 
 
 @memoize(maxsize=1)
@@ -58,15 +64,30 @@ def error_models() -> dict:
     return json.loads((DATA_DIR / "error_models.json").read_text())
 
 
-def _best(rows: list, limit: float, fixed: dict) -> dict | None:
-    """The cheapest row whose error is at most ``limit`` and whose settings agree with ``fixed``."""
-    ok = [r for r in rows if r["max_rel_error"] <= limit and all(r.get(k, v) == v for k, v in fixed.items())]
+def row_error(row: dict, theta: float | None = None) -> float:
+    """A model row's error bound before :data:`SAFETY`: its largest error over every phase, or,
+    at a scene's θ [deg] inside the phases it was measured at one by one (``errors_by_phase``),
+    its largest at the phases within :data:`PHASE_WINDOW_DEG` of θ."""
+    if theta is None or "errors_by_phase" not in row:
+        return row["max_rel_error"]
+    th = float(theta) % 360.0
+    th = min(th, 360.0 - th)
+    phases = np.asarray(row["phases_deg"], dtype=float)
+    if not phases.min() <= th <= phases.max():
+        return row["max_rel_error"]
+    return float(np.max(np.asarray(row["errors_by_phase"])[np.abs(phases - th) <= PHASE_WINDOW_DEG]))
+
+
+def _best(rows: list, limit: float, fixed: dict, theta: float | None = None) -> dict | None:
+    """The cheapest row whose error (at θ: :func:`row_error`) is at most ``limit`` and whose
+    settings agree with ``fixed``."""
+    ok = [r for r in rows if row_error(r, theta) <= limit and all(r.get(k, v) == v for k, v in fixed.items())]
     return min(ok, key=lambda r: r["seconds_per_phase"]) if ok else None
 
 
-def _most_accurate(rows: list, fixed: dict) -> dict | None:
+def _most_accurate(rows: list, fixed: dict, theta: float | None = None) -> dict | None:
     ok = [r for r in rows if all(r.get(k, v) == v for k, v in fixed.items())]
-    return min(ok, key=lambda r: (r["max_rel_error"], r["seconds_per_phase"])) if ok else None
+    return min(ok, key=lambda r: (row_error(r, theta), r["seconds_per_phase"])) if ok else None
 
 
 def _paired(table: dict, key: str, rtol: float, fixed: dict) -> dict:
@@ -95,12 +116,14 @@ def _for(fixed: dict, path: str) -> dict:
     return {k: v for k, v in fixed.items() if k != other}
 
 
-def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
+def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | None = None) -> dict:
     """Settings for the deterministic tracer at ``rtol``: ``lune_order`` (the Sun's path, the
     Earth's), ``moon_level``, ``sun_order``, ``earth_order`` (with a lunar map, those of the
     facets; the lune rule's own source orders are ``lune_source_orders``; those in ``fixed`` kept; nested: at
     least those of a looser tolerance, :data:`NEST`), and per path and sample kind the bound each
-    meets (``bounds``: {("lune"|"facets", path): bound})."""
+    meets (``bounds``: {("lune"|"facets", path): bound}). ``theta`` [deg]: the scene's θ, where the
+    mapped lune rule's model was measured phase by phase (:func:`row_error`): the orders that
+    phase needs, and its bounds."""
     m = error_models()
     bounds = {}
     if mapped_moon:  # the map's cells dominate: rows by level (the Earth's order is not the limit)
@@ -117,12 +140,12 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool) -> dict:
                "sun_order": fixed.get("sun_order", row["moonshine"].get("sun_order")),
                "earth_order": fixed.get("earth_order", row["earthshine"].get("earth_order")), "bounds": bounds}
         if "moon_level" not in fixed and "raytrace_lune_mapped" in m:  # the mapped lune rule
-            lune = {p: _best(m["raytrace_lune_mapped"][p], rtol / SAFETY, _for(fixed, p)) or
-                    _most_accurate(m["raytrace_lune_mapped"][p], _for(fixed, p)) for p in SOURCE_ORDER}
+            lune = {p: _best(m["raytrace_lune_mapped"][p], rtol / SAFETY, _for(fixed, p), theta) or
+                    _most_accurate(m["raytrace_lune_mapped"][p], _for(fixed, p), theta) for p in SOURCE_ORDER}
             if all(lune.values()):
                 out["lune_order"] = (lune["moonshine"]["lune_order"], lune["earthshine"]["lune_order"])
                 for p, r in lune.items():
-                    bounds[("lune", p)] = SAFETY * r["max_rel_error"]
+                    bounds[("lune", p)] = SAFETY * row_error(r, theta)
                 # each sample kind its own source orders (the lune rule's beams, the facets'), as measured
                 out["lune_source_orders"] = tuple(fixed.get(SOURCE_ORDER[p], lune[p][SOURCE_ORDER[p]])
                                                   for p in ("moonshine", "earthshine"))
@@ -179,6 +202,30 @@ def in_model_range(scene) -> bool:
     th = float(scene.theta_deg) % 360.0
     th = min(th, 360.0 - th)
     return min(phases) <= th <= max(phases)
+
+
+#: the detector's largest angle [rad] off the Earth's centre, seen from the Moon's, at which the
+#: earthshine models hold for a BRDF with an opposition surge or roughness
+#: (:func:`earth_source_modelled`): they were measured with the detector at the Earth's centre
+EARTH_CENTRE_TOLERANCE = 1e-6
+
+
+def earth_source_modelled(scene, brdf) -> bool:
+    """Whether the earthshine error models hold for ``brdf`` on ``scene``.
+
+    They were measured with the detector at the Earth's centre. Seen from the Moon, the Earth's
+    disc is then centred on the direction of zero phase, which is the pole of the Earth's beam
+    rules, where the opposition surge's cusp (B(g) ∝ 1/(1 + tan(g/2)/h): |g| at g = 0) and the
+    roughness's kink (i = e) are resolved. A detector elsewhere (on the ground, in orbit: up to
+    ~1° off the centre) puts them off that pole, inside or beside the disc, and the beam rules
+    converge slowly there. Measured: Hapke DHG of rolo-fit-map from a 550 km orbit, earthshine
+    at Earth order 7 against 28, 7.6e-4 and 2.7e-3 on two dates
+    (``scripts/mapped_lune_dated_check.py``). Lambert is smooth there and keeps its bound."""
+    if not (getattr(brdf, "rough", False) or getattr(brdf, "B0", 0.0) > 0.0):
+        return True
+    u, v = scene.det - scene.moon, scene.earth - scene.moon
+    c = float(np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v)))
+    return math.acos(min(1.0, max(-1.0, c))) <= EARTH_CENTRE_TOLERANCE
 
 
 def analytic_choice(rtol: float) -> tuple[int, float]:

@@ -270,12 +270,13 @@ class SweepSettings:
         """The tolerance asked for, or the method's default (:data:`accuracy.DEFAULT_RTOL`)."""
         return self.rtol if self.rtol is not None else accuracy.DEFAULT_RTOL.get(self.method, 1e-4)
 
-    def trace_plan(self) -> dict:
+    def trace_plan(self, theta: float | None = None) -> dict:
         """What the tolerance chooses for the ray tracer: ``settings`` (the options left unset,
         and ``lune_order``) and ``bounds`` ({(sample kind, path): bound},
         :func:`lunarviz.methods.accuracy.trace_choice`). Monte Carlo: the rays, where a tolerance
         is given and the rays are not. No model: a user's Moon mesh, a mapped or physical Earth
-        (bounds empty; an explicit tolerance is refused for a user's Moon mesh)."""
+        (bounds empty; an explicit tolerance is refused for a user's Moon mesh). ``theta`` [deg]:
+        the task's θ, where a model was measured phase by phase (the mapped lune rule's)."""
         none = {"settings": {}, "bounds": {}}
         if self.method != "raytrace":
             return none
@@ -297,7 +298,7 @@ class SweepSettings:
                 from lunarviz.methods.tracer.settings import DEFAULT_ORDERS
                 fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
                 fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
-        choice = accuracy.trace_choice(self.rtol_or_default, fixed, self._mapped_moon())
+        choice = accuracy.trace_choice(self.rtol_or_default, fixed, self._mapped_moon(), theta)
         settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
                     if k not in fixed and choice.get(k) is not None}
         # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
@@ -464,7 +465,13 @@ def run_phase(settings: SweepSettings, key, threads: int | None = None) -> list[
             r["extended_over_point_earthshine"] = es_ / pt_es \
                 if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
-        r["rtol"] = bound if accuracy.in_model_range(sc) else math.nan
+        # (an extended Earth's beam rules, the tracer's and the reference's, off the Earth's centre:
+        # no model for a BRDF with a surge or roughness; the analytic point Earth and Monte Carlo's
+        # standard errors do not depend on them)
+        extended = settings.method == "reference" or (settings.method == "raytrace"
+                                                      and settings.estimator != "montecarlo")
+        held = not extended or accuracy.earth_source_modelled(sc, brdfs[r["brdf"]])
+        r["rtol"] = bound if accuracy.in_model_range(sc) and held else math.nan
     return rows
 
 
@@ -476,7 +483,7 @@ def _traced_rows(settings: SweepSettings, sc, base: dict, brdfs: dict, cal_setti
     from lunarviz.methods.tracer.estimators import PathResult, TraceScene, trace_path
     a0 = settings.earth_albedo
     rows = []
-    plan = settings.trace_plan()  # once per task: the settings and the bounds both come from it
+    plan = settings.trace_plan(sc.theta_deg)  # once per task: the settings and the bounds both come from it
     ts_set = settings.trace_settings(threads, plan)
     if hidden_moon(settings, ts_set, sc):  # nothing of the Moon reaches the detector: nothing to trace
         ts, ms, es, bound = None, PathResult.zero(brdfs), PathResult.zero(brdfs), 0.0
