@@ -40,9 +40,11 @@ def main(argv=None) -> int:
     from lunarviz.workflows.sweeps import SweepSettings, hidden_moon
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dates", type=int, default=40, help="dates to check (default 40)")
+    ap.add_argument("--start", type=int, default=7, help="hours after 2026-01-01T00:00 of the first (default 7)")
     a = ap.parse_args(argv)
     t0 = dt.datetime(2026, 1, 1)
-    stamps = [(t0 + dt.timedelta(hours=int(h))).strftime("%Y-%m-%dT%H:%M") for h in np.linspace(7, 8740, 3 * a.dates)]
+    stamps = [(t0 + dt.timedelta(hours=int(h))).strftime("%Y-%m-%dT%H:%M")
+              for h in np.linspace(a.start, 8740, 3 * a.dates)]
     s = SweepSettings(method="raytrace", brdfs=BRDFS, moon_model="rolo-fit-map", rtol=1e-4,
                       observer="orbit:550,97.6,0,0", times=tuple(stamps))
     brdfs = s.brdf_models()
@@ -78,7 +80,8 @@ def main(argv=None) -> int:
     ratio = max(r[3][p] / r[4][p] for r in rows for p in M.PATHS)
     hapke = max(r[3]["hapke"] for r in rows)
     lines = ["# The mapped lune rule's error model on dated scenes", "",
-             f"`python scripts/mapped_lune_dated_check.py --dates {a.dates}` ({wall:.0f} s, one thread): {len(rows)} "
+             f"`python scripts/mapped_lune_dated_check.py --dates {a.dates} --start {a.start}` ({wall:.0f} s, one "
+             f"thread): {len(rows)} "
              "dates of 2026 from a 550 km orbit (orbit:550,97.6,0,0), rolo-fit-map (lambert, shg, dhg), `--rtol 1e-4`: "
              "each date at the orders its θ takes (accuracy.trace_choice), against the model's reference rule "
              f"(lune order {M.REFERENCE['lune_order']}, Sun order {M.REFERENCE['sun_order']}, Earth order "

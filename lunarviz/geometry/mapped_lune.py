@@ -52,9 +52,11 @@ from lunarviz.geometry.sphere_quadrature import (cap_rule, gauss_legendre, kink_
 ALBEDO_NODES = 8
 #: ... in γ = √(1 - w) (:func:`albedo_coordinate`), where that branch point is gone (Hapke's
 #: H-functions are rational in γ, their poles at γ ≤ -1/2; the factor w = 1 - γ² is a
-#: polynomial): the same geometries err by 3e-5 (4 nodes), 1e-6 (5), 3e-8 (6), 3e-11 (8), so 6
-#: match the 8 in m; used where the shaded BRDFs' scale from m to w is known (``albedo_scale``)
-GAMMA_NODES = 6
+#: polynomial): the same geometries err by 3e-5 (4 nodes), 1e-6 (5), 3e-8 (6), 3e-11 (8); 5,
+#: whose 1e-6 is at grazing geometries and 1/50 of the rule's own error at --rtol 1e-4 (the
+#: models are measured with them, against 8), where 6 match the 8 in m; used where the shaded
+#: BRDFs' scale from m to w is known (``albedo_scale``)
+GAMMA_NODES = 5
 #: in the cells that a block's edge (terminator, limb, penumbra band, t-segment ring) crosses:
 #: Gauss lines, and points per piece of each line (:func:`_edge_cell_nodes`): 3 against 8 differ
 #: by ≤ 4e-8 for θ ≤ 120° and up to 1e-6 at θ = 175° (4: 4.4e-7 there), far under the rule's
@@ -230,18 +232,25 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         if found is not None:
             parts.append(found[0])
             cells = np.setdiff1d(cells, found[1], assume_unique=True)
-    seg, itv, ut, up, ins = locate(centres[cells])
-    block = np.where(ins, seg * n_iv + itv, -1)
     corner_ids = _cell_corner_ids((h, w))[cells]  # (C, 4) into the (h + 1)·(w + 1) grid vertices
     nv = (h + 1) * (w + 1)
-    vblock, v_ut, v_up = _located_vertices((h, w), corner_ids, locate, n_iv)
-    # a cell whose centre and corners lie on different sides of an edge (or partly outside), or
-    # that an edge passes within (a lune thinner than a cell slips between those five points),
-    # holds an edge
+    (lit_u, lit_c), (vis_u, vis_c) = circles[0], circles[2]  # the region: lit (any of the disc) and seen
+
+    def inside(p):
+        return (p @ lit_u > lit_c) & (p @ vis_u > vis_c)
+    # a cell whose centre and corners lie on different sides of an edge, or that an edge passes
+    # within (a lune thinner than a cell slips between those five points), holds an edge; the
+    # others lie wholly inside or wholly outside, and only the whole cells inside are located
     near, north, east = _edges_near((h, w), cells, hard, curve)
+    centre_sides = sides(centres[cells])
     corner_sides = sides(_grid_vertices((h, w))[corner_ids.ravel()]).reshape(-1, 4)
-    edge = near | (vblock[corner_ids] < 0).any(axis=1) | (corner_sides != sides(centres[cells])[:, None]).any(axis=1)
-    whole = ~edge & (block >= 0)
+    edge = near | (corner_sides != centre_sides[:, None]).any(axis=1)
+    whole = np.flatnonzero(~edge & inside(centres[cells]))
+    seg, itv, ut, up, ins = locate(centres[cells[whole]])
+    vblock, v_ut, v_up = _located_vertices((h, w), corner_ids[whole], locate, n_iv)
+    found = ins & (vblock[corner_ids[whole]] >= 0).all(axis=1)  # (else its edge, to rounding: cut it)
+    edge[whole[~found]] = True
+    whole, block, ut, up = whole[found], (seg * n_iv + itv)[found], ut[found], up[found]
     m_cell = coords.reshape(-1)[cells]
     # whole cells: the rectangle rule in (sin lat, lon) with the centre (2/3 of the area) and the
     # corners (1/12 each), exact for cubics like 2×2 Gauss points, with the corners shared by the
@@ -251,12 +260,10 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     ell_v = np.stack([np.bincount(corners, weights=np.repeat(ell_cell[:, q] / 12.0, 4), minlength=nv)
                       for q in range(len(vals))], axis=1)
     vw = np.flatnonzero(ell_v.any(axis=1))
-    parts += [(block[whole], ut[whole], up[whole], ell_cell * (2.0 / 3.0)),
-              (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
+    parts += [(block, ut, up, ell_cell * (2.0 / 3.0)), (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
-        (lit_u, lit_c), (vis_u, vis_c) = circles[0], circles[2]  # the region: lit (any of the disc) and seen
         ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], hard, edge_nodes, curve,
-                                         inside=lambda p: (p @ lit_u > lit_c) & (p @ vis_u > vis_c))
+                                         inside=inside)
         s2, i2, ut2, up2, in2 = locate(ep)
         mm = m_cell[edge][owner][in2]
         parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))

@@ -53,9 +53,12 @@ NEST, LOOSEST = 10.0, 1e-2
 #: the source beam order of each path in the models
 SOURCE_ORDER = {"moonshine": "sun_order", "earthshine": "earth_order"}
 #: a model row measured phase by phase (``errors_by_phase``) bounds a scene at θ by its largest
-#: error at the phases within this many degrees of θ (at 5° steps the two either side of it,
-#: three at a measured phase): the error swings with θ between the measured phases
-PHASE_WINDOW_DEG = 10.0
+#: error at the phases within this many degrees of θ (six or seven phases at 5° steps): the
+#: error swings with θ and with the map under the lune, and dates turn the map by their
+#: libration; within 10°, one of 40 orbit dates erred by 1.1x its bound (order 12 at θ = 168°,
+#: scripts/mapped_lune_dated_check.py), and low orders' lucky phases (errors falling 10-100x
+#: where a sign changes) were taken
+PHASE_WINDOW_DEG = 15.0
 
 
 @memoize(maxsize=1)
