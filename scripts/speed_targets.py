@@ -121,7 +121,7 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
     return {"time_range": rng_range, "options": opts, "dates": len(rows), "wall_s": wall,
             "seconds_per_date": wall / len(rows), "moon_centre_occulted": hidden,
             "one_by_one_checked": len(pick), "max_rel_difference_one_by_one": worst,
-            "bounds": [min(known), max(known)], "dates_without_bound": len(rows) - len(known)}
+            "bounds": [min(known), max(known)] if known else None, "dates_without_bound": len(rows) - len(known)}
 
 
 def paper_run(out: Path, quick: bool) -> dict:
@@ -175,9 +175,12 @@ def report(res: dict, out: Path) -> None:
                      else f"--time T1,T2,...` at {y['time_range']}: ") +
                   f"{y['dates']} dates in {y['wall_s']:.0f} s ({1e3 * y['seconds_per_date']:.0f} ms a date, "
                   f"{8760 * y['seconds_per_date'] / 60:.0f} min for 8,760; the Moon's centre hidden by the Earth at "
-                  f"{y['moon_centre_occulted']} dates). Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e} "
-                  f"(none at {y['dates_without_bound']} dates: θ outside the measured 5-175° or an eclipse "
-                  "possible). The "
+                  f"{y['moon_centre_occulted']} dates). "
+                  + (f"Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e} (none at {y['dates_without_bound']} "
+                     "dates: θ outside the measured 5-175° or an eclipse possible). " if y["bounds"] else
+                     "Rows carry no bound: DHG's earthshine seen off the Earth's centre has no model "
+                     "(accuracy.earth_source_modelled; benchmarks/error_models/mapped_lune_dated.md). ") +
+                  "The "
                   f"same dates run one by one (a sample of {y['one_by_one_checked']}, fresh caches): largest relative "
                   f"difference {y['max_rel_difference_one_by_one']:.1e}.", ""]
     p = res.get("paper")

@@ -333,9 +333,12 @@ def _whole_panels(values, vals, frame, axis, cmax, lit_u, lit_c, circles, curve,
         return None
     h, w = values.shape
     half = 1.25 * np.radians(0.75 * PANEL_CELLS * max(180.0 / h, 360.0 / w))
+    # a panel's points lie within r of its centre (half its diagonal): a circle n·u = c meets it
+    # only where |n₀·u - c| ≤ |∇(n·u)| r + r²/2 (n·u = cos of the angle to u, which moves by ≤ r)
+    r = 0.5 * np.radians(PANEL_CELLS * np.hypot(180.0 / h, 360.0 / w))
     c = pan.centres @ frame.T
     sel = np.flatnonzero((c @ axis > cmax) & (c @ lit_u > lit_c) & (c @ axis < np.cos(3.0 * half)))
-    sel = sel[~_edges_near_at(pan.lat[sel], pan.lon[sel], half, circles, curve)[0]]
+    sel = sel[~_edges_near_at(pan.lat[sel], pan.lon[sel], r, circles, curve, slack=0.5 * r * r, curve_half=half)[0]]
     kk = pan.points.shape[1]
     nodes = pan.points[sel].reshape(-1, 3)
     seg, itv, ut, up, ins = locate(nodes)
@@ -517,8 +520,10 @@ def _edges_near(shape, cells, circles, curve=None):
                           np.radians(0.75 * max(180.0 / h, 360.0 / w)), circles, curve)
 
 
-def _edges_near_at(lat_c, lon_c, half, circles, curve=None):
-    """:func:`_edges_near` around points (lat_c, lon_c) [rad], within ``half`` [rad]."""
+def _edges_near_at(lat_c, lon_c, half, circles, curve=None, slack: float = 1e-12, curve_half=None):
+    """:func:`_edges_near` around points (lat_c, lon_c) [rad], within ``half`` [rad] (plus
+    ``slack`` in n·u, for the circles' curvature; the kink ``curve`` within 1.5 ``curve_half``,
+    default ``half``: its gradient is by differences)."""
     north, east = np.zeros(len(lat_c)), np.zeros(len(lat_c))
     hit = np.zeros(len(lat_c), dtype=bool)
     cla, sla, clo, slo = np.cos(lat_c), np.sin(lat_c), np.cos(lon_c), np.sin(lon_c)
@@ -527,7 +532,7 @@ def _edges_near_at(lat_c, lon_c, half, circles, curve=None):
         g = cla * horizontal + sla * u[2]
         gn = -sla * horizontal + cla * u[2]
         ge = -u[0] * slo + u[1] * clo
-        near = np.abs(g - c) <= half * np.hypot(gn, ge) + 1e-12
+        near = np.abs(g - c) <= half * np.hypot(gn, ge) + slack
         hit |= near
         north += np.where(near, np.abs(gn), 0.0)
         east += np.where(near, np.abs(ge), 0.0)
@@ -540,7 +545,7 @@ def _edges_near_at(lat_c, lon_c, half, circles, curve=None):
         g = F(at(lat_c, lon_c))
         gn = (F(at(lat_c + d, lon_c)) - F(at(lat_c - d, lon_c))) / (2 * d)
         ge = (F(at(lat_c, lon_c + d)) - F(at(lat_c, lon_c - d))) / (2 * d) / np.maximum(np.cos(lat_c), 1e-12)
-        near = np.abs(g) <= 1.5 * half * np.hypot(gn, ge) + 1e-12
+        near = np.abs(g) <= 1.5 * (half if curve_half is None else curve_half) * np.hypot(gn, ge) + 1e-12
         hit |= near
         north += np.where(near, np.abs(gn), 0.0)
         east += np.where(near, np.abs(ge), 0.0)

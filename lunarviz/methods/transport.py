@@ -141,6 +141,16 @@ class Transport:
                 return shading_kernels.hapke_radiances(*args, None if a is None else a[:, 0])
             (lo, lo_u), (hi, hi_u) = (shading_kernels.hapke_radiances(*args, w[:, 0]) for w in pair)
             return 0.5 * (lo + hi), None if lo_u is None else 0.5 * (lo_u + hi_u)
+        from lunarviz.photometry import rough_kernels
+        if rough_kernels.handles(brdf):  # compiled rough Hapke: each beam's geometry once, its w (or two)
+            pair, n = self._albedo_pair(brdf), len(self.mu)
+            if pair is not None:
+                w, f = np.concatenate(pair, axis=1), np.full((n, 2), 0.5)
+            else:
+                a = self.sample_albedo(brdf)
+                w, f = (np.array([[brdf.albedo_parameter]]) if a is None else a), np.ones((n, 1))
+            return rough_kernels.rough_node_radiances(brdf, self.mu0, self.mu, self.sin_hg, self.cos_hg, self.e_beam,
+                                                      self.e_beam_unit, w, f)
         from lunarviz.photometry.brdf import Lambert
         if shading_kernels.available() and type(brdf) is Lambert:  # linear in albedo: no pair
             a = self.sample_albedo(brdf)

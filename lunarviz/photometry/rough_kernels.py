@@ -1,4 +1,5 @@
-"""Compiled rough Hapke shading at albedo nodes (numba): the mapped lune rule's radiances.
+"""Compiled rough Hapke shading at albedo nodes (numba): the mapped lune rule's radiances, and
+the facets' (each sample its own w, or the two of its map spread).
 
 The mapped lune rule (:mod:`lunarviz.geometry.mapped_lune`) shades each lunar sample at Q values
 of the map and weights them: ``L_n = Σ_q F_nq Σ_k r(w_q; μ0_nk, μ_n, g_nk) E_nk``. On a rough Moon
@@ -25,13 +26,15 @@ from lunarviz.photometry.shading_kernels import h_value, surge_phase
 def _rough_nodes_sum(mu0, mu, sh, ch, e, e_unit, w_nodes, factors, h, B0, pcode, p1, p2, hcode, theta_bar,
                      Bc0, hc, has_unit, out, out_unit):
     n, k = mu0.shape
-    nq = w_nodes.shape[0]
+    nq = w_nodes.shape[1]  # (rows: one per sample, or one for all)
+    per_sample = w_nodes.shape[0] > 1
     four_pi = 4.0 * np.pi
     gam = np.sqrt(1.0 - w_nodes)  # Hapke 1981: H(x) = (1 + 2x)/(1 + 2γx), γ = √(1 - w)
     tb = np.tan(theta_bar)
     cot_tb = 1.0 / tb
     chi = 1.0 / np.sqrt(1.0 + np.pi * tb * tb)
     for i in range(n):
+        row = i if per_sample else 0
         m = min(max(mu[i], 0.0), 1.0)
         se = np.sqrt(1.0 - m * m)
         cot_e = m / se if se > 0.0 else np.inf
@@ -89,11 +92,11 @@ def _rough_nodes_sum(mu0, mu, sh, ch, e, e_unit, w_nodes, factors, h, B0, pcode,
             if hcode == 0:
                 top = (1.0 + 2.0 * mu0e) * (1.0 + 2.0 * mue)
                 for qq in range(nq):
-                    hh = top / ((1.0 + 2.0 * gam[qq] * mu0e) * (1.0 + 2.0 * gam[qq] * mue))
-                    r += factors[i, qq] * w_nodes[qq] * (sb + hh)
+                    hh = top / ((1.0 + 2.0 * gam[row, qq] * mu0e) * (1.0 + 2.0 * gam[row, qq] * mue))
+                    r += factors[i, qq] * w_nodes[row, qq] * (sb + hh)
             else:
                 for qq in range(nq):
-                    w = w_nodes[qq]
+                    w = w_nodes[row, qq]
                     r += factors[i, qq] * w * (sb + h_value(mu0e, w, hcode) * h_value(mue, w, hcode))
             r *= geo
             acc += r * ej
@@ -111,15 +114,15 @@ def handles(model) -> bool:
 
 def rough_node_radiances(model, mu0, mu, sin_hg, cos_hg, e_beam, e_unit, w_nodes, factors):
     """``(Σ_q F_nq Σ_k r(w_q)·e_beam, the same with e_unit or None)`` per sample (N,) for a rough
-    Hapke ``model`` (:func:`handles`), the map's values ``w_nodes`` (Q,) [w] and weights
-    ``factors`` (N, Q)."""
+    Hapke ``model`` (:func:`handles`), the map's values ``w_nodes`` (Q,) [w], or each sample's own
+    (N, Q), and weights ``factors`` (N, Q)."""
     pcode, p1, p2, hcode = shading_kernels.phase_codes(model)
     n = mu0.shape[0]
     out, out_u = np.empty(n), np.empty(n)
     f = np.ascontiguousarray
     eu = f(e_unit, dtype=float) if e_unit is not None else np.zeros((1, 1))
     _rough_nodes_sum(f(mu0, dtype=float), f(np.broadcast_to(mu, (n,)), dtype=float), f(sin_hg, dtype=float),
-                     f(cos_hg, dtype=float), f(e_beam, dtype=float), eu, f(w_nodes, dtype=float),
+                     f(cos_hg, dtype=float), f(e_beam, dtype=float), eu, f(np.atleast_2d(w_nodes), dtype=float),
                      f(factors, dtype=float), float(model.h), float(model.B0), pcode, float(p1), float(p2), hcode,
                      float(np.radians(model.theta_bar)), float(model.Bc0), float(model.hc), e_unit is not None,
                      out, out_u)
