@@ -126,6 +126,31 @@ def test_a_tasks_orders_come_from_its_own_phase():
     assert cheaper > 20  # (most phases need less than the worst phase's orders)
 
 
+@pytest.mark.parametrize("spectral", [False, True])
+def test_surge_earthshine_off_the_earths_centre_carries_no_bound(spectral):
+    """From a 550 km orbit the detector is ~1° off the Earth's centre seen from the Moon: the
+    earthshine of a BRDF with an opposition surge or roughness has no model there (its beam rules
+    converge slowly: benchmarks/error_models/mapped_lune_dated.md), so its rows report NaN, grey
+    and spectral alike, and the run warns; Lambert keeps its bound; at the Earth's centre (the θ
+    scene) both keep theirs; a wholly hidden Moon's exact zeros report 0 (grey rows: a spectral run
+    traces it and reports what it traced)."""
+    from lunarviz.errors import LunarvizWarning
+    kw = dict(method="raytrace", brdfs=("lambert", "dhg"), moon_model="rolo-fit-map", rtol=1e-4,
+              **({"wavelengths": "550"} if spectral else {}))
+    from lunarviz.workflows.sweeps import hidden_moon
+    times = tuple(f"2026-03-22T{h:02d}:{m:02d}:00Z" for h in (5, 6) for m in range(0, 60, 5))
+    dated = SweepSettings(observer="orbit:550,97.6,0,0", times=times, **kw)
+    with pytest.warns(LunarvizWarning, match="not met by the earthshine of dhg"):
+        dated.warn_unmet_tolerance()
+    got = {r["brdf"]: r["rtol"] for r in run_phase(dated, dated.times[0], threads=1)}
+    assert 0 < got["lambert"] <= 1e-4 and math.isnan(got["dhg"])
+    if not spectral:  # (the orbit takes 95 min: within these two hours the Earth hides the Moon a while)
+        hidden = next(t for t in times if hidden_moon(dated, dated.trace_settings(1), dated.scene(t)))
+        assert all(r["rtol"] == 0.0 and r["moonshine_W_m2"] == 0.0 for r in run_phase(dated, hidden, threads=1))
+    theta = SweepSettings(phases_deg=(90.0,), **kw)
+    assert all(0 < r["rtol"] <= 1e-4 for r in run_phase(theta, 90.0, threads=1))
+
+
 def test_montecarlo_beyond_its_ray_limit_says_what_to_do():
     with pytest.raises(LunarvizError, match="--runs"):
         SweepSettings(method="raytrace", estimator="montecarlo", rtol=1e-5).trace_settings()

@@ -219,7 +219,7 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     sides = _side_codes(hard, curve)
     # one set of albedo nodes for the whole map (the panels' weights are summed once per map): the
     # nodes span values the lune may not hold, which moves the result within the interpolation's
-    # error in m (8 nodes over rolo-fit-map's range: 5e-8; docstring); ``vals`` in the coordinate
+    # error (GAMMA_NODES, ALBEDO_NODES); ``vals`` in the coordinate
     vals = chebyshev_nodes(float(coords.min()), float(coords.max()), albedo_nodes)
     centres, area = _cell_centres((h, w))
     # cells the region may touch: centre within a cell's half-diagonal of the lit, visible caps
@@ -486,14 +486,15 @@ def _cell_corner_ids(shape):
 def _edge_cell_nodes(shape, cells, along_lon, circles, k: int, curve=None, inside=None):
     """Points (P, 3) in the map's frame, weights (P,) [sr] and owning cell (P,) over ``cells``.
 
-    Every block edge of the lune rule is a circle ``n·u = c`` of ``circles`` (the caps and the
-    rings t = const; u in the map's frame). Each cell takes k Gauss lines across the edges that
+    Every edge given is a circle ``n·u = c`` of ``circles`` (the caps' circles, and with
+    ``cut_rings`` the rings t = const; u in the map's frame). Each cell takes k Gauss lines across the edges that
     cross it (``along_lon``, from :func:`_edges_near`: lines of constant longitude, cut in
     sin(lat), where the edges run more east-west; else lines of constant sin(lat), cut in
     longitude, where they run more north-south), each line cut
     where it meets a circle (closed form) or the kink ``curve`` ``(u, o, (a_s, a_d))``: ``n·u =
     kink_threshold(angle(n, o))``, found by bisection) and given k Gauss points per piece: each
-    piece lies in one block, where the integrand is smooth, so no edge is point-sampled.
+    piece lies on one side of every edge, where the integrand is smooth (its points in whichever
+    block holds them), so no edge is point-sampled.
     ``inside`` (``p ↦ bool``, optional): the region's test; pieces whose midpoint fails it (each
     lies wholly on one side of every edge) take no points."""
     h, w = shape

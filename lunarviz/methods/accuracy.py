@@ -231,6 +231,18 @@ def earth_source_modelled(scene, brdf) -> bool:
     return math.acos(min(1.0, max(-1.0, c))) <= EARTH_CENTRE_TOLERANCE
 
 
+def row_bound(bound: float, scene, method: str, estimator: str | None, brdf) -> float:
+    """The bound a row reports: ``bound`` (its settings' in the models) where the models hold for
+    the row's scene and BRDF: θ within the phases measured (:func:`in_model_range`) and, for an
+    extended Earth's beam rules (the tracer's deterministic estimator, the reference),
+    :func:`earth_source_modelled`; 0 for exact zeros (a Moon wholly hidden); NaN elsewhere."""
+    if bound == 0.0:
+        return 0.0
+    extended = method == "reference" or (method == "raytrace" and estimator != "montecarlo")
+    held = in_model_range(scene) and (not extended or earth_source_modelled(scene, brdf))
+    return bound if held else math.nan
+
+
 def analytic_choice(rtol: float) -> tuple[int, float]:
     """(order, bound) of the analytic method at ``rtol`` (the most accurate order if none meets it)."""
     rows = error_models()["analytic"]

@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from lunarviz.methods import accuracy
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.spectral.earth import spectral_components, weights_toward
 from lunarviz.spectral.shading import SpectralShader, spectral_brdfs
@@ -77,7 +78,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         extra["rtol"] = float("nan") if settings._mapped_moon() else accuracy.analytic_bound(st.order)
     else:
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
-        plan = settings.trace_plan()  # once per task: the settings and the bounds both come from it
+        plan = settings.trace_plan(sc.theta_deg)  # once per task: the settings and the bounds both come from it
         ts_set = settings.trace_settings(threads, plan)
         ts = TraceScene(sc, ts_set)
         ts.earth_parts = names if mapped else None
@@ -117,6 +118,8 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
     label_field = "wavelength_nm" if req.kind == "wavelength" else "band"
     rows = []
     for k in brdfs:
+        bound = {} if "rtol" not in extra else {"rtol": accuracy.row_bound(
+            extra["rtol"], sc, method_fields["method"], method_fields.get("estimator"), brdfs[k])}
         es_T, esu_T = _earthshine_nodes(es[k], albedo, uniform_albedo)
         ms_o, es_o = req.outputs(ms[k], sc.phi_sun), req.outputs(es_T, sc.phi_sun)
         ms_a, es_a, esu_a = req.averages(ms[k]), req.averages(es_T), req.averages(esu_T)
@@ -131,5 +134,5 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
                          "ratio_earthshine_moonshine": float(es_o[o] / ms_o[o]) if measurable else float("nan"),
                          "earth_visible_lit_albedo": float(es_a[o] / esu_a[o]) if esu_a[o] > 0 else float("nan"),
                          "geometric_albedo_term": pe, "apparent_albedo": alb.apparent_albedo(sc.beta_deg, pe),
-                         **extra})
+                         **extra, **bound})
     return rows
