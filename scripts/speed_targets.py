@@ -116,12 +116,14 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
             if a or b:
                 worst = max(worst, abs(a / b - 1.0))
     del sweeps
-    known = [r["rtol"] for r in rows if r["rtol"] is not None]  # (NaN, written as null: no model)
+    known = [r["rtol"] for r in rows if r["rtol"] is not None and r["rtol"] > 0]  # (NaN, written as null: no model)
+    zeros = sum(r["rtol"] == 0 for r in rows)  # (a wholly hidden Moon: exact zeros)
     print(f"{len(rows)} dates: {wall:.1f} s; one by one ({len(pick)} dates): max difference {worst:.1e}", flush=True)
     return {"time_range": rng_range, "options": opts, "dates": len(rows), "wall_s": wall,
             "seconds_per_date": wall / len(rows), "moon_centre_occulted": hidden,
             "one_by_one_checked": len(pick), "max_rel_difference_one_by_one": worst,
-            "bounds": [min(known), max(known)] if known else None, "dates_without_bound": len(rows) - len(known)}
+            "bounds": [min(known), max(known)] if known else None, "dates_exact_zeros": zeros,
+            "dates_without_bound": len(rows) - len(known) - zeros}
 
 
 def paper_run(out: Path, quick: bool) -> dict:
@@ -178,8 +180,10 @@ def report(res: dict, out: Path) -> None:
                   f"{y['moon_centre_occulted']} dates). "
                   + (f"Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e} (none at {y['dates_without_bound']} "
                      "dates: θ outside the measured 5-175° or an eclipse possible). " if y["bounds"] else
-                     "Rows carry no bound: DHG's earthshine seen off the Earth's centre has no model "
-                     "(accuracy.earth_source_modelled; benchmarks/error_models/mapped_lune_dated.md). ") +
+                     f"Rows carry no bound ({y['dates_without_bound']} dates; 0 at the "
+                     f"{y.get('dates_exact_zeros', 0)} whose hidden Moon gives exact zeros): DHG's earthshine seen off "
+                     "the Earth's centre has no model (accuracy.earth_source_modelled; "
+                     "benchmarks/error_models/mapped_lune_dated.md). ") +
                   "The "
                   f"same dates run one by one (a sample of {y['one_by_one_checked']}, fresh caches): largest relative "
                   f"difference {y['max_rel_difference_one_by_one']:.1e}.", ""]
