@@ -11,12 +11,12 @@ from __future__ import annotations
 import functools
 import gc
 import hashlib
+import sys
 from collections import OrderedDict
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import trimesh
 
 #: the ``clear`` of every registered cache
 _CLEARERS: list[Callable[[], None]] = []
@@ -114,7 +114,8 @@ def mesh_digest(mesh) -> tuple:
         except AttributeError:  # (a mesh type without attributes of its own)
             pass
         return key
-    if all(isinstance(a, trimesh.caching.TrackedArray) for a in arrays):
+    tracked = getattr(sys.modules.get("trimesh.caching"), "TrackedArray", None)  # (never imported here)
+    if tracked is not None and all(isinstance(a, tracked) for a in arrays):
         return tuple(x for a in arrays for x in (hash(a), a.dtype.str, a.shape))
     return (array_digest(*arrays),)
 

@@ -232,6 +232,26 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
         if found is not None:
             parts.append(found[0])
             cells = np.setdiff1d(cells, found[1], assume_unique=True)
+    parts += _cell_parts(cells, coords, vals, circles, hard, curve, sides, locate, n_iv, edge_nodes)
+    blk, u_t, u_p, ell = (np.concatenate(c) for c in zip(*parts))
+    if blk.size and (blk.max() >= S * n_iv or (wc[:, 0, :, 0].ravel()[blk] == 0).any()):
+        return None  # a point in a block the coarse rule does not have: the facets
+    W = _block_weights(blk, u_t, u_p, ell, (S, order, n_iv), t_ord, p_ord)
+    keep = wc > 0
+    nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
+    R = scene.radii["moon"]
+    m_nodes = (1.0 - vals * vals) / albedo_scale if albedo_scale > 0 else vals  # the nodes as map values
+    return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=m_nodes, factors=W[keep] / wc[keep][:, None])
+
+
+def _cell_parts(cells, coords, vals, circles, hard, curve, sides, locate, n_iv, edge_nodes) -> list:
+    """The map cells ``cells`` outside panels as parts ``(block, u_t, u_φ, ell)`` of the block
+    weights: whole cells by the centre-and-corners rule, cells that an edge (``hard``, the kink
+    ``curve``) crosses or passes near by lines cut at the edges (:func:`_edge_cell_nodes`).
+    ``coords``: the map in the albedo nodes' coordinate; ``circles[0]``, ``circles[2]``: the lit
+    and visible caps (the region)."""
+    h, w = coords.shape
+    centres, area = _cell_centres((h, w))
     corner_ids = _cell_corner_ids((h, w))[cells]  # (C, 4) into the (h + 1)·(w + 1) grid vertices
     nv = (h + 1) * (w + 1)
     (lit_u, lit_c), (vis_u, vis_c) = circles[0], circles[2]  # the region: lit (any of the disc) and seen
@@ -260,22 +280,14 @@ def mapped_lune_rule(scene, source: np.ndarray, source_radius: float, order: int
     ell_v = np.stack([np.bincount(corners, weights=np.repeat(ell_cell[:, q] / 12.0, 4), minlength=nv)
                       for q in range(len(vals))], axis=1)
     vw = np.flatnonzero(ell_v.any(axis=1))
-    parts += [(block, ut, up, ell_cell * (2.0 / 3.0)), (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
+    parts = [(block, ut, up, ell_cell * (2.0 / 3.0)), (vblock[vw], v_ut[vw], v_up[vw], ell_v[vw])]
     if edge.any():
         ep, ew, owner = _edge_cell_nodes((h, w), cells[edge], north[edge] >= east[edge], hard, edge_nodes, curve,
                                          inside=inside)
         s2, i2, ut2, up2, in2 = locate(ep)
         mm = m_cell[edge][owner][in2]
         parts.append(((s2 * n_iv + i2)[in2], ut2[in2], up2[in2], lagrange_matrix(vals, mm) * ew[in2][:, None]))
-    blk, u_t, u_p, ell = (np.concatenate(c) for c in zip(*parts))
-    if blk.size and (blk.max() >= S * n_iv or (wc[:, 0, :, 0].ravel()[blk] == 0).any()):
-        return None  # a point in a block the coarse rule does not have: the facets
-    W = _block_weights(blk, u_t, u_p, ell, (S, order, n_iv), t_ord, p_ord)
-    keep = wc > 0
-    nc = nc[0].reshape(S, order, n_iv, order, 3)[keep]
-    R = scene.radii["moon"]
-    m_nodes = (1.0 - vals * vals) / albedo_scale if albedo_scale > 0 else vals  # the nodes as map values
-    return scene.moon + R * nc, nc, wc[keep] * R * R, AlbedoNodes(values=m_nodes, factors=W[keep] / wc[keep][:, None])
+    return parts
 
 
 def _block_edges(axis, cmax, caps_u, caps_c, split, kink, frame):
