@@ -149,6 +149,11 @@ def test_surge_earthshine_off_the_earths_centre_carries_no_bound(spectral):
         assert all(r["rtol"] == 0.0 and r["moonshine_W_m2"] == 0.0 for r in run_phase(dated, hidden, threads=1))
     theta = SweepSettings(phases_deg=(90.0,), **kw)
     assert all(0 < r["rtol"] <= 1e-4 for r in run_phase(theta, 90.0, threads=1))
+    import warnings
+    with warnings.catch_warnings():  # dates seen from the Earth's centre (the default observer): no warning
+        warnings.simplefilter("error")
+        SweepSettings(times=times, **kw).warn_unmet_tolerance()
+        theta.warn_unmet_tolerance()
 
 
 def test_montecarlo_beyond_its_ray_limit_says_what_to_do():

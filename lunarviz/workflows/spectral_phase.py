@@ -75,7 +75,8 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         uniform_albedo = a0
         method_fields = {"method": "analytic"}
         from lunarviz.methods import accuracy
-        extra["rtol"] = float("nan") if settings._mapped_moon() else accuracy.analytic_bound(st.order)
+        extra["rtol"] = float("nan") if settings._mapped_moon() or not settings.modelled() \
+            else accuracy.analytic_bound(st.order)
     else:
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
         plan = settings.trace_plan(sc.theta_deg)  # once per task: the settings and the bounds both come from it

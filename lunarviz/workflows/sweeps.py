@@ -328,6 +328,7 @@ class SweepSettings:
         error models hold (the most accurate setting runs; its rows report what it meets)."""
         if self.rtol is None:
             return
+        self._warn_earthshine_off_centre()
         if self.method in ("analytic", "reference"):
             met = accuracy.analytic_choice(self.rtol)[1] if self.method == "analytic" else self.reference_orders()[2]
             if not met <= self.rtol:
@@ -348,16 +349,22 @@ class SweepSettings:
             from lunarviz.errors import LunarvizWarning
             warnings.warn(f"--rtol {self.rtol:g} is beyond the error models here: the most accurate setting they "
                           f"hold meets {max(met):.1e} (rows report it)", LunarvizWarning, stacklevel=3)
-        off_centre = self.times is not None or self.detector is not None
+
+    def _warn_earthshine_off_centre(self) -> None:
+        """Warn where the tolerance cannot be met: the earthshine of a BRDF with an opposition
+        surge or roughness seen off the Earth's centre by an extended Earth's beam rules (the
+        deterministic tracer's, the reference's; :func:`accuracy.earth_source_modelled`)."""
+        extended = self.method == "reference" or (self.method == "raytrace" and self.estimator != "montecarlo")
+        off_centre = self.detector is not None or (self.times is not None and self.observer_model().kind != "geocentre")
         surged = [k for k, b in self.brdf_models().items() if getattr(b, "rough", False) or getattr(b, "B0", 0.0) > 0]
-        if off_centre and surged:
+        if extended and off_centre and surged:
             import warnings
 
             from lunarviz.errors import LunarvizWarning
             warnings.warn(f"--rtol {self.rtol:g} is not met by the earthshine of {', '.join(surged)} seen off the "
                           "Earth's centre (the opposition surge's cusp and the roughness's kink lie off the pole "
                           "of the Earth's beam rules: up to ~5e-3 measured from orbit); those rows carry no bound",
-                          LunarvizWarning, stacklevel=3)
+                          LunarvizWarning, stacklevel=4)
 
     def trace_settings(self, threads: int | None = None, plan: dict | None = None):
         """The tracer's settings; ``threads`` per trace (``None``: the machine's cores; sweeps
