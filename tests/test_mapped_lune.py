@@ -238,6 +238,17 @@ def _disc_lit_lommel_seeliger(sc, src, radius):
     return f
 
 
+def _lommel_seeliger_on_rule(sc, body: str, **rule):
+    """The synthetic map times :func:`_disc_lit_lommel_seeliger` (lit by ``body``) integrated by
+    the mapped lune rule of order 16 (cut at the kink on the Sun's path, as for a rough BRDF),
+    with the rule's keywords ``rule``: ``(integral, number of nodes)``."""
+    values = np.asarray(MoonAlbedoMap.parse("synthetic").values(), float)
+    src, radius = getattr(sc, body), sc.radii[body]
+    f = _disc_lit_lommel_seeliger(sc, src, radius)
+    x, n, dA, an = mapped_lune_rule(sc, src, radius, 16, values, map_frame(sc, "moon"), kink=body == "sun", **rule)
+    return sum((an.values[q] * f(x, n) * dA * an.factors[:, q]).sum() for q in range(len(an.values))), len(x)
+
+
 def _dated_leo_scene(time: str):
     from lunarviz.workflows.sweeps import SweepSettings
     return SweepSettings(times=(time,), brdfs=("dhg",), method="raytrace",
@@ -260,15 +271,7 @@ def test_thin_blocks_take_fewer_nodes_for_the_same_integral(scene, body, limit, 
     At least a third fewer nodes away from crescents (at 170-175° the band's blocks are over 1 %:
     18 % fewer)."""
     sc = scene()
-    values = np.asarray(MoonAlbedoMap.parse("synthetic").values(), float)
-    src, radius = getattr(sc, body), sc.radii[body]
-    f = _disc_lit_lommel_seeliger(sc, src, radius)
-
-    def integral(thin):
-        x, n, dA, an = mapped_lune_rule(sc, src, radius, 16, values, map_frame(sc, "moon"), kink=body == "sun",
-                                        thin=thin)
-        return sum((an.values[q] * f(x, n) * dA * an.factors[:, q]).sum() for q in range(len(an.values))), len(x)
-    (full, n_full), (thin, n_thin) = integral(False), integral(True)
+    (full, n_full), (thin, n_thin) = (_lommel_seeliger_on_rule(sc, body, thin=t) for t in (False, True))
     assert abs(thin / full - 1) < limit
     assert (n_thin < 2 / 3 * n_full) if fewer else n_thin <= n_full
 
@@ -364,9 +367,6 @@ def test_whole_panels_give_the_cells_integral(scene, body, least, monkeypatch):
     found (so the test covers them; a 30° crescent holds 38 panels)."""
     from lunarviz.geometry import mapped_lune
     sc = scene()
-    values = np.asarray(MoonAlbedoMap.parse("synthetic").values(), float)
-    src, radius = getattr(sc, body), sc.radii[body]
-    f = _disc_lit_lommel_seeliger(sc, src, radius)
     found = []
     original = mapped_lune._whole_panels
 
@@ -375,13 +375,9 @@ def test_whole_panels_give_the_cells_integral(scene, body, least, monkeypatch):
         found.append(0 if out is None else len(out[1]))
         return out
 
-    def integral(panels):
-        x, n, dA, an = mapped_lune_rule(sc, src, radius, 16, values, map_frame(sc, "moon"), kink=body == "sun",
-                                        panels=panels)
-        return sum((an.values[q] * f(x, n) * dA * an.factors[:, q]).sum() for q in range(len(an.values)))
-    cells = integral(False)
+    cells = _lommel_seeliger_on_rule(sc, body, panels=False)[0]
     monkeypatch.setattr(mapped_lune, "_whole_panels", spy)
-    panels = integral(True)
+    panels = _lommel_seeliger_on_rule(sc, body, panels=True)[0]
     assert found and found[0] >= least
     assert abs(panels / cells - 1) < 2e-7
 
@@ -499,15 +495,7 @@ def test_cells_astride_a_ring_take_each_points_own_block(theta, body):
     orbit dates' traced paths, θ = 174.5° the largest; here ≤ 8.3e-9 (θ = 20°), and 1e-13 on the
     Earth's paths, whose cells no ring crosses apart from the caps' own; limit: 25x the largest)."""
     sc = SceneGeometry(theta)
-    values = np.asarray(MoonAlbedoMap.parse("synthetic").values(), float)
-    src, radius = getattr(sc, body), sc.radii[body]
-    f = _disc_lit_lommel_seeliger(sc, src, radius)
-
-    def integral(cut_rings):
-        x, n, dA, an = mapped_lune_rule(sc, src, radius, 16, values, map_frame(sc, "moon"), kink=body == "sun",
-                                        cut_rings=cut_rings)
-        return sum((an.values[q] * f(x, n) * dA * an.factors[:, q]).sum() for q in range(len(an.values)))
-    soft, cut = integral(False), integral(True)
+    soft, cut = (_lommel_seeliger_on_rule(sc, body, cut_rings=c)[0] for c in (False, True))
     assert abs(soft / cut - 1) < 2e-7
     if body == "sun":  # (rings cross cells there: the two differ, by 2.7-8.3e-9)
         assert soft != cut

@@ -9,7 +9,8 @@ separate them:
 * in the map value: ``r(m; g) ≈ Σ_q r(m_q; g) ℓ_q(γ(m))``, Lagrange polynomials ``ℓ_q`` on Q
   Chebyshev nodes spanning the map's values in γ = √(1 - w), w the BRDF's single-scattering
   albedo at m (Hapke's reflectance is analytic in w but for a branch point at w = 1, which γ
-  removes: 6 nodes in γ err as 8 in m; Lambert is a polynomial in γ of degree 2: exact);
+  removes: 6 nodes in γ err as 8 in m, and the rule takes 5, :data:`GAMMA_NODES`; Lambert is a
+  polynomial in γ of degree 2: exact);
 * in the position: within each block of the coarse rule (a tensor grid of Gauss nodes in the
   block's coordinates u_t, u_φ ∈ [0, 1]), ``r(m_q; g(x))`` is smooth and its polynomial
   interpolant through the coarse nodes converges spectrally.
@@ -333,9 +334,10 @@ def _located_vertices(shape, corner_ids, locate, n_iv):
 def _whole_panels(values, vals, frame, axis, cmax, lit_u, lit_c, circles, curve, sides, locate, n_iv):
     """The panels (:func:`_panel_rule`) wholly inside the region, on one side of every edge of
     the integrand: centre inside the lit (``lit_u·u > lit_c``), visible (``axis·u > cmax``)
-    caps, no edge (``circles``, the kink ``curve``) within 1.25 panel half-diagonals
-    (:func:`_edges_near_at`), at least three of those from the rule's pole (where the blocks'
-    coordinates are singular), and all their nodes located inside, with the centre's ``sides``.
+    caps, no circle of ``circles`` that can meet the panel (|n₀·u - c| ≤ |∇| r + r²/2, r half
+    its diagonal) and no kink ``curve`` within 1.5 × 1.25 panel half-diagonals
+    (:func:`_edges_near_at`), at least 3 × 1.25 half-diagonals from the rule's pole (where the
+    blocks' coordinates are singular), and all their nodes located inside, with the centre's ``sides``.
     The nodes may lie in different blocks (a t-ring or a whole ring's seam at φ = 0 between
     them): no edge of the integrand, whose blocks' interpolants each stand for it to their own
     accuracy. Returns the part ``(block, u_t, u_φ, ell)`` of their nodes and their cells, or

@@ -74,7 +74,6 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_es = shader.earthshine(earthshine_transport(sc, cal_st))
         uniform_albedo = a0
         method_fields = {"method": "analytic"}
-        from lunarviz.methods import accuracy
         extra["rtol"] = float("nan") if settings._mapped_moon() or not settings.modelled() \
             else accuracy.analytic_bound(st.order)
     else:
@@ -93,7 +92,6 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
             cal_ms, cal_es = ms, es
         else:  # the model Earth (the nominal sphere, uniform): as the grey run's calibration
-            from lunarviz.methods import accuracy
             dts = TraceScene(sc, accuracy.calibration_settings(ts_set, settings.moon_level is not None,
                                                                settings._mapped_moon()))
             cal_m = trace_path(dts, "moonshine", brdfs, spectral=shader).spectral  # one trace each, all BRDFs
@@ -102,7 +100,6 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_es = {k: cal_e.get(k, zeros[None]) for k in brdfs}  # (1, L): the uniform Earth's unit sums
         method_fields = {"method": "raytrace", "estimator": ts_set.estimator}
         extra["rays"] = ms_r.rays + es_r.rays
-        from lunarviz.methods import accuracy
         extra["rtol"] = accuracy.traced_bound(plan["bounds"], ts, ms_r, es_r)
         if ts_set.estimator == "montecarlo":
             extra.update(runs=ts_set.runs, rays_per_run=ts_set.rays)
@@ -119,8 +116,8 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
     label_field = "wavelength_nm" if req.kind == "wavelength" else "band"
     rows = []
     for k in brdfs:
-        bound = {} if "rtol" not in extra else {"rtol": accuracy.row_bound(
-            extra["rtol"], sc, method_fields["method"], method_fields.get("estimator"), brdfs[k])}
+        bound = accuracy.row_bound(extra["rtol"], sc, method_fields["method"], method_fields.get("estimator"),
+                                   brdfs[k])
         es_T, esu_T = _earthshine_nodes(es[k], albedo, uniform_albedo)
         ms_o, es_o = req.outputs(ms[k], sc.phi_sun), req.outputs(es_T, sc.phi_sun)
         ms_a, es_a, esu_a = req.averages(ms[k]), req.averages(es_T), req.averages(esu_T)
@@ -135,5 +132,5 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
                          "ratio_earthshine_moonshine": float(es_o[o] / ms_o[o]) if measurable else float("nan"),
                          "earth_visible_lit_albedo": float(es_a[o] / esu_a[o]) if esu_a[o] > 0 else float("nan"),
                          "geometric_albedo_term": pe, "apparent_albedo": alb.apparent_albedo(sc.beta_deg, pe),
-                         **extra, **bound})
+                         **extra, "rtol": bound})
     return rows

@@ -354,10 +354,9 @@ class SweepSettings:
         """Warn where the tolerance cannot be met: the earthshine of a BRDF with an opposition
         surge or roughness seen off the Earth's centre by an extended Earth's beam rules (the
         deterministic tracer's, the reference's; :func:`accuracy.earth_source_modelled`)."""
-        extended = self.method == "reference" or (self.method == "raytrace" and self.estimator != "montecarlo")
         off_centre = self.detector is not None or (self.times is not None and self.observer_model().kind != "geocentre")
-        surged = [k for k, b in self.brdf_models().items() if getattr(b, "rough", False) or getattr(b, "B0", 0.0) > 0]
-        if extended and off_centre and surged:
+        surged = [k for k, b in self.brdf_models().items() if accuracy.peaks_at_zero_phase(b)]
+        if accuracy.extended_earth(self.method, self.estimator) and off_centre and surged:
             import warnings
 
             from lunarviz.errors import LunarvizWarning
