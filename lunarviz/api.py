@@ -24,7 +24,7 @@ import numpy as np
 
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BY_NAME, OPTIONS, defaults, numpydoc_parameters
-from lunarviz.outputs.facets import FacetResult
+from lunarviz.methods.tracer.facets import FacetResult
 
 #: options of :class:`Scene` and their defaults (the command line's defaults), from the schema
 SCENE_DEFAULTS = defaults()
@@ -115,13 +115,13 @@ class Scene:
     __doc__ = __doc__.format(options=numpydoc_parameters(OPTIONS, "    "))
 
     def settings(self, method: str = "analytic"):
-        """The :class:`~lunarviz.workflows.sweeps.SweepSettings` of this scene for ``method``."""
-        from lunarviz.workflows.sweeps import SweepSettings
+        """The :class:`~lunarviz.workflows.sweeps.ResolvedScene` of this scene for ``method``."""
+        from lunarviz.scene import ResolvedScene
         o = dict(self.options)
         o["brdfs"] = tuple(o["brdfs"])
         o["params"] = o["params"] or {}
         o["detector"] = None if o["detector"] is None else tuple(float(c) for c in o["detector"])
-        return SweepSettings(phases_deg=self.phases, times=self.times, method=method, **o)
+        return ResolvedScene(phases_deg=self.phases, times=self.times, method=method, **o)
 
     @property
     def keys(self) -> list:
@@ -131,7 +131,7 @@ class Scene:
     def geometry(self, key=None):
         """The low-level :class:`~lunarviz.geometry.scene_geometry.SceneGeometry` (positions [m]) of one task, and its
         row fields (time, distances, libration, flags)."""
-        return self.settings("raytrace").scene_and_fields(self.keys[0] if key is None else key)
+        return self.settings("raytrace").task(self.keys[0] if key is None else key)
 
     def __repr__(self) -> str:
         def few(v):
@@ -229,7 +229,7 @@ class Facets(FacetResult):
         Returns
         -------
         pyvista.PolyData or pyvista.MultiBlock
-            Cell arrays as in :mod:`lunarviz.outputs.facets` (radiance [W m-2 sr-1], irradiance [W m-2],
+            Cell arrays as in :mod:`lunarviz.methods.tracer.facets` (radiance [W m-2 sr-1], irradiance [W m-2],
             contributions [W m-2], angles [deg], lit fractions).
         """
         from lunarviz.viz.meshio import facet_polydata, multiblock
@@ -265,14 +265,14 @@ def trace(scene: Scene | None = None, key=None, brdf: str | None = None, **scene
         [W m-2], angles [deg]), ``totals`` (detector irradiance [W m-2]), ``info``;
         ``.to_pyvista()``, ``.save(path)``.
     """
-    from lunarviz.outputs.facets import trace_facets
+    from lunarviz.workflows.tasks import facets
     sc = _scene(scene, scene_options)
     _grey_only(sc, "trace")
     settings = sc.settings("raytrace")
     key = _check_key(sc, key)
     if brdf is not None and brdf not in settings.brdfs:
         raise LunarvizError(f"BRDF {brdf!r} is not among the scene's {', '.join(settings.brdfs)}")
-    res = trace_facets(settings, key, brdf)
+    res = facets(settings, key, brdf)
     return Facets(**{f: getattr(res, f) for f in ("vertices", "faces", "cell_data", "totals", "info", "bodies")})
 
 
@@ -299,6 +299,7 @@ def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = 
         RGB, (height, width, 3), uint8. For radiance images see :func:`image`.
     """
     from lunarviz.viz import views
+    from lunarviz.workflows.tasks import view_data
     sc = _scene(scene, scene_options)
     _grey_only(sc, "render")
     if view not in views.VIEWS:
@@ -308,7 +309,7 @@ def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = 
         from lunarviz.outputs.writers import check_output_path
         out = check_output_path(out, (".png",))
     settings = replace(sc.settings("raytrace"), brdfs=(brdf,))
-    return views.render_image(settings, _check_key(sc, key), brdf, view=view, size=size, out=out)
+    return views.render_image(view_data(settings, _check_key(sc, key), brdf), view=view, size=size, out=out)
 
 
 def _check_size(size) -> tuple[int, int]:
@@ -337,18 +338,22 @@ def view(scene: Scene | None = None, key=None, brdf: str = "dhg", size=(1600, 90
     host : str
         Interface to bind for ``web``: 127.0.0.1 unless asked otherwise.
     """
+    from functools import partial
+
+    from lunarviz.workflows.tasks import view_data
     sc = _scene(scene, scene_options)
     _grey_only(sc, "view")
     settings = replace(sc.settings("raytrace"), brdfs=(brdf,))
     key = _check_key(sc, key)
     size = _check_size(size)
+    compute = partial(view_data, settings)
     if web:
         if not (isinstance(port, (int, np.integer)) and not isinstance(port, bool) and 0 <= port <= 65535):
             raise LunarvizError(f"port {port!r} is not a TCP port (0-65535; 0 picks a free one)")
         from lunarviz.viz.web import serve
-        return serve(settings, key, brdf, host=str(host), port=int(port), size=size)
+        return serve(compute, key, brdf, settings.times, host=str(host), port=int(port), size=size)
     from lunarviz.viz.viewer import run_viewer
-    return run_viewer(settings, key, brdf, size=size)
+    return run_viewer(compute, key, brdf, settings.times, size=size)
 
 
 def _instrument_images(sc: Scene, keys, instrument, exposure, frames: int, seed: int, out, progress: bool):
@@ -358,12 +363,11 @@ def _instrument_images(sc: Scene, keys, instrument, exposure, frames: int, seed:
     the scene's ``seed``). Without ``out``: :class:`~lunarviz.instrument.observation.Observation` objects."""
     import json
 
-    from lunarviz.instrument.observation import observe
     from lunarviz.instrument.spec import load_instrument
-    from lunarviz.outputs.count_frames import append_counts
+    from lunarviz.instrument.frames import append_counts
     from lunarviz.outputs.images import write_fits
     from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths
-    from lunarviz.workflows.measurement import MAX_FRAMES, check_count, check_seed
+    from lunarviz.workflows.measurement import MAX_FRAMES, check_count, check_seed, observation
     inst = load_instrument(instrument)
     keys = [_check_key(sc, k) for k in keys]
     frames = check_count(frames, "--frames", MAX_FRAMES)
@@ -382,7 +386,7 @@ def _instrument_images(sc: Scene, keys, instrument, exposure, frames: int, seed:
     results = []
     with StagedFiles() as staged:
         for n, k in enumerate(it):
-            obs = observe(settings, k, inst, exposure)
+            obs = observation(settings, k, inst, exposure)
             results.append(obs)
             if out is not None:
                 tmp = staged.stage(targets[n])
@@ -469,8 +473,10 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     -------
     ImageResult (one key, no ``out``) or list of ImageResult; with ``out``, the files written.
     """
-    from lunarviz.methods.camera import Camera, synthesize
-    from lunarviz.outputs.images import apply_optics, parse_halo, parse_psf, write_fits, write_npy, write_png
+    from lunarviz.methods.camera import Camera
+    from lunarviz.workflows.tasks import image as task_image
+    from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
+    from lunarviz.outputs.images import write_fits, write_npy, write_png
     sc = _scene(scene, scene_options)
     if instrument is not None:
         if camera is not None or psf not in (None, "none") or halo not in (None, "none") or gif is not None:
@@ -501,7 +507,7 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
         it = tqdm(keys, desc="image", unit="frame", leave=False)
     with StagedFiles() as staged:  # every frame (and the GIF) or none
         for n, k in enumerate(it):
-            res = synthesize(settings, k, camera)
+            res = task_image(settings, k, camera)
             for comp in res.planes:
                 for b in res.planes[comp]:
                     res.planes[comp][b] = apply_optics(res.planes[comp][b], k_psf, k_halo)
@@ -519,25 +525,30 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
                     write_png(tmp, res, res.planes)
                 files.append(target)
         if gif is not None and len(results) > 1:
-            import io as bytes_io
-
-            from PIL import Image
-
-            from lunarviz.outputs.writers import write_bytes_atomic
-            frames = []
-            for res in results:
-                b = next(iter(res.planes["moonshine"]))
-                tot = res.planes["moonshine"][b] + res.planes["earthshine"][b]
-                v = np.arcsinh(tot / max(np.percentile(tot[tot > 0], 5) if (tot > 0).any() else 1.0, 1e-30))
-                v = (255 * v / max(v.max(), 1e-30)).astype(np.uint8)[::-1]
-                frames.append(Image.fromarray(v))
-            buf = bytes_io.BytesIO()
-            frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
-            write_bytes_atomic(staged.stage(gif), buf.getvalue())
+            _write_gif(results, staged.stage(gif))
             files.append(gif)
     if out is not None:
         return files
     return results[0] if len(results) == 1 else results
+
+
+def _write_gif(results: list, path) -> None:
+    """An animated GIF of images' first plane (moonshine + earthshine, an asinh stretch), atomically."""
+    import io as bytes_io
+
+    from PIL import Image
+
+    from lunarviz.outputs.writers import write_bytes_atomic
+    frames = []
+    for res in results:
+        b = next(iter(res.planes["moonshine"]))
+        tot = res.planes["moonshine"][b] + res.planes["earthshine"][b]
+        v = np.arcsinh(tot / max(np.percentile(tot[tot > 0], 5) if (tot > 0).any() else 1.0, 1e-30))
+        v = (255 * v / max(v.max(), 1e-30)).astype(np.uint8)[::-1]
+        frames.append(Image.fromarray(v))
+    buf = bytes_io.BytesIO()
+    frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=250, loop=0)
+    write_bytes_atomic(path, buf.getvalue())
 
 
 def _angles(values, what: str, lo: float, hi: float) -> tuple:

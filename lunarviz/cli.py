@@ -46,7 +46,7 @@ class _Parser(argparse.ArgumentParser):
 # ---- parsing helpers ---------------------------------------------------------------------
 def parse_params(items, brdfs) -> dict:
     """``--param NAME=VALUE`` or ``BRDF.NAME=VALUE`` → ``{brdf: {name: value}}``."""
-    from lunarviz.earth_optics.surfaces import EARTH_DEFAULTS
+    from lunarviz.earth_optics.classes import EARTH_DEFAULTS
     from lunarviz.photometry.brdf import BRDF_PARAMETERS
     known = {**BRDF_PARAMETERS, "earth": tuple(EARTH_DEFAULTS)}
     out: dict = {b: {} for b in brdfs}
@@ -170,7 +170,7 @@ def _add_executor_options(p, workers_help="local worker processes"):
 
 
 def _parser_sweep(sub):
-    from lunarviz.workflows.sweeps import METHODS
+    from lunarviz.options import METHODS
     p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases",
                            SCENE_GROUPS + ("analytic", "accuracy", "spectral"))
     p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
@@ -182,7 +182,7 @@ def _parser_sweep(sub):
 
 
 def _parser_brdf(sub):
-    from lunarviz.earth_optics.surfaces import SURFACE_NAMES
+    from lunarviz.earth_optics.classes import SURFACE_NAMES
     from lunarviz.options import BRDF_NAMES
     p = sub.add_parser("brdf", help="tabulate a lunar BRDF or the Earth's top-of-atmosphere reflectance")
     p.add_argument("--body", default="moon", choices=("moon", "earth"),
@@ -415,7 +415,7 @@ def _scene(a, phases, times=None):
 def cmd_sweep(a):
     import lunarviz.api as api
     from lunarviz.outputs.writers import write_results
-    from lunarviz.workflows.sweeps import METHODS
+    from lunarviz.options import METHODS
     if a.method not in METHODS:
         raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
     times = _times(a)
@@ -561,9 +561,11 @@ def cmd_render(a, interactive=False):
                              "(a browser) or lunarviz render (pictures)")
         api.view(scene, brdf=brdf[0], size=(w, h))
         return
-    settings = scene.settings("raytrace")
-    files = views.render_frames(settings, scene.keys, brdf[0], out, view=a.view, size=(w, h),
-                                gif=gif, progress=not a.quiet)
+    from functools import partial
+
+    from lunarviz.workflows.tasks import view_data
+    files = views.render_frames(partial(view_data, scene.settings("raytrace")), scene.keys, brdf[0], out,
+                                view=a.view, size=(w, h), gif=gif, progress=not a.quiet)
     if not a.quiet:
         for f in files:
             print(f"wrote {f}")
@@ -770,7 +772,7 @@ def cmd_mesh(a):
 
 def cmd_fit(a):
     from lunarviz.outputs.writers import write_results
-    from lunarviz.photometry.fit import DEFAULT_FREE, plot_fit, run_fit
+    from lunarviz.workflows.fit import DEFAULT_FREE, plot_fit, run_fit
     brdf = _brdf_list(a.brdf)
     if len(brdf) != 1:
         raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
@@ -780,7 +782,7 @@ def cmd_fit(a):
     out = _check_out(a.out, (".json",))
     _check_out(out.with_suffix(".png"), (".png",))  # the residual plot beside it, before any work
     if a.moon_albedo_map is not None:
-        from lunarviz.bodies.surfaces import MoonAlbedoMap
+        from lunarviz.surfaces.moon_map import MoonAlbedoMap
         MoonAlbedoMap.parse(a.moon_albedo_map)  # a bad map: one line, before any work
     res = run_fit(brdf[0], a.source, a.band, a.phases, free, dhg_convention=a.dhg_convention,
                   h_function=a.h_function, moon_map=a.moon_albedo_map, order=a.order)

@@ -26,10 +26,12 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
-from lunarviz.bodies.surfaces import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
 from lunarviz.errors import LunarvizError
 
 # ---- allowed values (each declared once, here; the modules that implement them import them) ----
+#: how a sweep computes: the paper's point-source quadrature, Embree ray tracing of the meshes, or the
+#: exact extended-source reference
+METHODS = ("analytic", "raytrace", "reference")
 #: lunar BRDFs: Lambert, Hapke with a single or double Henyey-Greenstein phase function
 BRDF_NAMES = ("lambert", "shg", "dhg")
 #: Hapke's H-function: the 1981 approximation (the paper's), the 2002 one, or the exact integral
@@ -58,6 +60,13 @@ SOLAR_SPECTRA = ("tsis1-hsrs", "grey")
 EARTH_SPECTRA = ("surface", "grey")
 #: how the Earth reflects: Lambert facets, or the physical classes of :mod:`lunarviz.earth_optics`
 EARTH_BRDFS = ("lambert", "physical")
+#: Default Lambert albedos of the ``landocean`` Earth (broadband, visible):
+#: ocean 0.06, the diffuse sea-surface albedo (Payne 1972, J. Atmos. Sci. 29, 959);
+#: land 0.25, a mid value of land surfaces (0.1 forest to 0.4 desert; Hartmann 2016, Global
+#: Physical Climatology, 2nd ed., Table 4.2); cloud 0.4, chosen so that with ``zonal`` clouds
+#: the global mean is 0.30 (the paper's Earth; CERES Bond albedo 0.29, Stephens et al. 2015,
+#: Rev. Geophys. 53, 141). They are parameters (``--land-albedo`` ...), not measurements.
+LAND_ALBEDO, OCEAN_ALBEDO, CLOUD_ALBEDO = 0.25, 0.06, 0.40
 #: the finest packaged-icosphere level a scene may ask for (20·4^8 = 1.3 M facets)
 MAX_LEVEL = 8
 #: icosphere levels of the packaged meshes when none is asked for (from the mesh study)

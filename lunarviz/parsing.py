@@ -40,3 +40,8 @@ def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | 
         if (lo is not None and v < lo) or (hi is not None and v > hi):
             raise LunarvizError(f"{name} {v:g} is out of range [{lo:g}, {hi:g}]")
     return out
+
+
+def wavelength_label(nm: float) -> str:
+    """A wavelength's text in output keys (``bond_albedo``, image planes): 12 significant digits."""
+    return format(float(nm), ".12g")

@@ -35,8 +35,9 @@ SCENES = {
 
 
 def sweep_seconds(opts: dict, wavelengths: str | None, phases=tuple(float(p) for p in range(0, 181, 15))) -> float:
-    from lunarviz.workflows.sweeps import SweepSettings, run_sweep
-    s = SweepSettings(phases_deg=phases, method="raytrace", wavelengths=wavelengths, **opts)
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_sweep
+    s = ResolvedScene(phases_deg=phases, method="raytrace", wavelengths=wavelengths, **opts)
     t0 = time.perf_counter()
     run_sweep(s)
     return time.perf_counter() - t0
@@ -44,9 +45,10 @@ def sweep_seconds(opts: dict, wavelengths: str | None, phases=tuple(float(p) for
 
 PEAK = """
 import resource, sys
-from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_sweep
 w = sys.argv[1] if sys.argv[1] != "grey" else None
-run_sweep(SweepSettings(phases_deg=(60.0,), method="raytrace", moon_model="rolo-fit-map", wavelengths=w), workers=1)
+run_sweep(ResolvedScene(phases_deg=(60.0,), method="raytrace", moon_model="rolo-fit-map", wavelengths=w), workers=1)
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
 """
 

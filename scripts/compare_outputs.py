@@ -110,6 +110,7 @@ def run(root: Path, out: Path, only: list[str] | None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     data = out / "_inputs"
     data.mkdir(exist_ok=True)
+    (data / "root.txt").write_text(str(root))
     _fit_table(data)
     env = {**os.environ, "PYTHONPATH": str(root)}
     failed = 0
@@ -206,7 +207,7 @@ def _fits(path: Path) -> dict:
 
 
 def _vtk(path: Path) -> dict:
-    import pyvista as pv
+    import pyvista as pv  # noqa: TID251 (reads the VTK files lunarviz wrote)
     out = {}
     obj = pv.read(path)
     blocks = [(obj.get_block_name(i), obj[i]) for i in range(obj.n_blocks)] if isinstance(obj, pv.MultiBlock) \
@@ -264,8 +265,15 @@ def _rel(a, b) -> float:
 
 
 def _relative_paths(values: dict, folder: Path) -> dict:
-    """Paths inside a run's folder written as ``{out}/…`` (two runs write to two folders)."""
-    return {k: v.replace(str(folder.resolve()), "{out}") if isinstance(v, str) else v for k, v in values.items()}
+    """Paths inside a run's folder and its checkout written as ``{out}/…`` and ``{root}/…`` (two runs
+    write to two folders, from two checkouts)."""
+    marker = folder / "_inputs" / "root.txt"
+    root = marker.read_text() if marker.is_file() else None
+
+    def plain(v):
+        v = v.replace(str(folder.resolve()), "{out}")
+        return v.replace(root, "{root}") if root else v
+    return {k: plain(v) if isinstance(v, str) else v for k, v in values.items()}
 
 
 def diff(a_dir: Path, b_dir: Path, verbose: bool) -> float:
@@ -297,7 +305,8 @@ def diff(a_dir: Path, b_dir: Path, verbose: bool) -> float:
         print(f"{name:18s} numbers {numbers:.3g}  settings {settings:.3g}  ({len(keys)} keys{note})")
         if verbose:
             for r, k in sorted(bad, reverse=True)[:8]:
-                print(f"    {r:.3g}  {k}: {va[k] if np.ndim(va[k]) == 0 else '…'} / {vb[k] if np.ndim(vb[k]) == 0 else '…'}")
+                shown = [v[k] if np.ndim(v[k]) == 0 else "…" for v in (va, vb)]
+                print(f"    {r:.3g}  {k}: {shown[0]} / {shown[1]}")
     print(f"largest relative difference of any result: {worst:.3g}")
     return worst
 

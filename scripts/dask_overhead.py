@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_sweep
 
 OUT = Path(__file__).resolve().parent.parent / "benchmarks" / "dask_overhead.json"
 
@@ -23,7 +24,7 @@ OUT = Path(__file__).resolve().parent.parent / "benchmarks" / "dask_overhead.jso
 def main() -> int:
     n = 10_000
     phases = tuple(float(p) for p in np.linspace(1.0, 179.0, n))
-    s = SweepSettings(brdfs=("dhg",), method="analytic", phases_deg=phases, order=8)
+    s = ResolvedScene(brdfs=("dhg",), method="analytic", phases_deg=phases, order=8)
     workers = 2
     t0 = time.perf_counter()
     res = run_sweep(s, workers=workers, executor="dask")

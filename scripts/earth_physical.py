@@ -53,7 +53,7 @@ def validation(quick: bool) -> list[dict]:
 
     from lunarviz.earth_optics import rayleigh
     from lunarviz.earth_optics.ocean import glint, ocean_reflectance
-    from lunarviz.earth_optics.surfaces import surface_from_name, toa_reflectance
+    from lunarviz.earth_optics.classes import surface_from_name, toa_reflectance
     mu = np.cos(np.radians(VIEW_ZENITH))
     out = []
     for name in ("black", "lambert:0.3", "ocean"):
@@ -83,8 +83,10 @@ def validation(quick: bool) -> list[dict]:
 
 
 def phase_function(quick: bool) -> dict:
-    from lunarviz.bodies.physical_earth import apparent_albedo, bond_albedo
-    from lunarviz.bodies.surfaces import EarthSurface, Surfaces, map_frame
+    from lunarviz.surfaces.physical_earth import apparent_albedo, bond_albedo
+    from lunarviz.surfaces.earth_surface import EarthSurface
+    from lunarviz.surfaces.maps import map_frame
+    from lunarviz.surfaces.point_values import Surfaces
     from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.photometry.albedo_inversion import bond_albedo as eq17
     sc = SceneGeometry(90.0)
@@ -93,7 +95,7 @@ def phase_function(quick: bool) -> dict:
     lamb = Surfaces(None, EarthSurface("landocean", "zonal"), 0.0)
     betas = np.array([30.0, 90.0, 150.0]) if quick else np.arange(5.0, 176.0, 10.0)
     a_phys = np.array([apparent_albedo(phys, sc, frame, b, 0.0, 550.0) for b in betas])
-    from lunarviz.bodies.physical_earth import _direction
+    from lunarviz.surfaces.physical_earth import _direction
     far = 1e3 * np.linalg.norm(sc.moon - sc.earth)
     a_lamb = np.array([lamb.earth_albedo_toward(sc, sc.earth + far * _direction(sc, b, 0.0)) for b in betas])
     bond, geometric = bond_albedo(phys, sc, frame, 550.0, order=8 if quick else 16, azimuths=4 if quick else 8)
@@ -121,8 +123,10 @@ def year(quick: bool) -> list[dict]:
     """Per month of 2026 (geocentric): the Bond albedo on the 15th, and p* on every day whose Earth
     phase angle is in the range where earthshine is measured (β 40–140°)."""
     import lunarviz
-    from lunarviz.bodies.physical_earth import albedo_toward_moon, bond_albedo
-    from lunarviz.bodies.surfaces import EarthSurface, Surfaces, map_frame
+    from lunarviz.surfaces.physical_earth import albedo_toward_moon, bond_albedo
+    from lunarviz.surfaces.earth_surface import EarthSurface
+    from lunarviz.surfaces.maps import map_frame
+    from lunarviz.surfaces.point_values import Surfaces
     phys = EarthSurface("landocean", "zonal", brdf="physical")
     surfaces = Surfaces(None, phys, 0.0)
     rows = []

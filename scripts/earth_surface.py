@@ -31,7 +31,8 @@ import numpy as np
 
 from lunarviz.outputs.writers import write_results
 from lunarviz.sky.ephemeris import time_list
-from lunarviz.workflows.sweeps import SweepSettings, run_phase, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_phase, run_sweep
 
 SURFACE = dict(earth_surface="landocean", clouds="zonal")
 
@@ -51,7 +52,7 @@ def diurnal(out: Path, quick: bool) -> dict:
     payload = {"theta_deg": 120.0, "method": method, "runs": []}
     rows = []
     jobs = [(clouds, float(lam)) for clouds in ("zonal", "none") for lam in lons]
-    settings = [SweepSettings(phases_deg=(120.0,), brdfs=("dhg",), method=method, earth_surface="landocean",
+    settings = [ResolvedScene(phases_deg=(120.0,), brdfs=("dhg",), method=method, earth_surface="landocean",
                               clouds=clouds, earth_rotation_deg=lam) for clouds, lam in jobs]
     with ProcessPoolExecutor(os.cpu_count() or 1) as ex:
         results = list(ex.map(run_phase, settings, [120.0] * len(jobs)))
@@ -71,7 +72,7 @@ def diurnal(out: Path, quick: bool) -> dict:
 def lunation(out: Path, quick: bool) -> dict:
     times = time_list(time_range="2026-06-01,2026-06-13,4d" if quick else "2026-06-01,2026-06-30,8h")
     method = "analytic" if quick else "raytrace"
-    res = run_sweep(SweepSettings(times=times, brdfs=("dhg",), method=method, **SURFACE))
+    res = run_sweep(ResolvedScene(times=times, brdfs=("dhg",), method=method, **SURFACE))
     payload = {"method": method, "settings": res["settings"], "wall_seconds": res["wall_seconds"], "rows": res["rows"],
                "global_mean_albedo": global_mean("zonal")}
     write_results(out / "lunation.json", payload)

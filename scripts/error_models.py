@@ -44,8 +44,8 @@ SOURCE = {"moonshine": "sun_order", "earthshine": "earth_order"}
 
 
 def _settings(phases, **kw):
-    from lunarviz.workflows.sweeps import SweepSettings
-    return SweepSettings(phases_deg=tuple(phases), brdfs=BRDFS, occlusion=False, **kw)
+    from lunarviz.scene import ResolvedScene
+    return ResolvedScene(phases_deg=tuple(phases), brdfs=BRDFS, occlusion=False, **kw)
 
 
 def reference_values(phases, outer: int, inner: int) -> dict:
@@ -54,7 +54,7 @@ def reference_values(phases, outer: int, inner: int) -> dict:
     s = _settings(phases)
     out = {}
     for th in phases:
-        res = reference_irradiance(s.scene(th), s.brdf_models(), ReferenceSettings(outer, inner))
+        res = reference_irradiance(s.geometry(th), s.brdf_models(), ReferenceSettings(outer, inner))
         for k, v in res.items():
             out[(th, k)] = (v.moonshine_W_m2, v.earthshine_W_m2)
     return out
@@ -70,7 +70,7 @@ def trace_values(args) -> dict:
     models = s.brdf_models()
     vals, rays, t0 = {}, 0, time.perf_counter()
     for th in phases:
-        ts = TraceScene(s.scene(th), ts_set)
+        ts = TraceScene(s.geometry(th), ts_set)
         res = trace_path(ts, path, models)
         rays += res.rays
         for k in models:
@@ -91,7 +91,7 @@ def montecarlo_sigma(phases) -> dict:
     models = s.brdf_models()
     out = {p: 0.0 for p in PATHS}
     for th in phases:
-        ts = TraceScene(s.scene(th), s.trace_settings(threads=1))
+        ts = TraceScene(s.geometry(th), s.trace_settings(threads=1))
         for p in PATHS:
             r = trace_path(ts, p, models)
             for k in models:
@@ -110,7 +110,7 @@ def analytic_errors(phases, orders) -> list:
         t0 = time.perf_counter()
         vals = {}
         for th in phases:
-            for k, v in analytic_irradiance(s.scene(th), s.brdf_models(), a).items():
+            for k, v in analytic_irradiance(s.geometry(th), s.brdf_models(), a).items():
                 vals[(th, k)] = (v.moonshine_W_m2, v.earthshine_W_m2)
         dt = (time.perf_counter() - t0) / len(phases)
         if order == 192:

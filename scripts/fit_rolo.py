@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.outputs.writers import write_bytes_atomic, write_results
-from lunarviz.photometry.fit import DEFAULT_FREE, DiskModel, plot_fit, rolo_irradiance, rolo_reflectance, run_fit
+from lunarviz.workflows.fit import DEFAULT_FREE, DiskModel, plot_fit, rolo_irradiance, rolo_reflectance, run_fit
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "rolo_fit"
@@ -44,11 +44,12 @@ ORDER = 48
 
 
 def real_dates(models: list[str]) -> list[dict]:
-    from lunarviz.workflows.sweeps import SweepSettings, run_phase
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
     rows = []
     for iso in DATES:
         for model in models:
-            rs = run_phase(SweepSettings(times=(iso,), brdfs=("lambert", "shg", "dhg"), method="analytic",
+            rs = run_phase(ResolvedScene(times=(iso,), brdfs=("lambert", "shg", "dhg"), method="analytic",
                                          moon_model=model, order=ORDER), iso)
             for r in rs:
                 g = r["phase_angle_deg"]
@@ -69,12 +70,13 @@ def observers_check() -> list[dict]:
     """``rolo-fit-map`` DHG against ROLO at the real dates for three observers (geocentre, a
     ground site, a 550 km orbit), analytic (default order) and ray traced: rows where the
     Earth hides the Moon are skipped."""
-    from lunarviz.workflows.sweeps import SweepSettings, run_phase
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
     rows = []
     for obs in OBSERVERS:
         for method in ("analytic", "raytrace"):
             for iso in DATES:
-                r = run_phase(SweepSettings(times=(iso,), brdfs=("dhg",), method=method, observer=obs,
+                r = run_phase(ResolvedScene(times=(iso,), brdfs=("dhg",), method=method, observer=obs,
                                             moon_model="rolo-fit-map"), iso)[0]
                 if r["moonshine_W_m2"] <= 0:
                     continue
@@ -157,7 +159,7 @@ def main() -> int:
     preset = {"models": models,
               "provenance": "scripts/fit_rolo.py: ROLO (Kieffer & Stone 2005, rimopy) disk reflectance, "
                             f"{BAND} nm weighted by the Wehrli spectrum, phase {FIT_PHASES} deg both branches, "
-                            f"zero libration; analytic disk integration (lunarviz.photometry.fit, order {ORDER}); "
+                            f"zero libration; analytic disk integration (lunarviz.workflows.fit, order {ORDER}); "
                             "rolo-fit-map on the synthetic lunar albedo map"}
     write_bytes_atomic(ROOT / "lunarviz" / "data" / "moon_models.json", (json.dumps(preset, indent=2) + "\n").encode())
     from lunarviz.photometry.presets import _fitted

@@ -62,7 +62,7 @@ def rolo_wavelengths() -> list[float]:
 
 
 def fit_preset(preset: str, brdfs=tuple(FREE)) -> dict:
-    from lunarviz.photometry.fit import DiskModel, fit, rolo_reflectance
+    from lunarviz.workflows.fit import DiskModel, fit, rolo_reflectance
     from lunarviz.photometry.presets import moon_model_params
     mp = PRESETS[preset]
     G = np.concatenate([PHASES, PHASES])
@@ -144,7 +144,7 @@ def residuals() -> dict:
     """Per preset, BRDF and band: the kept table's model/ROLO − 1 at every fitted phase (both
     branches), from the table itself (``--residuals`` rewrites only this file)."""
     from lunarviz.photometry.brdf import make_brdf
-    from lunarviz.photometry.fit import DiskModel, rolo_reflectance
+    from lunarviz.workflows.fit import DiskModel, rolo_reflectance
     from lunarviz.spectral.moon import MAP_CONTRAST, parameters_at
     G = np.concatenate([PHASES, PHASES])
     W = np.concatenate([np.ones(len(PHASES), bool), np.zeros(len(PHASES), bool)])

@@ -17,9 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.methods.camera import Camera, synthesize
-from lunarviz.outputs.images import apply_optics, parse_halo, parse_psf, write_png
-from lunarviz.workflows.sweeps import SweepSettings
+from lunarviz.methods.camera import Camera
+from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
+from lunarviz.outputs.images import write_png
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.tasks import image as synthesize
 
 OUT = Path(__file__).resolve().parent.parent / "benchmarks" / "images"
 
@@ -28,7 +30,7 @@ def main() -> int:
     OUT.mkdir(parents=True, exist_ok=True)
     theta = 120.0
     cam = Camera(width=256, height=256)
-    s = SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(theta,))
+    s = ResolvedScene(brdfs=("dhg",), method="raytrace", phases_deg=(theta,))
     im = synthesize(s, theta, cam)
     ms, es = im.planes["moonshine"]["dhg"], im.planes["earthshine"]["dhg"]
     disc = (ms + es) > 0

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.earth_optics import rayleigh
-from lunarviz.earth_optics.tables import CLOUD, CLOUD_PHI_DEG, RAYLEIGH_TAU, TABLE_DIR, THETA_DEG, sky_nodes
+from lunarviz.earth_optics.disort_tables import CLOUD, CLOUD_PHI_DEG, RAYLEIGH_TAU, TABLE_DIR, THETA_DEG, sky_nodes
 
 #: streams: 36 puts no computational angle on a table node (32 has one at 36°, 34 at 60°)
 NSTR = 36

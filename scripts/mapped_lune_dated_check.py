@@ -37,7 +37,8 @@ def main(argv=None) -> int:
     import mapped_lune_models as M
     from lunarviz.methods import accuracy
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
-    from lunarviz.workflows.sweeps import SweepSettings, hidden_moon
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import hidden_moon
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dates", type=int, default=40, help="dates to check (default 40)")
     ap.add_argument("--start", type=int, default=7, help="hours after 2026-01-01T00:00 of the first (default 7)")
@@ -45,7 +46,7 @@ def main(argv=None) -> int:
     t0 = dt.datetime(2026, 1, 1)
     stamps = [(t0 + dt.timedelta(hours=int(h))).strftime("%Y-%m-%dT%H:%M")
               for h in np.linspace(a.start, 8740, 3 * a.dates)]
-    s = SweepSettings(method="raytrace", brdfs=BRDFS, moon_model="rolo-fit-map", rtol=1e-4,
+    s = ResolvedScene(method="raytrace", brdfs=BRDFS, moon_model="rolo-fit-map", rtol=1e-4,
                       observer="orbit:550,97.6,0,0", times=tuple(stamps))
     brdfs = s.brdf_models()
     rows, start = [], time.perf_counter()

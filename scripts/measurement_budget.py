@@ -30,12 +30,11 @@ import numpy as np
 
 from lunarviz.api import Scene
 from lunarviz.errors import LunarvizError
-from lunarviz.instrument.budget import halo_shape_sigma, systematics, with_budget
-from lunarviz.instrument.observation import instrument_settings, observe
+from lunarviz.instrument.budget import halo_shape_sigma, with_budget
 from lunarviz.instrument.pipeline import measure
 from lunarviz.instrument.spec import load_instrument
-from lunarviz.workflows.measurement import _calibration, plan
-from lunarviz.workflows.sweeps import SweepSettings
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.measurement import instrument_scene, observation, observation_calibration, plan, systematics
 
 BBSO_SITE = "site:34.26,-116.92,2067"
 TARGET_SNR = 100.0
@@ -48,13 +47,13 @@ def budget_row(settings, key, inst) -> dict:
     try:
         return _budget_row(settings, key, inst)
     except LunarvizError as exc:  # a phase without patches (a crescent too thin): said in the table
-        sc, _ = settings.scene_and_fields(key)
+        sc, _ = settings.task(key)
         return {"key": str(key), "phase_angle_deg": float(sc.alpha_deg), "error": str(exc)}
 
 
 def _budget_row(settings, key, inst) -> dict:
-    obs = observe(settings, key, inst, 1.0)
-    cal = _calibration(settings, key, inst, obs)
+    obs = observation(settings, key, inst, 1.0)
+    cal = observation_calibration(settings, key, inst, obs)
     p = plan(settings, key, inst, TARGET_SNR, obs, cal)
     if p["feasible"]:
         t, n = p["exposure_s"], 1
@@ -62,9 +61,9 @@ def _budget_row(settings, key, inst) -> dict:
         t, n = p["saturation_exposure_s"], min(p["frames_needed_at_saturation_exposure"], MAX_FRAMES)
     obs, cal = replace(obs, exposure_s=t), replace(cal, exposure_s=t)  # rates do not depend on the exposure
     row = measure(obs.expected_counts, n, cal)
-    rel = systematics(instrument_settings(settings, inst), key, cal)
+    rel = systematics(instrument_scene(settings, inst), key, cal)
     row = with_budget(row, rel, halo_shape_sigma(obs.expected_counts, n, cal, row["p_star"]))
-    sc, fields = settings.scene_and_fields(key)
+    sc, fields = settings.task(key)
     return {"key": str(key), "phase_angle_deg": float(sc.alpha_deg), "exposure_s": t, "frames": n,
             "plan_feasible": p["feasible"], "snr_planned": p.get("snr_at_exposure", p["snr_at_saturation_exposure"]),
             "moon_altitude_deg": fields.get("moon_altitude_deg"), "sky_model": obs.sky_note,
@@ -83,8 +82,8 @@ def bbso_dates(start: str, days: int) -> list[str]:
         best = None
         for h in range(24):
             label = (t0 + timedelta(days=d, hours=h)).strftime("%Y-%m-%dT%H:%M:%SZ")
-            s = SweepSettings(times=(label,), observer=BBSO_SITE, brdfs=("dhg",))
-            sc, f = s.scene_and_fields(label)
+            s = ResolvedScene(times=(label,), observer=BBSO_SITE, brdfs=("dhg",))
+            sc, f = s.task(label)
             sun_alt = 90.0 - float(np.degrees(angle_between(np.asarray(sc.horizon_normal), sc.sun - sc.det)))
             if sun_alt < -12.0 and f["moon_altitude_deg"] > 25.0 and 30.0 < f["phase_angle_deg"] < 165.0:
                 if best is None or f["moon_altitude_deg"] > best[0]:

@@ -24,7 +24,8 @@ import numpy as np
 
 from lunarviz.outputs.writers import write_results
 from lunarviz.sky.ephemeris import time_list
-from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_sweep
 
 OBSERVERS = {"geocentre": "geocentre", "site 34.26N 116.92W 2067 m": "site:34.26,-116.92,2067",
              "LEO 550 km, i 97.6°": "orbit:550,97.6,0,0"}
@@ -42,7 +43,7 @@ def lunation(out: Path, quick: bool):
     method = "analytic" if quick else "raytrace"
     rows, payload = [], {"observers": OBSERVERS, "runs": []}
     for label, spec in OBSERVERS.items():
-        res = run_sweep(SweepSettings(times=times, observer=spec, brdfs=("dhg",), method=method), progress=False)
+        res = run_sweep(ResolvedScene(times=times, observer=spec, brdfs=("dhg",), method=method), progress=False)
         for r in res["rows"]:
             r["observer_label"] = label
         rows += res["rows"]
@@ -105,7 +106,7 @@ def eclipse(out: Path, quick: bool):
     method = "analytic" if quick else "raytrace"
     runs = {}
     for occ in (True, False):
-        res = run_sweep(SweepSettings(times=times, brdfs=("dhg",), method=method, occlusion=occ), progress=False)
+        res = run_sweep(ResolvedScene(times=times, brdfs=("dhg",), method=method, occlusion=occ), progress=False)
         runs["occlusion" if occ else "no_occlusion"] = res["rows"]
     rows = [{**a, "moonshine_no_occlusion_W_m2": b["moonshine_W_m2"]} for a, b in
             zip(runs["occlusion"], runs["no_occlusion"])]

@@ -33,9 +33,10 @@ def main() -> int:
     import lunarviz.api as api
     from lunarviz.methods.camera import Camera
     from lunarviz.outputs.writers import save_figure, write_results
-    from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_sweep
     OUT.mkdir(parents=True, exist_ok=True)
-    res = run_sweep(SweepSettings(phases_deg=PHASES, method="analytic", wavelengths="400:1000:10", **SCENE))
+    res = run_sweep(ResolvedScene(phases_deg=PHASES, method="analytic", wavelengths="400:1000:10", **SCENE))
     write_results(OUT / "spectrum.json", res)
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.4))
     for th, col in zip(PHASES, plt.cm.viridis(np.linspace(0, 0.9, len(PHASES)))):

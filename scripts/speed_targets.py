@@ -53,10 +53,10 @@ def sweep_errors(path: Path, ref: dict) -> float:
 def paper_sweep(out: Path, quick: bool) -> dict:
     import independent as I
 
-    from lunarviz.workflows.sweeps import SweepSettings
+    from lunarviz.scene import ResolvedScene
     phases = "30:150:20" if quick else "0:180:5"
     checked = [float(p) for p in (np.arange(30, 151, 20) if quick else np.arange(5, 176, 5))]
-    models = SweepSettings(brdfs=BRDFS).brdf_models()
+    models = ResolvedScene(brdfs=BRDFS).brdf_models()
     t = time.perf_counter()
     ref = {th: I.extended_irradiance(th, models) for th in checked}
     ref_s = time.perf_counter() - t
@@ -85,7 +85,8 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
     seasons, where the first days alone sit at one phase)."""
     from lunarviz.caches import release_caches
     from lunarviz.workflows import sweeps
-    from lunarviz.workflows.sweeps import SweepSettings, run_phase
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
     import datetime as dt
     last = dt.date(2026, 1, 1) + dt.timedelta(days=(1 if quick else days) - 1)
     opts = ["--method", "raytrace", "--brdf", "dhg", "--moon-model", moon_model, "--rtol", "1e-4",
@@ -106,7 +107,7 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
     times = [r["time_utc"] for r in rows]
     n_check = 40
     pick = sorted(np.random.default_rng(27).choice(len(times), size=min(n_check, len(times)), replace=False))
-    s = SweepSettings.from_dict(res["settings"])
+    s = ResolvedScene.from_dict(res["settings"])
     worst, hidden = 0.0, sum(bool(r.get("moon_occulted")) for r in rows)
     for i in pick:
         release_caches()

@@ -30,7 +30,8 @@ from lunarviz.outputs.writers import write_results  # noqa: E402
 from lunarviz.photometry.brdf import make_brdf  # noqa: E402
 from lunarviz.sky.dated_scene import sky_scene  # noqa: E402
 from lunarviz.sky.observers import parse_observer  # noqa: E402
-from lunarviz.workflows.sweeps import SweepSettings, run_phase  # noqa: E402
+from lunarviz.scene import ResolvedScene  # noqa: E402
+from lunarviz.workflows.sweeps import run_phase  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -57,7 +58,7 @@ def main(argv=None) -> int:
         want = ind.detector_irradiance(None, surf, models, positions=(g["sun"], g["moon"], np.zeros(3)))
         for method in ("reference", "raytrace"):
             t0 = time.perf_counter()
-            rows = run_phase(SweepSettings(times=(iso,), brdfs=tuple(models), method=method), iso)
+            rows = run_phase(ResolvedScene(times=(iso,), brdfs=tuple(models), method=method), iso)
             dt = time.perf_counter() - t0
             for r in rows:
                 ms, es = want[r["brdf"]]

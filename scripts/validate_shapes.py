@@ -29,14 +29,15 @@ import sys
 import time
 from pathlib import Path
 
-from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_sweep
 
 OUT = Path(os.environ.get("LUNARVIZ_VALIDATION_DIR", "validation_out"))
 
 
 def sweep(mesh, phases, **kw):
     t0 = time.perf_counter()
-    res = run_sweep(SweepSettings(method="raytrace", brdfs=("lambert", "dhg"), phases_deg=tuple(phases),
+    res = run_sweep(ResolvedScene(method="raytrace", brdfs=("lambert", "dhg"), phases_deg=tuple(phases),
                                   moon_mesh=str(mesh), **kw))
     return res["rows"], time.perf_counter() - t0
 

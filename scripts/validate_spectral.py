@@ -38,13 +38,14 @@ R_MOON_ROLO_M = 1737.4e3
 
 
 def reflectance_rows(dates=DATES) -> list[dict]:
-    from lunarviz.photometry.fit import AU_M, rolo_reflectance
-    from lunarviz.workflows.sweeps import SweepSettings, run_phase
+    from lunarviz.workflows.fit import AU_M, rolo_reflectance
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
     out = []
     for obs in OBSERVERS:
         for method in ("analytic", "raytrace"):
             for iso in dates:
-                s = SweepSettings(times=(iso,), brdfs=("dhg",), method=method, observer=obs,
+                s = ResolvedScene(times=(iso,), brdfs=("dhg",), method=method, observer=obs,
                                   moon_model="rolo-fit-map", wavelengths=WAVELENGTHS)
                 for r in run_phase(s, iso):
                     g = r["phase_angle_deg"]

@@ -27,13 +27,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import independent as ind  # noqa: E402
 
 from lunarviz.photometry.brdf import make_brdf  # noqa: E402
-from lunarviz.workflows.sweeps import SweepSettings, run_phase  # noqa: E402
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_phase  # noqa: E402
 
 MODELS = {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
 
 
 def rows(**kw):
-    s = SweepSettings(brdfs=tuple(MODELS), method="raytrace", **kw)
+    s = ResolvedScene(brdfs=tuple(MODELS), method="raytrace", **kw)
     t0 = time.perf_counter()
     out = {(th, r["brdf"]): r for th in s.tasks() for r in run_phase(s, th)}
     return out, time.perf_counter() - t0
@@ -120,7 +121,7 @@ def main(argv=None) -> int:
     lon = -180 + (np.arange(360) + 0.5)
     chk = np.where((np.floor(lat / 30)[:, None] + np.floor(lon / 30)[None, :]) % 2 == 0, 1.5, 0.5)
     np.save(tmp / "chk.npy", chk)
-    from lunarviz.bodies.surfaces import map_mean
+    from lunarviz.surfaces.maps import map_mean
     mc = map_mean(chk)
 
     def chk_f(la, lo):

@@ -194,7 +194,7 @@ def sample_rayleigh_cos(gamma):
 
 class RpvSurface:
     """An RPV surface with the interface lunarviz's coupling asks of a surface
-    (:class:`lunarviz.earth_optics.surfaces.Surface`): reflectance, directional and bi-hemispherical
+    (:class:`lunarviz.earth_optics.classes.Surface`): reflectance, directional and bi-hemispherical
     albedo, azimuthal Fourier coefficients at the sky's nodes, each by its own quadrature here."""
 
     lambertian = False
@@ -217,7 +217,7 @@ class RpvSurface:
         return float(2 * np.sum(self.directional(wavelength_nm, self.mu) * self.w * self.mu))
 
     def fourier(self, wavelength_nm, mu):
-        from lunarviz.earth_optics.tables import sky_nodes
+        from lunarviz.earth_optics.disort_tables import sky_nodes
         mk = sky_nodes()[0]
         mu = np.asarray(mu, float)
         r = rpv(*self.p, mk[None, :, None], mu.reshape(-1)[:, None, None], self.psi[None, None, :])

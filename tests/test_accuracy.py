@@ -13,7 +13,8 @@ import independent as I
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods import accuracy
-from lunarviz.workflows.sweeps import SweepSettings, run_phase, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_phase, run_sweep
 
 BRDFS = ("lambert", "shg", "dhg")
 #: the thin crescent (175°), the full Moon (5°) and a quarter (90°): the lune rule's hardest
@@ -26,7 +27,7 @@ def independent_reference():
     """tests/independent.py's extended-source integral (its own lunar rule, Sun-disc and Earth
     rules; no lunarviz quadrature): converged to ≤ 2.2e-6 (earthshine at θ = 30°, from its
     two orders 40×24 and 64×40 nodes; moonshine ≤ 2e-7), so a 1e-5 check has 4× headroom."""
-    models = SweepSettings(brdfs=BRDFS).brdf_models()
+    models = ResolvedScene(brdfs=BRDFS).brdf_models()
     return {th: I.extended_irradiance(th, models) for th in PHASES}
 
 
@@ -37,7 +38,7 @@ def _errors(rows, ref):
 
 @pytest.mark.parametrize("rtol", [1e-3, 1e-4, 1e-5])
 def test_raytrace_meets_the_tolerance_asked_for(rtol, independent_reference):
-    s = SweepSettings(method="raytrace", occlusion=False, brdfs=BRDFS, phases_deg=PHASES, rtol=rtol)
+    s = ResolvedScene(method="raytrace", occlusion=False, brdfs=BRDFS, phases_deg=PHASES, rtol=rtol)
     rows = run_sweep(s, workers=1)["rows"]
     err = _errors(rows, independent_reference)
     assert max(err) <= rtol, (rtol, max(err))
@@ -53,7 +54,7 @@ def test_a_tighter_tolerance_is_never_worse(independent_reference):
     the independent reference's own, see the fixture)."""
     errs = []
     for rtol in (1e-3, 1e-4, 1e-5):
-        s = SweepSettings(method="raytrace", occlusion=False, brdfs=BRDFS, phases_deg=PHASES, rtol=rtol)
+        s = ResolvedScene(method="raytrace", occlusion=False, brdfs=BRDFS, phases_deg=PHASES, rtol=rtol)
         errs.append(np.array(_errors(run_sweep(s, workers=1)["rows"], independent_reference)))
     assert np.all(errs[1] <= np.maximum(errs[0], 5e-5)) and np.all(errs[2] <= np.maximum(errs[1], 5e-6))
     for loose, tight in ((1e-3, 1e-4), (1e-4, 1e-5), (1e-5, 1e-6)):
@@ -67,19 +68,19 @@ def test_no_bound_outside_what_the_models_hold():
     found 179° moonshine 5e-5 off under a 5e-6 bound), the paper's presets without overrides
     (roughness: a kink where i = e; those runs keep the facets), no eclipse either way."""
     from lunarviz.methods.tracer.estimators import TraceScene
-    s = SweepSettings(method="raytrace", brdfs=("dhg",), phases_deg=(179.0, 90.0), rtol=1e-5, occlusion=False)
+    s = ResolvedScene(method="raytrace", brdfs=("dhg",), phases_deg=(179.0, 90.0), rtol=1e-5, occlusion=False)
     assert math.isnan(run_phase(s, 179.0)[0]["rtol"]) and run_phase(s, 90.0)[0]["rtol"] <= 1e-5
-    rough = SweepSettings(method="raytrace", brdfs=("dhg",), phases_deg=(90.0,), moon_model="rolo-fit", rtol=1e-4)
+    rough = ResolvedScene(method="raytrace", brdfs=("dhg",), phases_deg=(90.0,), moon_model="rolo-fit", rtol=1e-4)
     assert rough.trace_settings().lune_order is None and math.isnan(run_phase(rough, 90.0)[0]["rtol"])
-    params = SweepSettings(method="raytrace", brdfs=("shg",), phases_deg=(90.0,), params={"shg": {"w": 0.3}})
+    params = ResolvedScene(method="raytrace", brdfs=("shg",), phases_deg=(90.0,), params={"shg": {"w": 0.3}})
     assert math.isnan(run_phase(params, 90.0)[0]["rtol"])
-    occ = SweepSettings(method="raytrace", brdfs=("dhg",), phases_deg=(178.0, 90.0))
-    assert TraceScene(occ.scene(178.0), occ.trace_settings()).moon_shadow_on_earth_possible()
-    assert not TraceScene(occ.scene(90.0), occ.trace_settings()).moon_shadow_on_earth_possible()
+    occ = ResolvedScene(method="raytrace", brdfs=("dhg",), phases_deg=(178.0, 90.0))
+    assert TraceScene(occ.geometry(178.0), occ.trace_settings()).moon_shadow_on_earth_possible()
+    assert not TraceScene(occ.geometry(90.0), occ.trace_settings()).moon_shadow_on_earth_possible()
 
 
 def test_a_mapped_moon_runs_the_orders_its_model_was_measured_with():
-    s = SweepSettings(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-3)
+    s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-3)
     row = accuracy.error_models()["raytrace_facets_mapped"]["earthshine"][0]
     assert s.trace_settings().earth_order == row["earth_order"]
 
@@ -89,16 +90,16 @@ def test_the_mapped_lune_rule_takes_its_own_source_orders():
     lune rule's model), the facets theirs (``raytrace_facets_mapped``): each bound describes the
     orders that run."""
     from lunarviz.methods.tracer.estimators import TraceScene
-    s = SweepSettings(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-4, phases_deg=(90.0,))
+    s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-4, phases_deg=(90.0,))
     ts_set = s.trace_settings(threads=1)
     table = accuracy.error_models()["raytrace_lune_mapped"]
     for i, (path, key) in enumerate((("moonshine", "sun_order"), ("earthshine", "earth_order"))):
         row = next(r for r in table[path] if r["lune_order"] == ts_set.lune_order[i]
                    and r[key] == ts_set.lune_source_orders[i])
         assert s.trace_plan()["bounds"][("lune", path)] == accuracy.SAFETY * row["max_rel_error"]
-    ts = TraceScene(s.scene(90.0), ts_set)
+    ts = TraceScene(s.geometry(90.0), ts_set)
     assert ts.lune_rule_applies("earth") and ts.beam_order("earth") == ts_set.lune_source_orders[1]
-    facets = TraceScene(s.scene(90.0), replace(ts_set, lune_order=None))
+    facets = TraceScene(s.geometry(90.0), replace(ts_set, lune_order=None))
     assert facets.beam_order("earth") == ts_set.earth_order != ts_set.lune_source_orders[1]
 
 
@@ -139,33 +140,33 @@ def test_surge_earthshine_off_the_earths_centre_carries_no_bound(spectral):
               **({"wavelengths": "550"} if spectral else {}))
     from lunarviz.workflows.sweeps import hidden_moon
     times = tuple(f"2026-03-22T{h:02d}:{m:02d}:00Z" for h in (5, 6) for m in range(0, 60, 5))
-    dated = SweepSettings(observer="orbit:550,97.6,0,0", times=times, **kw)
+    dated = ResolvedScene(observer="orbit:550,97.6,0,0", times=times, **kw)
     with pytest.warns(LunarvizWarning, match="not met by the earthshine of dhg"):
         dated.warn_unmet_tolerance()
     got = {r["brdf"]: r["rtol"] for r in run_phase(dated, dated.times[0], threads=1)}
     assert 0 < got["lambert"] <= 1e-4 and math.isnan(got["dhg"])
     if not spectral:  # (the orbit takes 95 min: within these two hours the Earth hides the Moon a while)
-        hidden = next(t for t in times if hidden_moon(dated, dated.trace_settings(1), dated.scene(t)))
+        hidden = next(t for t in times if hidden_moon(dated, dated.trace_settings(1), dated.geometry(t)))
         assert all(r["rtol"] == 0.0 and r["moonshine_W_m2"] == 0.0 for r in run_phase(dated, hidden, threads=1))
-    theta = SweepSettings(phases_deg=(90.0,), **kw)
+    theta = ResolvedScene(phases_deg=(90.0,), **kw)
     assert all(0 < r["rtol"] <= 1e-4 for r in run_phase(theta, 90.0, threads=1))
     import warnings
     with warnings.catch_warnings():  # dates seen from the Earth's centre (the default observer): no warning
         warnings.simplefilter("error")
-        SweepSettings(times=times, **kw).warn_unmet_tolerance()
+        ResolvedScene(times=times, **kw).warn_unmet_tolerance()
         theta.warn_unmet_tolerance()
 
 
 def test_montecarlo_beyond_its_ray_limit_says_what_to_do():
     with pytest.raises(LunarvizError, match="--runs"):
-        SweepSettings(method="raytrace", estimator="montecarlo", rtol=1e-5).trace_settings()
+        ResolvedScene(method="raytrace", estimator="montecarlo", rtol=1e-5).trace_settings()
 
 
 def test_the_lune_rule_is_ray_traced(monkeypatch):
     """The lune rule only places lunar samples: with Embree answering "no hit" the moonshine
     and the earthshine vanish."""
     from lunarviz.methods.tracer import embree_bodies
-    s = SweepSettings(method="raytrace", occlusion=False, brdfs=("dhg",), phases_deg=(90.0,), rtol=1e-4)
+    s = ResolvedScene(method="raytrace", occlusion=False, brdfs=("dhg",), phases_deg=(90.0,), rtol=1e-4)
     assert s.trace_settings().lune_order is not None
     real = run_phase(s, 90.0)[0]
     monkeypatch.setattr(embree_bodies.EmbreeBody, "run_rays",
@@ -181,31 +182,31 @@ def test_the_lune_rule_leaves_eclipses_to_the_facets(theta):
     the Moon, θ ≈ 1.5°) the shadow's edges are kinks inside the lune: facet samples (with their
     eclipse rules) take over, and the rows report no bound (the models hold no eclipse)."""
     from lunarviz.methods.tracer.estimators import TraceScene
-    s = SweepSettings(method="raytrace", brdfs=("lambert",), phases_deg=(theta, 90.0), rtol=1e-4)
+    s = ResolvedScene(method="raytrace", brdfs=("lambert",), phases_deg=(theta, 90.0), rtol=1e-4)
     ts_set = s.trace_settings()
-    assert not TraceScene(s.scene(theta), ts_set).lune_rule_applies("sun")
-    assert TraceScene(s.scene(90.0), ts_set).lune_rule_applies("sun")
+    assert not TraceScene(s.geometry(theta), ts_set).lune_rule_applies("sun")
+    assert TraceScene(s.geometry(90.0), ts_set).lune_rule_applies("sun")
     assert math.isnan(run_phase(s, theta)[0]["rtol"])
-    assert not TraceScene(s.scene(theta), replace(ts_set, occlusion=False)).eclipse_possible()
+    assert not TraceScene(s.geometry(theta), replace(ts_set, occlusion=False)).eclipse_possible()
 
 
 def test_rows_report_the_bound_of_every_method():
     for method in ("analytic", "reference"):
-        rows = run_sweep(SweepSettings(method=method, brdfs=("dhg",), phases_deg=(60.0,)), workers=1)["rows"]
+        rows = run_sweep(ResolvedScene(method=method, brdfs=("dhg",), phases_deg=(60.0,)), workers=1)["rows"]
         assert 0 < rows[0]["rtol"] <= accuracy.DEFAULT_RTOL[method]
     # Monte Carlo: two standard errors of the mean, from the run itself
-    mc = SweepSettings(method="raytrace", estimator="montecarlo", rays=4000, runs=2, brdfs=("dhg",), phases_deg=(60.0,))
+    mc = ResolvedScene(method="raytrace", estimator="montecarlo", rays=4000, runs=2, brdfs=("dhg",), phases_deg=(60.0,))
     r = run_phase(mc, 60.0)[0]
     want = 2 * max(r["moonshine_std_W_m2"] / r["moonshine_W_m2"], r["earthshine_std_W_m2"] / r["earthshine_W_m2"]) \
         / math.sqrt(2)
     assert r["rtol"] == pytest.approx(want, rel=1e-9)
     # no model for a mapped Earth: NaN, never a number that was not measured
-    mapped = SweepSettings(method="raytrace", brdfs=("dhg",), phases_deg=(60.0,), earth_surface="landocean")
+    mapped = ResolvedScene(method="raytrace", brdfs=("dhg",), phases_deg=(60.0,), earth_surface="landocean")
     assert math.isnan(run_phase(mapped, 60.0)[0]["rtol"])
 
 
 def test_montecarlo_rays_from_the_tolerance():
-    s = SweepSettings(method="raytrace", estimator="montecarlo", brdfs=("lambert",), phases_deg=(90.0,), rtol=0.02)
+    s = ResolvedScene(method="raytrace", estimator="montecarlo", brdfs=("lambert",), phases_deg=(90.0,), rtol=0.02)
     ts = s.trace_settings()
     sigma = max(accuracy.error_models()["montecarlo_sigma_one_ray"].values())
     assert ts.rays == math.ceil((2 * sigma / 0.02) ** 2)
@@ -216,7 +217,7 @@ def test_montecarlo_rays_from_the_tolerance():
 @pytest.mark.parametrize("bad", [0.0, -1e-3, 0.9, float("nan")])
 def test_a_bad_tolerance_is_refused(bad):
     with pytest.raises(LunarvizError, match="relative tolerance"):
-        SweepSettings(method="raytrace", rtol=bad)
+        ResolvedScene(method="raytrace", rtol=bad)
 
 
 def test_a_user_moon_mesh_has_no_error_model(tmp_path):
@@ -224,7 +225,7 @@ def test_a_user_moon_mesh_has_no_error_model(tmp_path):
     path = tmp_path / "moon.ply"
     ellipsoid(1.0, 1.0, 0.98, level=3).export(path)
     with pytest.raises(LunarvizError, match="user's Moon mesh"):
-        SweepSettings(method="raytrace", moon_mesh=str(path), mesh_units="radius", rtol=1e-4).trace_settings()
+        ResolvedScene(method="raytrace", moon_mesh=str(path), mesh_units="radius", rtol=1e-4).trace_settings()
 
 
 def test_wholly_hidden_moon_geometry():
@@ -242,7 +243,7 @@ def test_dates_in_bulk_equal_dates_one_by_one(monkeypatch):
     Moons skipped) gives the rows of the same dates run one by one, each in a fresh cache."""
     from lunarviz.caches import release_caches
     from lunarviz.workflows import sweeps
-    s = SweepSettings(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map",
+    s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map",
                       times=("2026-03-03T00:00:00Z", "2026-03-03T00:30:00Z", "2026-03-03T01:00:00Z",
                              "2026-03-03T01:30:00Z"), observer="orbit:550,97.6,0,0", rtol=1e-3)
     from lunarviz.errors import LunarvizWarning
@@ -263,10 +264,10 @@ def test_a_tolerance_beyond_the_models_is_said_once():
     benchmarks/error_models/mapped_lune.md; bound 3.8e-5): asking for 1e-5 on a mapped Moon warns
     before the run (the most accurate setting runs; rows report what it meets)."""
     from lunarviz.errors import LunarvizWarning
-    s = SweepSettings(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-5)
+    s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-5)
     with pytest.warns(LunarvizWarning, match="beyond the error models"):
         s.warn_unmet_tolerance()
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        SweepSettings(method="raytrace", brdfs=("dhg",), rtol=1e-4).warn_unmet_tolerance()  # met: silent
+        ResolvedScene(method="raytrace", brdfs=("dhg",), rtol=1e-4).warn_unmet_tolerance()  # met: silent

@@ -6,7 +6,8 @@ import pytest
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.photometry import albedo_inversion as alb
-from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_sweep
 
 
 def test_bond_weights_integrate_the_kernel_exactly():
@@ -35,7 +36,7 @@ def test_analytic_sweep_recovers_bond_albedo():
     # Consistency check, not physics: the lunar terms are calibrated with the same transport
     # that made the fluxes, so any fluxes give back the input 0.3 (an algebraic identity up to
     # the Bond quadrature). Issue 2 bar: 0.3000 ± 0.0003 for the Lambert, SHG and DHG Moons.
-    res = run_sweep(SweepSettings())
+    res = run_sweep(ResolvedScene())
     for b in ("lambert", "shg", "dhg"):
         assert res["bond_albedo"][b]["analytic"] == pytest.approx(0.3, abs=3e-4)
     rows = [r for r in res["rows"] if r["theta_deg"] == 0.0]
@@ -79,14 +80,14 @@ def test_inversion_measures_a_non_spherical_earth():
         Re = C.R_EARTH_M
         path = str(Path(d) / "oblate_earth.ply")
         shapes.write_mesh(shapes.ellipsoid(0.8 * Re, Re, Re, level=5), path)
-        s = SweepSettings(brdfs=("lambert",), phases_deg=(90.0,), method="raytrace", earth_mesh=path,
+        s = ResolvedScene(brdfs=("lambert",), phases_deg=(90.0,), method="raytrace", earth_mesh=path,
                           earth_order=24, moon_level=3, occlusion=False)
         row = run_phase(s, 90.0)[0]
     assert row["apparent_albedo"] == pytest.approx(0.3 * ratio, rel=1.5e-2)
 
 
 def test_printed_eq8_biases_the_inversion_by_three_halves():
-    res = run_sweep(SweepSettings(earth_law="paper_eq8", brdfs=("lambert",)))
+    res = run_sweep(ResolvedScene(earth_law="paper_eq8", brdfs=("lambert",)))
     assert res["bond_albedo"]["lambert"]["analytic"] == pytest.approx(0.45, abs=5e-4)
 
 

@@ -165,7 +165,8 @@ def test_main_does_not_disguise_internal_errors(monkeypatch):
 
 
 def test_core_does_not_import_the_viz_layer():
-    code = ("import sys, lunarviz.outputs.facets, lunarviz.workflows.sweeps, lunarviz.api, lunarviz.outputs.tables; "
+    code = ("import sys, lunarviz.methods.tracer.facets, lunarviz.workflows.sweeps, lunarviz.api, "
+            "lunarviz.outputs.tables; "
             "print(any(m.startswith('lunarviz.viz') or m == 'pyvista' for m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.stdout.strip() == "False", r.stderr

@@ -19,8 +19,8 @@ from lunarviz.earth_optics import rayleigh
 from lunarviz.earth_optics.atmosphere import path_reflectance
 from lunarviz.earth_optics.land import WHITE_SKY, kernels
 from lunarviz.earth_optics.ocean import glint
-from lunarviz.earth_optics.surfaces import SURFACE_NAMES, surface_from_name, toa_reflectance
-from lunarviz.earth_optics.tables import CLOUD
+from lunarviz.earth_optics.classes import SURFACE_NAMES, surface_from_name, toa_reflectance
+from lunarviz.earth_optics.disort_tables import CLOUD
 from rt_reference import disortpp_toa, single_scattering
 
 #: the judged geometries: view zenith 0–70°, azimuths on the Sun's side, across and opposite
@@ -174,9 +174,10 @@ def test_physical_earth_trace_matches_an_independent_quadrature():
     # tests/independent.py's lat/lon double quadrature with R per pair of lunar point and Earth node,
     # at θ = 90°: 1e-3 (the issue's bar). The quadrature's own convergence is checked by a coarser rule
     from lunarviz.photometry.brdf import make_brdf
-    from lunarviz.workflows.sweeps import SweepSettings, run_phase
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
     models = {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
-    s = SweepSettings(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(90.0,), earth_brdf="physical")
+    s = ResolvedScene(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(90.0,), earth_brdf="physical")
     rows = {r["brdf"]: r for r in run_phase(s, s.tasks()[0])}
     ref = ind.mapped_irradiance(90.0, models, n_moon=(24, 16), n_earth=(32, 24),
                                 earth_reflectance=_uniform_physical_reflectance)
@@ -240,8 +241,9 @@ def test_bond_albedo_conserves_energy_and_matches_the_spherical_albedo():
     # black one returns the layer's spherical albedo S (a plane-parallel layer's Bond albedo), taken
     # from the tables' own flux solution: two checks of the disc integral, the coupling and the
     # tables at once. Measured 9e-7 and 2.5e-4 (the 16 × 8 direction rule); bars 1e-3
-    from lunarviz.bodies.physical_earth import bond_albedo
-    from lunarviz.bodies.surfaces import EarthSurface, map_frame
+    from lunarviz.surfaces.physical_earth import bond_albedo
+    from lunarviz.surfaces.earth_surface import EarthSurface
+    from lunarviz.surfaces.maps import map_frame
     from lunarviz.earth_optics.atmosphere import spherical_albedo
     from lunarviz.geometry.scene_geometry import SceneGeometry
     sc = SceneGeometry(90.0)
@@ -255,11 +257,12 @@ def test_bond_albedo_conserves_energy_and_matches_the_spherical_albedo():
 def test_lambert_earth_brdf_is_the_default_and_physical_changes_the_earthshine():
     # --earth-brdf lambert is the default (every earlier number unchanged: the whole suite's other
     # tests run it); physical changes the earthshine and not the moonshine
-    from lunarviz.workflows.sweeps import SweepSettings, run_phase
-    base = SweepSettings(brdfs=("dhg",), phases_deg=(60.0,))
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
+    base = ResolvedScene(brdfs=("dhg",), phases_deg=(60.0,))
     assert base.earth_brdf == "lambert"
     lam = run_phase(base, 60.0)[0]
-    phys_s = SweepSettings(brdfs=("dhg",), phases_deg=(60.0,), earth_brdf="physical",
+    phys_s = ResolvedScene(brdfs=("dhg",), phases_deg=(60.0,), earth_brdf="physical",
                            params={"earth": {"wavelength_nm": 450.0}})
     phys = run_phase(phys_s, 60.0)[0]
     assert phys["moonshine_W_m2"] == lam["moonshine_W_m2"]
@@ -268,8 +271,8 @@ def test_lambert_earth_brdf_is_the_default_and_physical_changes_the_earthshine()
 
 def test_earth_parameters_need_the_physical_earth():
     from lunarviz.errors import LunarvizError
-    from lunarviz.workflows.sweeps import SweepSettings
+    from lunarviz.scene import ResolvedScene
     with pytest.raises(LunarvizError, match="need --earth-brdf physical"):
-        SweepSettings(brdfs=("dhg",), params={"earth": {"wind_speed": 3.0}})
+        ResolvedScene(brdfs=("dhg",), params={"earth": {"wind_speed": 3.0}})
     with pytest.raises(LunarvizError, match="earth.wind_speed"):
-        SweepSettings(brdfs=("dhg",), earth_brdf="physical", params={"earth": {"wind_speed": -1.0}})
+        ResolvedScene(brdfs=("dhg",), earth_brdf="physical", params={"earth": {"wind_speed": -1.0}})

@@ -7,7 +7,8 @@ import sys
 
 import pytest
 
-from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_sweep
 
 pytest.importorskip("distributed")
 
@@ -15,7 +16,7 @@ pytest.importorskip("distributed")
 def test_dask_local_cluster_gives_identical_rows():
     # the same run_phase tasks, the same numbers bit for bit (each worker builds and caches its
     # own Embree scenes; only settings and keys travel)
-    s = SweepSettings(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(30.0, 90.0, 150.0), moon_level=3)
+    s = ResolvedScene(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(30.0, 90.0, 150.0), moon_level=3)
     local = run_sweep(s, workers=2)["rows"]
     dask = run_sweep(s, workers=2, executor="dask")["rows"]
     assert [(r["theta_deg"], r["brdf"]) for r in local] == [(r["theta_deg"], r["brdf"]) for r in dask]
@@ -54,5 +55,5 @@ def test_workers_are_capped_by_tasks_and_cores(monkeypatch):
     def no_pool(*a, **k):
         raise AssertionError("a process pool was started for a single task")
     monkeypatch.setattr(sweeps, "ProcessPoolExecutor", no_pool)
-    res = sweeps.run_sweep(sweeps.SweepSettings(method="analytic", phases_deg=(90.0,), brdfs=("lambert",)), workers=24)
+    res = sweeps.run_sweep(sweeps.ResolvedScene(method="analytic", phases_deg=(90.0,), brdfs=("lambert",)), workers=24)
     assert len(res["rows"]) == 1

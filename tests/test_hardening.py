@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from lunarviz.bodies.meshes import MeshError, load_user_mesh
-from lunarviz.bodies.surfaces import MAX_MAP_CELLS, read_grid
+from lunarviz.surfaces.maps import MAX_MAP_CELLS, read_grid
 from lunarviz.errors import LunarvizError
 
 TINY_PLY = b"""ply
@@ -227,14 +227,14 @@ def test_numbered_frames_are_all_or_nothing(tmp_path, monkeypatch):
     """A folder where frame 1 goes is refused before any work (it used to leave fr_000.npy and
     name a temporary file); a failure at the last frame leaves no frame at all."""
     import lunarviz
-    from lunarviz.methods import camera
+    from lunarviz.workflows import tasks
     scene = lunarviz.Scene(phases="30,60,90", brdfs=("lambert",), moon_level=1, earth_level=2, sun_level=1)
     (tmp_path / "fr_001.npy").mkdir()
     with pytest.raises(LunarvizError, match="fr_001.npy' is a directory"):
         lunarviz.image(scene, keys=[30.0, 60.0, 90.0], pixels=16, supersample=1, out=tmp_path / "fr.npy")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fr_001.npy"]
     (tmp_path / "fr_001.npy").rmdir()
-    real = camera.synthesize
+    real = tasks.synthesize
     calls = []
 
     def fail_last(*a, **k):
@@ -242,7 +242,7 @@ def test_numbered_frames_are_all_or_nothing(tmp_path, monkeypatch):
         if len(calls) == 3:
             raise LunarvizError("stop at the last frame")
         return real(*a, **k)
-    monkeypatch.setattr(camera, "synthesize", fail_last)
+    monkeypatch.setattr(tasks, "synthesize", fail_last)
     with pytest.raises(LunarvizError, match="last frame"):
         lunarviz.image(scene, keys=[30.0, 60.0, 90.0], pixels=16, supersample=1, out=tmp_path / "fr.npy")
     assert list(tmp_path.iterdir()) == []

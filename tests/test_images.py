@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 import sky_reference as ref
 
-from lunarviz.methods.camera import Camera, synthesize
-from lunarviz.workflows.sweeps import SweepSettings, run_phase
+from lunarviz.methods.camera import Camera
+from lunarviz.workflows.tasks import image as synthesize
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_phase
 
 
 @pytest.mark.slow
@@ -25,7 +27,7 @@ def test_image_integrates_to_the_sweep(theta):
     # bar 2e-3 (issue 12) at 256 px with the default 4 × 4 supersampling; measured ≤ 4e-4
     # (moonshine: the limb's sub-pixel sampling; earthshine: linear interpolation between the
     # vertices where the transport is evaluated)
-    s = SweepSettings(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(theta,))
+    s = ResolvedScene(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(theta,))
     rows = {r["brdf"]: r for r in run_phase(s, theta)}
     im = synthesize(s, theta, Camera(width=256, height=256))
     for b in ("lambert", "dhg"):
@@ -39,7 +41,7 @@ def test_image_integrates_to_the_sweep(theta):
 def test_image_is_traced_by_embree(monkeypatch):
     # no hits from Embree: no Moon in the picture
     from lunarviz.methods.tracer.embree_bodies import EmbreeBody
-    s = SweepSettings(brdfs=("lambert",), method="raytrace", phases_deg=(90.0,), moon_level=2)
+    s = ResolvedScene(brdfs=("lambert",), method="raytrace", phases_deg=(90.0,), moon_level=2)
     cam = Camera(width=32, height=32, supersample=1)
     assert synthesize(s, 90.0, cam).integrated("moonshine", "lambert") > 0
     monkeypatch.setattr(EmbreeBody, "run_rays", lambda self, o32, d32, query, dists=None, scene=None:
@@ -75,8 +77,8 @@ def test_fits_wcs_points_at_the_moon(tmp_path):
 
 
 def test_psf_conserves_flux(tmp_path):
-    from lunarviz.outputs.images import apply_optics, parse_psf
-    s = SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(60.0,), moon_level=3)
+    from lunarviz.instrument.optics import apply_optics, parse_psf
+    s = ResolvedScene(brdfs=("dhg",), method="raytrace", phases_deg=(60.0,), moon_level=3)
     im = synthesize(s, 60.0, Camera(width=128, height=128, supersample=2, fov_deg=1.2))
     plane = im.planes["moonshine"]["dhg"]
     psf = parse_psf("gaussian:20", 1.2 * 3600 / 128, plane.shape)

@@ -25,10 +25,10 @@ from scipy import stats
 from lunarviz.api import Scene
 from lunarviz.errors import LunarvizError
 from lunarviz.instrument.detector import expected_counts, frames
-from lunarviz.instrument.observation import observe
+from lunarviz.workflows.measurement import observation as observe
 from lunarviz.instrument.pipeline import measure
 from lunarviz.instrument.spec import instrument_from_dict, load_instrument
-from lunarviz.workflows.measurement import _calibration, plan, simulate, sweep_p_star
+from lunarviz.workflows.measurement import observation_calibration, plan, simulate, sweep_p_star
 
 SMALL = replace(load_instrument("salex"), width=128, height=128, pixel_size_um=52.0, supersample=1)
 #: an exposure that leaves SMALL's brightest pixel (behind its mask) below the full well at 120°
@@ -45,7 +45,7 @@ def run_cli(*args, cwd=None):
 def small_observation():
     settings = Scene([120.0], brdfs="dhg").settings("raytrace")
     obs = observe(settings, 120.0, SMALL, SMALL_EXPOSURE_S)
-    return settings, obs, _calibration(settings, 120.0, SMALL, obs)
+    return settings, obs, observation_calibration(settings, 120.0, SMALL, obs)
 
 
 def test_presets_load_and_state_their_sources():
@@ -141,7 +141,7 @@ def test_noiseless_measurement_of_a_cloudy_land_ocean_earth():
     settings = Scene([120.0], brdfs="dhg", earth_surface="landocean", clouds="zonal", moon_level=3,
                      earth_level=5).settings("raytrace")
     obs = observe(settings, 120.0, SMALL, SMALL_EXPOSURE_S)
-    cal = _calibration(settings, 120.0, SMALL, obs)
+    cal = observation_calibration(settings, 120.0, SMALL, obs)
     truth = sweep_p_star(settings, 120.0, SMALL)
     assert abs(truth - 0.3) > 5e-3  # the scene's Earth is not the calibration's
     assert measure(obs.expected_counts, 1, cal)["p_star"] == pytest.approx(truth, rel=NOISELESS_TOLERANCE)
@@ -213,7 +213,7 @@ def test_ground_site_frames_carry_extinction_and_sky():
     obs = observe(settings, "2026-03-25T03:30:00Z", inst, 1e-4)
     assert obs.sky is not None and 0.7 < obs.sky.transmission < 0.9
     assert np.ptp(obs.rates["sky"]) / obs.rates["sky"].mean() < 0.01 and obs.rates["sky"].mean() > 0
-    cal = _calibration(settings, "2026-03-25T03:30:00Z", inst, obs)
+    cal = observation_calibration(settings, "2026-03-25T03:30:00Z", inst, obs)
     row = measure(obs.expected_counts, 1, cal)
     # the sky is fitted off the limb (in electrons per second) and the ratio is extinction-free
     assert row["sky_e_s"] == pytest.approx(obs.rates["sky"].mean(), rel=0.02)
@@ -277,7 +277,7 @@ def test_a_full_well_below_the_read_noise_margin_plans_nothing(small_observation
 def test_a_damaged_file_is_one_line(tmp_path, small_observation):
     from astropy.io import fits
 
-    from lunarviz.outputs.count_frames import append_counts
+    from lunarviz.instrument.frames import append_counts
     from lunarviz.workflows.measurement import measure_file
     settings, obs, _ = small_observation
     path = tmp_path / "f.fits"

@@ -153,9 +153,9 @@ def test_sweep_rows_equal_with_and_without_numba():
     """The whole raytrace pipeline with LUNARVIZ_NUMBA=0 (numpy) gives the same rows to 1e-12
     (the compiled Earth rule calls numba's sin/cos/arccos where numpy calls its own: 1-ulp
     differences in the nodes, ~3e-13 relative at a θ = 172° crescent)."""
-    code = ("import json; from lunarviz.workflows.sweeps import SweepSettings, run_phase; "
-            "s = SweepSettings(method='raytrace', phases_deg=(120.0,), moon_level=3, moon_albedo_map='synthetic'); "
-            "u = SweepSettings(method='raytrace', moon_level=3, occlusion=False); "
+    code = ("import json; from lunarviz.scene import ResolvedScene; from lunarviz.workflows.sweeps import run_phase; "
+            "s = ResolvedScene(method='raytrace', phases_deg=(120.0,), moon_level=3, moon_albedo_map='synthetic'); "
+            "u = ResolvedScene(method='raytrace', moon_level=3, occlusion=False); "
             "print(json.dumps([[r['moonshine_W_m2'], r['earthshine_W_m2']] for r in run_phase(s, 120.0) "
             "+ run_phase(u, 30.0) + run_phase(u, 172.0)]))")
     out = {}

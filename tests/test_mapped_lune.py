@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import lunarviz
-from lunarviz.bodies.surfaces import MoonAlbedoMap, map_frame
+from lunarviz.surfaces.maps import map_frame
+from lunarviz.surfaces.moon_map import MoonAlbedoMap
 from lunarviz.geometry.mapped_lune import chebyshev_nodes, lagrange_matrix, lune_caps, mapped_lune_rule
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.geometry.sphere_quadrature import cap_rule, gauss_legendre, rule_coordinates
@@ -113,8 +114,8 @@ def test_the_rule_in_gamma_gives_the_integral_in_the_map_value(theta, monkeypatc
     shaded through the same traced transport: the integrals agree to 1e-6 (the 5 nodes' own
     error: ≤ 1e-6 pointwise, at grazing geometries; 6 nodes agreed to 3.6e-8 on 24 orbit dates)."""
     from lunarviz.methods.tracer import estimators
-    from lunarviz.workflows.sweeps import SweepSettings
-    s = SweepSettings(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-4, phases_deg=(theta,))
+    from lunarviz.scene import ResolvedScene
+    s = ResolvedScene(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-4, phases_deg=(theta,))
     out = {}
     for label in ("gamma", "m"):
         if label == "m":
@@ -186,11 +187,11 @@ def test_a_tolerance_on_the_mapped_moon_takes_the_mapped_lune_rule():
     """``--rtol`` on rolo-fit-map: the mapped lune rule at the orders its model
     (``raytrace_lune_mapped``) gives, with that model's bounds; without a tolerance the facets at
     level 4, as before."""
-    from lunarviz.workflows.sweeps import SweepSettings
-    plan = SweepSettings(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-3).trace_plan()
+    from lunarviz.scene import ResolvedScene
+    plan = ResolvedScene(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-3).trace_plan()
     assert plan["settings"]["lune_order"] is not None
     assert all(plan["bounds"][("lune", p)] <= 1e-3 for p in ("moonshine", "earthshine"))
-    assert SweepSettings(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",)).trace_plan()["settings"][
+    assert ResolvedScene(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",)).trace_plan()["settings"][
         "lune_order"] is None
 
 
@@ -250,9 +251,9 @@ def _lommel_seeliger_on_rule(sc, body: str, **rule):
 
 
 def _dated_leo_scene(time: str):
-    from lunarviz.workflows.sweeps import SweepSettings
-    return SweepSettings(times=(time,), brdfs=("dhg",), method="raytrace",
-                         observer="orbit:550,97.6,0,0").scene_and_fields(time)[0]
+    from lunarviz.scene import ResolvedScene
+    return ResolvedScene(times=(time,), brdfs=("dhg",), method="raytrace",
+                         observer="orbit:550,97.6,0,0").task(time)[0]
 
 
 @pytest.mark.parametrize("scene, body, limit, fewer", [
@@ -456,8 +457,8 @@ def test_point_source_calibration_on_the_traced_rule_against_a_cell_sum(theta):
     order 96 (the former calibration, reading the map at its nodes) erred by up to 2.1e-3."""
     from lunarviz.methods import analytic as A
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
-    from lunarviz.workflows.sweeps import SweepSettings
-    s = SweepSettings(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-4, phases_deg=(theta,))
+    from lunarviz.scene import ResolvedScene
+    s = ResolvedScene(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-4, phases_deg=(theta,))
     sc, brdfs = SceneGeometry(theta), s.brdf_models()
     ts = TraceScene(sc, s.trace_settings(threads=1))
     for path in ("moonshine", "earthshine"):

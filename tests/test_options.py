@@ -19,7 +19,7 @@ from lunarviz.cli import SCENE_GROUPS, build_parser
 from lunarviz.errors import LunarvizError
 from lunarviz.methods.tracer.settings import TraceSettings
 from lunarviz.options import BY_NAME, GROUPS, OPTIONS, group, scene_options
-from lunarviz.workflows.sweeps import SweepSettings
+from lunarviz.scene import ResolvedScene
 
 #: option kinds that carry a physical quantity, and so a unit
 QUANTITIES = ("float", "xyz")
@@ -60,7 +60,7 @@ def test_every_option_has_flag_keyword_default_unit(opt):
     # documented in Scene's docstring, with its flag
     assert f"{opt.name} :" in lunarviz.Scene.__doc__ and f"``{opt.cli_flag}``" in lunarviz.Scene.__doc__
     # a field of the sweep's settings
-    assert opt.name in {f.name for f in dataclasses.fields(SweepSettings)}
+    assert opt.name in {f.name for f in dataclasses.fields(ResolvedScene)}
 
 
 def test_trace_settings_are_their_groups():
@@ -120,13 +120,13 @@ def test_settings_round_trip_through_json():
                            earth_surface="landocean", detector=(0.0, 1e5, 0.0), params={"dhg": {"b": 0.3}},
                            h_function="hapke2002", grid="paper", order=16, earth_rotation_deg=15.0)
     settings = scene.settings("raytrace")
-    again = SweepSettings.from_dict(json.loads(json.dumps(settings.to_dict())))
+    again = ResolvedScene.from_dict(json.loads(json.dumps(settings.to_dict())))
     assert again == settings
 
 
 def test_dataset_settings_json_reruns_the_sweep():
     ds = lunarviz.sweep(phases="60", brdfs=("lambert",), earth_albedo=0.35)
-    settings = SweepSettings.from_dict(json.loads(ds.attrs["settings_json"]))
+    settings = ResolvedScene.from_dict(json.loads(ds.attrs["settings_json"]))
     assert settings.earth_albedo == 0.35 and settings.phases_deg == (60.0,)
     again = lunarviz.run(lunarviz.Scene(phases="60", brdfs=("lambert",), earth_albedo=0.35))
     assert [r["moonshine_W_m2"] for r in again["rows"]] == list(ds.moonshine.values.ravel())

@@ -137,7 +137,7 @@ def test_roughness_parameters_are_checked(bad):
 def test_fit_recovers_known_parameters(tmp_path):
     # a table made by the model itself with known (w, c): the fit must return them (a
     # well-posed two-parameter problem; the others fixed at the paper's values)
-    from lunarviz.photometry.fit import DiskModel, fit
+    from lunarviz.workflows.fit import DiskModel, fit
     g = np.arange(4.0, 100.0, 8.0)
     truth = make_brdf("dhg", params={"w": 0.42, "c": 0.2, "theta_bar": 15.0})
     a = DiskModel(g).reflectance(truth)
@@ -153,7 +153,7 @@ def test_fit_command_on_a_table(tmp_path):
     import subprocess
     import sys
 
-    from lunarviz.photometry.fit import DiskModel
+    from lunarviz.workflows.fit import DiskModel
     g = np.arange(5.0, 95.0, 10.0)
     a = DiskModel(g).reflectance(make_brdf("lambert", params={"albedo": 0.12}))
     table = tmp_path / "t.csv"
@@ -173,7 +173,7 @@ def test_rolo_fit_preset_is_closer_to_rolo_than_the_paper():
     # remainder is ROLO's waxing/waning asymmetry, up to 15 % at 90°, which a uniform sphere
     # cannot have), the paper's DHG is off by > 30 %
     pytest.importorskip("rimopy")
-    from lunarviz.photometry.fit import DiskModel, rolo_reflectance
+    from lunarviz.workflows.fit import DiskModel, rolo_reflectance
     g = np.array([5.0, 30.0, 60.0, 90.0])
     dm = DiskModel(g)
     fitted = dm.reflectance(make_brdf("dhg", moon_model="rolo-fit"))
@@ -186,7 +186,7 @@ def test_rolo_fit_preset_is_closer_to_rolo_than_the_paper():
 
 def test_fit_refuses_ill_posed_requests(tmp_path):
     from lunarviz.errors import LunarvizError
-    from lunarviz.photometry.fit import fit, read_table
+    from lunarviz.workflows.fit import fit, read_table
     g = np.array([10.0, 50.0])
     with pytest.raises(LunarvizError, match="twice"):
         fit("dhg", np.arange(5.0, 90.0, 10.0), np.ones(9), free=("w", "w"))
@@ -208,12 +208,13 @@ def test_rolo_fit_map_preset_within_5_percent_at_real_dates():
     (rimopy, independent of lunarviz), analytic and ray traced. Measured ≤ 2.7 % (kept in
     benchmarks/rolo_fit/summary.md); the tolerance is the issue's."""
     pytest.importorskip("rimopy")
-    from lunarviz.photometry.fit import rolo_irradiance
-    from lunarviz.workflows.sweeps import SweepSettings, run_phase
+    from lunarviz.workflows.fit import rolo_irradiance
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
     checked = 0
     for iso, method in (("2026-06-05T12:00Z", "analytic"), ("2026-06-25T00:00Z", "analytic"),
                         ("2027-03-20T06:00Z", "raytrace"), ("2028-09-12T00:00Z", "analytic")):
-        s = SweepSettings(times=(iso,), brdfs=("dhg",), method=method, moon_model="rolo-fit-map")
+        s = ResolvedScene(times=(iso,), brdfs=("dhg",), method=method, moon_model="rolo-fit-map")
         assert s.moon_albedo_map == "synthetic"  # the preset brings its map
         r = run_phase(s, iso)[0]
         assert 5 <= r["phase_angle_deg"] <= 90
@@ -223,10 +224,10 @@ def test_rolo_fit_map_preset_within_5_percent_at_real_dates():
 
 
 def test_disk_geometry_branches_place_the_sun_east_when_waxing():
-    """ROLO's convention (lunarviz.photometry.fit): waxing = sub-solar longitude +g at zero libration; the
+    """ROLO's convention (lunarviz.workflows.fit): waxing = sub-solar longitude +g at zero libration; the
     oriented disk scene puts the map's (0°, 0°) toward the observer."""
-    from lunarviz.bodies.surfaces import lat_lon_deg, map_frame
-    from lunarviz.photometry.fit import disk_geometry
+    from lunarviz.surfaces.maps import lat_lon_deg, map_frame
+    from lunarviz.workflows.fit import disk_geometry
     for g, wax in ((30.0, True), (30.0, False), (75.0, True)):
         sc = disk_geometry(g, wax)
         R = map_frame(sc, "moon")
@@ -238,10 +239,10 @@ def test_disk_geometry_branches_place_the_sun_east_when_waxing():
 
 
 def test_explicit_map_overrides_the_presets():
-    from lunarviz.workflows.sweeps import SweepSettings
-    assert SweepSettings(moon_model="rolo-fit-map", moon_albedo_map="synthetic:0.2").moon_albedo_map == "synthetic:0.2"
-    assert SweepSettings(moon_model="rolo-fit").moon_albedo_map is None
-    assert SweepSettings(moon_model="rolo-fit-map", moon_albedo_map="none").moon_albedo_map is None
+    from lunarviz.scene import ResolvedScene
+    assert ResolvedScene(moon_model="rolo-fit-map", moon_albedo_map="synthetic:0.2").moon_albedo_map == "synthetic:0.2"
+    assert ResolvedScene(moon_model="rolo-fit").moon_albedo_map is None
+    assert ResolvedScene(moon_model="rolo-fit-map", moon_albedo_map="none").moon_albedo_map is None
     # the analytic method reads a lunar map at its nodes: its default order rises to 96
-    assert SweepSettings(moon_model="rolo-fit-map").analytic_settings().order == 96
-    assert SweepSettings().analytic_settings().order == 24
+    assert ResolvedScene(moon_model="rolo-fit-map").analytic_settings().order == 96
+    assert ResolvedScene().analytic_settings().order == 24

@@ -26,7 +26,8 @@ from lunarviz import constants as C
 from lunarviz.photometry.brdf import make_brdf
 from lunarviz.sky.dated_scene import sky_scene
 from lunarviz.sky.observers import parse_observer
-from lunarviz.workflows.sweeps import SweepSettings, run_phase, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_phase, run_sweep
 
 HERE = os.path.dirname(__file__)
 TLE = os.path.join(HERE, "data", "leo_2027.tle")  # a synthetic ISS-like orbit, epoch 2027-01-01 (sgp4 exporter)
@@ -73,7 +74,7 @@ def test_irradiance_matches_independent_quadrature(iso):
     surf = ind.ellipsoid_surface(C.R_MOON_M, C.R_MOON_M, C.R_MOON_M, n=160)
     want = ind.detector_irradiance(None, surf, models, positions=(g["sun"], g["moon"], np.zeros(3)))
     for method in ("reference", "raytrace"):
-        rows = run_phase(SweepSettings(times=(iso,), brdfs=tuple(models), method=method), iso)
+        rows = run_phase(ResolvedScene(times=(iso,), brdfs=tuple(models), method=method), iso)
         assert 25 < rows[0]["phase_angle_deg"] < 155
         for r in rows:
             ms, es = want[r["brdf"]]
@@ -121,7 +122,7 @@ def test_site_altitude_matches_astropy(iso):
 @pytest.mark.parametrize("method", ["analytic", "reference", "raytrace"])
 def test_moon_below_horizon_is_dark_and_flagged(method):
     iso = "2027-07-18T15:45:00Z"  # altitude -35° at the site (previous test)
-    rows = run_phase(SweepSettings(times=(iso,), observer=SITE, brdfs=("dhg",), method=method), iso)
+    rows = run_phase(ResolvedScene(times=(iso,), observer=SITE, brdfs=("dhg",), method=method), iso)
     r = rows[0]
     assert r["moon_occulted"] and r["moon_altitude_deg"] < 0
     assert r["moonshine_W_m2"] == 0.0 and r["earthshine_W_m2"] == 0.0
@@ -139,8 +140,8 @@ def test_moon_above_horizon_is_seen_from_the_site():
     models = {"lambert": make_brdf("lambert")}
     surf = ind.ellipsoid_surface(C.R_MOON_M, C.R_MOON_M, C.R_MOON_M, n=120)
     want = ind.detector_irradiance(None, surf, models, positions=(g["sun"], g["moon"], p), earthshine=False)
-    site = run_phase(SweepSettings(times=(iso,), observer=SITE, brdfs=("lambert",), method="reference"), iso)[0]
-    geo = run_phase(SweepSettings(times=(iso,), brdfs=("lambert",), method="reference"), iso)[0]
+    site = run_phase(ResolvedScene(times=(iso,), observer=SITE, brdfs=("lambert",), method="reference"), iso)[0]
+    geo = run_phase(ResolvedScene(times=(iso,), brdfs=("lambert",), method="reference"), iso)[0]
     assert not site["moon_occulted"] and site["moon_altitude_deg"] > 20
     assert site["moonshine_W_m2"] == pytest.approx(want["lambert"][0], rel=5e-4)
     assert abs(site["moonshine_W_m2"] / geo["moonshine_W_m2"] - 1) > 5e-3  # the parallax matters
@@ -166,7 +167,7 @@ def test_tle_observer_behind_the_earth_sees_nothing():
     _, f = sky_scene(iso, obs)
     assert f["moon_occulted"]
     for method in ("analytic", "raytrace"):
-        r = run_phase(SweepSettings(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method=method), iso)[0]
+        r = run_phase(ResolvedScene(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method=method), iso)[0]
         assert r["moonshine_W_m2"] == 0.0 and r["earthshine_W_m2"] == 0.0, method
 
 
@@ -179,15 +180,15 @@ def test_tle_occultation_is_traced_by_embree(monkeypatch):
     from lunarviz.methods.reference import reference_irradiance
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     iso = "2027-01-01T00:20:00Z"
-    s = SweepSettings(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method="raytrace", occlusion=False)
+    s = ResolvedScene(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method="raytrace", occlusion=False)
     models = s.brdf_models()
     for occ in (True, False):  # the observer's own Earth hides the Moon with or without shadows
-        ts = TraceScene(s.scene(iso), replace(s.trace_settings(), occlusion=occ))
+        ts = TraceScene(s.geometry(iso), replace(s.trace_settings(), occlusion=occ))
         assert trace_path(ts, "moonshine", models).mean["lambert"] == 0.0
-    ts = TraceScene(s.scene(iso), s.trace_settings())
+    ts = TraceScene(s.geometry(iso), s.trace_settings())
     ts.earth.run_rays = lambda o32, d32, query, dists=None, scene=None: np.full(len(o32), -1, dtype=np.int32)
     monkeypatch.setattr(SceneGeometry, "sight_lines_clear", lambda self, p: np.ones(len(p), dtype=bool))
-    want = reference_irradiance(s.scene(iso), models)["lambert"].moonshine_W_m2
+    want = reference_irradiance(s.geometry(iso), models)["lambert"].moonshine_W_m2
     assert want > 1e-4
     # raytrace vs exact reference: 2e-4 (the README's accuracy at default settings)
     assert trace_path(ts, "moonshine", models).mean["lambert"] == pytest.approx(want, rel=2e-4)
@@ -211,7 +212,7 @@ def test_circular_orbit_is_a_circle():
 
 
 def test_orbit_epoch_defaults_to_first_time():
-    s = SweepSettings(times=("2026-06-01T00:00Z", "2026-06-01T01:00Z"), observer="orbit:500,97,0,45")
+    s = ResolvedScene(times=("2026-06-01T00:00Z", "2026-06-01T01:00Z"), observer="orbit:500,97,0,45")
     assert s.observer_model().epoch_utc == "2026-06-01T00:00:00Z"
 
 
@@ -220,12 +221,12 @@ def test_moon_mesh_is_turned_into_moon_me(tmp_path):
     # The facet of a user mesh that faces the observer must be the one at the sub-observer
     # selenographic point: the mesh is placed in MOON_ME at the date, not in scene axes.
     from lunarviz.bodies import shapes
-    from lunarviz.outputs.facets import trace_facets
+    from lunarviz.workflows.tasks import facets as trace_facets
     iso = "2026-06-09T00:00:00Z"  # libration lon -7.8°, lat -2.5° (SPICE)
     mesh = shapes.ellipsoid(C.R_MOON_M * 1.001, C.R_MOON_M, C.R_MOON_M * 0.999, level=5)
     path = str(tmp_path / "ell.ply")
     shapes.write_mesh(mesh, path)
-    s = SweepSettings(times=(iso,), brdfs=("lambert",), method="raytrace", moon_mesh=path)
+    s = ResolvedScene(times=(iso,), brdfs=("lambert",), method="raytrace", moon_mesh=path)
     fr = trace_facets(s, iso)
     # per-facet output is in the Moon's body frame (MOON_ME), lined up with the user's mesh
     assert np.allclose(fr.vertices, mesh.vertices, rtol=0, atol=1e-3)
@@ -244,15 +245,15 @@ def test_moon_mesh_is_turned_into_moon_me(tmp_path):
 def test_total_lunar_eclipse_2025_03_14():
     # Totality 06:26-07:31 UTC (NASA eclipse catalogue). No atmosphere: umbra is black.
     iso = "2025-03-14T06:58:00Z"
-    on = run_phase(SweepSettings(times=(iso,), brdfs=("dhg",), method="raytrace"), iso)[0]
-    off = run_phase(SweepSettings(times=(iso,), brdfs=("dhg",), method="raytrace", occlusion=False), iso)[0]
-    exact = run_phase(SweepSettings(times=(iso,), brdfs=("dhg",), method="reference"), iso)[0]
+    on = run_phase(ResolvedScene(times=(iso,), brdfs=("dhg",), method="raytrace"), iso)[0]
+    off = run_phase(ResolvedScene(times=(iso,), brdfs=("dhg",), method="raytrace", occlusion=False), iso)[0]
+    exact = run_phase(ResolvedScene(times=(iso,), brdfs=("dhg",), method="reference"), iso)[0]
     assert on["moonshine_W_m2"] == 0.0
     assert off["moonshine_W_m2"] == pytest.approx(exact["moonshine_W_m2"], rel=1e-3)
     # the penumbral phase dims gradually: partly eclipsed at 05:00 (umbral first contact 05:09)
-    pen = run_phase(SweepSettings(times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace"),
+    pen = run_phase(ResolvedScene(times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace"),
                     "2025-03-14T05:00:00Z")[0]
-    full = run_phase(SweepSettings(times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace",
+    full = run_phase(ResolvedScene(times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace",
                                    occlusion=False), "2025-03-14T05:00:00Z")[0]
     assert 0.2 < pen["moonshine_W_m2"] / full["moonshine_W_m2"] < 0.95
 
@@ -268,8 +269,8 @@ def test_eclipse_penumbra_matches_disc_overlap(iso):
     g = ref.geometry(iso)
     surf = ind.ellipsoid_surface(C.R_MOON_M, C.R_MOON_M, C.R_MOON_M, n=120)
     eclipsed, free = ind.eclipse_moonshine(surf, make_brdf("lambert"), g["sun"], g["moon"])
-    on = run_phase(SweepSettings(times=(iso,), brdfs=("lambert",), method="raytrace"), iso)[0]
-    off = run_phase(SweepSettings(times=(iso,), brdfs=("lambert",), method="raytrace", occlusion=False), iso)[0]
+    on = run_phase(ResolvedScene(times=(iso,), brdfs=("lambert",), method="raytrace"), iso)[0]
+    off = run_phase(ResolvedScene(times=(iso,), brdfs=("lambert",), method="raytrace", occlusion=False), iso)[0]
     assert on["moonshine_W_m2"] / off["moonshine_W_m2"] == pytest.approx(eclipsed / free, abs=3e-4)
 
 
@@ -290,7 +291,7 @@ def test_time_range_and_executor():
         "2026-01-01T00:00:00Z", "2026-01-01T06:00:00Z", "2026-01-01T12:00:00Z", "2026-01-01T18:00:00Z",
         "2026-01-02T00:00:00Z")
     assert time_list(time_range="2026-01-01T00:00,2026-01-01T00:25,10min")[-1] == "2026-01-01T00:20:00Z"
-    s = SweepSettings(times=time_list(time_range="2026-06-03,2026-06-05,1d"), brdfs=("lambert", "dhg"),
+    s = ResolvedScene(times=time_list(time_range="2026-06-03,2026-06-05,1d"), brdfs=("lambert", "dhg"),
                       method="raytrace", observer="orbit:600,97.8,10,0")
     serial = run_sweep(s, workers=1)["rows"]
     pooled = run_sweep(s, workers=2)["rows"]
@@ -392,13 +393,13 @@ def test_earth_limb_check_never_skips_a_limb_across_the_moon():
     do appear in the scan (so the comparison can fail), and visible dates skip the tracing."""
     import datetime as dt
     from lunarviz.methods.tracer.estimators import TraceScene
-    s = SweepSettings(times=("2026-01-01T00:00:00Z",), brdfs=("dhg",), method="raytrace", moon_model="rolo-fit-map",
+    s = ResolvedScene(times=("2026-01-01T00:00:00Z",), brdfs=("dhg",), method="raytrace", moon_model="rolo-fit-map",
                       rtol=1e-4, observer="orbit:550,97.6,0,0")
     ts_set = s.trace_settings(1, s.trace_plan())
     found_any, skipped = False, 0
     for start in (dt.datetime(2026, 1, 1, 3, 59, 0), dt.datetime(2026, 1, 1, 4, 20, 30)):
         for k in range(12):
-            sc, _ = s.scene_and_fields((start + dt.timedelta(seconds=10 * k)).strftime("%Y-%m-%dT%H:%M:%SZ"))
+            sc, _ = s.task((start + dt.timedelta(seconds=10 * k)).strftime("%Y-%m-%dT%H:%M:%SZ"))
             if sc.moon_wholly_hidden():
                 continue
             ts = TraceScene(sc, ts_set)
@@ -408,6 +409,6 @@ def test_earth_limb_check_never_skips_a_limb_across_the_moon():
                 skipped += 1
                 assert edges.size == 0
     assert found_any and skipped > 0
-    sc, _ = s.scene_and_fields("2026-01-01T02:00:00Z")
+    sc, _ = s.task("2026-01-01T02:00:00Z")
     ts = TraceScene(sc, ts_set)
     assert not ts.earth_may_hide_moon() and ts.lune_rule_applies("sun") and "sun" not in ts._edge_cache

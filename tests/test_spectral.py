@@ -19,7 +19,8 @@ from lunarviz.errors import LunarvizError
 from lunarviz.spectral.bands import band_nodes, band_solar_irradiance, band_weights, parse_band, parse_bands
 from lunarviz.spectral.request import spectral_request
 from lunarviz.spectral.solar import AU_M, grey_sun, solar_spectrum
-from lunarviz.workflows.sweeps import SweepSettings, run_phase, run_sweep
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_phase, run_sweep
 
 
 def trapezoid(y, x) -> float:
@@ -97,8 +98,8 @@ def test_constant_spectrum_run_equals_the_grey_run(method, extra):
         from lunarviz.photometry.presets import moon_model_params
         extra = {**extra, "params": {b: moon_model_params("rolo-fit-map", b) for b in ("lambert", "shg", "dhg")}}
     phases = (30.0, 100.0)
-    grey = run_sweep(SweepSettings(phases_deg=phases, method=method, **extra))["rows"]
-    spec = run_sweep(SweepSettings(phases_deg=phases, method=method, bands="400-750", solar_spectrum="grey",
+    grey = run_sweep(ResolvedScene(phases_deg=phases, method=method, **extra))["rows"]
+    spec = run_sweep(ResolvedScene(phases_deg=phases, method=method, bands="400-750", solar_spectrum="grey",
                                    earth_spectra="grey", **extra))["rows"]
     assert len(grey) == len(spec)
     for g, s in zip(grey, spec):
@@ -107,7 +108,7 @@ def test_constant_spectrum_run_equals_the_grey_run(method, extra):
                   "ratio_earthshine_moonshine"):
             assert s[f] == pytest.approx(g[f], rel=CONSERVATION), (f, g["brdf"], g["theta_deg"])
         # the Sun at the Moon: the grey Sun's irradiance there
-        sc = SweepSettings(phases_deg=phases).scene(g["theta_deg"])
+        sc = ResolvedScene(phases_deg=phases).geometry(g["theta_deg"])
         assert s["solar_irradiance_W_m2"] == pytest.approx(sc.phi / (4 * np.pi * sc.d_sm**2), rel=1e-12)
 
 
@@ -117,11 +118,11 @@ def test_a_wavelength_row_is_the_grey_run_at_that_wavelengths_parameters(method,
     for rolo-fit-map; the grey compiled kernel where smooth) whose BRDF parameters are the
     spectral table's at λ, on the lunar map with the table's contrast k(λ) applied to it
     (1 − k + k·map, written to a file), times the Sun's spectral over grey power 4π au² E_sun(λ)/Φ."""
-    from lunarviz.bodies.surfaces import MoonAlbedoMap
+    from lunarviz.surfaces.moon_map import MoonAlbedoMap
     from lunarviz.spectral.moon import MAP_CONTRAST, parameters_at
     lam = 612.5  # between two ROLO bands: the table is interpolated
     extra = {"moon_level": 3} if method == "raytrace" else {}
-    s = SweepSettings(phases_deg=(50.0,), method=method, moon_model="rolo-fit-map", wavelengths=str(lam), **extra)
+    s = ResolvedScene(phases_deg=(50.0,), method=method, moon_model="rolo-fit-map", wavelengths=str(lam), **extra)
     rows = run_phase(s, 50.0)
     sun = solar_spectrum()
     scale = 4 * np.pi * AU_M**2 * float(sun.at(lam)) / 1.626e26
@@ -133,7 +134,7 @@ def test_a_wavelength_row_is_the_grey_run_at_that_wavelengths_parameters(method,
         assert abs(k - 1) > 0.01 or b == "lambert"  # not the map's own: the test sees it
         path = tmp_path / f"map_{b}.npy"
         np.save(path, 1.0 - k + k * m)
-        g = run_phase(SweepSettings(phases_deg=(50.0,), method=method, moon_model="rolo-fit-map", brdfs=(b,),
+        g = run_phase(ResolvedScene(phases_deg=(50.0,), method=method, moon_model="rolo-fit-map", brdfs=(b,),
                                     params={b: p}, moon_albedo_map=str(path), **extra), 50.0)[0]
         assert r["moonshine_W_m2_nm"] == pytest.approx(g["moonshine_W_m2"] * scale, rel=1e-9), b
         assert r["earthshine_W_m2_nm"] == pytest.approx(g["earthshine_W_m2"] * scale, rel=1e-9), b
@@ -147,12 +148,12 @@ def test_spectral_moon_within_5_percent_of_rolo_at_real_dates():
     (rimopy, independent of lunarviz) at 440-1000 nm. The dates are not in the fit (zero
     libration); the tolerance is the issue's (measured ≤ 2.6 % over the script's 20 dates)."""
     pytest.importorskip("rimopy")
-    from lunarviz.photometry.fit import AU_M as AU, rolo_reflectance
+    from lunarviz.workflows.fit import AU_M as AU, rolo_reflectance
     checked = 0
     for iso, obs, method in (("2028-01-13T01:00Z", "geocentre", "analytic"),  # phase 12°, waning
                              ("2029-02-03T16:00Z", "geocentre", "raytrace"),  # 60°, waning
                              ("2029-01-01T03:00Z", "site:34.26,-116.92,2067", "analytic")):  # 6°
-        s = SweepSettings(times=(iso,), brdfs=("dhg",), method=method, observer=obs, moon_model="rolo-fit-map",
+        s = ResolvedScene(times=(iso,), brdfs=("dhg",), method=method, observer=obs, moon_model="rolo-fit-map",
                           wavelengths="440,500,550,650,750,865,1000")
         for r in run_phase(s, iso):
             assert r["moonshine_W_m2_nm"] > 0 and 5 <= r["phase_angle_deg"] <= 90, (iso, obs)
@@ -176,11 +177,11 @@ def test_mapped_earth_spectral_earthshine_is_the_grey_run_of_that_wavelengths_ma
     through different grids (1° against the 0.1° composite), and a point on a 1° cell's edge can
     fall on either side in one of the two readings (measured 9e-9; the arithmetic alone agrees to
     1e-14, test_constant_spectrum_run_equals_the_grey_run)."""
-    from lunarviz.bodies.surfaces import land_fraction_map
-    from lunarviz.spectral.earth import albedo_spectra, components, land_cover
+    from lunarviz.surfaces.earth_surface import land_fraction_map
+    from lunarviz.surfaces.earth_spectra import albedo_spectra, components, land_cover
     f = land_fraction_map()
     cover = np.repeat(np.repeat(land_cover(), 10, axis=0), 10, axis=1)  # 1° → 0.1° cells
-    s = SweepSettings(earth_surface="landocean")
+    s = ResolvedScene(earth_surface="landocean")
     names = components(s.surfaces().earth)
     a = dict(zip(names, albedo_spectra(s.surfaces().earth, names, [865.0])[:, 0]))
     land = np.select([cover == 2, cover == 3], [a["desert"], a["snow"]], a["vegetation"])
@@ -188,8 +189,8 @@ def test_mapped_earth_spectral_earthshine_is_the_grey_run_of_that_wavelengths_ma
     path = tmp_path / "earth865.npy"
     np.save(path, amap)
     kw = dict(phases_deg=(40.0,), method="raytrace", brdfs=("dhg",), moon_level=3, earth_level=4)
-    spec = run_phase(SweepSettings(earth_surface="landocean", wavelengths="865", **kw), 40.0)[0]
-    grey = run_phase(SweepSettings(earth_surface=str(path), **kw), 40.0)[0]
+    spec = run_phase(ResolvedScene(earth_surface="landocean", wavelengths="865", **kw), 40.0)[0]
+    grey = run_phase(ResolvedScene(earth_surface=str(path), **kw), 40.0)[0]
     scale = 4 * np.pi * AU_M**2 * float(solar_spectrum().at(865.0)) / 1.626e26
     assert spec["earthshine_W_m2_nm"] == pytest.approx(grey["earthshine_W_m2"] * scale, rel=1e-6)
     assert spec["earth_visible_lit_albedo"] == pytest.approx(grey["earth_visible_lit_albedo"], rel=1e-6)
@@ -199,10 +200,10 @@ def test_the_earth_has_colour():
     # vegetation's red edge and the blue ocean: with the packaged spectra the land-heavy Earth is
     # brighter at 865 nm than at 650 nm; with --earth-spectra grey the albedo is one number
     kw = dict(phases_deg=(90.0,), brdfs=("lambert",), earth_surface="landocean", earth_rotation_deg=20.0)
-    rows = run_phase(SweepSettings(wavelengths="450,650,865", **kw), 90.0)
+    rows = run_phase(ResolvedScene(wavelengths="450,650,865", **kw), 90.0)
     a = {r["wavelength_nm"]: r["earth_visible_lit_albedo"] for r in rows}
     assert a[865.0] > a[650.0]
-    rows = run_phase(SweepSettings(wavelengths="450,650,865", earth_spectra="grey", **kw), 90.0)
+    rows = run_phase(ResolvedScene(wavelengths="450,650,865", earth_spectra="grey", **kw), 90.0)
     assert len({round(r["earth_visible_lit_albedo"], 12) for r in rows}) == 1
 
 
@@ -210,7 +211,7 @@ def test_spectral_raytrace_is_traced_by_embree(monkeypatch):
     # every Embree query missing: no source is hit, no moonshine at any wavelength
     from lunarviz.caches import release_caches
     from lunarviz.methods.tracer.embree_bodies import EmbreeBody
-    s = SweepSettings(phases_deg=(90.0,), method="raytrace", brdfs=("dhg",), moon_level=2, wavelengths="500,800")
+    s = ResolvedScene(phases_deg=(90.0,), method="raytrace", brdfs=("dhg",), moon_level=2, wavelengths="500,800")
     assert all(r["moonshine_W_m2_nm"] > 0 for r in run_phase(s, 90.0))
     release_caches()
     monkeypatch.setattr(EmbreeBody, "run_rays", lambda self, o32, d32, query, dists=None, scene=None:
@@ -231,13 +232,13 @@ def test_requests_are_checked_before_any_work():
     with pytest.raises(LunarvizError, match="listed twice"):
         parse_bands("V,V")
     with pytest.raises(LunarvizError, match="tabulated over 350-2383.6 nm"):
-        SweepSettings(moon_model="rolo-fit-map", wavelengths="300")
+        ResolvedScene(moon_model="rolo-fit-map", wavelengths="300")
     with pytest.raises(LunarvizError, match="exact reference is grey"):
-        SweepSettings(method="reference", wavelengths="500")
+        ResolvedScene(method="reference", wavelengths="500")
     with pytest.raises(LunarvizError, match="deterministic estimator"):
-        SweepSettings(method="raytrace", estimator="montecarlo", earth_surface="landocean", wavelengths="500")
+        ResolvedScene(method="raytrace", estimator="montecarlo", earth_surface="landocean", wavelengths="500")
     with pytest.raises(LunarvizError, match="unknown solar spectrum"):
-        SweepSettings(wavelengths="500", solar_spectrum="vega")
+        ResolvedScene(wavelengths="500", solar_spectrum="vega")
 
 
 def test_band_file_and_top_hat(tmp_path):
@@ -289,10 +290,11 @@ def test_band_image_integrates_to_the_band_sweep(tmp_path):
     from astropy.io import fits
 
     import lunarviz.api as api
-    from lunarviz.methods.camera import Camera, synthesize
+    from lunarviz.methods.camera import Camera
+    from lunarviz.workflows.tasks import image as synthesize
     kw = dict(brdfs=("dhg",), method="raytrace", phases_deg=(110.0,), earth_surface="landocean", bands="B,V",
               earth_level=4)
-    s = SweepSettings(**kw)
+    s = ResolvedScene(**kw)
     rows = {r["band"]: r for r in run_phase(s, 110.0)}
     im = synthesize(s, 110.0, Camera(width=96, height=96))
     for band in ("B", "V"):
@@ -321,12 +323,12 @@ def test_compiled_and_numpy_spectral_shading_agree(monkeypatch):
     from lunarviz.methods.tracer.estimators import TraceScene
     from lunarviz.spectral import kernels
     from lunarviz.spectral.shading import shade, spectral_brdfs
-    s = SweepSettings(phases_deg=(70.0,), method="raytrace", moon_model="rolo-fit-map", moon_level=3,
+    s = ResolvedScene(phases_deg=(70.0,), method="raytrace", moon_model="rolo-fit-map", moon_level=3,
                       wavelengths="420,555.5,870,1000")
-    ts = TraceScene(s.scene(70.0), s.trace_settings())
+    ts = TraceScene(s.geometry(70.0), s.trace_settings())
     tr, _ = next(iter(ts.deterministic_transport("sun")))
     ts.with_moon_albedo(tr, _)  # the map's mean and spread per sample
-    sbs = spectral_brdfs(s, s.brdf_models(), s.spectral_request().nodes)
+    sbs = spectral_brdfs(s.spectral_inputs(), s.brdf_models())
     got = {k: (shade(tr, sb, tr.e_beam[None]), shade(tr, sb, tr.e_beam[None], per_sample=True))
            for k, sb in sbs.items()}
     monkeypatch.setattr(kernels, "available", lambda: False)
@@ -341,23 +343,23 @@ def test_mapped_earth_conservation_at_small_theta():
     components; they are not clipped one by one (their albedo-weighted sum is the grey map),
     so the conservation bar holds there too (it failed at 2.4e-7 with per-component clipping)."""
     kw = dict(phases_deg=(10.0,), method="raytrace", brdfs=("dhg",), earth_surface="landocean")
-    g = run_phase(SweepSettings(**kw), 10.0)[0]
-    s = run_phase(SweepSettings(bands="400-750", solar_spectrum="grey", earth_spectra="grey", **kw), 10.0)[0]
+    g = run_phase(ResolvedScene(**kw), 10.0)[0]
+    s = run_phase(ResolvedScene(bands="400-750", solar_spectrum="grey", earth_spectra="grey", **kw), 10.0)[0]
     assert s["earthshine_W_m2"] == pytest.approx(g["earthshine_W_m2"], rel=CONSERVATION)
 
 
 def test_labels_and_inputs_the_review_found():
     # wavelengths that differ past the 6th digit keep their own keys (they collided as {:g})
-    r = run_sweep(SweepSettings(phases_deg=(60.0,), brdfs=("dhg",), wavelengths="550.0001,550.0002"))
+    r = run_sweep(ResolvedScene(phases_deg=(60.0,), brdfs=("dhg",), wavelengths="550.0001,550.0002"))
     assert set(r["bond_albedo"]["dhg"]["analytic"]) == {"550.0001", "550.0002"}
     with pytest.raises(LunarvizError, match="listed twice"):
         spectral_request("550.00000000001,550", None, "tsis1-hsrs")
     # a band beyond the lunar table is named
     with pytest.raises(LunarvizError, match="band U"):
-        SweepSettings(moon_model="rolo-fit", bands="U")
+        ResolvedScene(moon_model="rolo-fit", bands="U")
     # spectral options without a spectral request are refused, not ignored
     with pytest.raises(LunarvizError, match="needs --wavelengths or --band"):
-        SweepSettings(solar_spectrum="grey")
+        ResolvedScene(solar_spectrum="grey")
 
 
 def test_three_columns_in_a_band_file_are_refused(tmp_path):

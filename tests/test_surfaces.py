@@ -16,10 +16,12 @@ import independent as ind
 import numpy as np
 import pytest
 
-from lunarviz.bodies.surfaces import EarthSurface, map_frame, map_mean, zonal_cloud_table
+from lunarviz.surfaces.earth_surface import EarthSurface, zonal_cloud_table
+from lunarviz.surfaces.maps import map_frame, map_mean
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.photometry.brdf import make_brdf
-from lunarviz.workflows.sweeps import SweepSettings, run_phase
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_phase
 
 MODELS = {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
 #: each BRDF's albedo parameter in the paper: Lambert albedo 0.10 (Table 5), Hapke w 0.33 (Table 2)
@@ -27,7 +29,7 @@ PAPER_ALBEDO = {"lambert": 0.10, "dhg": 0.33}
 
 
 def _rows(**kw):
-    s = SweepSettings(brdfs=("lambert", "dhg"), method=kw.pop("method", "raytrace"), **kw)
+    s = ResolvedScene(brdfs=("lambert", "dhg"), method=kw.pop("method", "raytrace"), **kw)
     return {r["brdf"]: r for th in s.tasks() for r in run_phase(s, th)} if len(s.tasks()) == 1 else \
         {(r["theta_deg"], r["brdf"]): r for th in s.tasks() for r in run_phase(s, th)}
 
@@ -199,9 +201,9 @@ def test_moon_map_follows_libration_on_dates(tmp_path):
     lat = 90 - (np.arange(180) + 0.5)
     m = np.cos(np.radians(lat))[:, None] * (1.0 + 0.5 * np.sin(np.radians(lon)))[None, :] + 0.1  # smooth
     path = _save(tmp_path, "smooth.npy", m)
-    s = SweepSettings(brdfs=("lambert",), method="raytrace", times=("2026-06-22T00:00Z",), moon_albedo_map=path,
+    s = ResolvedScene(brdfs=("lambert",), method="raytrace", times=("2026-06-22T00:00Z",), moon_albedo_map=path,
                       moon_level=6)
-    sc, fields = s.scene_and_fields(s.tasks()[0])
+    sc, fields = s.task(s.tasks()[0])
     ts = TraceScene(sc, s.trace_settings())
     v = ts.moon_facet_albedo()
     c = ts.moon.centroids - ts.moon.centre
@@ -265,7 +267,7 @@ def test_bad_maps_end_with_one_line(tmp_path, kind):
 def test_earth_rotation_refused_on_dates():
     from lunarviz.errors import LunarvizError
     with pytest.raises(LunarvizError, match="earth-rotation-deg"):
-        SweepSettings(times=("2026-06-22T00:00Z",), earth_rotation_deg=10.0)
+        ResolvedScene(times=("2026-06-22T00:00Z",), earth_rotation_deg=10.0)
 
 
 def test_sweep_rows_carry_the_visible_lit_albedo(tmp_path):
@@ -307,8 +309,8 @@ def test_checkerboard_hapke_moon_second_order(tmp_path):
 
 def test_view_numbers_match_the_sweep(tmp_path):
     """The viewer's numbers invert against the uniform model Earth, as the sweep's rows do."""
-    from lunarviz.viz.views import compute_view_data
-    s = SweepSettings(brdfs=("dhg",), method="raytrace", phases_deg=(120.0,), moon_level=3,
+    from lunarviz.workflows.tasks import view_data as compute_view_data
+    s = ResolvedScene(brdfs=("dhg",), method="raytrace", phases_deg=(120.0,), moon_level=3,
                       earth_surface=_hemispheric_earth(tmp_path), earth_rotation_deg=-30.0)
     r = run_phase(s, 120.0)[0]
     v = compute_view_data(s, 120.0, "dhg").numbers
@@ -321,19 +323,19 @@ def test_view_numbers_match_the_sweep(tmp_path):
 def test_maps_refused_where_they_would_mislead(tmp_path):
     from lunarviz.errors import LunarvizError
     with pytest.raises(LunarvizError, match="reference"):
-        SweepSettings(method="reference", earth_surface="landocean")
+        ResolvedScene(method="reference", earth_surface="landocean")
     mesh = tmp_path / "m.ply"
     from lunarviz.bodies import shapes
     shapes.write_mesh(shapes.ellipsoid(1.74e6, 1.73e6, 1.72e6, 2), mesh)
     with pytest.raises(LunarvizError, match="needs a date"):
-        SweepSettings(method="raytrace", moon_mesh=str(mesh), moon_albedo_map="synthetic")
+        ResolvedScene(method="raytrace", moon_mesh=str(mesh), moon_albedo_map="synthetic")
 
 
 def test_images_read_as_linear_values(tmp_path):
     """Palette images by their colours, 16-bit by 65535; 32-bit integer images refused."""
     from PIL import Image
 
-    from lunarviz.bodies.surfaces import read_map
+    from lunarviz.surfaces.maps import read_map
     from lunarviz.errors import LunarvizError
     grey = np.zeros((10, 20), dtype=np.uint8)
     grey[:, 10:] = 200

@@ -10,20 +10,21 @@ import pytest
 pv = pytest.importorskip("pyvista")
 
 from lunarviz.cli import main  # noqa: E402
+from lunarviz.scene import ResolvedScene  # noqa: E402
 from lunarviz.viz import views  # noqa: E402
-from lunarviz.workflows.sweeps import SweepSettings  # noqa: E402
+from lunarviz.workflows.tasks import view_data  # noqa: E402
 
 REF_DIR = os.path.join(os.path.dirname(__file__), "data")
 
 
 @pytest.fixture(scope="module")
 def data120():
-    return views.compute_view_data(SweepSettings(method="raytrace"), 120.0, "dhg")
+    return view_data(ResolvedScene(method="raytrace"), 120.0, "dhg")
 
 
 def test_numbers_shown_equal_numbers_computed(data120):
-    from lunarviz.outputs.facets import trace_facets
-    fr = trace_facets(SweepSettings(method="raytrace", brdfs=("dhg",)), 120.0)
+    from lunarviz.workflows.tasks import facets as trace_facets
+    fr = trace_facets(ResolvedScene(method="raytrace", brdfs=("dhg",)), 120.0)
     n = data120.numbers
     assert n["moonshine_W_m2"] == fr.totals["moonshine_W_m2"]
     assert n["earthshine_W_m2"] == fr.totals["earthshine_W_m2"]
@@ -187,9 +188,11 @@ def xvfb():
 
 VIEWER_DRIVER = """
 import numpy as np
-from lunarviz.workflows.sweeps import SweepSettings
+from lunarviz.scene import ResolvedScene
+from functools import partial
 from lunarviz.viz.viewer import Viewer
-v = Viewer(SweepSettings(method="raytrace"), 90.0, "lambert", size=(1000, 700))
+from lunarviz.workflows.tasks import view_data
+v = Viewer(partial(view_data, ResolvedScene(method="raytrace")), 90.0, "lambert", size=(1000, 700))
 assert type(v.plotter.render_window).__name__ != "vtkEGLRenderWindow"  # a real X window
 v.show(interactive_update=True, auto_close=False)
 before = v.data.numbers["moonshine_W_m2"]

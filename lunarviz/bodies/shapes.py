@@ -107,8 +107,8 @@ def ellipsoid(a: float, b: float, c: float, level: int, patch=None) -> trimesh.T
 def read_map(path) -> np.ndarray:
     """An equirectangular map (.npy values, or .png/.tif image scaled to [0, 1]) as float64
     (rows from +90° to −90°, columns from −180° eastward, pixel-centred):
-    :func:`lunarviz.bodies.surfaces.read_grid`, errors as :class:`MeshError`."""
-    from lunarviz.bodies.surfaces import read_grid
+    :func:`lunarviz.surfaces.maps.read_grid`, errors as :class:`MeshError`."""
+    from lunarviz.surfaces.maps import read_grid
     return read_grid(path, "map", MeshError)
 
 

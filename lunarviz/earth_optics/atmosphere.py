@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.earth_optics.tables import RAYLEIGH_TAU, THETA_DEG, cubic_weights, load, sky_nodes, theta_of
+from lunarviz.earth_optics.disort_tables import RAYLEIGH_TAU, THETA_DEG, cubic_weights, load, sky_nodes, theta_of
 
 
 def _tau_weights(tau):
@@ -76,7 +76,7 @@ def spherical_albedo(tau: float) -> float:
 def sky_modes(tau: float, mu0) -> np.ndarray:
     """(..., K, 3) the diffuse sky at the bottom for a beam at cos θ = μ₀: Fourier modes of
     π I↓(μ'_k, φ')/(μ₀ F) in the source azimuth φ' (0: the Sun's side), at the Gauss nodes μ'_k of
-    :func:`~lunarviz.earth_optics.tables.sky_nodes`."""
+    :func:`~lunarviz.earth_optics.disort_tables.sky_nodes`."""
     t = load("rayleigh")
     ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
     per_tau = np.tensordot(tw[0], t["sky_m"][ti[0]] / RAYLEIGH_TAU[ti[0], None, None, None], axes=1) * tau
@@ -109,7 +109,7 @@ def lambert_toa(tau: float, albedo, mu0, mu, phi_deg) -> np.ndarray:
 def toa_reflectance(tau: float, surface, wavelength_nm: float, mu0, mu, phi_deg, geometry: dict | None = None
                     ) -> np.ndarray:
     """Top-of-atmosphere reflectance factor πL/(μ₀E₀) of ``surface`` (a
-    :class:`~lunarviz.earth_optics.surfaces.Surface`) under a Rayleigh layer of optical depth
+    :class:`~lunarviz.earth_optics.classes.Surface`) under a Rayleigh layer of optical depth
     ``tau`` (τ = 0: the bare surface); ``geometry``: kept between wavelengths at the same angles
     (:meth:`Surface.reflectance`)."""
     mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))

@@ -1,6 +1,6 @@
 """A cloud: the reflectance factor of a plane-parallel water cloud, from the packaged DISORT table.
 
-The cloud of :data:`~lunarviz.earth_optics.tables.CLOUD` (optical depth 10, single-scattering
+The cloud of :data:`~lunarviz.earth_optics.disort_tables.CLOUD` (optical depth 10, single-scattering
 albedo 0.99999, Henyey–Greenstein g = 0.85, over a surface of albedo 0.06), solved by
 ``scripts/make_earth_tables.py``; here interpolated cubically in the zenith angles and linearly in
 azimuth (5° nodes). Grey: a thick water cloud's albedo changes by ~3 % from 450 to 865 nm (King
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.earth_optics.tables import CLOUD_PHI_DEG, THETA_DEG, cubic_weights, load, theta_of
+from lunarviz.earth_optics.disort_tables import CLOUD_PHI_DEG, THETA_DEG, cubic_weights, load, theta_of
 
 
 def cloud_reflectance(mu0, mu, phi_deg) -> np.ndarray:

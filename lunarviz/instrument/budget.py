@@ -38,6 +38,12 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.geometry.scene_geometry import SceneGeometry, half_angle_sin_cos
+from lunarviz.instrument.disc import surface_points
+from lunarviz.instrument.observation import instrument_camera
+from lunarviz.instrument.optics import parse_halo
+from lunarviz.instrument.pipeline import measure
+from lunarviz.photometry.brdf import FIT_BOUNDS, make_brdf
 from lunarviz.resources import DATA_DIR
 
 #: packaged ``lunarviz fit`` results whose covariance stands for the lunar model's uncertainty
@@ -64,9 +70,8 @@ def read_fit(path) -> dict:
         params = {k: float(v) for k, v in d["params"].items()}
         brdf = str(d["brdf"])
         conventions = {k: d.get("settings", {}).get(k) for k in ("h_function", "dhg_convention")}
-        from lunarviz.photometry.fit import BOUNDS
-        at_bound = {k: k in BOUNDS and min(params[k] - BOUNDS[k][0], BOUNDS[k][1] - params[k])
-                    < 1e-6 * (BOUNDS[k][1] - BOUNDS[k][0]) for k in free}
+        at_bound = {k: k in FIT_BOUNDS and min(params[k] - FIT_BOUNDS[k][0], FIT_BOUNDS[k][1] - params[k])
+                    < 1e-6 * (FIT_BOUNDS[k][1] - FIT_BOUNDS[k][0]) for k in free}
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise LunarvizError(f"--lunar-fit {str(path)!r}: not a lunarviz fit result ({type(exc).__name__})") from None
     return {"brdf": brdf, "params": params, "free": free, "covariance": corr * np.outer(sig, sig), "path": str(path),
@@ -76,8 +81,6 @@ def read_fit(path) -> dict:
 def _patch_geometry(sc, camera, sel: np.ndarray, source: np.ndarray):
     """(μ0, μ, sin g/2, cos g/2) arrays at the pixels ``sel`` (every 1 in k, at most ~400) lit
     from ``source`` [m]."""
-    from lunarviz.geometry.scene_geometry import half_angle_sin_cos
-    from lunarviz.instrument.disc import surface_points
     y, x = np.nonzero(sel)
     step = max(len(x) // 400, 1)
     p, nrm = surface_points(sc, camera, x[::step], y[::step])
@@ -89,23 +92,38 @@ def _patch_geometry(sc, camera, sel: np.ndarray, source: np.ndarray):
     return np.clip(np.einsum("ij,ij->i", nrm, s), 0.0, 1.0), np.einsum("ij,ij->i", nrm, o), sin_hg, cos_hg
 
 
-def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
-    """Relative σ of p* from the lunar model's parameters (see the module docstring)."""
-    from lunarviz.instrument.observation import instrument_camera
-    from lunarviz.photometry.brdf import make_brdf
-    from lunarviz.photometry.fit import BOUNDS
-    brdf = settings.brdfs[0]
+def lunar_model_sigma(brdf: str, conventions: dict, geometry: SceneGeometry, cal, fit_path=None) -> tuple[float, str]:
+    """Relative σ of p* from the lunar model's parameters (see the module docstring).
+
+    Parameters
+    ----------
+    brdf : str
+        The scene's lunar BRDF (``lambert``, ``shg``, ``dhg``).
+    conventions : dict
+        The scene's ``h_function`` and ``dhg_convention``, against which the fit is checked.
+    geometry : SceneGeometry
+        The task's bodies and detector (each patch pixel's angles).
+    cal : Calibration
+        The pipeline's calibration (its patches).
+    fit_path : path, optional
+        A ``lunarviz fit`` result (default: the packaged fit of ``brdf`` to ROLO).
+
+    Returns
+    -------
+    (float, str)
+        The relative σ and where its covariance came from.
+    """
     if brdf == "lambert":
         return 0.0, "a Lambert Moon's albedo cancels in the ratio"
     path = fit_path or LUNAR_FITS.get(brdf)
     fit = read_fit(path)
     if fit["brdf"] != brdf:
         raise LunarvizError(f"--lunar-fit {str(path)!r} fits {fit['brdf']!r}, the scene's BRDF is {brdf!r}")
-    differ = [f"{k} {v!r} (the scene: {getattr(settings, k)!r})" for k, v in fit["conventions"].items()
-              if v is not None and v != getattr(settings, k)]
+    differ = [f"{k} {v!r} (the scene: {conventions[k]!r})" for k, v in fit["conventions"].items()
+              if v is not None and v != conventions[k]]
     if differ and fit_path is not None:  # the user's own fit must describe the scene's model
         raise LunarvizError(f"--lunar-fit {str(path)!r} was fitted with {differ[0]}")
-    sc, _ = settings.scene_and_fields(key)
+    sc = geometry
     camera = instrument_camera(cal.instrument)
     ge = _patch_geometry(sc, camera, cal.patches.earthlit, sc.earth)
     gs = _patch_geometry(sc, camera, cal.patches.sunlit, sc.sun)
@@ -124,12 +142,13 @@ def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
         cov = cov - C[np.ix_(ia, ib)] @ np.linalg.pinv(C[np.ix_(ib, ib)]) @ C[np.ix_(ib, ia)]
 
     def log_ratio(p):  # the patches' mean radiance factors (the patch means of the pipeline)
-        m = make_brdf(brdf, dhg_convention=settings.dhg_convention, h_function=settings.h_function, params=p)
+        m = make_brdf(brdf, dhg_convention=conventions["dhg_convention"], h_function=conventions["h_function"],
+                      params=p)
         return float(np.log(np.mean(m.radiance_factor(*ge)) / np.mean(m.radiance_factor(*gs))))
 
     grad = np.zeros(len(free))
     for n, k in enumerate(free):
-        lo, hi = BOUNDS[k]
+        lo, hi = FIT_BOUNDS[k]
         step = 1e-4 * (hi - lo)
         up, dn = min(params[k] + step, hi), max(params[k] - step, lo)
         grad[n] = (log_ratio({**params, k: up}) - log_ratio({**params, k: dn})) / (up - dn)
@@ -139,9 +158,6 @@ def lunar_model_sigma(settings, key, cal, fit_path=None) -> tuple[float, str]:
 
 def halo_shape_sigma(mean_counts, n_frames: int, cal, p_star: float) -> float:
     """Relative σ of p* from the halo index's uncertainty (refits with INDEX ± σ)."""
-    from lunarviz.instrument.observation import instrument_camera
-    from lunarviz.instrument.pipeline import measure
-    from lunarviz.outputs.images import parse_halo
     inst = cal.instrument
     if cal.kernel is None:
         return 0.0
@@ -159,36 +175,25 @@ def halo_shape_sigma(mean_counts, n_frames: int, cal, p_star: float) -> float:
     return abs(out[0] - out[1]) / 2.0 / p_star
 
 
-def band_sigma(settings, key, inst) -> float:
-    """Relative σ of p* from the band centre's uncertainty (module docstring)."""
-    from lunarviz.spectral.bands import parse_band
-    from lunarviz.workflows.sweeps import run_sweep
-    if inst.band_centre_sigma_nm == 0:
-        return 0.0
-    c = parse_band(inst.band).centre_nm
-    model = replace(settings, method="analytic", earth_surface="landocean", clouds="zonal", bands=None,
-                    wavelengths=f"{c - BAND_STEP_NM:.6f},{c + BAND_STEP_NM:.6f}", earth_spectra="surface",
-                    phases_deg=(float(key),) if settings.times is None else settings.phases_deg,
-                    times=None if settings.times is None else (str(key),))
-    rows = [r for r in run_sweep(model, progress=False)["rows"] if r["brdf"] == settings.brdfs[0]]
-    p = {r["wavelength_nm"]: r["apparent_albedo"] for r in rows}
-    lo, hi = p[min(p)], p[max(p)]
-    if not (np.isfinite(lo) and np.isfinite(hi)) or lo + hi <= 0:
+def ephemeris_sigma(geometry: SceneGeometry) -> float:
+    """Relative σ of p* from the Earth-Moon distance (``EPHEMERIS_SIGMA_KM``; earthshine ∝ D_EM⁻²)."""
+    return 2.0 * EPHEMERIS_SIGMA_KM * 1e3 / float(geometry.d_em_actual)
+
+
+def band_slope_sigma(p_low: float, p_high: float, inst) -> float:
+    """Relative σ of p* from the band centre's uncertainty: the slope of p*(λ) between the band's
+    centre ∓ ``BAND_STEP_NM`` (``p_low``, ``p_high``) times the instrument's ``band_centre_sigma_nm``."""
+    if not (np.isfinite(p_low) and np.isfinite(p_high)) or p_low + p_high <= 0:
         return float("nan")
-    return abs(hi - lo) / (2 * BAND_STEP_NM) * inst.band_centre_sigma_nm / (0.5 * (lo + hi))
+    return abs(p_high - p_low) / (2 * BAND_STEP_NM) * inst.band_centre_sigma_nm / (0.5 * (p_low + p_high))
 
 
-def ephemeris_sigma(settings, key) -> float:
-    sc, _ = settings.scene_and_fields(key)
-    return 2.0 * EPHEMERIS_SIGMA_KM * 1e3 / float(sc.d_em_actual)
-
-
-def systematics(settings, key, cal, fit_path=None) -> dict:
-    """The pointing's systematic terms, relative (multiply by p*)."""
-    model, source = lunar_model_sigma(settings, key, cal, fit_path)
+def systematics(lunar_model: tuple[float, str], geometry: SceneGeometry, cal, band: float) -> dict:
+    """The pointing's systematic terms, relative (multiply by p*): the lunar model's
+    (:func:`lunar_model_sigma`), the ND filter's, the ephemeris' and the band's (``band``)."""
+    model, source = lunar_model
     return {"lunar_model": model, "nd_filter": cal.instrument.bright_side_nd_sigma if cal.transmission < 1 else 0.0,
-            "ephemeris": ephemeris_sigma(settings, key), "band": band_sigma(settings, key, cal.instrument),
-            "lunar_model_source": source}
+            "ephemeris": ephemeris_sigma(geometry), "band": band, "lunar_model_source": source}
 
 
 def with_budget(row: dict, rel: dict, halo_shape_rel: float) -> dict:

@@ -2,25 +2,28 @@
 (at a ground site) the atmosphere and a bright-side neutral-density mask, as a photoelectron
 rate per pixel.
 
-The camera (:func:`lunarviz.methods.camera.synthesize`) images the scene in the instrument's
-band and in its photon band (:mod:`lunarviz.instrument.response`); the PSF and the halo act on
-both (:func:`lunarviz.outputs.images.apply_optics`); at a ground site the Moon's light is dimmed
+The camera (:func:`lunarviz.methods.camera.synthesize`, the caller's) images the scene in the
+instrument's band and in its photon band (:mod:`lunarviz.instrument.response`); the PSF and the halo act on
+both (:func:`lunarviz.instrument.optics.apply_optics`); at a ground site the Moon's light is dimmed
 and a uniform sky is added (:mod:`lunarviz.instrument.sky`). The radiance planes stay those above
 the atmosphere (as every lunarviz image); the electron rates carry everything.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.geometry.scene_geometry import SceneGeometry
+from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
 from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, masked_pixels
 from lunarviz.instrument.detector import expected_counts, expected_electrons
-from lunarviz.instrument.response import electron_rate, instrument_request, photon_band, photon_label
+from lunarviz.instrument.response import electron_rate, photon_band, photon_label
 from lunarviz.instrument.sky import SiteSky, site_sky
 from lunarviz.instrument.spec import Instrument
+from lunarviz.methods.camera import Camera, ImageResult
 
 
 @dataclass
@@ -54,43 +57,52 @@ class Observation:
         return expected_counts(self.electrons, self.instrument)
 
 
-def instrument_camera(inst: Instrument):
+def instrument_camera(inst: Instrument) -> Camera:
     """The pinhole camera of the instrument's detector, pointed at the Moon."""
-    from lunarviz.methods.camera import Camera
     return Camera(fov_deg=inst.fov_deg, width=inst.width, height=inst.height, supersample=inst.supersample,
                   pointing="moon")
 
 
-def instrument_settings(settings, inst: Instrument):
-    """The image settings of an instrument: one BRDF, and the instrument's band."""
-    if len(settings.brdfs) != 1:
-        raise LunarvizError(f"an instrument images one lunar BRDF: got {','.join(settings.brdfs)} (give one --brdf)")
-    if settings.wavelengths is not None:
-        raise LunarvizError("--instrument images in its own band: drop --wavelengths")
-    if settings.bands is not None and str(settings.bands).strip() != inst.band:
-        raise LunarvizError(f"--band {settings.bands!r} differs from the instrument's band {inst.band!r}")
-    return replace(settings, bands=inst.band)
-
-
 def optics_kernels(inst: Instrument, camera):
-    from lunarviz.outputs.images import parse_halo, parse_psf
     pix_arcsec = float(np.degrees(camera.scale_rad)) * 3600.0
     shape = (camera.height, camera.width)
     return parse_psf(inst.psf, pix_arcsec, shape), parse_halo(inst.halo, pix_arcsec, shape)
 
 
-def observe(settings, key, inst: Instrument, exposure_s: float | None = None, trace_scene=None) -> Observation:
-    """The noise-free observation of phase θ [deg] or UTC time ``key``."""
-    from lunarviz.methods.camera import synthesize
-    from lunarviz.outputs.images import apply_optics
+def check_exposure(inst: Instrument, exposure_s: float | None) -> float:
+    """The exposure [s]: ``exposure_s``, or the instrument's own; a one-line error outside (0, 1e5]."""
     t = inst.exposure_s if exposure_s is None else float(exposure_s)
     if not (np.isfinite(t) and 0 < t <= 1e5):
         raise LunarvizError(f"--exposure {exposure_s!r} must be in (0, 1e5] seconds")
-    settings = instrument_settings(settings, inst)
-    camera = instrument_camera(inst)
-    request = instrument_request(inst, settings.solar_spectrum)
-    res = synthesize(settings, key, camera, trace_scene=trace_scene, request=request)
-    brdf = settings.brdfs[0]
+    return t
+
+
+def observe(res: ImageResult, geometry: SceneGeometry, brdf: str, inst: Instrument,
+            exposure_s: float | None = None) -> Observation:
+    """The noise-free observation by ``inst`` of the scene that ``res`` images.
+
+    Parameters
+    ----------
+    res : ImageResult
+        The image by :func:`instrument_camera` in the instrument's band and photon band
+        (:func:`lunarviz.instrument.response.instrument_request`), above the atmosphere; its planes
+        are passed through the optics here, in place.
+    geometry : SceneGeometry
+        The task's bodies and detector (the disc's geometry and the bright-side mask).
+    brdf : str
+        The lunar BRDF imaged (the planes' ``BRDF|BAND`` keys).
+    inst : Instrument
+        The instrument.
+    exposure_s : float, optional
+        Exposure [s] (default: the instrument's).
+
+    Returns
+    -------
+    Observation
+        Photoelectron rates per pixel [e⁻ s⁻¹] (raw and after optics, atmosphere and mask), the sky.
+    """
+    t = check_exposure(inst, exposure_s)
+    camera = res.camera
     e_key = f"{brdf}|{photon_label(inst)}"
     omega = res.pixel_solid_angle
     raw = {c: electron_rate(res.planes[c][e_key], omega, inst) for c in ("moonshine", "earthshine")}
@@ -118,8 +130,7 @@ def observe(settings, key, inst: Instrument, exposure_s: float | None = None, tr
         sky_rate = dark + e_moon * sky.scattered_per_irradiance_sr * omega
         rates = {c: r * sky.transmission for c, r in rates.items()}
     rates["sky"] = sky_rate
-    sc, _ = settings.scene_and_fields(key)
-    geom, mask, masked = masked_pixels(sc, camera, inst.bright_side_nd, inst.margin_px())
+    geom, mask, masked = masked_pixels(geometry, camera, inst.bright_side_nd, inst.margin_px())
     if mask is not None:  # a focal-plane filter: after the optics' halo, on every light alike
         rates = {c: np.where(masked, r * mask.transmission, r) for c, r in rates.items()}
     # the photon band is an internal plane: the image keeps the band's radiance planes only

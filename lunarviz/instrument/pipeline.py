@@ -38,7 +38,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.instrument.disc import DiscGeometry
+from lunarviz.geometry.scene_geometry import SceneGeometry
+from lunarviz.instrument.disc import DiscGeometry, masked_pixels
+from lunarviz.instrument.observation import instrument_camera, optics_kernels
+from lunarviz.instrument.optics import apply_optics
 from lunarviz.instrument.spec import Instrument
 
 #: the most rounds of the halo fit's fixed point (its error shrinks as (f/(1−f))ⁿ: 1e-12 for
@@ -152,24 +155,34 @@ class Calibration:
     kernel: np.ndarray | None  # the halo's shape K (unit sum)
 
 
-def calibrate(settings, key, inst: Instrument, exposure_s: float, rates: dict | None = None) -> Calibration:
-    """Model the observation with a uniform Lambert Earth (``rates``: its photoelectron rates
-    before the optics, when the caller has them)."""
-    from dataclasses import replace
+def calibrate(geometry: SceneGeometry, inst: Instrument, exposure_s: float, rates: dict, earth_albedo: float,
+              key="") -> Calibration:
+    """The pipeline's model of an observation: a uniform Lambert Earth of ``earth_albedo``.
 
-    from lunarviz.instrument.disc import masked_pixels
-    from lunarviz.instrument.observation import instrument_camera, instrument_settings, optics_kernels
-    from lunarviz.outputs.images import apply_optics
-    settings = instrument_settings(settings, inst)
-    cal = replace(settings, earth_surface="uniform", clouds="none", earth_brdf="lambert",
-                  params={k: v for k, v in settings.params.items() if k != "earth"})  # the model Earth
+    Parameters
+    ----------
+    geometry : SceneGeometry
+        The task's bodies and detector.
+    inst : Instrument
+        The instrument.
+    exposure_s : float
+        Exposure [s].
+    rates : dict
+        The model Earth's photoelectron rates before the optics [e⁻ s⁻¹ per pixel]
+        (``Observation.raw_rates`` of its image).
+    earth_albedo : float
+        The model Earth's Lambert albedo A.
+    key : float or str
+        The task's phase θ or time, which error messages name.
+
+    Returns
+    -------
+    Calibration
+        The patches, the model's earthlit/sunlit ratio R_A and A.
+    """
     camera = instrument_camera(inst)
-    if rates is None:
-        from lunarviz.instrument.observation import observe
-        rates = observe(cal, key, inst, exposure_s).raw_rates
     psf, halo = optics_kernels(inst, camera)
-    sc, _ = cal.scene_and_fields(key)
-    geom, mask, masked = masked_pixels(sc, camera, inst.bright_side_nd, inst.margin_px())
+    geom, mask, masked = masked_pixels(geometry, camera, inst.bright_side_nd, inst.margin_px())
     where = f"{key}: "
     patches = select_patches(geom, rates["moonshine"] > 0, inst.margin_px(), masked, where)
     es = apply_optics(rates["earthshine"], psf, None)
@@ -179,7 +192,7 @@ def calibrate(settings, key, inst: Instrument, exposure_s: float, rates: dict | 
         raise LunarvizError(f"{where}the model's sunlit patch is dark")
     ratio = float(np.mean(es[patches.earthlit])) / sunlit
     return Calibration(inst, float(exposure_s), geom, patches, masked, mask.transmission if mask else 1.0,
-                       ratio, float(settings.earth_albedo), None if halo is None else halo[1])
+                       ratio, float(earth_albedo), None if halo is None else halo[1])
 
 
 @dataclass

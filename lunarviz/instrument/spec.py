@@ -244,7 +244,7 @@ def instrument_from_dict(d: dict, where: str = "instrument") -> Instrument:
         raise LunarvizError(f"{where}: a field of {inst.fov_deg:.3g} deg is not an earthshine imager's (< 20 deg)")
     if inst.bias_adu + 6 * inst.read_noise_e / inst.gain_e_per_adu > inst.adc_max:
         raise LunarvizError(f"{where}: bias_adu = {inst.bias_adu!r} leaves no room below the ADC's {inst.adc_max}")
-    from lunarviz.outputs.images import parse_halo, parse_psf
+    from lunarviz.instrument.optics import parse_halo, parse_psf
     from lunarviz.spectral.bands import parse_band
     try:
         band = parse_band(inst.band)

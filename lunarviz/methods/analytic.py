@@ -39,7 +39,7 @@ class AnalyticSettings:
     paper_step_deg: float = 1.0
     earth_law: str = "lambert"
     earth_albedo: float = 0.3
-    #: lunar albedo map and Earth surface (:class:`lunarviz.bodies.surfaces.Surfaces`), read at the
+    #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.point_values.Surfaces`), read at the
     #: lunar nodes; the point Earth takes the albedo its lit face shows the Moon's centre
     surfaces: object = None
 
@@ -165,7 +165,7 @@ def earthshine_transport(scene: SceneGeometry, settings: AnalyticSettings = Anal
     if sf is None:
         albedo = settings.earth_albedo
     elif sf.earth.physical:  # the disc integral of the classes' reflectance toward the Moon
-        from lunarviz.bodies.physical_earth import albedo_toward_moon
+        from lunarviz.surfaces.physical_earth import albedo_toward_moon
         albedo = float(albedo_toward_moon(sf, scene, [sf.earth.wavelength_nm])[0])
     else:
         albedo = sf.earth_albedo_toward(scene, scene.moon)

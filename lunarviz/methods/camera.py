@@ -30,8 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.geometry.scene_geometry import unit
-from lunarviz.methods.image_shading import GreyShading
+from lunarviz.geometry.scene_geometry import SceneGeometry, unit
+from lunarviz.methods.camera_shading import GreyShading, SpectralImageShading
+from lunarviz.methods.tracer.settings import TraceSettings
+from lunarviz.methods.tracer.trace_scene import TraceScene
+from lunarviz.spectral.inputs import SpectralInputs
 
 MAX_PIXELS = 4096
 MAX_SUPERSAMPLE = 16
@@ -219,32 +222,50 @@ class ImageResult:
 CHUNK = 20_000
 
 
-def synthesize(settings, key, camera: Camera, trace_scene=None, request=None) -> ImageResult:
-    """The image of phase θ [deg] or UTC time ``key`` for every BRDF of ``settings``; ``request``
-    (a :class:`~lunarviz.spectral.request.SpectralRequest`) replaces the settings' wavelengths or
-    bands (an instrument's photon-counting response is not a ``--band`` text)."""
-    from lunarviz.methods.tracer.estimators import TraceScene
-    sc, fields = settings.scene_and_fields(key)
-    ts = trace_scene or TraceScene(sc, settings.trace_settings())
-    models = settings.brdf_models()
+def synthesize(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdfs: dict, camera: Camera,
+               spectral: SpectralInputs | None = None, trace_scene: TraceScene | None = None) -> ImageResult:
+    """The image of one task for every BRDF model.
+
+    Parameters
+    ----------
+    geometry : SceneGeometry
+        The task's bodies and detector (positions [m]).
+    fields : dict
+        The task's row fields (time, distances, flags), copied into ``info``.
+    trace : TraceSettings
+        The tracer's settings (meshes, shading, source orders, surfaces).
+    brdfs : dict
+        ``{name: BRDF}``: one plane per model (and per band or wavelength with ``spectral``).
+    camera : Camera
+        The pinhole camera at the detector.
+    spectral : SpectralInputs, optional
+        Spectral planes (a band, a wavelength, an instrument's photon-counting response); grey
+        without.
+    trace_scene : TraceScene, optional
+        The traced scene of ``geometry`` and ``trace``, when the caller has it.
+
+    Returns
+    -------
+    ImageResult
+        Radiance planes [W m⁻² sr⁻¹, or per nm], pixel solid angles [sr], ``info``.
+    """
+    sc = geometry
+    ts = trace_scene or TraceScene(sc, trace)
+    models = brdfs
     M = ts.moon
     f, e, n, ra, dec = camera_axes(sc, camera)
     dirs, omega, rr, cc = _subpixel_rays(camera, f, e, n)
     cosd = np.clip(dirs @ f, 0.0, 1.0)  # off-boresight cosine (flat detector facing f)
     W, H = camera.width, camera.height
-    req = request if request is not None else settings.spectral_request()
-    if req is not None:
-        from lunarviz.spectral.image_shading import SpectralImageShading
-        shading = SpectralImageShading(settings, ts, models, req)
-    else:
-        shading = GreyShading(ts, models)
+    req = None if spectral is None else spectral.request
+    shading = GreyShading(ts, models) if spectral is None else SpectralImageShading(ts, models, spectral)
     ms = {k: np.zeros(H * W) for k in shading.keys}
     es = {k: np.zeros(H * W) for k in shading.keys}
     pix_omega = np.zeros(H * W)
     np.add.at(pix_omega, rr * W + cc, omega * cosd)
     params = shading.factors
     vfield = shading.earth_vertex_fields(_vertex_transports(ts), len(M.vertices))
-    order = settings.trace_settings().sun_order
+    order = trace.sun_order
     n_disc = n_lit = 0
     origin = sc.det
     for a in range(0, len(dirs), CHUNK):

@@ -34,7 +34,7 @@ class ReferenceSettings:
     inner_order: int = 8
     earth_albedo: float = 0.3
     chunk: int = 256
-    #: lunar albedo map and Earth surface (:class:`lunarviz.bodies.surfaces.Surfaces`), read at the nodes
+    #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.point_values.Surfaces`), read at the nodes
     surfaces: object = None
 
 

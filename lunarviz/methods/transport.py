@@ -35,10 +35,10 @@ class Transport:
     #: earthshine only: ``e_beam`` for an Earth of albedo 1 everywhere (the Earth is Lambert,
     #: so earthshine is linear in its albedo: the weights of ``earth_visible_lit_albedo``)
     e_beam_unit: np.ndarray | None = None
-    #: earthshine of a spectral run (:mod:`lunarviz.spectral.earth`): ``e_beam`` for each surface
+    #: earthshine of a spectral run (:mod:`lunarviz.surfaces.earth_spectra`): ``e_beam`` for each surface
     #: component's weight as the Earth's albedo, ``{name: (N, K)}``; ``None``: one uniform component
     e_beam_parts: dict | None = None
-    #: per-sample values of a lunar albedo map (:mod:`lunarviz.bodies.surfaces`): the BRDF's albedo
+    #: per-sample values of a lunar albedo map (:mod:`lunarviz.surfaces.maps`): the BRDF's albedo
     #: parameter itself (``albedo_absolute``) or a factor on it; ``None``: the scalar
     albedo: np.ndarray | None = None
     albedo_absolute: bool = False
@@ -73,7 +73,7 @@ class Transport:
         """:meth:`radiances` with :attr:`albedo_nodes`: the BRDF at every map value (the geometry's
         part of a rough Hapke computed once, broadcast over the values), each sample's radiance
         the factor-weighted sum over them."""
-        from lunarviz.bodies.surfaces import map_scale
+        from lunarviz.surfaces.moon_map import map_scale
         from lunarviz.photometry import shading_kernels
         from lunarviz.photometry.brdf import Lambert
         values, factors = self.albedo_nodes
@@ -104,7 +104,7 @@ class Transport:
         """The BRDF's albedo parameter per sample ((N, 1), for ``albedo=``), or ``None``."""
         if self.albedo is None:
             return None
-        from lunarviz.bodies.surfaces import map_scale
+        from lunarviz.surfaces.moon_map import map_scale
         return (self.albedo * map_scale(self.albedo_absolute, brdf))[:, None]
 
     def _albedo_pair(self, brdf):
@@ -117,7 +117,7 @@ class Transport:
             return None
         if not np.any(self.albedo_std > 0):
             return None
-        from lunarviz.bodies.surfaces import map_scale
+        from lunarviz.surfaces.moon_map import map_scale
         k = map_scale(self.albedo_absolute, brdf)
         a, s = self.albedo * k, self.albedo_std * k
         return np.clip(a - s, 0.0, 1.0)[:, None], np.clip(a + s, 0.0, 1.0)[:, None]

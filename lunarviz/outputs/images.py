@@ -1,95 +1,23 @@
-"""Instrument effects and files for synthetic images: PSF, scattered-light halo, FITS/NPY/PNG.
+"""Files of synthetic images: FITS (one HDU per plane, TAN WCS), NPY and PNG.
 
-PSF (``--psf``): ``none``; ``gaussian:FWHM_ARCSEC``; or a ``.npy`` kernel (2-D, odd sides, finite,
-non-negative, at most the image's size; normalised to unit sum). The scattered-light wing
-(``--halo FRACTION,INDEX[,CORE_ARCSEC]``) is a power law ``(1 + (r/r_c)²)^(-INDEX/2)`` (r the
-angular distance, r_c the core radius, default one pixel) carrying FRACTION of the light; it is
-tabulated out to the frame's diagonal and normalised there, so light it would throw farther is
-not modelled. The total PSF is ``(1 - FRACTION)·core + FRACTION·(core ∗ halo)``. Convolutions
-are FFT-based (scipy); light scattered off the frame leaves it (flux is conserved to the
-extent the frame holds it).
+The optics a camera adds (PSF, halo) are :mod:`lunarviz.instrument.optics`.
 """
 
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.parsing import wavelength_label
 
 BUNIT = "W m-2 sr-1"
 
 
-def parse_psf(text: str | None, pixel_arcsec: float, shape) -> np.ndarray | None:
-    """The PSF kernel (unit sum) for ``--psf``, or None."""
-    if text is None or str(text).strip().lower() in ("", "none"):
-        return None
-    t = str(text).strip()
-    if t.lower().startswith("gaussian:"):
-        try:
-            fwhm = float(t.split(":", 1)[1])
-        except ValueError:
-            raise LunarvizError(f"--psf {text!r}: use gaussian:FWHM_ARCSEC") from None
-        if not (np.isfinite(fwhm) and fwhm > 0):
-            raise LunarvizError(f"--psf {text!r}: the FWHM must be a positive number of arcseconds")
-        sig = fwhm / pixel_arcsec / (2 * np.sqrt(2 * np.log(2)))
-        half = int(np.ceil(5 * sig))
-        if 2 * half + 1 > 2 * max(shape):
-            raise LunarvizError(f"--psf {text!r}: wider than the image")
-        y, x = np.mgrid[-half:half + 1, -half:half + 1]
-        k = np.exp(-(x * x + y * y) / (2 * sig * sig))
-        return k / k.sum()
-    p = Path(t)
-    if not p.is_file():
-        raise LunarvizError(f"--psf {text!r} is not none, gaussian:FWHM_ARCSEC or a .npy file")
-    try:
-        k = np.load(p, allow_pickle=False)
-    except Exception as exc:
-        raise LunarvizError(f"--psf {text!r}: unreadable ({type(exc).__name__})") from None
-    if k.dtype.kind not in "fiu":
-        raise LunarvizError(f"--psf {text!r}: kernel values of type {k.dtype} are not real numbers")
-    if k.ndim != 2 or k.shape[0] % 2 == 0 or k.shape[1] % 2 == 0:
-        raise LunarvizError(f"--psf {text!r}: kernel shape {k.shape} must be 2-D with odd sides")
-    if k.shape[0] > shape[0] or k.shape[1] > shape[1]:
-        raise LunarvizError(f"--psf {text!r}: kernel shape {k.shape} is larger than the image {tuple(shape)}")
-    k = np.asarray(k, dtype=float)
-    if not np.all(np.isfinite(k)) or np.any(k < 0) or k.sum() <= 0:
-        raise LunarvizError(f"--psf {text!r}: kernel values must be finite, non-negative, not all zero")
-    return k / k.sum()
-
-
-def parse_halo(text: str | None, pixel_arcsec: float, shape):
-    """``(fraction, kernel)`` for ``--halo FRACTION,INDEX[,CORE_ARCSEC]``, or None."""
-    if text is None or str(text).strip().lower() in ("", "none"):
-        return None
-    try:
-        vals = [float(v) for v in str(text).split(",")]
-    except ValueError:
-        raise LunarvizError(f"--halo {text!r}: use FRACTION,INDEX[,CORE_ARCSEC]") from None
-    if len(vals) not in (2, 3):
-        raise LunarvizError(f"--halo {text!r}: use FRACTION,INDEX[,CORE_ARCSEC]")
-    frac, index = vals[0], vals[1]
-    core = vals[2] if len(vals) == 3 else pixel_arcsec
-    if not (0 <= frac <= 1 and np.isfinite(index) and index > 0 and np.isfinite(core) and core > 0):
-        raise LunarvizError(f"--halo {text!r}: need 0 ≤ FRACTION ≤ 1, INDEX > 0, CORE_ARCSEC > 0")
-    H, W = shape
-    y, x = np.mgrid[-(H - 1):H, -(W - 1):W]
-    r = np.hypot(x, y) * pixel_arcsec
-    k = (1.0 + (r / core) ** 2) ** (-index / 2)
-    return frac, k / k.sum()
-
-
-def apply_optics(plane: np.ndarray, psf, halo) -> np.ndarray:
-    from scipy.signal import fftconvolve
-    out = plane
-    if psf is not None:
-        out = fftconvolve(out, psf, mode="same")
-    if halo is not None:
-        frac, k = halo
-        out = (1 - frac) * out + frac * fftconvolve(out, k, mode="same")
-    return np.clip(out, 0.0, None) if (psf is not None or halo is not None) else out
+def plane_key(brdf: str, label) -> str:
+    """``BRDF|LABEL``: a band's name, or a wavelength to 12 significant digits."""
+    return f"{brdf}|{wavelength_label(label)}" if isinstance(label, float) else f"{brdf}|{label}"
 
 
 def plane_names(planes: dict) -> list[tuple[str, str, str]]:
@@ -178,7 +106,6 @@ def _cubes(res, planes, scale_deg: float) -> list:
     work, :func:`check_cube_wavelengths`)."""
     from astropy.io import fits
 
-    from lunarviz.spectral.image_shading import plane_key
     lam = np.asarray(res.info["spectral_labels"], dtype=float)
     keys = list(planes["moonshine"])
     brdfs = list(dict.fromkeys(k.split("|")[0] for k in keys))

@@ -201,7 +201,7 @@ def _spectral_dataset(result, rows, brdfs, keys, timed, dim, spec):
         ds["band"].attrs.update({"units": "1", "long_name": "spectral band (response function)"})
     bond = result.get("bond_albedo", {})
     method = result["settings"].get("method")
-    from lunarviz.spectral.request import wavelength_label
+    from lunarviz.parsing import wavelength_label
     key = wavelength_label if spec == "wavelength" else str
     ds["bond_albedo"] = (("brdf", spec), np.array([[_num(bond.get(b, {}).get(method, {}).get(key(lab)))
                                                     for lab in labels] for b in brdfs], dtype=float), BOND_ATTRS)

@@ -38,6 +38,12 @@ BRDF_PARAMETERS = {"lambert": ("albedo",),
                    "shg": ("w", "h", "B0", "xi", "theta_bar", "Bc0", "hc"),
                    "dhg": ("w", "h", "B0", "b", "c", "theta_bar", "Bc0", "hc")}
 
+#: the ranges a fit to disk-integrated reflectance explores (θ̄ in degrees; ``map_contrast`` scales a
+#: lunar albedo map's contrast): narrower than the models accept where wider values are unphysical
+FIT_BOUNDS = {"w": (0.01, 0.99), "h": (0.001, 0.5), "B0": (0.0, 5.0), "b": (0.0, 0.95), "c": (-1.0, 1.0),
+              "xi": (-0.95, 0.95), "theta_bar": (0.0, 45.0), "Bc0": (0.0, 3.0), "hc": (0.0005, 0.3),
+              "albedo": (0.001, 1.0), "map_contrast": (0.0, 3.0)}
+
 # Smallest μ0 + μ used in the 1/(μ0 + μ) factor of Eq. 12 so the bare BRDF stays finite at
 # exact double grazing (μ0 = μ = 0); radiance_factor needs no such floor.
 _MU_SUM_FLOOR = 1e-300
@@ -232,7 +238,7 @@ class Lambert:
 
     @property
     def albedo_parameter(self) -> float:
-        """The parameter an albedo map scales (:mod:`lunarviz.bodies.surfaces`): ``albedo``."""
+        """The parameter an albedo map scales (:mod:`lunarviz.surfaces.maps`): ``albedo``."""
         return self.albedo
 
     def brdf(self, mu0, mu, sin_hg, cos_hg, albedo=None):
@@ -300,7 +306,7 @@ class Hapke:
 
     @property
     def albedo_parameter(self) -> float:
-        """The parameter an albedo map scales (:mod:`lunarviz.bodies.surfaces`): ``w``."""
+        """The parameter an albedo map scales (:mod:`lunarviz.surfaces.maps`): ``w``."""
         return self.w
 
     def _w(self, albedo):

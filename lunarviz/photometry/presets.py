@@ -7,7 +7,7 @@
   libration; written by ``scripts/fit_rolo.py`` into ``lunarviz/data/moon_models.json`` with
   its provenance (fit residuals and uncertainties in ``benchmarks/rolo_fit/``).
 * ``rolo-fit-map``: the same fit on a Moon carrying the synthetic lunar albedo map
-  (:mod:`lunarviz.bodies.surfaces`, ``--moon-albedo-map synthetic``), which the preset brings with it
+  (:mod:`lunarviz.surfaces.maps`, ``--moon-albedo-map synthetic``), which the preset brings with it
   unless a map is given: its maria make the waxing and waning branches differ, as ROLO's do.
 """
 

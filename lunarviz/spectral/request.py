@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.parsing import parse_float_list
+from lunarviz.parsing import parse_float_list, wavelength_label
 from lunarviz.spectral.solar import AU_M, SolarSpectrum, solar_spectrum
 
 #: at most this many wavelengths in one run (memory per chunk grows with it: 5000 × a few
@@ -55,11 +55,6 @@ class SpectralRequest:
         """Solar-weighted means of node transports over each output (their own values for
         wavelengths): the grey-Sun-level quantities the albedo inversion takes."""
         return np.asarray(node_values) @ (self.weights / self.weights.sum(axis=1, keepdims=True)).T
-
-
-def wavelength_label(nm: float) -> str:
-    """A wavelength's text in output keys (``bond_albedo``, image planes): 12 significant digits."""
-    return format(float(nm), ".12g")
 
 
 def parse_wavelengths(text: str) -> tuple[float, ...]:

@@ -4,7 +4,7 @@ A :class:`~lunarviz.methods.transport.Transport` does not depend on wavelength (
 visibility, the Sun's and the Earth's beams for unit albedo), so a spectral run traces once and
 shades here: for each BRDF, its parameters at every node wavelength
 (:mod:`lunarviz.spectral.moon`) and, for earthshine, each surface component's beams
-(:mod:`lunarviz.spectral.earth`). :class:`SpectralShader` returns detector irradiances at the
+(:mod:`lunarviz.surfaces.earth_spectra`). :class:`SpectralShader` returns detector irradiances at the
 grey Sun per node (W m⁻², as the grey run's); :mod:`lunarviz.spectral.request` turns them into
 spectral [W m⁻² nm⁻¹] or band values with the Sun's spectrum.
 
@@ -21,6 +21,7 @@ import numpy as np
 
 from lunarviz.photometry.brdf import Hapke, Lambert
 from lunarviz.spectral import kernels
+from lunarviz.spectral.inputs import SpectralInputs
 from lunarviz.spectral.moon import models_at, parameters_at
 
 #: parameters that must be grey for the compiled path (they shape the effective geometry)
@@ -56,11 +57,11 @@ class SpectralBRDF:
         return SpectralBRDF(self.grey, {k: uniq[i] for i, k in enumerate(names)}), np.asarray(inverse).reshape(-1)
 
 
-def spectral_brdfs(settings, brdfs: dict, wavelengths_nm) -> dict:
-    """``{name: SpectralBRDF}`` for a run's BRDFs at ``wavelengths_nm`` (``settings``: its
-    ``moon_model`` and ``params``)."""
-    return {k: SpectralBRDF(b, parameters_at(settings.moon_model, k, wavelengths_nm,
-                                             (settings.params or {}).get(k), grey_model=b))
+def spectral_brdfs(inputs: SpectralInputs, brdfs: dict) -> dict:
+    """``{name: SpectralBRDF}`` for a run's grey BRDF models ``brdfs`` at the request's node
+    wavelengths (the preset and overrides of ``inputs``)."""
+    return {k: SpectralBRDF(b, parameters_at(inputs.moon_model, k, inputs.request.nodes, inputs.params.get(k),
+                                             grey_model=b))
             for k, b in brdfs.items()}
 
 
@@ -146,7 +147,7 @@ def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> 
         for alb, weight in factors:
             a = None
             if alb is not None:
-                from lunarviz.bodies.surfaces import map_scale
+                from lunarviz.surfaces.moon_map import map_scale
                 k = 1.0 if absolute else sb.contrast[ll]
                 a = np.clip((k * alb + (1.0 - k)) * map_scale(absolute, m), 0.0, 1.0)[:, None]
             rf = m.radiance_factor(tr.mu0, tr.mu[:, None], tr.sin_hg, tr.cos_hg, albedo=a)
@@ -163,7 +164,7 @@ class SpectralShader:
     """Detector irradiances of one run's BRDFs at its node wavelengths, from transports.
 
     ``earth_parts``: the surface components' names in the order of a transport's
-    ``e_beam_parts`` (:mod:`lunarviz.spectral.earth`)."""
+    ``e_beam_parts`` (:mod:`lunarviz.surfaces.earth_spectra`)."""
 
     def __init__(self, brdfs: dict):
         self.brdfs = brdfs  # {name: SpectralBRDF}

@@ -1,6 +1,6 @@
 """Conversion of lunarviz results to PyVista meshes, and the VTK/PLY writers of per-facet results.
 
-The core (:mod:`lunarviz.outputs.facets`) computes the arrays; only this module knows PyVista.
+The core (:mod:`lunarviz.methods.tracer.facets`) computes the arrays; only this module knows PyVista.
 """
 
 from __future__ import annotations

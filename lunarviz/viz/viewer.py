@@ -12,20 +12,42 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.viz.views import build_plotter, compute_view_data, populate
+from lunarviz.viz.view_data import ComputeView
+from lunarviz.viz.views import build_plotter, populate
 
 BRDF_BUTTONS = ("lambert", "shg", "dhg")
 
 
 class Viewer:
-    def __init__(self, settings, theta: float, brdf: str, size=(1600, 900), off_screen=False):
-        self.settings = settings
-        #: the task key: θ [deg], or a UTC time label when ``settings.times`` is set
-        self.theta = theta if settings.times else float(theta)
+    """The desktop viewer of one scene.
+
+    Parameters
+    ----------
+    compute : callable
+        ``compute(key, brdf)`` → :class:`~lunarviz.viz.view_data.ViewData` of a task.
+    theta : float or str
+        The task shown first: θ [deg], or one of ``times``.
+    brdf : str
+        The BRDF shown first.
+    times : tuple of str, optional
+        The UTC times a dated scene steps through (its slider is then a time index).
+    size : (int, int)
+        Window size [pixels].
+    off_screen : bool
+        Render without a window (tests, screenshots).
+    """
+
+    def __init__(self, compute: ComputeView, theta, brdf: str, times: tuple | None = None, size=(1600, 900),
+                 off_screen=False):
+        self.compute = compute
+        #: the UTC times of a dated scene (``None``: the θ scene)
+        self.times = tuple(times) if times else None
+        #: the task key: θ [deg], or a UTC time label of a dated scene
+        self.theta = theta if self.times else float(theta)
         self.brdf = brdf
         self.size = size
         self.off_screen = off_screen
-        self.data = compute_view_data(settings, self.theta, brdf)
+        self.data = compute(self.theta, brdf)
         self.plotter = build_plotter(self.data, "composite", size, off_screen=off_screen)
         self.picked: dict | None = None
         self._add_controls()
@@ -39,8 +61,8 @@ class Viewer:
         self._refresh()
 
     def set_time_index(self, index: int):
-        """Show the ``index``-th of the settings' UTC times (real-sky viewer)."""
-        times = self.settings.times
+        """Show the ``index``-th of the scene's UTC times (real-sky viewer)."""
+        times = self.times
         key = times[int(np.clip(index, 0, len(times) - 1))]
         if key != self.theta:
             self.theta = key
@@ -66,7 +88,7 @@ class Viewer:
 
     # ---- internals ---------------------------------------------------------------------------
     def _refresh(self):
-        self.data = compute_view_data(self.settings, self.theta, self.brdf)
+        self.data = self.compute(self.theta, self.brdf)
         pl = self.plotter
         for title in list(pl.scalar_bars.keys()):
             pl.remove_scalar_bar(title, render=False)
@@ -78,7 +100,7 @@ class Viewer:
         # slider showing the phase (or time index) now drawn
         widgets = getattr(pl, "widgets", pl)
         for widget in list(widgets.slider_widgets):
-            value = self.settings.times.index(self.theta) if self.settings.times else self.theta
+            value = self.times.index(self.theta) if self.times else self.theta
             widget.GetRepresentation().SetValue(float(value))
         for widget in list(widgets.slider_widgets) + list(widgets.button_widgets):
             widget.Off()
@@ -95,10 +117,10 @@ class Viewer:
     def _add_controls(self):
         pl = self.plotter
         pl.subplot(1, 0)
-        if self.settings.times:
-            n = len(self.settings.times)
+        if self.times:
+            n = len(self.times)
             pl.add_slider_widget(lambda v: self.set_time_index(round(v)), [0.0, max(n - 1, 1e-9)],
-                                 value=self.settings.times.index(self.theta), title="time index",
+                                 value=self.times.index(self.theta), title="time index",
                                  pointa=(0.32, 0.11), pointb=(0.95, 0.11), style="modern",
                                  interaction_event="end", color="white")
         else:
@@ -112,8 +134,8 @@ class Viewer:
         if not self.off_screen:
             pl.enable_cell_picking(callback=self._on_pick, through=False, show=False, show_message=False,
                                    start=False)
-        if self.settings.times:
-            times = self.settings.times
+        if self.times:
+            times = self.times
             pl.add_key_event("Right", lambda: self.set_time_index(times.index(self.theta) + 1))
             pl.add_key_event("Left", lambda: self.set_time_index(times.index(self.theta) - 1))
         else:
@@ -129,6 +151,6 @@ class Viewer:
         self.plotter.show(title="lunarviz", **kw)
 
 
-def run_viewer(settings, theta, brdf, size=(1600, 900)):
-    """Open the desktop viewer at phase θ [deg] (or a UTC time with ``settings.times``)."""
-    Viewer(settings, theta, brdf, size=size).show()
+def run_viewer(compute: ComputeView, theta, brdf, times=None, size=(1600, 900)):
+    """Open the desktop viewer at phase θ [deg] (or at one of a dated scene's ``times``)."""
+    Viewer(compute, theta, brdf, times, size=size).show()

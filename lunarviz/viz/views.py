@@ -23,14 +23,13 @@ ocean, clouds) and its radiance toward the Moon, with the earthshine-weighted al
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pyvista as pv
 
 from lunarviz.errors import LunarvizError
-from lunarviz.outputs.facets import FacetResult, sample_ray_paths, trace_facets
+from lunarviz.methods.tracer.facets import FacetResult
 from lunarviz.viz.meshio import facet_polydata
+from lunarviz.viz.view_data import ComputeView, ViewData
 from lunarviz.viz.render_window import choose_render_window
 
 VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
@@ -39,51 +38,6 @@ LOG_RANGE = 1e7
 #: Colour levels of every colour map: 256 levels over the six decades of a log scale drew false
 #: contour rings across the disc
 N_COLORS = 2048
-
-
-@dataclass
-class ViewData:
-    facets: FacetResult
-    rays: dict
-    numbers: dict
-
-
-def compute_view_data(settings, theta: float, brdf: str) -> ViewData:
-    """Trace one phase and collect everything a view shows."""
-    from dataclasses import replace
-
-    from lunarviz.methods.analytic import analytic_irradiance
-    from lunarviz.photometry import albedo_inversion as alb
-    settings = replace(settings, brdfs=(brdf,))
-    fr = trace_facets(settings, theta, brdf)
-    sc, fields = settings.scene_and_fields(theta)
-    ms, es = fr.totals["moonshine_W_m2"], fr.totals["earthshine_W_m2"]
-    model = settings.brdf_models()
-    pt = analytic_irradiance(sc, model, replace(settings.analytic_settings(), grid="converged",
-                                                earth_law="lambert"))[brdf]
-    # inversions assume the uniform model Earth of earth_albedo (as the sweep's rows): a mapped
-    # Earth never calibrates its own inversion; both terms come from unit-albedo transports
-    a0 = settings.earth_albedo
-    uniform = settings.earth_uniform
-    pt_model = pt.earthshine_W_m2 if uniform else a0 * pt.earthshine_unit_W_m2
-    es_model = es if uniform else a0 * fr.totals["earthshine_unit_W_m2"]
-    terms_pt = alb.lunar_terms(sc, pt_model, pt.moonshine_W_m2, a0)
-    terms = alb.lunar_terms(sc, es_model, ms, a0)
-    numbers = {
-        **fields, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg, "brdf": brdf,
-        "method": f"raytrace ({fr.info['estimator']}, occlusion {'on' if fr.info['occlusion'] else 'off'})",
-        "moonshine_W_m2": ms, "earthshine_W_m2": es,
-        "ratio": es / ms if ms > 0 else float("nan"),
-        "apparent_albedo": alb.apparent_albedo(sc.beta_deg, alb.geometric_albedo_term(sc, es, ms, terms)),
-        "apparent_albedo_point_inversion": alb.apparent_albedo(
-            sc.beta_deg, alb.geometric_albedo_term(sc, es, ms, terms_pt)),
-        "point_source_earthshine_W_m2": pt.earthshine_W_m2,
-        "rays": fr.totals["rays"],
-        "earth_visible_lit_albedo": fr.totals.get("earth_visible_lit_albedo", float("nan")),
-        "error_note": "deterministic: error <= 2e-4 vs exact reference (benchmarks/)"
-        if fr.info["estimator"] == "deterministic" else "Monte Carlo: see std in sweep",
-    }
-    return ViewData(fr, sample_ray_paths(settings, theta, n=10), numbers)
 
 
 def numbers_text(n: dict) -> str:
@@ -481,11 +435,10 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
     return pl
 
 
-def render_image(settings, key, brdf, view="composite", size=(1600, 900), out=None) -> np.ndarray:
-    """One offscreen picture (RGB, height × width × 3) of phase θ or UTC time ``key``; also
-    written as PNG to ``out`` (atomically) when given."""
+def render_image(data: ViewData, view="composite", size=(1600, 900), out=None) -> np.ndarray:
+    """One offscreen picture (RGB, height × width × 3) of what ``data`` holds; also written as PNG
+    to ``out`` (atomically) when given."""
     from lunarviz.outputs.writers import write_bytes_atomic
-    data = compute_view_data(settings, key, brdf)
     pl = build_plotter(data, view, size, off_screen=True)
     pl.render()
     img = np.asarray(pl.screenshot(return_img=True))
@@ -495,9 +448,10 @@ def render_image(settings, key, brdf, view="composite", size=(1600, 900), out=No
     return img
 
 
-def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900), gif=None,
+def render_frames(compute: ComputeView, phases, brdf, out, view="composite", size=(1600, 900), gif=None,
                   progress=False) -> list:
-    """Render one PNG per phase (``out`` itself for one phase, else ``out_000.png`` …)."""
+    """Render one PNG per phase or date (``out`` itself for one, else ``out_000.png`` …), each from
+    ``compute(key, brdf)``."""
     from pathlib import Path
 
     from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, write_bytes_atomic
@@ -512,7 +466,7 @@ def render_frames(settings, phases, brdf, out, view="composite", size=(1600, 900
     images = []
     with StagedFiles() as staged:  # every frame (and the GIF) or none
         for k, th in enumerate(it):
-            images.append(render_image(settings, th, brdf, view=view, size=size, out=staged.stage(targets[k])))
+            images.append(render_image(compute(th, brdf), view=view, size=size, out=staged.stage(targets[k])))
             files.append(targets[k])
         if gif:
             import io

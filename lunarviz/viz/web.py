@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.viz.views import build_plotter, compute_view_data, numbers_text, populate
+from lunarviz.viz.view_data import ComputeView
+from lunarviz.viz.views import build_plotter, numbers_text, populate
 
 BRDFS = ("lambert", "shg", "dhg")
 
@@ -25,12 +26,10 @@ def _refresh(pl, data) -> None:
     pl.render()
 
 
-def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
-    """A trame server showing ``settings`` at phase θ or UTC time ``key``; returns
-    ``(server, plotter)``. ``server.state.phase`` (θ [deg], or the time's index) and
-    ``server.state.brdf`` drive it."""
-    from dataclasses import replace
-
+def build_app(compute: ComputeView, key, brdf: str, times: tuple | None = None, size=(1600, 900), server=None):
+    """A trame server showing task ``key`` (θ [deg], or one of a dated scene's ``times``) as
+    ``compute(key, brdf)`` gives it; returns ``(server, plotter)``. ``server.state.phase`` (θ
+    [deg], or the time's index) and ``server.state.brdf`` drive it."""
     from trame.app import get_server
     from trame.ui.vuetify3 import SinglePageLayout
     from trame.widgets import html
@@ -39,8 +38,8 @@ def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
 
     server = server or get_server("lunarviz", client_type="vue3")
     state, ctrl = server.state, server.controller
-    times = settings.times
-    data = compute_view_data(replace(settings, brdfs=(brdf,)), key, brdf)
+    times = tuple(times) if times else None
+    data = compute(key, brdf)
     pl = build_plotter(data, "composite", size, off_screen=True)
     state.phase = times.index(key) if times else float(key)
     state.brdf = brdf
@@ -51,7 +50,7 @@ def build_app(settings, key, brdf: str, size=(1600, 900), server=None):
     def _update(phase, brdf, **_):
         k = times[int(np.clip(round(float(phase)), 0, len(times) - 1))] if times else float(np.clip(phase, 0, 180))
         state.busy = True
-        new = compute_view_data(replace(settings, brdfs=(brdf,)), k, brdf)
+        new = compute(k, brdf)
         _refresh(pl, new)
         state.numbers = numbers_text(new.numbers)
         state.busy = False
@@ -96,7 +95,8 @@ def cap_client_messages() -> None:
     chunking.UnChunker.set_max_message_size = capped
 
 
-def serve(settings, key, brdf: str, host: str = "127.0.0.1", port: int = 0, size=(1600, 900)):
+def serve(compute: ComputeView, key, brdf: str, times: tuple | None = None, host: str = "127.0.0.1", port: int = 0,
+          size=(1600, 900)):
     """Serve the viewer until interrupted (port 0: a free port, printed at start).
 
     Each run has its own random secret, printed in the URL it serves (``?secret=...``); a
@@ -107,7 +107,7 @@ def serve(settings, key, brdf: str, host: str = "127.0.0.1", port: int = 0, size
     import warnings
 
     from lunarviz.errors import LunarvizWarning
-    server, _ = build_app(settings, key, brdf, size=size)
+    server, _ = build_app(compute, key, brdf, times, size=size)
     cap_client_messages()
     secret = secrets.token_urlsafe(24)
     server.cli.set_defaults(authKey=secret, authKeyFile=None)  # trame configures wslink from these

@@ -171,8 +171,9 @@ def _bench_throughput(models) -> dict:
                 "bounding-sphere test answers); the rest of the time is numpy: quadrature rules, geometry, "
                 "shading. Sweeps parallelise over phases in processes instead (see sweep_speedup).",
     }
-    from lunarviz.workflows.sweeps import SweepSettings, run_sweep
-    six = SweepSettings(method="raytrace", phases_deg=(20.0, 50.0, 80.0, 110.0, 140.0, 170.0))
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_sweep
+    six = ResolvedScene(method="raytrace", phases_deg=(20.0, 50.0, 80.0, 110.0, 140.0, 170.0))
     _, t_w1 = _timed(lambda: run_sweep(six, workers=1))
     _, t_w2 = _timed(lambda: run_sweep(six, workers=2))
     throughput["sweep_speedup_2_processes"] = {"seconds_1_worker": t_w1, "seconds_2_workers": t_w2,
@@ -219,10 +220,11 @@ def _bench_skips(models) -> dict:
 def _bench_targets(models, quick) -> dict:
     """The speed targets: the paper sweep, the analytic sweep, Monte Carlo at 0.2 %."""
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
-    from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_sweep
     targets = {}
     if not quick:
-        sw = SweepSettings(method="raytrace", occlusion=False)
+        sw = ResolvedScene(method="raytrace", occlusion=False)
         t = time.perf_counter()
         traced = run_sweep(sw)
         t_trace = time.perf_counter() - t
@@ -234,7 +236,7 @@ def _bench_targets(models, quick) -> dict:
         targets["paper_sweep_raytrace"] = {"seconds": t_trace, "max_relative_error_5_175": float(max(errs)),
                                            "phases": 37, "brdfs": 3, "workers": os.cpu_count(),
                                            "target": "<= 60 s at <= 0.1 %"}
-    _, t_an = _timed(lambda: run_sweep(SweepSettings()), 3)
+    _, t_an = _timed(lambda: run_sweep(ResolvedScene()), 3)
     targets["analytic_sweep_seconds"] = {"seconds": t_an, "target": "<= 1 s"}
     mc = {}
     for path, n in (("moonshine", 50_000), ("earthshine", 50_000), ("earthshine", 120_000)):
@@ -258,9 +260,10 @@ def _bench_render() -> dict:
         import sys
         import tempfile
 
+        from lunarviz.scene import ResolvedScene
         from lunarviz.viz import views
-        from lunarviz.workflows.sweeps import SweepSettings
-        data, t_data = _timed(lambda: views.compute_view_data(SweepSettings(method="raytrace"), 90.0, "dhg"))
+        from lunarviz.workflows.tasks import view_data
+        data, t_data = _timed(lambda: view_data(ResolvedScene(method="raytrace"), 90.0, "dhg"))
 
         def frame():
             pl = views.build_plotter(data, "composite", (1024, 768))

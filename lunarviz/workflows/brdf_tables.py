@@ -41,9 +41,9 @@ def lunar_rows(model, inc, emi, azi) -> list[dict]:
 
 def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True, params: dict | None = None
                ) -> tuple[list[dict], dict]:
-    """Rows of the Earth's class ``surface`` (:func:`lunarviz.earth_optics.surfaces.surface_from_name`)
+    """Rows of the Earth's class ``surface`` (:func:`lunarviz.earth_optics.classes.surface_from_name`)
     at each wavelength [nm], and the settings that made them."""
-    from lunarviz.earth_optics.surfaces import earth_params, surface_from_name, toa_reflectance
+    from lunarviz.earth_optics.classes import earth_params, surface_from_name, toa_reflectance
     if "wavelength_nm" in (params or {}):
         raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
     p = earth_params(params)

@@ -10,11 +10,15 @@ from dataclasses import replace
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.instrument.budget import halo_shape_sigma, systematics, with_budget
+from lunarviz.instrument import budget
+from lunarviz.instrument.budget import halo_shape_sigma, with_budget
 from lunarviz.instrument.detector import frames as draw_frames
-from lunarviz.instrument.observation import instrument_settings, observe
-from lunarviz.instrument.pipeline import calibrate, measure
+from lunarviz.instrument.observation import Observation, check_exposure, instrument_camera, observe
+from lunarviz.instrument.pipeline import Calibration, calibrate, measure
+from lunarviz.instrument.response import instrument_request
 from lunarviz.instrument.spec import Instrument, instrument_from_dict
+from lunarviz.spectral.bands import parse_band
+from lunarviz.workflows import tasks
 
 #: the most simulated measurements in one run
 MAX_SIMULATIONS = 100_000
@@ -25,11 +29,75 @@ MAX_FRAMES = 10_000
 SATURATION_SIGMAS = 5.0
 
 
-def _calibration(settings, key, inst: Instrument, obs):
+def instrument_scene(scene, inst: Instrument):
+    """The scene an instrument images: one lunar BRDF, in the instrument's band."""
+    if len(scene.brdfs) != 1:
+        raise LunarvizError(f"an instrument images one lunar BRDF: got {','.join(scene.brdfs)} (give one --brdf)")
+    if scene.wavelengths is not None:
+        raise LunarvizError("--instrument images in its own band: drop --wavelengths")
+    if scene.bands is not None and str(scene.bands).strip() != inst.band:
+        raise LunarvizError(f"--band {scene.bands!r} differs from the instrument's band {inst.band!r}")
+    return replace(scene, bands=inst.band)
+
+
+def observation(scene, key, inst: Instrument, exposure_s: float | None = None, trace_scene=None) -> Observation:
+    """The noise-free observation by ``inst`` of task ``key`` (θ [deg] or a UTC time) of ``scene``:
+    its camera's image in its band and photon band, then the optics, atmosphere and mask
+    (:func:`lunarviz.instrument.observation.observe`)."""
+    t = check_exposure(inst, exposure_s)
+    scene = instrument_scene(scene, inst)
+    res = tasks.image(scene, key, instrument_camera(inst), instrument_request(inst, scene.solar_spectrum),
+                      trace_scene)
+    return observe(res, scene.geometry(key), scene.brdfs[0], inst, t)
+
+
+def model_earth_scene(scene):
+    """``scene`` with the uniform Lambert Earth of its ``earth_albedo``: what the pipeline's model
+    (and every inversion) assumes."""
+    return replace(scene, earth_surface="uniform", clouds="none", earth_brdf="lambert",
+                   params={k: v for k, v in scene.params.items() if k != "earth"})
+
+
+def calibration(scene, key, inst: Instrument, exposure_s: float, rates: dict | None = None) -> Calibration:
+    """The pipeline's model of an observation of task ``key``: the model Earth's image
+    (``rates``: its photoelectron rates before the optics, when the caller has them)."""
+    scene = instrument_scene(scene, inst)
+    model = model_earth_scene(scene)
+    if rates is None:
+        rates = observation(model, key, inst, exposure_s).raw_rates
+    return calibrate(model.geometry(key), inst, exposure_s, rates, scene.earth_albedo, key)
+
+
+def observation_calibration(settings, key, inst: Instrument, obs):
     """The pipeline's model of an observation; the observation's own rates when its Earth is the
     calibration's (a uniform Lambert Earth), saving a second image."""
     uniform = settings.earth_surface == "uniform" and settings.clouds == "none"
-    return calibrate(settings, key, inst, obs.exposure_s, rates=obs.raw_rates if uniform else None)
+    return calibration(settings, key, inst, obs.exposure_s, rates=obs.raw_rates if uniform else None)
+
+
+def band_sigma(scene, key, inst: Instrument) -> float:
+    """Relative σ of p* from the band centre's uncertainty (:mod:`lunarviz.instrument.budget`): the
+    model Earth's p*(λ) from analytic sweeps ``BAND_STEP_NM`` either side of the band's centre."""
+    from lunarviz.workflows.sweeps import run_sweep
+    if inst.band_centre_sigma_nm == 0:
+        return 0.0
+    c = parse_band(inst.band).centre_nm
+    step = budget.BAND_STEP_NM
+    model = replace(scene, method="analytic", earth_surface="landocean", clouds="zonal", bands=None,
+                    wavelengths=f"{c - step:.6f},{c + step:.6f}", earth_spectra="surface",
+                    phases_deg=(float(key),) if scene.times is None else scene.phases_deg,
+                    times=None if scene.times is None else (str(key),))
+    rows = [r for r in run_sweep(model, progress=False)["rows"] if r["brdf"] == scene.brdfs[0]]
+    p = {r["wavelength_nm"]: r["apparent_albedo"] for r in rows}
+    return budget.band_slope_sigma(p[min(p)], p[max(p)], inst)
+
+
+def systematics(scene, key, cal: Calibration, fit_path=None) -> dict:
+    """The pointing's systematic terms, relative (multiply by p*; :mod:`lunarviz.instrument.budget`)."""
+    geometry = scene.geometry(key)
+    conventions = {"h_function": scene.h_function, "dhg_convention": scene.dhg_convention}
+    lunar = budget.lunar_model_sigma(scene.brdfs[0], conventions, geometry, cal, fit_path)
+    return budget.systematics(lunar, geometry, cal, band_sigma(scene, key, cal.instrument))
 
 
 def sweep_p_star(settings, key, inst: Instrument, photon: bool = True) -> float:
@@ -43,7 +111,7 @@ def sweep_p_star(settings, key, inst: Instrument, photon: bool = True) -> float:
 
     from lunarviz.instrument.response import photon_band, write_band_csv
     from lunarviz.workflows.sweeps import run_sweep
-    s = instrument_settings(settings, inst)
+    s = instrument_scene(settings, inst)
     s = replace(s, method="raytrace", phases_deg=(float(key),) if s.times is None else s.phases_deg,
                 times=None if s.times is None else (str(key),))
     if not photon:
@@ -76,10 +144,10 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
     n = check_count(n, "--simulate", MAX_SIMULATIONS)
     frames = check_count(frames, "--frames-per-measurement", MAX_FRAMES)
     seed = check_seed(seed)
-    obs = observe(settings, key, inst, exposure_s)
-    cal = _calibration(settings, key, inst, obs)
+    obs = observation(settings, key, inst, exposure_s)
+    cal = observation_calibration(settings, key, inst, obs)
     noiseless = measure(obs.expected_counts, 1, cal)
-    rel = systematics(instrument_settings(settings, inst), key, cal, lunar_fit)
+    rel = systematics(instrument_scene(settings, inst), key, cal, lunar_fit)
     halo_rel = halo_shape_sigma(obs.expected_counts, 1, cal, noiseless["p_star"])
     truth = sweep_p_star(settings, key, inst)
     it = range(n)
@@ -110,11 +178,11 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
 def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
     """Measure the frames of a ``lunarviz image --instrument`` FITS file (``use_expected``: its
     noise-free ``EXPECTED_COUNTS``)."""
-    from lunarviz.outputs.count_frames import read_frames
-    from lunarviz.workflows.sweeps import SweepSettings
+    from lunarviz.instrument.frames import read_frames
+    from lunarviz.scene import ResolvedScene
     fr = read_frames(path, use_expected)
     try:
-        settings = SweepSettings.from_dict(fr.settings)
+        settings = ResolvedScene.from_dict(fr.settings)
         inst = instrument_from_dict(fr.instrument, f"{str(path)!r} instrument")
         key = fr.key if settings.times is not None else float(fr.key)
         if not (isinstance(key, str) or np.isfinite(key)):
@@ -125,14 +193,14 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
         raise LunarvizError(f"{str(path)!r}: its LVSETTNG, LVINSTR, LVKEY or EXPTIME card is damaged ({msg})") from None
     if not (np.isfinite(exposure) and exposure > 0):
         raise LunarvizError(f"{str(path)!r}: EXPTIME = {exposure!r} is not a positive exposure")
-    cal = calibrate(settings, key, inst, exposure)
+    cal = calibration(settings, key, inst, exposure)
     if fr.counts is None:
         mean, n = fr.expected, 1
     else:
         n = fr.counts.shape[0]
         mean = np.mean(fr.counts, axis=0, dtype=float)
     row = measure(mean, n, cal, None if fr.counts is None else fr.counts.max(axis=0))
-    rel = systematics(instrument_settings(settings, inst), key, cal, lunar_fit)
+    rel = systematics(instrument_scene(settings, inst), key, cal, lunar_fit)
     row = with_budget(row, rel, halo_shape_sigma(mean, n, cal, row["p_star"]))
     if fr.counts is not None and n >= 2:
         # the earthlit patch frame by frame: the scatter of its mean count is the single-frame noise
@@ -151,10 +219,10 @@ def plan(settings, key, inst: Instrument, snr: float, obs=None, cal=None) -> dic
     calibration, when the caller has them."""
     if not (np.isfinite(snr) and 0 < snr <= 1e6):
         raise LunarvizError(f"--snr {snr!r} must be a positive number (at most 1e6)")
-    from lunarviz.instrument.observation import instrument_camera, optics_kernels
-    from lunarviz.outputs.images import apply_optics
-    obs = obs if obs is not None else observe(settings, key, inst, 1.0)
-    cal = cal if cal is not None else _calibration(settings, key, inst, obs)
+    from lunarviz.instrument.observation import optics_kernels
+    from lunarviz.instrument.optics import apply_optics
+    obs = obs if obs is not None else observation(settings, key, inst, 1.0)
+    cal = cal if cal is not None else observation_calibration(settings, key, inst, obs)
     E = cal.patches.earthlit
     n = int(E.sum())
     psf, _ = optics_kernels(inst, instrument_camera(inst))

@@ -251,12 +251,30 @@ def _max_sigma(mc: dict, ref: dict, key: str, theta_min=5.0, theta_max=175.0) ->
     return z
 
 
+def _screenshots(scene, out, phases) -> list:
+    """The composite view of ``scene`` (DHG) at each of ``phases`` as ``view_thetaNNN.png``; the
+    names written, or why none could be (a machine without OpenGL still gets every number)."""
+    from functools import partial
+
+    from lunarviz.workflows.tasks import view_data
+    shots = []
+    try:
+        from lunarviz.viz.views import render_frames
+        for th in phases:
+            shots += [str(p.name) for p in render_frames(partial(view_data, scene), [th], "dhg",
+                                                         out / f"view_theta{int(th):03d}.png", size=(1600, 900))]
+    except Exception as exc:  # noqa: BLE001 (no OpenGL: the numbers stand without the pictures)
+        shots.append(f"screenshots failed: {type(exc).__name__}: {exc}")
+    return shots
+
+
 def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "local",
               scheduler: str | None = None) -> dict:
     from lunarviz.outputs.writers import write_bytes_atomic
     from lunarviz.photometry.brdf import make_brdf
     from lunarviz.workflows.brdf_test import BrdfTestSettings, run_brdf_test
-    from lunarviz.workflows.sweeps import SweepSettings, run_sweep
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_sweep
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -284,7 +302,7 @@ def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "
     timings["brdf_test_s"] = time.perf_counter() - t
     step("BRDF test")
 
-    base = SweepSettings(brdfs=BRDFS, phases_deg=phases)
+    base = ResolvedScene(brdfs=BRDFS, phases_deg=phases)
     sweeps = {}
     for key, s in (
         ("analytic", replace(base, method="analytic")),
@@ -303,14 +321,7 @@ def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "
     fig6_albedo(out, sweeps)
     step("figures")
 
-    shots = []
-    try:
-        from lunarviz.viz.views import render_frames
-        for th in ((60.0,) if quick else (30.0, 90.0, 150.0)):
-            shots += [str(p.name) for p in render_frames(replace(base, method="raytrace"), [th], "dhg",
-                                                         out / f"view_theta{int(th):03d}.png", size=(1600, 900))]
-    except Exception as exc:  # a machine without OpenGL still gets every number
-        shots.append(f"screenshots failed: {type(exc).__name__}: {exc}")
+    shots = _screenshots(replace(base, method="raytrace"), out, (60.0,) if quick else (30.0, 90.0, 150.0))
     step("screenshots")
     if bar:
         bar.close()

@@ -6,7 +6,7 @@ values are :class:`~lunarviz.spectral.request.SpectralRequest` outputs of the no
 :class:`~lunarviz.spectral.shading.SpectralShader`. Each row's apparent albedo is Eq. 15-16 with
 lunar terms at its own wavelength (or band: solar-weighted over it), from a calibration transport
 of the model Earth (uniform, ``earth_albedo``) as in the grey run. The Earth's spectral albedo
-enters through its components (:mod:`lunarviz.spectral.earth`). Monte Carlo rows carry the mean
+enters through its components (:mod:`lunarviz.surfaces.earth_spectra`). Monte Carlo rows carry the mean
 over runs, without the per-wavelength standard deviations of the grey rows.
 """
 
@@ -19,7 +19,7 @@ import numpy as np
 
 from lunarviz.methods import accuracy
 from lunarviz.photometry import albedo_inversion as alb
-from lunarviz.spectral.earth import spectral_components, weights_toward
+from lunarviz.surfaces.earth_spectra import spectral_components, weights_toward
 from lunarviz.spectral.shading import SpectralShader, spectral_brdfs
 
 
@@ -45,9 +45,9 @@ def spectral_rows(settings, sc, base: dict, threads=None) -> list[dict]:
 def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
     req = settings.spectral_request()
     brdfs = settings.brdf_models()
-    shader = SpectralShader(spectral_brdfs(settings, brdfs, req.nodes))
-    surface = settings.surfaces().earth if settings.surfaces() is not None else None
-    mapped = surface is not None and not surface.uniform
+    shader = SpectralShader(spectral_brdfs(settings.spectral_inputs(req), brdfs))
+    surface = settings.earth_model()
+    mapped = not surface.uniform
     names, albedo = spectral_components(surface, req.nodes, settings.earth_spectra) if mapped else (("uniform",), None)
     a0 = settings.earth_albedo
     extra: dict = {}
@@ -59,7 +59,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         unit = shader.earthshine(es_tr)  # (1, L): a point Earth of albedo 1
         if mapped:  # the point Earth's components, weighted toward the Moon as its albedo is
             if surface.physical:  # one component per node: the disc's reflectance toward the Moon there
-                from lunarviz.bodies.physical_earth import albedo_toward_moon
+                from lunarviz.surfaces.physical_earth import albedo_toward_moon
                 w = albedo_toward_moon(st.surfaces, sc, req.nodes)
             else:
                 w = weights_toward(st.surfaces, sc, sc.moon)
@@ -74,7 +74,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_es = shader.earthshine(earthshine_transport(sc, cal_st))
         uniform_albedo = a0
         method_fields = {"method": "analytic"}
-        extra["rtol"] = float("nan") if settings._mapped_moon() or not settings.modelled() \
+        extra["rtol"] = float("nan") if settings.mapped_moon() or not settings.modelled() \
             else accuracy.analytic_bound(st.order)
     else:
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
@@ -93,7 +93,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_ms, cal_es = ms, es
         else:  # the model Earth (the nominal sphere, uniform): as the grey run's calibration
             dts = TraceScene(sc, accuracy.calibration_settings(ts_set, settings.moon_level is not None,
-                                                               settings._mapped_moon()))
+                                                               settings.mapped_moon()))
             cal_m = trace_path(dts, "moonshine", brdfs, spectral=shader).spectral  # one trace each, all BRDFs
             cal_e = trace_path(dts, "earthshine", brdfs, spectral=shader).spectral
             cal_ms = {k: cal_m.get(k, zeros) for k in brdfs}

@@ -100,7 +100,7 @@ def _albedo_scale(ts: TraceScene, brdfs: dict) -> float:
     being shaded that are not linear in it (the largest: its reflectance's branch point at w = 1
     is the nearest), for the mapped lune rule's albedo nodes in γ = √(1 - w); 0 (nodes in the map's
     value) without a map or such a BRDF, or in a spectral run (whose w varies with wavelength)."""
-    from lunarviz.bodies.surfaces import map_scale
+    from lunarviz.surfaces.moon_map import map_scale
     amap = ts.settings.moon_map()
     if amap is None:
         return 0.0

@@ -148,7 +148,8 @@ class LunarSampling:
         if sub == 1 or len(faces) == 0:
             mean, sd = (a[faces] for a in self.moon_facet_albedo(spread=True))
         else:
-            from lunarviz.bodies.surfaces import map_frame, moon_facet_values
+            from lunarviz.surfaces.maps import map_frame
+            from lunarviz.surfaces.moon_map import moon_facet_values
             M = self.moon
             _, tri_b = sub_barycentric(sub)
             corners = np.einsum("svk,fkj->fsvj", tri_b, M.vertices[M.faces[np.asarray(faces, dtype=np.int64)]])
@@ -182,7 +183,7 @@ class LunarSampling:
         once per body; ``None`` where its blocks are not smooth patches (the facets then)."""
         key = (body, self.rough_brdf and body == "sun", self.albedo_scale)
         if key not in self._mapped_lune_cache:
-            from lunarviz.bodies.surfaces import map_frame
+            from lunarviz.surfaces.maps import map_frame
             from lunarviz.geometry.mapped_lune import mapped_lune_rule
             c, R, _ = self._source(body)
             s = self.settings

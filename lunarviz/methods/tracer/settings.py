@@ -89,8 +89,8 @@ class TraceSettings:
         return _parsed_moon_map(self.moon_albedo_map, file_key(src) if src.is_file() else None)
 
     def surface(self):
-        """The Earth's :class:`~lunarviz.bodies.surfaces.EarthSurface`."""
-        from lunarviz.bodies.surfaces import EarthSurface
+        """The Earth's :class:`~lunarviz.surfaces.earth_surface.EarthSurface`."""
+        from lunarviz.surfaces.earth_surface import EarthSurface
         return EarthSurface.from_options(self)
 
     def __post_init__(self):
@@ -132,7 +132,7 @@ def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None =
 def _parsed_moon_map(text: str, key: tuple | None):
     """:meth:`MoonAlbedoMap.parse` of ``text`` (``key``: the file's :func:`file_key`, where the whole
     text names a file): parsed and checked once, not at every one of a trace's many calls."""
-    from lunarviz.bodies.surfaces import MoonAlbedoMap
+    from lunarviz.surfaces.moon_map import MoonAlbedoMap
     return MoonAlbedoMap.parse(text)
 
 

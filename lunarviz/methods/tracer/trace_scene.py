@@ -77,7 +77,7 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         self.rough_brdf = False
         self.albedo_scale = 0.0  # from the lunar map to the shaded BRDFs' w (trace_path sets both)
         self._moon_albedo = self._earth_albedo = None
-        #: a spectral run's Earth components (:func:`lunarviz.spectral.earth.components`): the
+        #: a spectral run's Earth components (:func:`lunarviz.surfaces.earth_spectra.components`): the
         #: mapped Earth's transports then carry one beam array each (``e_beam_parts``)
         self.earth_parts: tuple | None = None
         #: a physical Earth's spectral run: the node wavelengths [nm] its components are
@@ -86,7 +86,7 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
 
     # ---- surfaces ----------------------------------------------------------------------------
     def moon_facet_albedo(self, spread: bool = False):
-        """Per-facet values of the lunar albedo map (area averages, :mod:`lunarviz.bodies.surfaces`),
+        """Per-facet values of the lunar albedo map (area averages, :mod:`lunarviz.surfaces.maps`),
         or ``None`` without a map; ``spread``: ``(mean, std)`` over each facet."""
         amap = self.settings.moon_map()
         if amap is None:
@@ -96,11 +96,12 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         return self._moon_albedo if spread else self._moon_albedo[0]
 
     def moon_map_values(self):
-        """(mean, std) of the lunar map over each facet (:func:`lunarviz.bodies.surfaces.moon_facet_values`
+        """(mean, std) of the lunar map over each facet (:func:`lunarviz.surfaces.moon_map.moon_facet_values`
         over the whole mesh). On dates the Moon's mesh turns with the Moon, so a facet covers the
         same part of the map at every date: the values are kept per map, mesh and frame for the
         process (:data:`MOON_MAP_VALUES`), and a time series computes them once."""
-        from lunarviz.bodies.surfaces import map_frame, moon_facet_values
+        from lunarviz.surfaces.maps import map_frame
+        from lunarviz.surfaces.moon_map import moon_facet_values
         from lunarviz.caches import file_key, mesh_digest
         M, amap = self.moon, self.settings.moon_map()
         frame = map_frame(self.scene, "moon")
@@ -122,10 +123,10 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         if surf.uniform:
             return None
         if self._earth_albedo is None:
-            from lunarviz.bodies.surfaces import map_frame
+            from lunarviz.surfaces.maps import map_frame
             frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
             if surf.physical:  # each facet's reflectance toward the Moon as its albedo (earth_optics.planet)
-                from lunarviz.bodies.physical_earth import facet_reflectance
+                from lunarviz.surfaces.physical_earth import facet_reflectance
                 self._earth_albedo = facet_reflectance(surf, self.earth, frame, self.scene.sun, self.scene.moon,
                                                        [surf.wavelength_nm])[:, 0]
                 return self._earth_albedo
@@ -139,12 +140,12 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         if self.earth_parts is None or self.earth_facet_albedo() is None:
             return None
         if self._earth_parts_w is None:
-            from lunarviz.bodies.surfaces import map_frame
-            from lunarviz.spectral.earth import facet_weights
+            from lunarviz.surfaces.maps import map_frame
+            from lunarviz.surfaces.earth_spectra import facet_weights
             frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
             surf = self.settings.surface()
             if surf.physical:  # one component per node wavelength: the facets' reflectance there
-                from lunarviz.bodies.physical_earth import facet_reflectance
+                from lunarviz.surfaces.physical_earth import facet_reflectance
                 self._earth_parts_w = facet_reflectance(surf, self.earth, frame, self.scene.sun, self.scene.moon,
                                                         self.earth_part_wavelengths)
             else:

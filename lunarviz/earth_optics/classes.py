@@ -3,7 +3,7 @@ top-of-atmosphere reflectance factor of a class: what ``lunarviz brdf --body ear
 
 Names (``--surface``): ``black`` and ``lambert:A`` (bare Lambert surfaces of albedo 0 and A),
 ``ocean`` (:mod:`.ocean`, wind from ``wind_speed``), ``land`` (vegetation), ``vegetation``,
-``desert``, ``snow`` (:mod:`.land`, the packaged USGS spectra of :mod:`lunarviz.spectral.earth`
+``desert``, ``snow`` (:mod:`.land`, the packaged USGS spectra of :mod:`lunarviz.surfaces.earth_spectra`
 as white-sky albedo) and ``cloud`` (:mod:`.cloud`, under the Rayleigh layer above its top).
 
 Directional albedo ρ̄(μ) = (1/π) ∫ ρ(μ', μ, φ) μ' dμ' dφ and bi-hemispherical albedo ρ̿ = 2 ∫ ρ̄ μ dμ
@@ -19,7 +19,7 @@ import numpy as np
 
 from lunarviz.caches import memoize
 from lunarviz.earth_optics import rayleigh
-from lunarviz.earth_optics.tables import THETA_DEG, cubic_weights, theta_of
+from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, theta_of
 from lunarviz.errors import LunarvizError
 
 #: Gauss nodes in cos θ' for the albedos (the glint lobe of a 2 m s⁻¹ sea is ~10° wide)
@@ -110,7 +110,7 @@ class Surface:
 
     def fourier(self, wavelength_nm, mu) -> np.ndarray:
         """(..., K, 3) c_m(μ'_k, μ) = ∫₀^{2π} cos(mψ) ρ(μ'_k, μ, ψ) dψ, m = 0, 1, 2, at the sky's
-        Gauss nodes μ'_k (:func:`~lunarviz.earth_optics.tables.sky_nodes`)."""
+        Gauss nodes μ'_k (:func:`~lunarviz.earth_optics.disort_tables.sky_nodes`)."""
         c = _fourier(self.kind, self.albedo, self.land_class, self.wind_speed,
                      None if self.kind in ("cloud", "lambert") else float(wavelength_nm))
         i, w = cubic_weights(THETA_DEG, theta_of(np.asarray(mu, float)))
@@ -147,7 +147,7 @@ def _fourier(kind, albedo, land_class, wind_speed, wavelength_nm) -> np.ndarray:
     """(K, N, 3) azimuthal Fourier coefficients of a class's reflectance factor at the sky's Gauss
     nodes μ'_k and the tables' zenith nodes: c_m = 2 ∫₀^π cos(mψ) ρ dψ (ρ even in ψ; midpoint rule,
     1° steps: the 1 m s⁻¹ glint lobe is ~10° wide)."""
-    from lunarviz.earth_optics.tables import sky_nodes
+    from lunarviz.earth_optics.disort_tables import sky_nodes
     mu_k = sky_nodes()[0]
     mu_n = np.cos(np.radians(THETA_DEG))
     if kind == "lambert":

@@ -1,9 +1,9 @@
 """The physical Earth as a planet (``--earth-brdf physical``): each place's reflectance toward a
 direction, per facet of a traced Earth and integrated over the disc for the point-Earth methods.
 
-Each place is a mix of the classes of :mod:`lunarviz.spectral.earth` (``--earth-surface`` and
+Each place is a mix of the classes of :mod:`lunarviz.surfaces.earth_spectra` (``--earth-surface`` and
 ``--clouds``), each class reflecting as its model under the Rayleigh atmosphere
-(:func:`lunarviz.earth_optics.surfaces.toa_reflectance`): the uniform Earth and a clear-sky map
+(:func:`lunarviz.earth_optics.classes.toa_reflectance`): the uniform Earth and a clear-sky map
 FILE as Lambert surfaces of their albedo, ``ocean`` as Cox–Munk glint with whitecaps and water,
 ``vegetation``/``desert``/``snow`` with the Ross–Li shape and their USGS spectra, ``cloud`` as
 the DISORT cloud under the air above its top. The options ``--ocean-albedo``, ``--land-albedo``
@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.bodies.surfaces import map_frame, sample_map
-from lunarviz.earth_optics.surfaces import Surface, earth_params, surface_from_name, toa_reflectance
-from lunarviz.spectral.earth import components, facet_weights, weights_at
+from lunarviz.surfaces.maps import map_frame, sample_map
+from lunarviz.earth_optics.classes import Surface, earth_params, surface_from_name, toa_reflectance
+from lunarviz.surfaces.earth_spectra import components, facet_weights, weights_at
 
 
 def _geometry(normals, to_sun, to_target):
@@ -40,7 +40,7 @@ def _geometry(normals, to_sun, to_target):
 
 
 def class_models(surface) -> dict[str, Surface]:
-    """Each component of ``surface`` (an :class:`~lunarviz.bodies.surfaces.EarthSurface`) as its
+    """Each component of ``surface`` (an :class:`~lunarviz.surfaces.earth_surface.EarthSurface`) as its
     physical class (``clear`` of a map FILE is Lambert per place: ``None`` here)."""
     p = earth_params(dict(surface.earth_params))
     out = {}
@@ -56,7 +56,7 @@ def class_models(surface) -> dict[str, Surface]:
 
 def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, wavelengths) -> np.ndarray:
     """(n, L) top-of-atmosphere reflectance factor toward the target of places with component
-    ``weights`` (n, C) (:func:`lunarviz.spectral.earth.weights_at` or facet averages) at unit
+    ``weights`` (n, C) (:func:`lunarviz.surfaces.earth_spectra.weights_at` or facet averages) at unit
     ``normals`` (n, 3) (``map_dirs``: the same in the map frame, for a clear-sky map's albedo)."""
     p = earth_params(dict(surface.earth_params))
     ms, mt, phi = _geometry(normals, to_sun, to_target)
@@ -139,7 +139,7 @@ def albedo_toward(surface, scene, frame, target, wavelengths, rows: int = 180) -
 
 def albedo_toward_moon(surfaces, scene, wavelengths) -> np.ndarray:
     """(L,) :func:`albedo_toward` the Moon's centre for a scene's
-    :class:`~lunarviz.bodies.surfaces.Surfaces` (its Earth's rotation gives the map frame)."""
+    :class:`~lunarviz.surfaces.point_values.Surfaces` (its Earth's rotation gives the map frame)."""
     frame = map_frame(scene, "earth", surfaces.earth_rotation_deg)
     return albedo_toward(surfaces.earth, scene, frame, scene.moon, wavelengths)
 

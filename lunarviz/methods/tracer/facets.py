@@ -13,7 +13,7 @@ Arrays (one value per lunar facet, zero where a facet is dark or unseen):
   ``earth_brdf_per_sr`` (earthlight);
 * ``moonshine_rays``, ``earthshine_rays`` — beams traced per facet (rays that carried light);
 * ``albedo_parameter`` — the BRDF's albedo parameter on the facet (Lambert albedo or Hapke w:
-  the scalar, or the lunar albedo map's area average, :mod:`lunarviz.bodies.surfaces`).
+  the scalar, or the lunar albedo map's area average, :mod:`lunarviz.surfaces.maps`).
 
 Earth facets carry ``albedo`` (their Lambert albedo: uniform, or the land/ocean/cloud surface
 averaged by area) and ``radiance_toward_moon_W_m2_sr``.
@@ -22,10 +22,15 @@ averaged by area) and ``radiance_toward_moon_W_m2_sr``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from lunarviz.geometry.scene_geometry import angle_between, half_angle_sin_cos, unit
+from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, half_angle_sin_cos, unit
+from lunarviz.methods.tracer.settings import TraceSettings
+
+if TYPE_CHECKING:
+    from lunarviz.methods.tracer.trace_scene import TraceScene
 
 
 @dataclass
@@ -44,24 +49,40 @@ class FacetResult:
         return len(self.faces)
 
 
-def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None) -> FacetResult:
-    """Ray trace one phase θ [deg] (or UTC time, with ``settings.times``) with ``settings``
-    (a :class:`~lunarviz.workflows.sweeps.SweepSettings`).
+def trace_facets(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdfs: dict,
+                 brdf_name: str | None = None, trace_scene: TraceScene | None = None) -> FacetResult:
+    """Ray trace one task and return per-facet arrays.
 
-    The unsuffixed radiance/contribution arrays are for ``brdf_name`` (default: the first
-    BRDF); ``<path>_radiance_W_m2_sr_<brdf>`` holds every BRDF of ``settings``. Moon facets
-    also carry ``solar_lit_fraction`` and ``earth_lit_fraction``: the share of the incident
-    irradiance that survives shadowing by the Moon itself and by the other bodies (1 on a
-    facet no shadow touches; 0 where the facet is not lit at all). Earth facets carry
-    ``radiance_toward_moon_W_m2_sr`` (Lambertian: the same in every direction),
-    ``sun_visibility`` (the Moon's shadow) and ``earthshine_beam_hits``; Sun facets
-    ``moonshine_beam_hits``.
+    Parameters
+    ----------
+    geometry : SceneGeometry
+        The task's bodies and detector (positions [m]).
+    fields : dict
+        The task's row fields (time, distances, flags), copied into ``info``.
+    trace : TraceSettings
+        The tracer's settings.
+    brdfs : dict
+        ``{name: BRDF}``: ``<path>_radiance_W_m2_sr_<brdf>`` for each.
+    brdf_name : str, optional
+        The BRDF of the unsuffixed radiance/contribution arrays (default: the first).
+    trace_scene : TraceScene, optional
+        The traced scene of ``geometry`` and ``trace``, when the caller has it.
+
+    Returns
+    -------
+    FacetResult
+        Moon facets also carry ``solar_lit_fraction`` and ``earth_lit_fraction``: the share of
+        the incident irradiance that survives shadowing by the Moon itself and by the other
+        bodies (1 on a facet no shadow touches; 0 where the facet is not lit at all). Earth
+        facets carry ``radiance_toward_moon_W_m2_sr`` (Lambertian: the same in every direction),
+        ``sun_visibility`` (the Moon's shadow) and ``earthshine_beam_hits``; Sun facets
+        ``moonshine_beam_hits``.
     """
-    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
-    brdf_name = brdf_name or settings.brdfs[0]
-    models = settings.brdf_models()
-    sc, fields = settings.scene_and_fields(theta)
-    ts = trace_scene or TraceScene(sc, settings.trace_settings())
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path  # Embree: loaded to trace
+    models = brdfs
+    brdf_name = brdf_name or next(iter(models))
+    sc = geometry
+    ts = trace_scene or TraceScene(sc, trace)
     M = ts.moon
     ms = trace_path(ts, "moonshine", models, keep_facets=True)
     es = trace_path(ts, "earthshine", models, keep_facets=True)
@@ -86,7 +107,7 @@ def trace_facets(settings, theta, brdf_name: str | None = None, trace_scene=None
         alb = None
         cd["albedo_parameter"] = np.full(M.n_faces, model.albedo_parameter)
     else:
-        from lunarviz.bodies.surfaces import map_scale
+        from lunarviz.surfaces.moon_map import map_scale
         alb = values * map_scale(amap.absolute, model)
         cd["albedo_parameter"] = alb
     cd.update(_facet_angles_and_brdf(ts, sc, model, alb))
@@ -169,23 +190,23 @@ def _other_bodies(ts, sc) -> dict:
     return bodies
 
 
-def sample_ray_paths(settings, theta: float, n: int = 12, seed: int = 0) -> dict:
+def sample_ray_paths(geometry: SceneGeometry, trace: TraceSettings, n: int = 12, seed: int = 0) -> dict:
     """A few representative light paths as polylines (world coordinates [m]).
 
     ``moonshine``: Sun surface → lunar point → detector; ``earthshine``: Sun → Earth surface
     → lunar point → detector. Lunar points are drawn among lit, visible facets ∝ area.
     """
-    from lunarviz.methods.tracer.estimators import TraceScene
+    from lunarviz.methods.tracer.trace_scene import TraceScene  # Embree: loaded to trace
     rng = np.random.default_rng(seed)
-    sc = settings.scene(theta)
-    ts = TraceScene(sc, settings.trace_settings())
+    sc = geometry
+    ts = TraceScene(sc, trace)
     M = ts.moon
     out = {}
     for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
         cand = ts.candidates(body)
         c = {"sun": sc.sun, "earth": sc.earth}[body]
         x = M.centroids[cand]
-        lit = np.einsum("ij,ij->i", M.normals_for(settings.shading)[cand], unit(c - x)) > 0
+        lit = np.einsum("ij,ij->i", M.normals_for(trace.shading)[cand], unit(c - x)) > 0
         cand = cand[lit]
         if cand.size == 0:
             out[path] = []

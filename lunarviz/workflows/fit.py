@@ -31,11 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.photometry.brdf import FIT_BOUNDS
 
-#: bounds of fittable parameters (θ̄ in degrees)
-BOUNDS = {"w": (0.01, 0.99), "h": (0.001, 0.5), "B0": (0.0, 5.0), "b": (0.0, 0.95), "c": (-1.0, 1.0),
-          "xi": (-0.95, 0.95), "theta_bar": (0.0, 45.0), "Bc0": (0.0, 3.0), "hc": (0.0005, 0.3),
-          "albedo": (0.001, 1.0), "map_contrast": (0.0, 3.0)}
 DEFAULT_FREE = {"dhg": ("w", "b", "c", "B0", "h", "theta_bar"), "shg": ("w", "xi", "B0", "h", "theta_bar"),
                 "lambert": ("albedo",)}
 ROLO_DISTANCE_KM = 384_400.0
@@ -76,7 +73,8 @@ class DiskModel:
             self.scenes = [disk_geometry(p) for p in self.phases]
             st = AnalyticSettings(order=order)
         else:
-            from lunarviz.bodies.surfaces import MoonAlbedoMap, Surfaces
+            from lunarviz.surfaces.moon_map import MoonAlbedoMap
+            from lunarviz.surfaces.point_values import Surfaces
             wax = np.broadcast_to(np.ones(1, bool) if waxing is None else np.asarray(waxing, bool), self.phases.shape)
             self.scenes = [disk_geometry(p, bool(w)) for p, w in zip(self.phases, wax)]
             st = AnalyticSettings(order=order, surfaces=Surfaces(moon_map=MoonAlbedoMap.parse(moon_map)))
@@ -266,14 +264,14 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
     p0.update(start or {})
     p0.update(fixed or {})
     for k in free:
-        if k not in BOUNDS or k not in p0:
+        if k not in FIT_BOUNDS or k not in p0:
             raise LunarvizError(f"cannot fit parameter {k!r} of BRDF {brdf!r}")
     phases = np.asarray(phases_deg, dtype=float)
     target = np.asarray(target, dtype=float)
     waxing = np.ones(len(phases), bool) if waxing is None else np.asarray(waxing, bool)
     dm = disk_model or DiskModel(phases, order=order, waxing=waxing, moon_map=moon_map)
-    lo = np.array([BOUNDS[k][0] for k in free])
-    hi = np.array([BOUNDS[k][1] for k in free])
+    lo = np.array([FIT_BOUNDS[k][0] for k in free])
+    hi = np.array([FIT_BOUNDS[k][1] for k in free])
     x0 = np.clip(np.array([p0[k] for k in free], dtype=float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
 
     def model_of(x):

@@ -1,0 +1,125 @@
+"""What a tolerance chooses: the orders and mesh levels that meet ``--rtol`` at least cost, the
+bounds rows report, and the warnings when a tolerance is beyond what the error models hold.
+
+The functions take a :class:`~lunarviz.scene.resolved.ResolvedScene` and are its methods; the
+error models themselves and their choices are :mod:`lunarviz.methods.accuracy`.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+from lunarviz.errors import LunarvizError, LunarvizWarning
+from lunarviz.methods import accuracy
+from lunarviz.methods.tracer.settings import DEFAULT_ORDERS
+from lunarviz.options import DEFAULT_LEVELS
+
+
+def rtol_or_default(scene) -> float:
+    """The tolerance asked for, or the method's default (:data:`lunarviz.methods.accuracy.DEFAULT_RTOL`)."""
+    return scene.rtol if scene.rtol is not None else accuracy.DEFAULT_RTOL.get(scene.method, 1e-4)
+
+
+def reference_orders(scene) -> tuple[int, int, float]:
+    """The exact reference's (outer, inner) orders and the bound they meet: from the
+    tolerance when one is given, else ``reference_outer``, ``reference_inner``."""
+    if scene.rtol is not None:
+        return accuracy.reference_choice(scene.rtol)
+    row = next((r for r in accuracy.error_models()["reference"]
+                if (r["outer"], r["inner"]) == (scene.reference_outer, scene.reference_inner)), None)
+    bound = math.nan if row is None else accuracy.SAFETY * max(row["moonshine"], row["earthshine"])
+    return scene.reference_outer, scene.reference_inner, bound
+
+
+
+def trace_plan(scene, theta: float | None = None) -> dict:
+    """What the tolerance chooses for the ray tracer: ``settings`` (the options left unset,
+    and ``lune_order``) and ``bounds`` ({(sample kind, path): bound},
+    :func:`lunarviz.methods.accuracy.trace_choice`). Monte Carlo: the rays, where a tolerance
+    is given and the rays are not. No model: a user's Moon mesh, a mapped or physical Earth
+    (bounds empty; an explicit tolerance is refused for a user's Moon mesh). ``theta`` [deg]:
+    the task's θ, where a model was measured phase by phase (the mapped lune rule's)."""
+    none = {"settings": {}, "bounds": {}}
+    if scene.method != "raytrace":
+        return none
+    if scene.estimator == "montecarlo":
+        if scene.rays is None and scene.rtol is not None:
+            return {"settings": {"rays": accuracy.montecarlo_rays(scene.rtol, scene.runs)}, "bounds": {}}
+        return none
+    if scene.moon_mesh is not None:
+        if scene.rtol is not None:
+            raise LunarvizError(f"--rtol {scene.rtol:g}: the error models cover the packaged Moon, not a user's "
+                                "Moon mesh (its facets are the model): give --sun-order and --earth-order")
+        return none
+    fixed = {k: getattr(scene, k) for k in ("moon_level", "sun_order", "earth_order")
+             if getattr(scene, k) is not None}
+    asked_level = "moon_level" in fixed
+    if scene.rtol is None:  # without a tolerance the facets keep the former default, level 4 (8.7e-5
+        fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])  # measured; the rows report 2x that)
+        if asked_level:  # a mesh level asked for without a tolerance: the former default orders too
+            fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
+            fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
+    choice = accuracy.trace_choice(scene.rtol_or_default, fixed, scene.mapped_moon(), theta)
+    settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
+                if k not in fixed and choice.get(k) is not None}
+    # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
+    # roughness changes form where i = e, a kink inside the lune); otherwise the lune rule where it applies
+    # (a mapped Moon's lune rule was measured with rolo-fit-map's rough presets)
+    rough = any(getattr(m, "rough", False) for m in scene.brdf_models().values())
+    settings["lune_order"] = None if asked_level or rough and not scene.mapped_moon() else choice.get("lune_order")
+    if settings["lune_order"] is not None and choice.get("lune_source_orders") is not None:
+        settings["lune_source_orders"] = choice["lune_source_orders"]
+    return {"settings": settings, "bounds": choice.get("bounds", {}) if scene.modelled() else {}}
+
+
+
+def modelled(scene) -> bool:
+    """Whether the error models hold for this run's bodies and photometry: they were measured
+    with the paper's BRDF presets (rolo-fit-map's on its own map, for the mapped Moon), no
+    parameter overrides, the uniform Lambert Earth and the packaged spheres shaded exactly."""
+    lunar_params = any(v for b, v in scene.params.items() if b != "earth")
+    if scene.mapped_moon():  # the mapped model is rolo-fit-map's, on its own map
+        from lunarviz.photometry.presets import moon_model_map
+        moon = scene.moon_model == "rolo-fit-map" and scene.moon_albedo_map == moon_model_map("rolo-fit-map")
+    else:
+        moon = scene.moon_model == "paper"
+    return moon and not lunar_params and scene.earth_uniform and scene.earth_brdf == "lambert" \
+        and scene.earth_mesh is None and scene.sun_mesh is None and scene.moon_mesh is None and scene.shading == "auto"
+
+
+
+def warn_unmet_tolerance(scene) -> None:
+    """Warn once, before a ray-traced run, when the tolerance asked for is beyond what the
+    error models hold (the most accurate setting runs; its rows report what it meets)."""
+    if scene.rtol is None:
+        return
+    warn_earthshine_off_centre(scene)
+    if scene.method in ("analytic", "reference"):
+        met = accuracy.analytic_choice(scene.rtol)[1] if scene.method == "analytic" else scene.reference_orders()[2]
+        if not met <= scene.rtol:
+            warnings.warn(f"--rtol {scene.rtol:g} is beyond the {scene.method} method's error model: its most "
+                          f"accurate orders meet {met:.1e} (rows report it)", LunarvizWarning, stacklevel=3)
+        return
+    if scene.method != "raytrace" or scene.estimator != "deterministic":
+        return
+    plan = scene.trace_plan()
+    kinds = ("facets",) if plan["settings"].get("lune_order") is None else ("lune",)
+    met = [plan["bounds"].get((k, p), math.nan) for k in kinds for p in ("moonshine", "earthshine")]
+    if plan["bounds"] and not max(met) <= scene.rtol:
+        warnings.warn(f"--rtol {scene.rtol:g} is beyond the error models here: the most accurate setting they "
+                      f"hold meets {max(met):.1e} (rows report it)", LunarvizWarning, stacklevel=3)
+
+
+
+def warn_earthshine_off_centre(scene) -> None:
+    """Warn where the tolerance cannot be met: the earthshine of a BRDF with an opposition
+    surge or roughness seen off the Earth's centre by an extended Earth's beam rules (the
+    deterministic tracer's, the reference's; :func:`accuracy.earth_source_modelled`)."""
+    off_centre = scene.detector is not None or (scene.times is not None and scene.observer_model().kind != "geocentre")
+    surged = [k for k, b in scene.brdf_models().items() if accuracy.peaks_at_zero_phase(b)]
+    if accuracy.extended_earth(scene.method, scene.estimator) and off_centre and surged:
+        warnings.warn(f"--rtol {scene.rtol:g} is not met by the earthshine of {', '.join(surged)} seen off the "
+                      "Earth's centre (the opposition surge's cusp and the roughness's kink lie off the pole "
+                      "of the Earth's beam rules: up to ~5e-3 measured from orbit); those rows carry no bound",
+                      LunarvizWarning, stacklevel=4)

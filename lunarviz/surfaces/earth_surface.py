@@ -1,0 +1,200 @@
+"""The Earth's surface as Lambert facets: ``--earth-surface uniform|landocean|FILE`` and
+``--clouds none|zonal|FILE``.
+
+``uniform`` (the scalar albedo), ``landocean`` (the global-land-mask package's 30″ land mask,
+averaged to a 0.1° land fraction) or a clear-sky albedo map, combined per sample with a cloud
+fraction c as ``(1 - c)·A_clear + c·A_cloud`` and then averaged by area (ocean glint and
+anisotropic cloud reflection are neglected here: :mod:`lunarviz.surfaces.physical_earth` has them).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lunarviz.caches import file_key, memoize
+from lunarviz.errors import LunarvizError
+from lunarviz.options import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+from lunarviz.resources import DATA_DIR
+from lunarviz.surfaces.maps import check_range, facet_average, facet_sub_count, lat_lon_deg, read_map, sample_map
+
+EARTH_SURFACES = ("uniform", "landocean")
+CLOUDS = ("none", "zonal")
+_LAND_BLOCK = 12  # 30″ mask cells per 0.1° land-fraction cell
+
+
+def land_fraction_map() -> np.ndarray:
+    """Land fraction on a 0.1° grid (1800, 3600) from the global-land-mask package's 30″ mask
+    (block means of 12×12 cells; lakes count as land, as in the package). Derived once and
+    cached on disk (``$LUNARVIZ_CACHE`` or ``~/.cache/lunarviz``)."""
+    return _land_fraction()
+
+
+@memoize(maxsize=1)
+def _land_fraction() -> np.ndarray:
+    cache = Path(os.environ.get("LUNARVIZ_CACHE", Path.home() / ".cache" / "lunarviz"))
+    f = cache / "land_fraction_0.1deg_v1.npy"
+    if f.is_file():
+        try:
+            counts = np.load(f)
+            if counts.shape == (1800, 3600):
+                return counts.astype(float) / _LAND_BLOCK**2
+        except (OSError, ValueError):
+            pass
+    import importlib.util
+    spec = importlib.util.find_spec("global_land_mask")
+    if spec is None or not spec.submodule_search_locations:
+        raise LunarvizError("--earth-surface landocean needs the global-land-mask package: "
+                            "pip install global-land-mask")
+    # the package's own file, read here (importing its ``globe`` module keeps ~1 GB alive)
+    npz = Path(list(spec.submodule_search_locations)[0]) / "globe_combined_mask_compressed.npz"
+    with np.load(npz) as z:
+        ocean = z["mask"]  # (21600, 43200) bool, True = ocean; rows from +90° down, columns from -180°
+    counts = np.empty((1800, 3600), dtype=np.uint8)
+    step = 100  # blocks of rows at a time: bounded temporaries
+    for r in range(0, 1800, step):
+        blk = ocean[r * _LAND_BLOCK:(r + step) * _LAND_BLOCK].reshape(-1, _LAND_BLOCK, 3600, _LAND_BLOCK)
+        counts[r:r + step] = _LAND_BLOCK**2 - blk.sum(axis=(1, 3), dtype=np.int32)
+    del ocean
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+        tmp = f.with_suffix(f".{os.getpid()}.tmp.npy")
+        np.save(tmp, counts)
+        os.replace(tmp, f)
+    except OSError:
+        pass  # a read-only home: recompute next time
+    return counts.astype(float) / _LAND_BLOCK**2
+
+
+@memoize(maxsize=1)
+def zonal_cloud_table() -> tuple[np.ndarray, np.ndarray]:
+    """Zonal-mean total cloud fraction: latitudes [deg] and fractions (lunarviz/data/zonal_clouds.csv)."""
+    rows = [ln.split(",") for ln in (DATA_DIR / "zonal_clouds.csv").read_text().splitlines()
+            if ln.strip() and not ln.startswith("#")]
+    a = np.array([[float(x) for x in r] for r in rows[1:]])
+    return a[:, 0], a[:, 1]
+
+
+@dataclass(frozen=True)
+class EarthSurface:
+    """``--earth-surface uniform|landocean|FILE`` and ``--clouds none|zonal|FILE``."""
+
+    surface: str = "uniform"
+    clouds: str = "none"
+    albedo: float = 0.3  # the uniform surface's (clear-sky) albedo
+    land_albedo: float = LAND_ALBEDO
+    ocean_albedo: float = OCEAN_ALBEDO
+    cloud_albedo: float = CLOUD_ALBEDO
+    #: ``lambert`` or ``physical`` (:mod:`lunarviz.surfaces.physical_earth`), and the physical Earth's
+    #: parameters as sorted (name, value) pairs
+    brdf: str = "lambert"
+    earth_params: tuple = ()
+
+    def __post_init__(self):
+        if self.brdf not in ("lambert", "physical"):
+            raise LunarvizError(f"Earth BRDF {self.brdf!r} is not one of lambert, physical")
+        if self.earth_params:
+            from lunarviz.earth_optics.classes import earth_params
+            earth_params(dict(self.earth_params))
+        if self.brdf == "physical":  # the classes carry their own albedos
+            for name, default in (("land_albedo", LAND_ALBEDO), ("ocean_albedo", OCEAN_ALBEDO),
+                                  ("cloud_albedo", CLOUD_ALBEDO)):
+                if getattr(self, name) != default:
+                    raise LunarvizError(f"--{name.replace('_', '-')} is the Lambert Earth's: --earth-brdf physical "
+                                        f"takes its classes' own (docs: the Earth as it reflects)")
+        for name in ("albedo", "land_albedo", "ocean_albedo", "cloud_albedo"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float, np.number)) and np.isfinite(v) and 0.0 <= v <= 1.0):
+                raise LunarvizError(f"{name.replace('_', ' ')} {v!r} must be a number in [0, 1]")
+        if self.surface not in EARTH_SURFACES:
+            self.clear_map()  # a file: read and check now
+        if self.clouds not in CLOUDS:
+            self.cloud_map()
+
+    @classmethod
+    def from_options(cls, o) -> "EarthSurface":
+        """The Earth surface that settings ``o`` (any object with the ``surfaces`` options of
+        :mod:`lunarviz.options` and ``earth_albedo``) describe."""
+        params = getattr(o, "params", None)
+        earth = (params or {}).get("earth", {}) if params is not None else dict(getattr(o, "earth_params", ()))
+        return cls(o.earth_surface, o.clouds, o.earth_albedo, o.land_albedo, o.ocean_albedo, o.cloud_albedo,
+                   getattr(o, "earth_brdf", "lambert"), tuple(sorted(earth.items())))
+
+    @property
+    def uniform(self) -> bool:
+        """One Lambert albedo everywhere (the physical Earth never is: it reflects by geometry)."""
+        return self.surface == "uniform" and self.clouds == "none" and self.brdf == "lambert"
+
+    @property
+    def physical(self) -> bool:
+        return self.brdf == "physical"
+
+    @property
+    def wavelength_nm(self) -> float:
+        """The wavelength [nm] of a grey run's physical Earth (``earth.wavelength_nm``)."""
+        return float(dict(self.earth_params).get("wavelength_nm", 550.0))
+
+    def clear_map(self):
+        if self.surface == "uniform":
+            return None
+        if self.surface == "landocean":
+            f = land_fraction_map()
+            return self.land_albedo * f + self.ocean_albedo * (1.0 - f)
+        return _earth_map(file_key(self.surface), "Earth surface map")
+
+    def cloud_map(self):
+        if self.clouds in CLOUDS:
+            return None
+        return _earth_map(file_key(self.clouds), "cloud-fraction map")
+
+    def albedo_at(self, dirs: np.ndarray) -> np.ndarray:
+        """Lambert albedo at directions (n, 3) in the Earth's map frame: clear sky and cloud
+        combined as ``(1 - c) A_clear + c A_cloud``."""
+        clear = self.clear_map()
+        a = np.full(len(dirs), float(self.albedo)) if clear is None else sample_map(clear, dirs)
+        if self.clouds == "none":
+            return a
+        c = self.cloud_fraction_at(dirs)
+        return (1.0 - c) * a + c * self.cloud_albedo
+
+    def cloud_fraction_at(self, dirs: np.ndarray) -> np.ndarray:
+        """Cloud fraction at directions (n, 3) in the Earth's map frame (0 without clouds)."""
+        if self.clouds == "none":
+            return np.zeros(len(dirs))
+        if self.clouds == "zonal":
+            lat, _ = lat_lon_deg(dirs)
+            la, cf = zonal_cloud_table()
+            return np.interp(lat, la, cf)
+        return sample_map(self.cloud_map(), dirs)
+
+    def facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
+        """Per-facet (area-averaged) albedo of an Embree body for map frame ``frame``; kept with
+        the body's cached geometry (a θ sweep's Earth keeps one frame: computed once)."""
+        if self.uniform:
+            return np.full(body.n_faces, float(self.albedo))
+        memo = body.geometry.setdefault("surface_albedo", {})
+        key = (self, np.asarray(frame, dtype=float).tobytes())
+        if key not in memo:
+            if len(memo) > 8:
+                memo.clear()
+            memo[key] = self._facet_albedo(body, frame)
+        return memo[key]
+
+    def _facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
+        shape = (1800, 3600) if self.surface == "landocean" else \
+            (self.clear_map().shape if self.surface != "uniform" else (180, 360))
+        k = facet_sub_count(body.vertices, body.faces, shape)
+        return facet_average(lambda d: self.albedo_at(d @ frame), body.vertices, body.faces, k)
+
+
+@memoize(maxsize=8)
+def _earth_map(key: tuple, what: str) -> np.ndarray:
+    """The Earth map at ``key`` (:func:`lunarviz.caches.file_key`), checked."""
+    path = key[0]
+    m = read_map(path, what)
+    check_range(m, f"{what} {path!r}")
+    m.setflags(write=False)
+    return m
