@@ -24,6 +24,7 @@ import numpy as np
 
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BY_NAME, OPTIONS, defaults, numpydoc_parameters
+from lunarviz.scene.resolved import PAPER_PHASES_DEG
 from lunarviz.methods.tracer.facets import FacetResult
 
 #: options of :class:`Scene` and their defaults (the command line's defaults), from the schema
@@ -39,7 +40,7 @@ THETA_MAX = 360.0
 def _phases(phases) -> tuple:
     from lunarviz.parsing import parse_float_list
     if phases is None:
-        return tuple(float(p) for p in range(0, 181, 5))
+        return PAPER_PHASES_DEG
     if isinstance(phases, str):
         return tuple(parse_float_list(phases, "phase", 0.0, THETA_MAX))
     try:
@@ -94,7 +95,8 @@ class Scene:
 {options}
     """
 
-    def __init__(self, phases=None, *, time=None, time_range=None, observer: str = "geocentre", **options):
+    def __init__(self, phases=None, *, time=None, time_range=None, observer: str = BY_NAME["observer"].default,
+                 **options):
         unknown = set(options) - set(SCENE_DEFAULTS)
         if unknown:
             raise LunarvizError(f"unknown Scene option {sorted(unknown)[0]!r}; known: {', '.join(SCENE_DEFAULTS)}")
@@ -137,7 +139,7 @@ class Scene:
         def few(v):
             return repr(tuple(v)) if len(v) <= 4 else f"<{len(v)}: {v[0]} .. {v[-1]}>"
         where = f"time={few(self.times)}" if self.times else f"phases={few(self.phases)}"
-        diff = {k: v for k, v in self.options.items() if SCENE_DEFAULTS.get(k, "geocentre") != v}
+        diff = {k: v for k, v in self.options.items() if SCENE_DEFAULTS[k] != v}
         return f"lunarviz.Scene({where}, {', '.join(f'{k}={v!r}' for k, v in diff.items())})".replace(", )", ")")
 
 

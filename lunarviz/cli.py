@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from lunarviz.errors import LunarvizError
-from lunarviz.options import BODIES, EXECUTORS, add_arguments, scene_options
+from lunarviz.options import BODIES, EXECUTORS, MAX_LEVEL, add_arguments, scene_options
 from lunarviz.parsing import parse_float_list
 
 EXIT_USAGE = 2
@@ -46,7 +46,7 @@ class _Parser(argparse.ArgumentParser):
 # ---- parsing helpers ---------------------------------------------------------------------
 def parse_params(items, brdfs) -> dict:
     """``--param NAME=VALUE`` or ``BRDF.NAME=VALUE`` → ``{brdf: {name: value}}``."""
-    from lunarviz.earth_optics.classes import EARTH_DEFAULTS
+    from lunarviz.options import EARTH_PARAMETER_DEFAULTS as EARTH_DEFAULTS
     from lunarviz.photometry.brdf import BRDF_PARAMETERS
     known = {**BRDF_PARAMETERS, "earth": tuple(EARTH_DEFAULTS)}
     out: dict = {b: {} for b in brdfs}
@@ -190,14 +190,13 @@ def _parser_brdf(sub):
                    "(--surface)")
     p.add_argument("--model", default=None, help=" | ".join(BRDF_NAMES) + " (the Moon)")
     p.add_argument("--surface", default=None, help=" | ".join(SURFACE_NAMES) + " (the Earth)")
-    p.add_argument("--wavelengths", default="550", help="the Earth: wavelengths [nm], a,b,c or start:stop:step")
     p.add_argument("--no-atmosphere", action="store_true", help="the Earth: the bare surface, no Rayleigh layer")
     p.add_argument("--incidence", required=True, help="incidence angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--emission", required=True, help="emission angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")
     p.add_argument("--out", required=True,
                    help=".json or .csv: one row per (wavelength,) incidence, emission, azimuth")
-    add_arguments(p, names=BRDF_TABLE_OPTIONS)
+    add_arguments(p, names=BRDF_TABLE_OPTIONS + ("wavelengths",), defaults={"wavelengths": "550"})
 
 
 def _parser_trace(sub):
@@ -316,18 +315,19 @@ def _parser_mesh(sub):
     p.add_argument("--count", type=_nonneg_int("--count"), default=40, help="number of craters")
     p.add_argument("--diameters-km", default="60:300", help="crater diameter range min:max [km]")
     p.add_argument("--region", default=None, help="craters only in the cap LAT,LON,RADIUS_DEG")
-    p.add_argument("--seed", type=_nonneg_int("--seed"), default=0, help="seed of the crater draw")
+    p.add_argument("--crater-seed", type=_nonneg_int("--crater-seed"), default=0, help="seed of the crater draw")
     p.add_argument("--patch", default=None, help="refine toward LAT,LON by a conformal zoom factor K: LAT,LON,K")
     p.add_argument("--out", required=True, help=".ply (float64), .obj, .stl, .off or .glb; vertices in metres")
 
 
 def _parser_fit(sub):
     p = sub.add_parser("fit", help="fit a BRDF to disk-integrated lunar reflectance (ROLO or a table)")
-    p.add_argument("--brdf", default="dhg", help="one of lambert, shg, dhg")
+    p.add_argument("--model", default="dhg", help="the lunar BRDF fitted: one of lambert, shg, dhg")
     p.add_argument("--source", default="rolo",
                    help="rolo (the ROLO model via the optional rimopy package) or a CSV with phase_deg,reflectance"
                         "[,waxing]")
-    p.add_argument("--band", default="400-750", help="ROLO wavelength [nm] or band LO-HI (the paper's 400-750)")
+    p.add_argument("--rolo-band", default="400-750",
+                   help="ROLO's wavelength [nm] or band LO-HI of the fit's target (the paper's 400-750)")
     p.add_argument("--phases", default="2:96:2", help="ROLO phase angles [deg] (each waxing and waning)")
     p.add_argument("--free", default=None, help="parameters to fit, e.g. w,b,c,B0,h,theta_bar (default per BRDF)")
     add_arguments(p, names=("dhg_convention", "h_function", "moon_albedo_map", "order"), defaults={"order": 24})
@@ -378,8 +378,8 @@ EXAMPLES = {
               "lunarviz study mesh --body earth --levels 3:6 --out earth_study.csv"],
     "mesh": ["lunarviz mesh make craters --level 6 --count 40 --out craters.ply",
              "lunarviz mesh make ellipsoid --axes 1.1,1.0,0.9 --level 5 --out ellipsoid.ply"],
-    "fit": ["lunarviz fit --brdf dhg --source rolo --out fit.json",
-            "lunarviz fit --brdf lambert --source table.csv --out fit_table.json"],
+    "fit": ["lunarviz fit --model dhg --source rolo --out fit.json",
+            "lunarviz fit --model lambert --source table.csv --out fit_table.json"],
     "bench": ["lunarviz bench --quick --out bench.json"],
     "paper": ["lunarviz paper --out paper_out", "lunarviz paper --quick --out paper_quick"],
 }
@@ -732,8 +732,9 @@ def cmd_mesh(a):
     from lunarviz.bodies import shapes
     from lunarviz.bodies.meshes import NOMINAL_RADII
     R = NOMINAL_RADII[a.body]
-    if a.level > 8:
-        raise UsageError(f"--level {a.level} is too fine (at most 8: 1.3 M facets; --patch refines where it matters)")
+    if a.level > MAX_LEVEL:
+        raise UsageError(f"--level {a.level} is too fine (at most {MAX_LEVEL}: {20 * 4**MAX_LEVEL / 1e6:.1f} M facets; "
+                         f"--patch refines where it matters)")
     out = _check_out(a.out, (".ply", ".obj", ".stl", ".off", ".glb"))
     patch = None
     if a.patch:
@@ -759,7 +760,7 @@ def cmd_mesh(a):
         region = tuple(_floats(a.region, "--region", 3)) if a.region else None
         if region and not (-90 <= region[0] <= 90 and -360 <= region[1] <= 360 and 0 < region[2] <= 180):
             raise UsageError(f"--region {a.region!r}: need LAT in [-90, 90], LON in [-360, 360], 0 < RADIUS_DEG ≤ 180")
-        m = shapes.craters(R, a.level, a.count, d0 * 1e3, d1 * 1e3, a.seed, region, patch)
+        m = shapes.craters(R, a.level, a.count, d0 * 1e3, d1 * 1e3, a.crater_seed, region, patch)
     else:
         if patch is None:
             raise UsageError("mesh make patch needs --patch LAT,LON,K")
@@ -773,9 +774,9 @@ def cmd_mesh(a):
 def cmd_fit(a):
     from lunarviz.outputs.writers import write_results
     from lunarviz.workflows.fit import DEFAULT_FREE, plot_fit, run_fit
-    brdf = _brdf_list(a.brdf)
+    brdf = _brdf_list(a.model)
     if len(brdf) != 1:
-        raise UsageError(f"--brdf takes one BRDF here, got {a.brdf!r}")
+        raise UsageError(f"--model takes one BRDF, got {a.model!r}")
     free = tuple(x.strip() for x in a.free.split(",") if x.strip()) if a.free else DEFAULT_FREE[brdf[0]]
     if a.source != "rolo" and not Path(a.source).is_file():
         raise UsageError(f"--source {a.source!r} is neither rolo nor a CSV file")
@@ -784,11 +785,12 @@ def cmd_fit(a):
     if a.moon_albedo_map is not None:
         from lunarviz.surfaces.moon_map import MoonAlbedoMap
         MoonAlbedoMap.parse(a.moon_albedo_map)  # a bad map: one line, before any work
-    res = run_fit(brdf[0], a.source, a.band, a.phases, free, dhg_convention=a.dhg_convention,
+    res = run_fit(brdf[0], a.source, a.rolo_band, a.phases, free, dhg_convention=a.dhg_convention,
                   h_function=a.h_function, moon_map=a.moon_albedo_map, order=a.order)
     d = res.to_dict()
-    d["settings"] = {"source": a.source, "band_nm": a.band, "phases_deg": a.phases, "dhg_convention": a.dhg_convention,
-                     "h_function": a.h_function, "moon_albedo_map": a.moon_albedo_map, "order": a.order}
+    d["settings"] = {"source": a.source, "band_nm": a.rolo_band, "phases_deg": a.phases,
+                     "dhg_convention": a.dhg_convention, "h_function": a.h_function,
+                     "moon_albedo_map": a.moon_albedo_map, "order": a.order}
     plot_fit(res, out.with_suffix(".png"))  # the plot first: a failure leaves neither file
     write_results(out, d)
     for k in res.free:

@@ -30,3 +30,5 @@ PAPER_PHASES_DEG = tuple(range(0, 181, 5))
 PLANCK_J_S = 6.62607015e-34
 #: the speed of light in vacuum [m s⁻¹] (SI, exact)
 SPEED_OF_LIGHT_M_S = 299_792_458.0
+#: sea-level pressure [hPa] of Bodhaine et al.'s (1999) Rayleigh optical depth formula
+SEA_LEVEL_HPA = 1013.25

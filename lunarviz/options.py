@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
+import lunarviz.constants as C
 from lunarviz.errors import LunarvizError
 
 # ---- allowed values (each declared once, here; the modules that implement them import them) ----
@@ -71,6 +72,9 @@ LAND_ALBEDO, OCEAN_ALBEDO, CLOUD_ALBEDO = 0.25, 0.06, 0.40
 MAX_LEVEL = 8
 #: icosphere levels of the packaged meshes when none is asked for (from the mesh study)
 DEFAULT_LEVELS = {"sun": 5, "earth": 6, "moon": 4}
+#: Gauss orders of the Sun's and the Earth's beams when neither an order nor a tolerance is given
+#: (with the Moon's level 4: 8.7e-5 on the paper's scene)
+DEFAULT_ORDERS = {"sun": 2, "earth": 6}
 #: group names, in the order the documentation lists them, and their titles in ``--help``
 GROUP_TITLES = {
     "photometry": "photometry (the lunar BRDFs)",
@@ -213,6 +217,43 @@ def _o(name, kind, default, doc, group, **kw) -> Option:
     return Option(name, kind, default, doc, group, **kw)
 
 
+#: The physical Earth's parameters (``--earth-brdf physical``): given as ``--param earth.NAME=VALUE``
+#: on the command line and ``params={"earth": {NAME: VALUE}}`` in Python, not as keywords of their own.
+#: Cox & Munk fitted their glint to 1-14 m s⁻¹; the DISORT tables' optical depths end at 2 above
+#: 100 hPa.
+EARTH_PARAMETERS: tuple[Option, ...] = (
+    _o("wind_speed", "float", 7.0, "the sea surface's wind speed (Cox-Munk glint)", "earth", unit="m s-1",
+       lo=0.0, hi=30.0),
+    _o("cloud_top_hpa", "float", 700.0, "the cloud tops' pressure (the Rayleigh optical depth above them)",
+       "earth", unit="hPa", lo=100.0, hi=1100.0),
+    _o("surface_hpa", "float", C.SEA_LEVEL_HPA, "the surface's pressure (the Rayleigh optical depth above it)",
+       "earth", unit="hPa", lo=100.0, hi=1100.0),
+    _o("wavelength_nm", "float", 550.0, "the wavelength at which a grey (not spectral) run evaluates the Earth",
+       "earth", unit="nm", lo=300.0, hi=2500.0),
+)
+#: the physical Earth's parameters by name, with their defaults
+EARTH_PARAMETER_DEFAULTS = {o.name: o.default for o in EARTH_PARAMETERS}
+
+
+def earth_params(params: dict | None) -> dict:
+    """The physical Earth's parameters: the defaults of :data:`EARTH_PARAMETERS` updated by
+    ``params``, each checked (a one-line error names a bad one)."""
+    out = dict(EARTH_PARAMETER_DEFAULTS)
+    by_name = {o.name: o for o in EARTH_PARAMETERS}
+    for k, v in (params or {}).items():
+        if k not in by_name:
+            raise LunarvizError(f"earth parameter {k!r} is not one of {', '.join(by_name)}")
+        try:
+            x = float("nan") if isinstance(v, bool) else float(v)
+        except (TypeError, ValueError):
+            x = float("nan")
+        o = by_name[k]
+        if not o.lo <= x <= o.hi:
+            raise LunarvizError(f"earth.{k}={params[k]!r}: must be in {o.lo:g}…{o.hi:g}")
+        out[k] = x
+    return out
+
+
 #: Every scene and method option (the :class:`lunarviz.Scene` keywords), in documentation order.
 OPTIONS: tuple[Option, ...] = (
     # photometry: the lunar BRDFs
@@ -230,8 +271,8 @@ OPTIONS: tuple[Option, ...] = (
        "Hapke: theta_bar [deg], Bc0, hc (command line: --param [BRDF.]NAME=VALUE, repeated)", "photometry",
        flag="--param", metavar="[BRDF.]NAME=VALUE"),
     # the Earth
-    _o("earth_albedo", "float", 0.3, "the uniform Earth's Lambert albedo, and the model Earth of every inversion",
-       "earth", unit="1", lo=0.0, hi=1.0, label="Earth albedo"),
+    _o("earth_albedo", "float", C.EARTH_ALBEDO, "the uniform Earth's Lambert albedo, and the model Earth of every "
+       "inversion", "earth", unit="1", lo=0.0, hi=1.0, label="Earth albedo"),
     _o("earth_law", "str", "lambert", "the analytic method's Earth intensity law: a Lambert sphere, or the "
        "paper's printed Eq. 8 (which drops a factor 2/3)", "analytic", choices=EARTH_LAWS, label="Earth law"),
     # geometry and sky
@@ -246,10 +287,13 @@ OPTIONS: tuple[Option, ...] = (
     _o("sun_mesh", "path", None, "a closed mesh for the Sun (as for the Moon)", "meshes", metavar="FILE"),
     _o("mesh_units", "str", "m", "units of the mesh files' vertices (radius: multiples of the body's nominal "
        "radius)", "meshes", choices=MESH_UNITS, label="mesh units"),
-    _o("moon_level", "int", None, "the Moon's icosphere level (default 4, or from --rtol in sweeps)", "meshes",
+    _o("moon_level", "int", None, f"the Moon's icosphere level (default {DEFAULT_LEVELS['moon']}, or from --rtol in "
+       "sweeps)", "meshes",
        lo=0, hi=MAX_LEVEL, flag="--mesh-level"),
-    _o("earth_level", "int", None, "the Earth's icosphere level (default 6)", "meshes", lo=0, hi=MAX_LEVEL),
-    _o("sun_level", "int", None, "the Sun's icosphere level (default 5)", "meshes", lo=0, hi=MAX_LEVEL),
+    _o("earth_level", "int", None, f"the Earth's icosphere level (default {DEFAULT_LEVELS['earth']})", "meshes",
+       lo=0, hi=MAX_LEVEL),
+    _o("sun_level", "int", None, f"the Sun's icosphere level (default {DEFAULT_LEVELS['sun']})", "meshes",
+       lo=0, hi=MAX_LEVEL),
     _o("occlusion", "bool", True, "bodies shade and hide each other", "meshes",
        flag_help="the paper's assumption: bodies never shade each other"),
     _o("self_shadow", "bool", True, "a non-convex body shadows itself (independent of occlusion)", "meshes",
@@ -270,10 +314,10 @@ OPTIONS: tuple[Option, ...] = (
        "at most 1e9: memory is bounded by chunks of 16,384 samples, run time is not)", "trace", lo=1, hi=10**9),
     _o("runs", "int", 1, "Monte Carlo runs per phase (their spread gives the standard deviations)", "trace", lo=1),
     _o("seed", "int", 0, "Monte Carlo seed (runs and chunks draw from (seed, run, path, chunk))", "trace", lo=0),
-    _o("earth_order", "int", None, "Gauss order of the Earth's beams seen from each lunar sample (default 6, or "
-       "from --rtol in sweeps)", "trace", lo=1, hi=64),
-    _o("sun_order", "int", None, "Gauss order of the Sun's beams seen from each lunar sample (default 2, or from "
-       "--rtol in sweeps)", "trace", lo=1, hi=64),
+    _o("earth_order", "int", None, f"Gauss order of the Earth's beams seen from each lunar sample (default "
+       f"{DEFAULT_ORDERS['earth']}, or from --rtol in sweeps)", "trace", lo=1, hi=64),
+    _o("sun_order", "int", None, f"Gauss order of the Sun's beams seen from each lunar sample (default "
+       f"{DEFAULT_ORDERS['sun']}, or from --rtol in sweeps)", "trace", lo=1, hi=64),
     # the analytic method
     _o("grid", "str", "converged", "the analytic method's lunar surface grid: converged Gauss or the paper's",
        "analytic", choices=GRIDS),
@@ -284,22 +328,23 @@ OPTIONS: tuple[Option, ...] = (
        "FILE:MEAN makes the map the albedo/w itself with area-weighted mean MEAN; 'synthetic' is the shipped "
        "demo map; 'none' drops a preset's map", "surfaces", metavar="FILE[:MEAN]"),
     _o("earth_surface", "str", "uniform", "uniform (the Earth albedo), landocean (a land mask with the land and "
-       "ocean albedos) or a clear-sky albedo map FILE", "surfaces", metavar="uniform|landocean|FILE"),
+       "ocean albedos) or a clear-sky albedo map FILE", "earth", metavar="uniform|landocean|FILE"),
     _o("clouds", "str", "none", "cloud fraction: none, zonal (zonal means shipped with the package) or a map "
-       "FILE; clouds reflect with the cloud albedo", "surfaces", metavar="none|zonal|FILE"),
+       "FILE; clouds reflect with the cloud albedo", "earth", metavar="none|zonal|FILE"),
     _o("earth_brdf", "str", "lambert", "how the Earth reflects: lambert (each place a Lambert surface of its albedo) "
-       "or physical (Rayleigh atmosphere over Cox-Munk ocean, Ross-Li land and snow, DISORT clouds; "
-       "--param earth.wind_speed=, earth.cloud_top_hpa=, earth.surface_hpa=, earth.wavelength_nm= for grey runs)",
-       "surfaces", choices=EARTH_BRDFS, label="Earth BRDF"),
-    _o("land_albedo", "float", LAND_ALBEDO, "Lambert albedo of clear land (Earth surface landocean)", "surfaces",
+       "or physical (Rayleigh atmosphere over Cox-Munk ocean, Ross-Li land and snow, DISORT clouds; its parameters: "
+       + ", ".join(f"--param earth.{o.name}=" for o in EARTH_PARAMETERS) + ")",
+       "earth", choices=EARTH_BRDFS, label="Earth BRDF"),
+    _o("land_albedo", "float", LAND_ALBEDO, "Lambert albedo of clear land (Earth surface landocean)", "earth",
        unit="1", lo=0.0, hi=1.0, label="land albedo"),
     _o("ocean_albedo", "float", OCEAN_ALBEDO, "Lambert albedo of clear ocean (Earth surface landocean)",
-       "surfaces", unit="1", lo=0.0, hi=1.0, label="ocean albedo"),
-    _o("cloud_albedo", "float", CLOUD_ALBEDO, "Lambert albedo of clouds (with clouds)", "surfaces", unit="1",
+       "earth", unit="1", lo=0.0, hi=1.0, label="ocean albedo"),
+    _o("cloud_albedo", "float", CLOUD_ALBEDO, "Lambert albedo of clouds (with clouds)", "earth", unit="1",
        lo=0.0, hi=1.0, label="cloud albedo"),
     # light in colour
-    _o("wavelengths", "str", None, "spectral rows at these wavelengths: LIST or START:STOP:STEP (rows: wavelength_nm, "
-       "moonshine_W_m2_nm, earthshine_W_m2_nm, solar_irradiance_W_m2_nm)", "spectral", unit="nm",
+    _o("wavelengths", "str", None, "a row per wavelength: LIST or START:STOP:STEP (sweep rows: wavelength_nm, "
+       "moonshine_W_m2_nm, earthshine_W_m2_nm, solar_irradiance_W_m2_nm; brdf --body earth: the reflectance there)",
+       "spectral", unit="nm",
        metavar="LIST|START:STOP:STEP"),
     _o("bands", "str", None, "band-integrated rows (∫E S dλ): Johnson-Cousins U,B,V,R,I (Bessell 1990), packaged "
        "instrument bands (S2A-B1..B12, MODIS-TERRA-B1..B9), any speclite filter, LO-HI [nm] or a CSV FILE "
@@ -341,14 +386,21 @@ def validate(obj, options=OPTIONS) -> None:
                 object.__setattr__(obj, o.name, checked)
 
 
-def compose(*groups: str):
-    """Class decorator (apply before ``@dataclass``): the fields of the named option groups,
-    with the schema's types and defaults, ahead of the class's own fields."""
+def compose(*groups: str, names: tuple[str, ...] = ()):
+    """Class decorator (apply before ``@dataclass``): the fields of the named option groups (and
+    the options ``names``), with the schema's types and defaults, ahead of the class's own fields."""
+
+    group(*groups)  # (unknown group names are a programming error)
+    unknown = set(names) - set(BY_NAME)
+    if unknown:
+        raise AssertionError(f"unknown option {sorted(unknown)[0]!r}")
 
     def deco(cls):
         own = dict(cls.__dict__.get("__annotations__", {}))
         ann = {}
-        for o in group(*groups):
+        for o in OPTIONS:
+            if o.group not in groups and o.name not in names:
+                continue
             if o.name in own:
                 continue  # the class declares its own (e.g. a resolved default)
             ann[o.name] = "Any"
@@ -361,6 +413,23 @@ def compose(*groups: str):
         return cls
 
     return deco
+
+
+#: what the model Earth of every inversion keeps of the real one: its Lambert albedo
+MODEL_EARTH_KEEPS = ("earth_albedo",)
+
+
+def model_earth(obj) -> dict:
+    """The changes (for :func:`dataclasses.replace`) that make ``obj``'s Earth the model Earth of
+    every inversion, the uniform Lambert sphere of its ``earth_albedo``: every other option of the
+    ``earth`` group at its default, and no Earth parameters (``params["earth"]``, ``earth_params``).
+    An option added to the group is reset with the others."""
+    changes = {o.name: o.default for o in group("earth") if o.name not in MODEL_EARTH_KEEPS}
+    if hasattr(obj, "params"):
+        changes["params"] = {k: v for k, v in (obj.params or {}).items() if k != "earth"}
+    if hasattr(obj, "earth_params"):
+        changes["earth_params"] = ()
+    return changes
 
 
 def from_settings_dict(cls, d: dict, **extra):

@@ -91,8 +91,8 @@ def phase_function(quick: bool) -> dict:
     from lunarviz.photometry.albedo_inversion import bond_albedo as eq17
     sc = SceneGeometry(90.0)
     frame = map_frame(sc, "earth", 0.0)
-    phys = EarthSurface("landocean", "zonal", brdf="physical")
-    lamb = Surfaces(None, EarthSurface("landocean", "zonal"), 0.0)
+    phys = EarthSurface(earth_surface="landocean", clouds="zonal", earth_brdf="physical")
+    lamb = Surfaces(None, EarthSurface(earth_surface="landocean", clouds="zonal"), 0.0)
     betas = np.array([30.0, 90.0, 150.0]) if quick else np.arange(5.0, 176.0, 10.0)
     a_phys = np.array([apparent_albedo(phys, sc, frame, b, 0.0, 550.0) for b in betas])
     from lunarviz.surfaces.physical_earth import _direction
@@ -106,7 +106,7 @@ def phase_function(quick: bool) -> dict:
     held = np.interp(full, full[seen], p_full[seen])  # held constant beyond the observed range
     # or extrapolated with a model's phase function: the uniform physical Earth (Lambert 0.3 under
     # the Rayleigh layer), scaled to the observed p*
-    uniform = EarthSurface(brdf="physical")
+    uniform = EarthSurface(earth_brdf="physical")
     shape = np.array([apparent_albedo(uniform, sc, frame, max(b, 0.5), 0.0, 550.0) for b in full])
     k = float(np.mean(p_full[seen] / shape[seen]))
     modelled = np.where(seen, p_full, k * shape)
@@ -127,7 +127,7 @@ def year(quick: bool) -> list[dict]:
     from lunarviz.surfaces.earth_surface import EarthSurface
     from lunarviz.surfaces.maps import map_frame
     from lunarviz.surfaces.point_values import Surfaces
-    phys = EarthSurface("landocean", "zonal", brdf="physical")
+    phys = EarthSurface(earth_surface="landocean", clouds="zonal", earth_brdf="physical")
     surfaces = Surfaces(None, phys, 0.0)
     rows = []
     for m in ((1, 7) if quick else range(1, 13)):

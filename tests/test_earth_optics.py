@@ -248,8 +248,8 @@ def test_bond_albedo_conserves_energy_and_matches_the_spherical_albedo():
     from lunarviz.geometry.scene_geometry import SceneGeometry
     sc = SceneGeometry(90.0)
     frame = map_frame(sc, "earth", 0.0)
-    white, _ = bond_albedo(EarthSurface(brdf="physical", albedo=1.0), sc, frame, 550.0)
-    black, _ = bond_albedo(EarthSurface(brdf="physical", albedo=0.0), sc, frame, 550.0)
+    white, _ = bond_albedo(EarthSurface(earth_brdf="physical", earth_albedo=1.0), sc, frame, 550.0)
+    black, _ = bond_albedo(EarthSurface(earth_brdf="physical", earth_albedo=0.0), sc, frame, 550.0)
     assert white == pytest.approx(1.0, abs=1e-3)
     assert black == pytest.approx(spherical_albedo(float(rayleigh.optical_depth(550.0))), rel=1e-3)
 

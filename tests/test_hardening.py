@@ -163,7 +163,7 @@ def test_a_plot_path_that_is_a_folder_is_refused_before_any_work(tmp_path):
     (tmp_path / "fit.png").mkdir()
     table = tmp_path / "t.csv"
     table.write_text("phase_deg,reflectance\n10,0.1\n20,0.09\n30,0.08\n40,0.07\n")
-    r = subprocess.run([sys.executable, "-m", "lunarviz", "fit", "--brdf", "lambert", "--source", str(table),
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "fit", "--model", "lambert", "--source", str(table),
                         "--out", str(tmp_path / "fit.json")], capture_output=True, text=True)
     assert r.returncode == 2 and "is a directory" in r.stderr and r.stderr.count("\n") == 1
     assert not (tmp_path / "fit.json").exists()
@@ -182,7 +182,7 @@ def test_extreme_values_end_in_one_line(tmp_path, case):
     else:
         (tmp_path / "t.csv").write_text("phase_deg,reflectance,waxing\n10,0.1,1\n20,0.09,1\n30,0.08,1\n"
                                         + ("40,0.07,inf\n" if case == "waxing_inf" else "40,5e-324,1\n"))
-        args = ["fit", "--brdf", "lambert", "--source", "t.csv", "--out", "f.json"]
+        args = ["fit", "--model", "lambert", "--source", "t.csv", "--out", "f.json"]
     r = subprocess.run([sys.executable, "-m", "lunarviz", *args], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 2, r.stderr
     assert r.stderr.startswith("lunarviz: error:") and r.stderr.count("\n") == 1, r.stderr

@@ -159,7 +159,7 @@ def test_fit_command_on_a_table(tmp_path):
     table = tmp_path / "t.csv"
     table.write_text("phase_deg,reflectance\n" + "".join(f"{x},{float(y)!r}\n" for x, y in zip(g, a)))
     out = tmp_path / "fit.json"
-    r = subprocess.run([sys.executable, "-m", "lunarviz.cli", "fit", "--brdf", "lambert", "--source", str(table),
+    r = subprocess.run([sys.executable, "-m", "lunarviz.cli", "fit", "--model", "lambert", "--source", str(table),
                         "--out", str(out)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     d = json.loads(out.read_text())

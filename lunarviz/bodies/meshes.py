@@ -19,7 +19,7 @@ import trimesh
 
 from lunarviz.bodies.sphere_mesh import packaged_file
 from lunarviz.errors import LunarvizError
-from lunarviz.options import BODIES, DEFAULT_LEVELS, MAX_LEVEL, MESH_UNITS  # noqa: F401 (DEFAULT_LEVELS: re-exported)
+from lunarviz.options import BODIES, DEFAULT_LEVELS, MAX_LEVEL, MESH_UNITS
 from lunarviz.resources import MESH_DIR
 
 #: Default subdivision levels, chosen from the mesh-resolution study

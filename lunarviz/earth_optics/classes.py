@@ -21,29 +21,20 @@ from lunarviz.caches import memoize
 from lunarviz.earth_optics import rayleigh
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, theta_of
 from lunarviz.errors import LunarvizError
+from lunarviz.options import EARTH_PARAMETER_DEFAULTS, earth_params
 
 #: Gauss nodes in cos θ' for the albedos (the glint lobe of a 2 m s⁻¹ sea is ~10° wide)
 ALBEDO_ORDER = 96
 #: classes with a packaged spectrum serving as albedo
 LAND_CLASSES = ("vegetation", "desert", "snow")
 SURFACE_NAMES = ("black", "lambert:A", "ocean", "land", *LAND_CLASSES, "cloud")
-#: default parameters of the physical Earth: ``--param earth.NAME=VALUE``: the wind speed [m s⁻¹],
-#: the cloud top's and the surface's pressure [hPa] (the Rayleigh optical depth above them), the
-#: wavelength [nm] at which a grey (not spectral) run evaluates the Earth
-EARTH_DEFAULTS = {"wind_speed": 7.0, "cloud_top_hpa": 700.0, "surface_hpa": rayleigh.SEA_LEVEL_HPA,
-                  "wavelength_nm": 550.0}
-#: their ranges (Cox & Munk fitted 1–14 m s⁻¹; the tables' optical depths end at 2)
-EARTH_RANGES = {"wind_speed": (0.0, 30.0), "cloud_top_hpa": (100.0, 1100.0), "surface_hpa": (100.0, 1100.0),
-                "wavelength_nm": (300.0, 2500.0)}
-
-
 @dataclass(frozen=True)
 class Surface:
     """One class: ``kind`` (lambert, ocean, land, cloud), its albedo (lambert), land class, wind."""
     kind: str
     albedo: float = 0.0
     land_class: str = ""
-    wind_speed: float = EARTH_DEFAULTS["wind_speed"]
+    wind_speed: float = EARTH_PARAMETER_DEFAULTS["wind_speed"]
 
     @property
     def lambertian(self) -> bool:
@@ -164,24 +155,7 @@ def _fourier(kind, albedo, land_class, wind_speed, wavelength_nm) -> np.ndarray:
     return out
 
 
-def earth_params(params: dict | None) -> dict:
-    """The physical Earth's parameters: defaults updated by ``params``, each checked."""
-    p = dict(EARTH_DEFAULTS)
-    for k, v in (params or {}).items():
-        if k not in EARTH_DEFAULTS:
-            raise LunarvizError(f"earth parameter {k!r} is not one of {', '.join(EARTH_DEFAULTS)}")
-        lo, hi = EARTH_RANGES[k]
-        try:
-            v = float("nan") if isinstance(v, bool) else float(v)
-        except (TypeError, ValueError):
-            v = float("nan")
-        if not lo <= v <= hi:
-            raise LunarvizError(f"earth.{k}={params[k]!r}: must be in {lo:g}…{hi:g}")
-        p[k] = v
-    return p
-
-
-def surface_from_name(text: str, wind_speed: float = EARTH_DEFAULTS["wind_speed"]) -> Surface:
+def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["wind_speed"]) -> Surface:
     """A :class:`Surface` from ``black``, ``lambert:A``, ``ocean``, ``land``, ``vegetation``,
     ``desert``, ``snow`` or ``cloud``; a bad name or albedo raises one line naming it."""
     if not isinstance(text, str):

@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.constants import SEA_LEVEL_HPA
+
 #: molecular depolarisation ratio of air (Young 1980, *Appl. Opt.* 19, 3427)
 DEPOLARISATION = 0.0279
-#: sea-level pressure of Bodhaine et al.'s formula [hPa]
-SEA_LEVEL_HPA = 1013.25
 
 
 def optical_depth(wavelength_nm, pressure_hpa: float = SEA_LEVEL_HPA) -> np.ndarray:

@@ -30,11 +30,14 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 
+import lunarviz.constants as C
 from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
+from lunarviz.options import BY_NAME, model_earth
 from lunarviz.resources import DATA_DIR
 
 #: a setting is chosen when its measured largest error is at most rtol / SAFETY
@@ -43,9 +46,9 @@ SAFETY = 2.0
 #: fixed defaults, level 4: 8.7e-5 on the paper's scene)
 DEFAULT_RTOL = {"raytrace": 1e-4, "analytic": 1e-6, "reference": 1e-6}
 #: Monte Carlo without a tolerance: the paper's 50,000 rays per run
-DEFAULT_RAYS = 50_000
+DEFAULT_RAYS = C.PAPER_RAYS
 #: the most rays per run a tolerance may ask for (the ``rays`` option's bound)
-MAX_RAYS = 10**9
+MAX_RAYS = BY_NAME["rays"].hi
 #: choices are nested: a tolerance takes at least the orders and level of NEST times it, up to LOOSEST
 #: (the cheapest setting per tolerance need not grow monotonically; refinement must never make a
 #: result worse)
@@ -315,9 +318,7 @@ def calibration_settings(ts_set, moon_level_asked, mapped_moon: bool):
     nominal Lambert sphere, on the same scene) where the run itself cannot calibrate (Monte Carlo,
     a user's Earth mesh): ``ts_set`` with the model Earth, at the deterministic tracer's default
     tolerance unless a mesh level was asked for (``moon_level_asked``)."""
-    from dataclasses import replace
     choice = {} if moon_level_asked else trace_choice(DEFAULT_RTOL["raytrace"], {}, mapped_moon)
     cal = {k: choice[k] for k in ("lune_order", "sun_order", "earth_order", "lune_source_orders")
            if choice.get(k) is not None}
-    return replace(ts_set, estimator="deterministic", earth_mesh=None, earth_surface="uniform", clouds="none",
-                   earth_brdf="lambert", earth_params=(), **cal)
+    return replace(ts_set, estimator="deterministic", earth_mesh=None, **model_earth(ts_set), **cal)

@@ -28,33 +28,31 @@ from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, half_angle_sin_cos, unit
 from lunarviz.geometry.sphere_quadrature import cap_rule, compact
 from lunarviz.methods.transport import Transport, detector_geometry
-from lunarviz.options import GRIDS
+from lunarviz.options import BY_NAME, compose, group, validate
 from lunarviz.photometry.earth_phase import earth_intensity
 
 
 @dataclass(frozen=True)
+@compose("analytic", names=("earth_albedo",))
 class AnalyticSettings:
-    grid: str = "converged"
+    """The analytic method's settings: the options of the schema's ``analytic`` group
+    (:mod:`lunarviz.options`: ``grid``, ``order``, ``earth_law``) and ``earth_albedo``, with the
+    order resolved, and:"""
+
+    #: the Gauss order of the lunar surface rule (resolved: the schema's ``None`` is the tolerance's choice)
     order: int = 24
+    #: the paper grid's step [deg] (``grid="paper"``)
     paper_step_deg: float = 1.0
-    earth_law: str = "lambert"
-    earth_albedo: float = 0.3
     #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.point_values.Surfaces`), read at the
     #: lunar nodes; the point Earth takes the albedo its lit face shows the Moon's centre
     surfaces: object = None
 
     def __post_init__(self):
-        if self.grid not in GRIDS:
-            raise LunarvizError(f"analytic grid {self.grid!r} is not one of {', '.join(GRIDS)}")
-        if not (isinstance(self.order, (int, np.integer)) and 2 <= self.order <= 512):
-            raise LunarvizError(f"analytic order={self.order!r} must be an integer in [2, 512]")
+        validate(self, group("analytic") + (BY_NAME["earth_albedo"],))
+        if self.order is None:
+            raise LunarvizError("analytic order=None: give an integer in [2, 512]")
         if not (0 < self.paper_step_deg <= 85):
             raise LunarvizError(f"paper grid step {self.paper_step_deg!r} deg must be in (0, 85]")
-        if not (isinstance(self.earth_albedo, (int, float, np.number)) and 0 <= self.earth_albedo <= 1):
-            raise LunarvizError(f"Earth albedo {self.earth_albedo!r} must be a number in [0, 1]")
-        from lunarviz.photometry.earth_phase import EARTH_LAWS
-        if self.earth_law not in EARTH_LAWS:
-            raise LunarvizError(f"Earth law {self.earth_law!r} is not one of {', '.join(EARTH_LAWS)}")
 
 
 def lunar_surface_rule(scene: SceneGeometry, source: np.ndarray, source_radius: float = 0.0,

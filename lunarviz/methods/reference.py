@@ -26,16 +26,24 @@ from lunarviz.geometry.scene_geometry import SceneGeometry, half_angle_sin_cos
 from lunarviz.methods.analytic import DetectorIrradiance, lunar_surface_rule
 from lunarviz.methods.sources import earth_radiance, source_beams, source_sphere_rule, sun_radiance  # noqa: F401 (re-export)
 from lunarviz.methods.transport import Transport, detector_geometry
+from lunarviz.options import BY_NAME, validate
 
 
 @dataclass(frozen=True)
 class ReferenceSettings:
+    """The exact reference's settings (``earth_albedo``: the schema's option, :mod:`lunarviz.options`)."""
+
+    #: the Gauss orders of the lunar surface (outer) and of each source sphere (inner)
     outer_order: int = 24
     inner_order: int = 8
-    earth_albedo: float = 0.3
+    earth_albedo: float = BY_NAME["earth_albedo"].default
+    #: lunar nodes per batch (bounds memory)
     chunk: int = 256
     #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.point_values.Surfaces`), read at the nodes
     surfaces: object = None
+
+    def __post_init__(self):
+        validate(self, (BY_NAME["earth_albedo"],))
 
 
 def reference_transports(scene: SceneGeometry, path: str, settings: ReferenceSettings = ReferenceSettings()):

@@ -15,7 +15,7 @@ import warnings
 
 from lunarviz.errors import LunarvizError, LunarvizWarning
 from lunarviz.geometry.scene_geometry import SceneGeometry
-from lunarviz.options import BY_NAME, METHODS, validate
+from lunarviz.options import BY_NAME, METHODS, earth_params, validate
 
 #: the analytic method's point Sun is refused within this angle of new Moon (θ = 180° itself,
 #: where the exact reference is 4e-20 W m-2, is kept): its moonshine is 13 % low at 179°, 60 %
@@ -141,7 +141,7 @@ def _read_files_once(scene) -> None:
     its caches: the same arguments as the tracer's own calls)."""
     if not scene.earth_uniform:
         from lunarviz.surfaces.earth_surface import EarthSurface
-        EarthSurface(scene.earth_surface, scene.clouds).clear_map()
+        EarthSurface(earth_surface=scene.earth_surface, clouds=scene.clouds).clear_map()
     ts = scene.trace_settings()
     if scene.method == "raytrace":
         for body in ("moon", "earth", "sun"):
@@ -204,7 +204,6 @@ def check_physical_earth(scene) -> None:
     albedos and spectra, not the Lambert Earth's options."""
     from lunarviz.surfaces.earth_surface import EarthSurface
     if "earth" in scene.params:
-        from lunarviz.earth_optics.classes import earth_params
         earth_params(scene.params["earth"])
         if scene.earth_brdf != "physical":
             raise LunarvizError("earth parameters (--param earth.NAME=VALUE) need --earth-brdf physical")

@@ -47,7 +47,7 @@ def earth_model(scene, model_earth: bool = False):
     """The Earth model (:class:`~lunarviz.surfaces.earth_surface.EarthSurface`); ``model_earth``:
     the uniform Lambert Earth of ``earth_albedo`` that an inversion assumes."""
     from lunarviz.surfaces.earth_surface import EarthSurface
-    return EarthSurface(albedo=scene.earth_albedo) if model_earth else EarthSurface.from_options(scene)
+    return EarthSurface(earth_albedo=scene.earth_albedo) if model_earth else EarthSurface.from_options(scene)
 
 
 def surfaces(scene, model_earth: bool = False):

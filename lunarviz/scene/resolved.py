@@ -16,11 +16,12 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field, replace
 
+import lunarviz.constants as C
 from lunarviz.options import GROUPS, compose, from_settings_dict
 from lunarviz.scene import checks, inputs, tolerance
 
 #: the θ of the paper's half orbit, every 5° (the default phases)
-PAPER_PHASES_DEG = tuple(float(p) for p in range(0, 181, 5))
+PAPER_PHASES_DEG = tuple(float(p) for p in C.PAPER_PHASES_DEG)
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,7 @@ import warnings
 
 from lunarviz.errors import LunarvizError, LunarvizWarning
 from lunarviz.methods import accuracy
-from lunarviz.methods.tracer.settings import DEFAULT_ORDERS
-from lunarviz.options import DEFAULT_LEVELS
+from lunarviz.options import DEFAULT_LEVELS, DEFAULT_ORDERS
 
 
 def rtol_or_default(scene) -> float:

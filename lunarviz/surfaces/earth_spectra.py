@@ -48,9 +48,9 @@ def land_cover() -> np.ndarray:
 
 def components(surface) -> tuple[str, ...]:
     """The component names of an :class:`~lunarviz.surfaces.earth_surface.EarthSurface`, in order."""
-    if surface.surface == "uniform":
+    if surface.earth_surface == "uniform":
         clear = ("uniform",) if surface.clouds == "none" else ("clear",)
-    elif surface.surface == "landocean":
+    elif surface.earth_surface == "landocean":
         clear = ("ocean", "vegetation", "desert", "snow")
     else:
         clear = ("clear",)
@@ -65,9 +65,9 @@ def weights_at(surface, dirs: np.ndarray) -> np.ndarray:
     c = surface.cloud_fraction_at(dirs)
     clear = 1.0 - c
     cols = []
-    if surface.surface == "uniform":
+    if surface.earth_surface == "uniform":
         cols.append(clear)
-    elif surface.surface == "landocean":
+    elif surface.earth_surface == "landocean":
         f = sample_map(land_fraction_map(), dirs)
         cover = sample_map(land_cover(), dirs)
         cols.append(clear * (1.0 - f))
@@ -83,7 +83,8 @@ def weights_at(surface, dirs: np.ndarray) -> np.ndarray:
 
 def grey_albedos(surface) -> dict[str, float]:
     """Each component's grey albedo (what the grey run gives it)."""
-    return {"uniform": surface.albedo, "clear": 1.0 if surface.surface not in ("uniform",) else surface.albedo,
+    clear = 1.0 if surface.earth_surface not in ("uniform",) else surface.earth_albedo
+    return {"uniform": surface.earth_albedo, "clear": clear,
             "ocean": surface.ocean_albedo, "vegetation": surface.land_albedo, "desert": surface.land_albedo,
             "snow": surface.land_albedo, "cloud": surface.cloud_albedo}
 
@@ -112,8 +113,8 @@ def facet_weights(surface, body, frame: np.ndarray) -> np.ndarray:
     if key not in memo:
         if len(memo) > 8:
             memo.clear()
-        shape = (1800, 3600) if surface.surface == "landocean" else \
-            (surface.clear_map().shape if surface.surface != "uniform" else (180, 360))
+        shape = (1800, 3600) if surface.earth_surface == "landocean" else \
+            (surface.clear_map().shape if surface.earth_surface != "uniform" else (180, 360))
         k = facet_sub_count(body.vertices, body.faces, shape)
         memo[key] = facet_average(lambda d: weights_at(surface, d @ frame), body.vertices, body.faces, k)
     return memo[key]

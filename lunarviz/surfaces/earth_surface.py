@@ -17,7 +17,7 @@ import numpy as np
 
 from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
-from lunarviz.options import CLOUD_ALBEDO, LAND_ALBEDO, OCEAN_ALBEDO
+from lunarviz.options import BY_NAME, EARTH_PARAMETER_DEFAULTS, compose, earth_params, group, validate
 from lunarviz.resources import DATA_DIR
 from lunarviz.surfaces.maps import check_range, facet_average, facet_sub_count, lat_lon_deg, read_map, sample_map
 
@@ -79,71 +79,58 @@ def zonal_cloud_table() -> tuple[np.ndarray, np.ndarray]:
 
 
 @dataclass(frozen=True)
+@compose("earth")
 class EarthSurface:
-    """``--earth-surface uniform|landocean|FILE`` and ``--clouds none|zonal|FILE``."""
+    """The Earth's surface: the options of the schema's ``earth`` group (:mod:`lunarviz.options`:
+    ``earth_surface``, ``clouds``, ``earth_brdf``, the albedos), and the physical Earth's
+    parameters as sorted (name, value) pairs (``--param earth.NAME=VALUE``,
+    :data:`lunarviz.options.EARTH_PARAMETERS`)."""
 
-    surface: str = "uniform"
-    clouds: str = "none"
-    albedo: float = 0.3  # the uniform surface's (clear-sky) albedo
-    land_albedo: float = LAND_ALBEDO
-    ocean_albedo: float = OCEAN_ALBEDO
-    cloud_albedo: float = CLOUD_ALBEDO
-    #: ``lambert`` or ``physical`` (:mod:`lunarviz.surfaces.physical_earth`), and the physical Earth's
-    #: parameters as sorted (name, value) pairs
-    brdf: str = "lambert"
     earth_params: tuple = ()
 
     def __post_init__(self):
-        if self.brdf not in ("lambert", "physical"):
-            raise LunarvizError(f"Earth BRDF {self.brdf!r} is not one of lambert, physical")
+        validate(self, group("earth"))
         if self.earth_params:
-            from lunarviz.earth_optics.classes import earth_params
             earth_params(dict(self.earth_params))
-        if self.brdf == "physical":  # the classes carry their own albedos
-            for name, default in (("land_albedo", LAND_ALBEDO), ("ocean_albedo", OCEAN_ALBEDO),
-                                  ("cloud_albedo", CLOUD_ALBEDO)):
-                if getattr(self, name) != default:
+        if self.earth_brdf == "physical":  # the classes carry their own albedos
+            for name in ("land_albedo", "ocean_albedo", "cloud_albedo"):
+                if getattr(self, name) != BY_NAME[name].default:
                     raise LunarvizError(f"--{name.replace('_', '-')} is the Lambert Earth's: --earth-brdf physical "
                                         f"takes its classes' own (docs: the Earth as it reflects)")
-        for name in ("albedo", "land_albedo", "ocean_albedo", "cloud_albedo"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float, np.number)) and np.isfinite(v) and 0.0 <= v <= 1.0):
-                raise LunarvizError(f"{name.replace('_', ' ')} {v!r} must be a number in [0, 1]")
-        if self.surface not in EARTH_SURFACES:
+        if self.earth_surface not in EARTH_SURFACES:
             self.clear_map()  # a file: read and check now
         if self.clouds not in CLOUDS:
             self.cloud_map()
 
     @classmethod
     def from_options(cls, o) -> "EarthSurface":
-        """The Earth surface that settings ``o`` (any object with the ``surfaces`` options of
-        :mod:`lunarviz.options` and ``earth_albedo``) describe."""
+        """The Earth surface that ``o`` (a resolved scene, the tracer's settings: anything with the
+        ``earth`` options of :mod:`lunarviz.options`, and ``params`` or ``earth_params``) describes."""
         params = getattr(o, "params", None)
         earth = (params or {}).get("earth", {}) if params is not None else dict(getattr(o, "earth_params", ()))
-        return cls(o.earth_surface, o.clouds, o.earth_albedo, o.land_albedo, o.ocean_albedo, o.cloud_albedo,
-                   getattr(o, "earth_brdf", "lambert"), tuple(sorted(earth.items())))
+        return cls(**{x.name: getattr(o, x.name) for x in group("earth")}, earth_params=tuple(sorted(earth.items())))
 
     @property
     def uniform(self) -> bool:
         """One Lambert albedo everywhere (the physical Earth never is: it reflects by geometry)."""
-        return self.surface == "uniform" and self.clouds == "none" and self.brdf == "lambert"
+        return self.earth_surface == "uniform" and self.clouds == "none" and self.earth_brdf == "lambert"
 
     @property
     def physical(self) -> bool:
-        return self.brdf == "physical"
+        return self.earth_brdf == "physical"
 
     @property
     def wavelength_nm(self) -> float:
         """The wavelength [nm] of a grey run's physical Earth (``earth.wavelength_nm``)."""
-        return float(dict(self.earth_params).get("wavelength_nm", 550.0))
+        return float(dict(self.earth_params).get("wavelength_nm", EARTH_PARAMETER_DEFAULTS["wavelength_nm"]))
 
     def clear_map(self):
-        if self.surface == "uniform":
+        if self.earth_surface == "uniform":
             return None
-        if self.surface == "landocean":
+        if self.earth_surface == "landocean":
             f = land_fraction_map()
             return self.land_albedo * f + self.ocean_albedo * (1.0 - f)
-        return _earth_map(file_key(self.surface), "Earth surface map")
+        return _earth_map(file_key(self.earth_surface), "Earth surface map")
 
     def cloud_map(self):
         if self.clouds in CLOUDS:
@@ -154,7 +141,7 @@ class EarthSurface:
         """Lambert albedo at directions (n, 3) in the Earth's map frame: clear sky and cloud
         combined as ``(1 - c) A_clear + c A_cloud``."""
         clear = self.clear_map()
-        a = np.full(len(dirs), float(self.albedo)) if clear is None else sample_map(clear, dirs)
+        a = np.full(len(dirs), float(self.earth_albedo)) if clear is None else sample_map(clear, dirs)
         if self.clouds == "none":
             return a
         c = self.cloud_fraction_at(dirs)
@@ -174,7 +161,7 @@ class EarthSurface:
         """Per-facet (area-averaged) albedo of an Embree body for map frame ``frame``; kept with
         the body's cached geometry (a θ sweep's Earth keeps one frame: computed once)."""
         if self.uniform:
-            return np.full(body.n_faces, float(self.albedo))
+            return np.full(body.n_faces, float(self.earth_albedo))
         memo = body.geometry.setdefault("surface_albedo", {})
         key = (self, np.asarray(frame, dtype=float).tobytes())
         if key not in memo:
@@ -184,8 +171,8 @@ class EarthSurface:
         return memo[key]
 
     def _facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
-        shape = (1800, 3600) if self.surface == "landocean" else \
-            (self.clear_map().shape if self.surface != "uniform" else (180, 360))
+        shape = (1800, 3600) if self.earth_surface == "landocean" else \
+            (self.clear_map().shape if self.earth_surface != "uniform" else (180, 360))
         k = facet_sub_count(body.vertices, body.faces, shape)
         return facet_average(lambda d: self.albedo_at(d @ frame), body.vertices, body.faces, k)
 

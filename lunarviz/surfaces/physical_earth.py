@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.surfaces.maps import map_frame, sample_map
-from lunarviz.earth_optics.classes import Surface, earth_params, surface_from_name, toa_reflectance
+from lunarviz.earth_optics.classes import Surface, surface_from_name, toa_reflectance
+from lunarviz.options import earth_params
 from lunarviz.surfaces.earth_spectra import components, facet_weights, weights_at
 
 
@@ -46,9 +47,9 @@ def class_models(surface) -> dict[str, Surface]:
     out = {}
     for name in components(surface):
         if name == "uniform":
-            out[name] = Surface("lambert", float(surface.albedo))
+            out[name] = Surface("lambert", float(surface.earth_albedo))
         elif name == "clear":
-            out[name] = None if surface.surface != "uniform" else Surface("lambert", float(surface.albedo))
+            out[name] = None if surface.earth_surface != "uniform" else Surface("lambert", float(surface.earth_albedo))
         else:
             out[name] = surface_from_name(name, wind_speed=p["wind_speed"])
     return out

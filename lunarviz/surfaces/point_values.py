@@ -32,7 +32,7 @@ class Surfaces:
     def earth_albedo_at(self, scene, points: np.ndarray) -> np.ndarray | float:
         """Earth albedo at Earth surface points (..., 3) [m] (scene frame); the scalar if uniform."""
         if self.earth.uniform:
-            return float(self.earth.albedo)
+            return float(self.earth.earth_albedo)
         p = np.asarray(points) - scene.earth
         d = p.reshape(-1, 3) @ map_frame(scene, "earth", self.earth_rotation_deg)
         return self.earth.albedo_at(d).reshape(p.shape[:-1])
@@ -44,7 +44,7 @@ class Surfaces:
         ``values``: a function of map-frame directions (n, 3) giving (n,) or (n, C) values to
         weight instead of the albedo (:mod:`lunarviz.surfaces.earth_spectra`'s components)."""
         if self.earth.uniform and values is None:
-            return float(self.earth.albedo)
+            return float(self.earth.earth_albedo)
         if self.earth.physical:
             raise AssertionError("a physical Earth: use lunarviz.surfaces.physical_earth.albedo_toward")  # a caller bug
         values = values or self.earth.albedo_at

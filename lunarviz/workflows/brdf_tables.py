@@ -43,7 +43,8 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
                ) -> tuple[list[dict], dict]:
     """Rows of the Earth's class ``surface`` (:func:`lunarviz.earth_optics.classes.surface_from_name`)
     at each wavelength [nm], and the settings that made them."""
-    from lunarviz.earth_optics.classes import earth_params, surface_from_name, toa_reflectance
+    from lunarviz.earth_optics.classes import surface_from_name, toa_reflectance
+    from lunarviz.options import earth_params
     if "wavelength_nm" in (params or {}):
         raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
     p = earth_params(params)

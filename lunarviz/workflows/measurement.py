@@ -17,6 +17,7 @@ from lunarviz.instrument.observation import Observation, check_exposure, instrum
 from lunarviz.instrument.pipeline import Calibration, calibrate, measure
 from lunarviz.instrument.response import instrument_request
 from lunarviz.instrument.spec import Instrument, instrument_from_dict
+from lunarviz.options import model_earth
 from lunarviz.spectral.bands import parse_band
 from lunarviz.workflows import tasks
 
@@ -54,8 +55,7 @@ def observation(scene, key, inst: Instrument, exposure_s: float | None = None, t
 def model_earth_scene(scene):
     """``scene`` with the uniform Lambert Earth of its ``earth_albedo``: what the pipeline's model
     (and every inversion) assumes."""
-    return replace(scene, earth_surface="uniform", clouds="none", earth_brdf="lambert",
-                   params={k: v for k, v in scene.params.items() if k != "earth"})
+    return replace(scene, **model_earth(scene))
 
 
 def calibration(scene, key, inst: Instrument, exposure_s: float, rates: dict | None = None) -> Calibration:

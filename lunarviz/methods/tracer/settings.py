@@ -11,7 +11,7 @@ import numpy as np
 from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.methods.accuracy import DEFAULT_RAYS
-from lunarviz.options import DEFAULT_LEVELS, SHADINGS, compose, validate
+from lunarviz.options import DEFAULT_LEVELS, DEFAULT_ORDERS, SHADINGS, compose, validate
 
 #: Shadow-ray origins are offset along the normal by this fraction of the body radius
 #: (0.17 m on the Moon: above float32's 0.125 m step at the lunar radius, far below any facet).
@@ -44,9 +44,6 @@ TERMINATOR_SUB = 8
 #: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
 #: from the Moon (its beams; ``mapped_earth_transport``).
 EARTH_CELLS = 24
-#: Gauss orders of the Sun's and the Earth's beams when neither an order nor a tolerance is given
-#: (the former fixed defaults: 8.7e-5 with level 4 on the paper's scene)
-DEFAULT_ORDERS = {"sun": 2, "earth": 6}
 
 
 @dataclass(frozen=True)
