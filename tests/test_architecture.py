@@ -1,5 +1,9 @@
 """The package's layout rules, read from its source with Python's ``ast``.
 
+* every package imports only packages of lower layers (the table of docs/architecture.md, read
+  here), function-level imports included;
+* nothing below the scene layer takes the resolved scene: no call of its input methods, no
+  unannotated ``settings`` parameter;
 * no import cycle between lunarviz's modules, function-level imports included (an import of
   ``pkg.mod`` counts as an edge to ``pkg.mod``; of a name from a module, to that module);
 * no private name (one leading underscore) imported from another module;
@@ -14,6 +18,7 @@ Each check reports what breaks it, so a failure says where to look.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -105,6 +110,89 @@ def _cycles(edges) -> list[list[str]]:
         if v not in index:
             visit(v)
     return out
+
+
+def _layers() -> dict[str, int]:
+    """``{package: layer}`` from the table under "## Layers" of docs/architecture.md."""
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    section = text.split("## Layers", 1)[1].split("\n## ", 1)[0]
+    out = {}
+    for m in re.finditer(r"^\| (\d+) \| ([^|]+)\|", section, flags=re.M):
+        for name in re.findall(r"`([\w.]+)`", m.group(2)):
+            out[name] = int(m.group(1))
+    return out
+
+
+LAYERS = _layers()
+
+
+def _package(mod: str) -> str:
+    """The layer table's name for a module: its package below ``lunarviz``, or the top-level
+    module itself (``lunarviz`` for the package's ``__init__``)."""
+    parts = mod.split(".")
+    return "lunarviz" if len(parts) == 1 else parts[1]
+
+
+def _upward(edges: dict, layers: dict) -> list[str]:
+    """Imports from a package to one of its own layer or above (its own modules excepted)."""
+    bad = []
+    for mod, targets in edges.items():
+        a = _package(mod)
+        for t in targets:
+            b = _package(t)
+            if a != b and layers[b] >= layers[a]:
+                bad.append(f"{mod} (layer {layers[a]}) imports {t} (layer {layers[b]})")
+    return sorted(bad)
+
+
+def test_the_layer_table_is_read_and_covers_every_package():
+    assert LAYERS["constants"] == 0 and LAYERS["cli"] > LAYERS["api"] > LAYERS["workflows"] > LAYERS["scene"]
+    assert sorted({_package(m) for m in MODULES} - set(LAYERS)) == []
+
+
+def test_the_layer_checker_finds_an_upward_import():
+    """The checker itself, on a graph with one import that goes up and one that goes down."""
+    edges = {"lunarviz.methods.camera": {"lunarviz.scene.inputs", "lunarviz.geometry.scene_geometry"}}
+    assert _upward(edges, LAYERS) == ["lunarviz.methods.camera (layer 8) imports lunarviz.scene.inputs (layer 10)"]
+
+
+def test_packages_import_only_lower_layers():
+    edges, _ = _graph()
+    assert _upward(edges, LAYERS) == []
+
+
+#: the resolved scene's input methods (lunarviz.scene.inputs, lunarviz.scene.tolerance): called only
+#: at its layer and above, which hand the layers below their typed inputs
+SCENE_INPUTS = ("brdf_models", "spectral_request", "spectral_inputs", "earth_model", "surfaces", "mapped_moon",
+                "analytic_settings", "reference_settings", "trace_settings", "observer_model", "task", "geometry",
+                "trace_plan", "reference_orders", "modelled", "warn_unmet_tolerance")
+
+
+def _scene_uses(tree) -> list[str]:
+    """Calls of the resolved scene's input methods, and ``settings`` parameters without a type."""
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in SCENE_INPUTS:
+            out.append(f"line {node.lineno}: .{node.func.attr}()")
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for a in node.args.args + node.args.kwonlyargs:
+                if a.arg == "settings" and (a.annotation is None or "ResolvedScene" in ast.unparse(a.annotation)):
+                    out.append(f"line {node.lineno}: {node.name}(settings) without its own type")
+    return out
+
+
+def test_the_scene_checker_finds_a_resolved_scene_below_its_layer():
+    code = "def synthesize(settings, key):\n    return settings.trace_settings().sun_order\n"
+    assert sorted(_scene_uses(ast.parse(code))) == ["line 1: synthesize(settings) without its own type",
+                                                    "line 2: .trace_settings()"]
+
+
+def test_nothing_below_the_scene_layer_takes_the_resolved_scene():
+    found = []
+    for mod, path in MODULES.items():
+        if LAYERS[_package(mod)] < LAYERS["scene"]:
+            found += [f"{mod} {u}" for u in _scene_uses(ast.parse(path.read_text(encoding="utf-8")))]
+    assert found == []
 
 
 def test_the_checker_finds_a_cycle():

@@ -135,3 +135,52 @@ def test_dataset_settings_json_reruns_the_sweep():
 def test_options_table_names_every_option():
     """BY_NAME is the schema, keyed by keyword."""
     assert list(BY_NAME) == [o.name for o in OPTIONS]
+
+
+#: one new Earth option and one new traced option, declared in the schema in a fresh process before
+#: anything else is imported: the worked examples of docs/architecture.md ("Options: one declaration each")
+NEW_OPTIONS_DRIVER = r'''
+import json
+import lunarviz.options as o
+new = (o.Option("sea_ice_albedo", "float", 0.6, "Lambert albedo of sea ice", "earth", unit="1", lo=0.0, hi=1.0,
+                label="sea ice albedo"),
+       o.Option("lune_samples", "int", 16, "lunar samples across the lit lune", "trace", lo=2, hi=256))
+o.OPTIONS = o.OPTIONS + new
+o.BY_NAME.update((x.name, x) for x in new)
+from lunarviz.api import Scene
+from lunarviz.cli import build_parser
+from lunarviz.errors import LunarvizError
+from lunarviz.scene import ResolvedScene
+a = build_parser().parse_args(["sweep", "--sea-ice-albedo", "0.7", "--lune-samples", "24", "--out", "x.json"])
+scene = Scene(phases="90", sea_ice_albedo=a.sea_ice_albedo, lune_samples=a.lune_samples)
+rs = scene.settings("raytrace")
+try:
+    Scene(phases="90", sea_ice_albedo=1.5)
+    refused = ""
+except LunarvizError as exc:
+    refused = str(exc)
+print(json.dumps({
+    "scene_doc": "sea_ice_albedo" in Scene.__doc__ and "lune_samples" in Scene.__doc__,
+    "resolved": [rs.sea_ice_albedo, rs.lune_samples],
+    "round_trip": ResolvedScene.from_json(rs.to_json()) == rs and "sea_ice_albedo" in rs.to_json(),
+    "trace_settings": [rs.trace_settings().sea_ice_albedo, rs.trace_settings().lune_samples],
+    "earth_model": rs.earth_model().sea_ice_albedo,
+    "model_earth": o.model_earth(rs)["sea_ice_albedo"],
+    "refused": refused}))
+'''
+
+
+def test_a_new_option_reaches_every_layer_from_one_declaration(tmp_path):
+    """Adding an option is its declaration (and the code that uses it): with two new options in the
+    schema, nothing else written, the command line parses them, the Scene documents and checks
+    them, the resolved scene carries and round-trips them, the tracer's settings and the Earth model
+    have them, and the model Earth of every inversion resets the Earth's."""
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-c", NEW_OPTIONS_DRIVER], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout.strip().splitlines()[-1])
+    assert got["scene_doc"] and got["round_trip"]
+    assert got["resolved"] == [0.7, 24] and got["trace_settings"] == [0.7, 24]
+    assert got["earth_model"] == 0.7 and got["model_earth"] == 0.6
+    assert got["refused"] == "sea ice albedo 1.5 must be a finite number in [0, 1]"

@@ -106,7 +106,7 @@ def paper_grid(scene: SceneGeometry, step_deg: float = 1.0):
     return scene.moon + R * n, n, dA
 
 
-def _point_source_transport(scene, x, n, dA, source, e_normal) -> Transport:
+def _point_source_transport(scene: SceneGeometry, x, n, dA, source, e_normal) -> Transport:
     v = source[None, :] - x
     s = unit(v)
     mu0 = np.einsum("ij,ij->i", n, s)
@@ -132,7 +132,8 @@ def moonshine_transport(scene: SceneGeometry, settings: AnalyticSettings = Analy
     return _with_moon_map(tr, scene, x, settings, rule)
 
 
-def _with_moon_map(tr: Transport, scene, x, settings, rule: tuple | None = None) -> Transport:
+def _with_moon_map(tr: Transport, scene: SceneGeometry, x, settings: AnalyticSettings,
+                   rule: tuple | None = None) -> Transport:
     """The lunar map on ``tr``: read at the nodes x, or ``rule``'s map weights (its AlbedoNodes)."""
     sf = settings.surfaces
     if sf is not None and sf.moon_map is not None:
