@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+import lunarviz.constants as C
 from lunarviz.errors import LunarvizError
+from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.options import BY_NAME, OPTIONS, defaults, numpydoc_parameters
-from lunarviz.scene.resolved import PAPER_PHASES_DEG
-from lunarviz.methods.tracer.facets import FacetResult
 
 #: options of :class:`Scene` and their defaults (the command line's defaults), from the schema
 SCENE_DEFAULTS = defaults()
@@ -40,7 +40,7 @@ THETA_MAX = 360.0
 def _phases(phases) -> tuple:
     from lunarviz.parsing import parse_float_list
     if phases is None:
-        return PAPER_PHASES_DEG
+        return C.PAPER_PHASES_DEG
     if isinstance(phases, str):
         return tuple(parse_float_list(phases, "phase", 0.0, THETA_MAX))
     try:
@@ -365,8 +365,8 @@ def _instrument_images(sc: Scene, keys, instrument, exposure, frames: int, seed:
     the scene's ``seed``). Without ``out``: :class:`~lunarviz.instrument.observation.Observation` objects."""
     import json
 
-    from lunarviz.instrument.spec import load_instrument
     from lunarviz.instrument.frames import append_counts
+    from lunarviz.instrument.spec import load_instrument
     from lunarviz.outputs.images import write_fits
     from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths
     from lunarviz.workflows.measurement import MAX_FRAMES, check_count, check_seed, observation
@@ -423,7 +423,8 @@ def measure(path=None, *, expected: bool = False, scene: Scene | None = None, si
     ``p_star_sigma_systematic``, ``p_star_sigma_total``, ``p_star_U_k2``) and, simulated, a
     ``summary`` of the standardised errors against the sweep's p*.
     """
-    from lunarviz.workflows.measurement import measure_file, simulate as run_simulation
+    from lunarviz.workflows.measurement import measure_file
+    from lunarviz.workflows.measurement import simulate as run_simulation
     if simulate is None:
         if path is None:
             raise LunarvizError("measure needs a FITS file or simulate=N")
@@ -475,10 +476,10 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     -------
     ImageResult (one key, no ``out``) or list of ImageResult; with ``out``, the files written.
     """
-    from lunarviz.methods.camera import Camera
-    from lunarviz.workflows.tasks import image as task_image
     from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
+    from lunarviz.methods.camera import Camera
     from lunarviz.outputs.images import write_fits, write_npy, write_png
+    from lunarviz.workflows.tasks import image as task_image
     sc = _scene(scene, scene_options)
     if instrument is not None:
         if camera is not None or psf not in (None, "none") or halo not in (None, "none") or gif is not None:

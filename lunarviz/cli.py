@@ -414,8 +414,8 @@ def _scene(a, phases, times=None):
 
 def cmd_sweep(a):
     import lunarviz.api as api
-    from lunarviz.outputs.writers import write_results
     from lunarviz.options import METHODS
+    from lunarviz.outputs.writers import write_results
     if a.method not in METHODS:
         raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
     times = _times(a)

@@ -25,7 +25,7 @@ MOON_LAMBERT_ALBEDO = 0.10
 PAPER_RAYS = 50_000
 PAPER_RUNS = 10
 #: Phase grid of the paper's sweep [deg]; paper Sec. 3.2 (0..180 in 5 deg steps).
-PAPER_PHASES_DEG = tuple(range(0, 181, 5))
+PAPER_PHASES_DEG = tuple(float(p) for p in range(0, 181, 5))
 #: Planck's constant [J s] (SI 2019, exact)
 PLANCK_J_S = 6.62607015e-34
 #: the speed of light in vacuum [m s⁻¹] (SI, exact)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+import lunarviz.constants as C
 from lunarviz.bodies.sphere_mesh import packaged_file
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BODIES, DEFAULT_LEVELS, MAX_LEVEL, MESH_UNITS
@@ -27,7 +28,6 @@ from lunarviz.resources import MESH_DIR
 
 
 def _nominal_radii() -> dict:
-    import lunarviz.constants as C
     return {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}
 
 

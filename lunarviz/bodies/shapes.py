@@ -31,6 +31,8 @@ import numpy as np
 import trimesh
 
 from lunarviz.bodies.meshes import MeshError, unit_icosphere
+from lunarviz.outputs.writers import atomic_path
+from lunarviz.surfaces.maps import read_grid
 
 SHAPES = ("sphere", "ellipsoid", "dem", "craters", "patch")
 #: Pike (1977) simple-crater ratios (module docstring).
@@ -108,7 +110,6 @@ def read_map(path) -> np.ndarray:
     """An equirectangular map (.npy values, or .png/.tif image scaled to [0, 1]) as float64
     (rows from +90° to −90°, columns from −180° eastward, pixel-centred):
     :func:`lunarviz.surfaces.maps.read_grid`, errors as :class:`MeshError`."""
-    from lunarviz.surfaces.maps import read_grid
     return read_grid(path, "map", MeshError)
 
 
@@ -204,7 +205,6 @@ def patch(radius: float, level: int, lat: float, lon: float, k: float) -> trimes
 
 def write_mesh(mesh: trimesh.Trimesh, path) -> Path:
     """Write ``mesh`` in the format its suffix names (.ply .obj .stl .off .glb), atomically."""
-    from lunarviz.outputs.writers import atomic_path
     p = Path(path)
     fmt = p.suffix.lower().lstrip(".")
     if fmt not in ("ply", "obj", "stl", "off", "glb"):

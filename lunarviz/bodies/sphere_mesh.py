@@ -14,6 +14,7 @@ import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+
 import numpy as np
 
 from lunarviz.caches import memoize

@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.errors import LunarvizError
 from lunarviz.earth_optics.disort_tables import RAYLEIGH_TAU, THETA_DEG, cubic_weights, load, sky_nodes, theta_of
+from lunarviz.errors import LunarvizError
 
 
 def _tau_weights(tau):

@@ -19,7 +19,11 @@ import numpy as np
 
 from lunarviz.caches import memoize
 from lunarviz.earth_optics import rayleigh
-from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, theta_of
+from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
+from lunarviz.earth_optics.cloud import cloud_reflectance
+from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, sky_nodes, theta_of
+from lunarviz.earth_optics.land import land_directional, land_reflectance, land_shape
+from lunarviz.earth_optics.spectra import class_spectrum
 from lunarviz.errors import LunarvizError
 from lunarviz.options import EARTH_PARAMETER_DEFAULTS, earth_params
 
@@ -55,9 +59,7 @@ class Surface:
             from lunarviz.earth_optics.ocean import ocean_reflectance
             return ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, self.wind_speed)
         if self.kind == "cloud":
-            from lunarviz.earth_optics.cloud import cloud_reflectance
             return cloud_reflectance(mu0, mu, phi_deg)
-        from lunarviz.earth_optics.land import land_reflectance
         return land_reflectance(self.land_albedo(wavelength_nm), mu0, mu, phi_deg)
 
     def _wavelength_free(self, mu0, mu, phi_deg):
@@ -65,7 +67,6 @@ class Surface:
             from lunarviz.earth_optics.ocean import glint
             return glint(mu0, mu, phi_deg, self.wind_speed)
         if self.kind == "land":
-            from lunarviz.earth_optics.land import land_shape
             return land_shape(mu0, mu, phi_deg)
         return self.reflectance(550.0, mu0, mu, phi_deg)  # Lambert, cloud: grey
 
@@ -74,12 +75,10 @@ class Surface:
             from lunarviz.earth_optics.ocean import ocean_from_glint
             return ocean_from_glint(part, wavelength_nm, self.wind_speed)
         if self.kind == "land":
-            from lunarviz.earth_optics.land import land_reflectance
             return land_reflectance(self.land_albedo(wavelength_nm), None, None, None, shape=part)
         return part
 
     def land_albedo(self, wavelength_nm) -> float:
-        from lunarviz.earth_optics.spectra import class_spectrum
         lam, a = class_spectrum(self.land_class)
         return float(np.interp(float(wavelength_nm), lam, a))
 
@@ -118,7 +117,6 @@ def _albedos(kind, albedo, land_class, wind_speed, wavelength_nm) -> tuple[np.nd
     surface = Surface(kind, albedo, land_class, wind_speed)
     lam = 550.0 if wavelength_nm is None else wavelength_nm
     if kind == "land":  # linear in the kernels' shape: closed form
-        from lunarviz.earth_optics.land import land_directional
         return land_directional(surface.land_albedo(lam))
     x, w = np.polynomial.legendre.leggauss(ALBEDO_ORDER)
     mup, wmu = 0.5 * (x + 1.0), 0.5 * w
@@ -138,7 +136,6 @@ def _fourier(kind, albedo, land_class, wind_speed, wavelength_nm) -> np.ndarray:
     """(K, N, 3) azimuthal Fourier coefficients of a class's reflectance factor at the sky's Gauss
     nodes μ'_k and the tables' zenith nodes: c_m = 2 ∫₀^π cos(mψ) ρ dψ (ρ even in ψ; midpoint rule,
     1° steps: the 1 m s⁻¹ glint lobe is ~10° wide)."""
-    from lunarviz.earth_optics.disort_tables import sky_nodes
     mu_k = sky_nodes()[0]
     mu_n = np.cos(np.radians(THETA_DEG))
     if kind == "lambert":
@@ -184,7 +181,6 @@ def toa_reflectance(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, at
                     params: dict | None = None, geometry: dict | None = None) -> np.ndarray:
     """Top-of-atmosphere reflectance factor πL/(μ₀E₀) of ``surface`` at λ; ``atmosphere=False``
     gives the bare surface. A cloud sits under the Rayleigh layer above ``cloud_top_hpa``."""
-    from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
     p = earth_params(params)
     if not atmosphere:
         tau = 0.0

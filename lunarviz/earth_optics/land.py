@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.caches import memoize
+from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, theta_of
 
 #: RAMI4ATM kernel weights (f_iso, f_vol, f_geo), whose ratios give the shape
 RAMI4ATM_WEIGHTS = (0.209741, 0.081384, 0.004140)
@@ -63,7 +64,6 @@ def kernels(mu0, mu, phi_deg, max_zenith_deg: float = MAX_ZENITH_DEG) -> tuple[n
 def _shape_albedos() -> tuple[float, np.ndarray]:
     """The RAMI4ATM shape's white-sky albedo and its directional albedo on the tables' zenith nodes
     (Gauss–Legendre in μ', midpoint in φ), with the kernels held as :func:`kernels` holds them."""
-    from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, theta_of
     x, w = np.polynomial.legendre.leggauss(64)
     mu, wm = 0.5 * (x + 1), 0.5 * w
     phi = (np.arange(90) + 0.5) * 2.0  # 0 … 180: the kernels are even in φ

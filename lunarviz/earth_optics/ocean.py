@@ -30,6 +30,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import erfc
 
+from lunarviz.earth_optics.spectra import class_spectrum
+
 #: refractive index of sea water in the visible (Hale & Querry 1973 ~1.33, salt +0.006)
 WATER_INDEX = 1.34
 #: whitecap reflectance (Koepke 1984)
@@ -89,7 +91,6 @@ def glint(mu0, mu, phi_deg, wind_speed: float, shadowing: bool = True) -> np.nda
 
 def water_leaving(wavelength_nm) -> np.ndarray:
     """ρ_w(λ): the Lambertian reflectance of the light leaving the water (module docstring)."""
-    from lunarviz.earth_optics.spectra import class_spectrum
     lam, a = class_spectrum("ocean")
     level = float(np.mean(a[lam >= FRESNEL_LEVEL_FROM_NM]))
     return np.clip(np.interp(np.asarray(wavelength_nm, float), lam, a) - level, 0.0, None)

@@ -44,8 +44,13 @@ import numpy as np
 from lunarviz.caches import BoundedCache
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry import quadrature_kernels
-from lunarviz.geometry.sphere_quadrature import (cap_rule, gauss_legendre, kink_threshold, rule_coordinates,
-                                                 rule_segments)
+from lunarviz.geometry.sphere_quadrature import (
+    cap_rule,
+    gauss_legendre,
+    kink_threshold,
+    rule_coordinates,
+    rule_segments,
+)
 
 #: Chebyshev nodes in the map's value m (rough Hapke, rolo-fit-map's DHG, w·m up to 0.57, 400
 #: geometries with μ₀, μ down to 0.02: 4 nodes err by 4e-4, 6 by 4e-6, 8 by 4e-8; the error falls

@@ -17,6 +17,8 @@ import functools
 
 import numpy as np
 
+from lunarviz.geometry import quadrature_kernels
+
 
 def orthonormal_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (B, 3) completing ``axis`` (B, 3) to a right-handed basis."""
@@ -405,7 +407,6 @@ def rule_coordinates(points, axis, cos_max, caps_u, caps_c, split_only, phi_zero
     t = np.arccos(np.clip(p @ ax[0], -1.0, 1.0))
     phi = np.mod(np.arctan2(p @ e2[0], p @ e1[0]), 2 * np.pi)
     t_lo, t_hi, s_lo, s_hi = (a[0] for a in t_segments(t_u, cc, t_max, extra, tangent))
-    from lunarviz.geometry import quadrature_kernels
     if quadrature_kernels.available() and (cc.shape[1] > 1 or so.any()):  # (the general ring intervals)
         kink_c = kink_threshold(t, *kink) if kink is not None else np.zeros(len(t))
         return quadrature_kernels.locate(p, ax[0], e1[0], e2[0], t_max[0], t_u[0], phi_u[0], cc[0], so[0],

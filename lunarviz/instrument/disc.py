@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import unit
 
 
@@ -98,7 +99,6 @@ def masked_pixels(sc, camera, transmission: float, margin_px: float):
 def surface_points(sc, camera, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points [m] (n, 3) and outward normals where the central rays of pixels (x, y) meet the
     Moon's sphere."""
-    from lunarviz.errors import LunarvizError
     from lunarviz.methods.camera import camera_axes
     f, e, n, _, _ = camera_axes(sc, camera)
     s = camera.scale_rad

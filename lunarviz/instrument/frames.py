@@ -16,6 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.instrument.detector import count_dtype
+from lunarviz.instrument.detector import frames as draw_frames
+from lunarviz.outputs.images import tan_wcs
 
 #: BZERO of unsigned integer counts stored as FITS signed integers
 _BZERO = {16: 32768, 32: 2147483648}
@@ -42,7 +45,6 @@ def _detector_cards(hdr, obs) -> None:
 
 
 def _tan_cards(hdr, res) -> None:
-    from lunarviz.outputs.images import tan_wcs
     tan_wcs(hdr, res, float(np.degrees(res.camera.scale_rad)))
 
 
@@ -50,7 +52,6 @@ def append_counts(path, obs, key, settings_json: str, frames: int, seed: int) ->
     """Append ``EXPECTED_COUNTS`` and ``frames`` noisy ``COUNTS`` frames to the FITS file ``path``."""
     from astropy.io import fits
 
-    from lunarviz.instrument.detector import count_dtype, frames as draw_frames
     inst = obs.instrument
     exp = fits.ImageHDU(obs.expected_counts.astype(np.float64), name="EXPECTED_COUNTS")
     _detector_cards(exp.header, obs)

@@ -17,9 +17,9 @@ import numpy as np
 
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry
-from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
-from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, masked_pixels
 from lunarviz.instrument.detector import expected_counts, expected_electrons
+from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, masked_pixels
+from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
 from lunarviz.instrument.response import electron_rate, photon_band, photon_label
 from lunarviz.instrument.sky import SiteSky, site_sky
 from lunarviz.instrument.spec import Instrument

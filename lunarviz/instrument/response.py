@@ -17,6 +17,8 @@ import numpy as np
 from lunarviz.constants import PLANCK_J_S, SPEED_OF_LIGHT_M_S
 from lunarviz.instrument.spec import Instrument
 from lunarviz.spectral.bands import Band, parse_band
+from lunarviz.spectral.request import band_request
+from lunarviz.spectral.solar import solar_spectrum
 
 #: the photon band's reference wavelength [m]: Ŝ = S T Q λ/λ_ref
 LAMBDA_REF_M = 1e-6
@@ -44,8 +46,6 @@ def photon_label(inst: Instrument) -> str:
 
 def instrument_request(inst: Instrument, solar: str):
     """The spectral request of an instrument's images: its band and its photon band."""
-    from lunarviz.spectral.request import band_request
-    from lunarviz.spectral.solar import solar_spectrum
     return band_request((parse_band(inst.band), photon_band(inst)), solar_spectrum(solar))
 
 

@@ -40,14 +40,15 @@ refused. Unknown keys are refused (a typo would otherwise be a silent default).
 from __future__ import annotations
 
 import json
-import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 from lunarviz.errors import LunarvizError
 from lunarviz.resources import DATA_DIR
+from lunarviz.spectral.bands import parse_band
 
 INSTRUMENT_DIR = DATA_DIR / "instruments"
 #: arcseconds per radian
@@ -245,7 +246,6 @@ def instrument_from_dict(d: dict, where: str = "instrument") -> Instrument:
     if inst.bias_adu + 6 * inst.read_noise_e / inst.gain_e_per_adu > inst.adc_max:
         raise LunarvizError(f"{where}: bias_adu = {inst.bias_adu!r} leaves no room below the ADC's {inst.adc_max}")
     from lunarviz.instrument.optics import parse_halo, parse_psf
-    from lunarviz.spectral.bands import parse_band
     try:
         band = parse_band(inst.band)
     except LunarvizError as exc:

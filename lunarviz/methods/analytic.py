@@ -30,6 +30,7 @@ from lunarviz.geometry.sphere_quadrature import cap_rule, compact
 from lunarviz.methods.transport import Transport, detector_geometry
 from lunarviz.options import BY_NAME, compose, group, validate
 from lunarviz.photometry.earth_phase import earth_intensity
+from lunarviz.surfaces.physical_earth import albedo_toward_moon
 
 
 @dataclass(frozen=True)
@@ -164,7 +165,6 @@ def earthshine_transport(scene: SceneGeometry, settings: AnalyticSettings = Anal
     if sf is None:
         albedo = settings.earth_albedo
     elif sf.earth.physical:  # the disc integral of the classes' reflectance toward the Moon
-        from lunarviz.surfaces.physical_earth import albedo_toward_moon
         albedo = float(albedo_toward_moon(sf, scene, [sf.earth.wavelength_nm])[0])
     else:
         albedo = sf.earth_albedo_toward(scene, scene.moon)

@@ -34,6 +34,7 @@ from lunarviz.geometry.scene_geometry import SceneGeometry, unit
 from lunarviz.methods.camera_shading import GreyShading, SpectralImageShading
 from lunarviz.methods.tracer.settings import TraceSettings
 from lunarviz.methods.tracer.trace_scene import TraceScene
+from lunarviz.sky.dated_scene import moon_direction_radec
 from lunarviz.spectral.inputs import SpectralInputs
 
 MAX_PIXELS = 4096
@@ -302,7 +303,6 @@ def synthesize(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdf
         to_radiance = np.where(pix_omega > 0, 1.0 / np.where(pix_omega > 0, pix_omega, 1.0), 0.0)
     planes = {"moonshine": {b: (ms[b] * to_radiance).reshape(H, W) for b in shading.keys},
               "earthshine": {b: (es[b] * to_radiance).reshape(H, W) for b in shading.keys}}
-    from lunarviz.sky.dated_scene import moon_direction_radec
     moon_radec = moon_direction_radec(sc)
     info = {**{k: v for k, v in fields.items()}, "theta_deg": sc.theta_deg, "alpha_deg": sc.alpha_deg,
             "beta_deg": sc.beta_deg, "boresight_ra_deg": ra, "boresight_dec_deg": dec,

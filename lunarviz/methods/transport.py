@@ -21,6 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lunarviz.photometry import rough_kernels, shading_kernels
+from lunarviz.photometry.brdf import Lambert
+from lunarviz.surfaces.moon_map import map_scale
+
 
 @dataclass
 class Transport:
@@ -73,13 +77,9 @@ class Transport:
         """:meth:`radiances` with :attr:`albedo_nodes`: the BRDF at every map value (the geometry's
         part of a rough Hapke computed once, broadcast over the values), each sample's radiance
         the factor-weighted sum over them."""
-        from lunarviz.surfaces.moon_map import map_scale
-        from lunarviz.photometry import shading_kernels
-        from lunarviz.photometry.brdf import Lambert
         values, factors = self.albedo_nodes
         w = np.asarray(values, dtype=float) * map_scale(self.albedo_absolute, brdf)
         N = len(self.mu)
-        from lunarviz.photometry import rough_kernels
         if rough_kernels.handles(brdf):  # compiled: each beam's geometry once, the H-functions per value
             return rough_kernels.rough_node_radiances(brdf, self.mu0, self.mu, self.sin_hg, self.cos_hg,
                                                       self.e_beam, self.e_beam_unit, w, factors)
@@ -104,7 +104,6 @@ class Transport:
         """The BRDF's albedo parameter per sample ((N, 1), for ``albedo=``), or ``None``."""
         if self.albedo is None:
             return None
-        from lunarviz.surfaces.moon_map import map_scale
         return (self.albedo * map_scale(self.albedo_absolute, brdf))[:, None]
 
     def _albedo_pair(self, brdf):
@@ -117,7 +116,6 @@ class Transport:
             return None
         if not np.any(self.albedo_std > 0):
             return None
-        from lunarviz.surfaces.moon_map import map_scale
         k = map_scale(self.albedo_absolute, brdf)
         a, s = self.albedo * k, self.albedo_std * k
         return np.clip(a - s, 0.0, 1.0)[:, None], np.clip(a + s, 0.0, 1.0)[:, None]
@@ -129,7 +127,6 @@ class Transport:
     def radiances(self, brdf) -> tuple[np.ndarray, np.ndarray | None]:
         """Radiance toward the detector [W m⁻² sr⁻¹] and, for earthshine, the same for an
         Earth of albedo 1 (``None`` without ``e_beam_unit``); one BRDF evaluation for both."""
-        from lunarviz.photometry import shading_kernels
         if self.albedo_nodes is not None:
             return self._node_radiances(brdf)
         if shading_kernels.available() and shading_kernels.hapke_codes(brdf) is not None:
@@ -141,7 +138,6 @@ class Transport:
                 return shading_kernels.hapke_radiances(*args, None if a is None else a[:, 0])
             (lo, lo_u), (hi, hi_u) = (shading_kernels.hapke_radiances(*args, w[:, 0]) for w in pair)
             return 0.5 * (lo + hi), None if lo_u is None else 0.5 * (lo_u + hi_u)
-        from lunarviz.photometry import rough_kernels
         if rough_kernels.handles(brdf):  # compiled rough Hapke: each beam's geometry once, its w (or two)
             pair, n = self._albedo_pair(brdf), len(self.mu)
             if pair is not None:
@@ -151,7 +147,6 @@ class Transport:
                 w, f = (np.array([[brdf.albedo_parameter]]) if a is None else a), np.ones((n, 1))
             return rough_kernels.rough_node_radiances(brdf, self.mu0, self.mu, self.sin_hg, self.cos_hg, self.e_beam,
                                                       self.e_beam_unit, w, f)
-        from lunarviz.photometry.brdf import Lambert
         if shading_kernels.available() and type(brdf) is Lambert:  # linear in albedo: no pair
             a = self.sample_albedo(brdf)
             return shading_kernels.lambert_radiances(brdf, self.mu0, self.e_beam, self.e_beam_unit,

@@ -10,6 +10,7 @@ import json
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.outputs.writers import atomic_path, write_bytes_atomic
 from lunarviz.parsing import wavelength_label
 
 BUNIT = "W m-2 sr-1"
@@ -40,7 +41,6 @@ def plane_names(planes: dict) -> list[tuple[str, str, str]]:
 def write_fits(path, res, planes, extra: dict) -> None:
     from astropy.io import fits
 
-    from lunarviz.outputs.writers import atomic_path
     cam = res.camera
     scale_deg = float(np.degrees(cam.scale_rad))
     prim = fits.PrimaryHDU()
@@ -138,7 +138,6 @@ def check_cube_wavelengths(wavelengths) -> None:
 def write_npy(path, planes) -> None:
     import io
 
-    from lunarviz.outputs.writers import write_bytes_atomic
     buf = io.BytesIO()
     np.save(buf, np.stack([planes[c][b] for _, c, b in plane_names(planes)]))
     write_bytes_atomic(path, buf.getvalue())
@@ -166,7 +165,6 @@ def write_colour_png(path, res, planes, title: str = "") -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lunarviz.outputs.writers import write_bytes_atomic
     b, order = colour_planes(res, planes)
     labels = [res.info["spectral_labels"][i] for i in order]
     keys = [f"{b}|{lab}" for lab in labels]
@@ -201,7 +199,6 @@ def write_png(path, res, planes, title: str = "") -> None:
     import matplotlib.pyplot as plt
     from matplotlib.colors import AsinhNorm
 
-    from lunarviz.outputs.writers import write_bytes_atomic
     b = next(iter(planes["moonshine"]))
     tot = planes["moonshine"][b] + planes["earthshine"][b]
     pos = tot[tot > 0]

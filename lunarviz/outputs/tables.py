@@ -15,6 +15,7 @@ from datetime import datetime
 import numpy as np
 
 from lunarviz.outputs.writers import atomic_path, check_free_space
+from lunarviz.parsing import wavelength_label
 
 #: fields that depend on the task (phase or time) only, not on the BRDF
 PER_TASK = ("theta_deg", "alpha_deg", "beta_deg", "phase_angle_deg", "observer_moon_distance_m",
@@ -201,7 +202,6 @@ def _spectral_dataset(result, rows, brdfs, keys, timed, dim, spec):
         ds["band"].attrs.update({"units": "1", "long_name": "spectral band (response function)"})
     bond = result.get("bond_albedo", {})
     method = result["settings"].get("method")
-    from lunarviz.parsing import wavelength_label
     key = wavelength_label if spec == "wavelength" else str
     ds["bond_albedo"] = (("brdf", spec), np.array([[_num(bond.get(b, {}).get(method, {}).get(key(lab)))
                                                     for lab in labels] for b in brdfs], dtype=float), BOND_ATTRS)

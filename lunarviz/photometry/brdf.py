@@ -32,6 +32,8 @@ import lunarviz.constants as C
 from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BRDF_NAMES, DHG_CONVENTIONS, H_FUNCTIONS
+from lunarviz.photometry.presets import moon_model_params
+from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
 
 #: parameters each named BRDF accepts (``--param``)
 BRDF_PARAMETERS = {"lambert": ("albedo",),
@@ -320,7 +322,6 @@ class Hapke:
     def _rough_r(self, mu0, mu, sin_hg, cos_hg, w=None):
         """Bidirectional reflectance r = BRDF·μ0 with roughness and coherent backscatter,
         Hapke (1984) Eq. 51 and Hapke (2002) Eq. 8 (:mod:`lunarviz.photometry.roughness`)."""
-        from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
         mu0 = np.clip(mu0, 0.0, 1.0)
         mu = np.clip(mu, 0.0, 1.0)
         psi = azimuth_from_half_angle(mu0, mu, sin_hg)
@@ -399,7 +400,6 @@ def make_brdf(name: str, *, dhg_convention: str = "paper", h_function: str = "ha
     """
     key = str(name).strip().lower()
     if key in BRDF_NAMES and moon_model != "paper":
-        from lunarviz.photometry.presets import moon_model_params
         params = {**moon_model_params(moon_model, key), **(params or {})}
     params = dict(params or {})
     if key == "lambert":

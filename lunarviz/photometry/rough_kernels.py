@@ -20,6 +20,7 @@ import numpy as np
 
 import lunarviz.compiled as compiled
 from lunarviz.photometry import shading_kernels
+from lunarviz.photometry.brdf import make_brdf
 from lunarviz.photometry.shading_kernels import h_value, surge_phase
 
 
@@ -133,7 +134,6 @@ def warm_up() -> None:
     """Load (or compile) the kernel once on tiny inputs, e.g. before forking workers."""
     if not _NUMBA:
         return
-    from lunarviz.photometry.brdf import make_brdf
     one = np.ones((1, 1))
     rough_node_radiances(make_brdf("dhg", params={"theta_bar": 20.0}), one, np.ones(1), one, one, one, one,
                          np.full(1, 0.5), one)

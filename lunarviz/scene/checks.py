@@ -15,7 +15,12 @@ import warnings
 
 from lunarviz.errors import LunarvizError, LunarvizWarning
 from lunarviz.geometry.scene_geometry import SceneGeometry
+from lunarviz.methods.tracer.settings import body_mesh_m
 from lunarviz.options import BY_NAME, METHODS, earth_params, validate
+from lunarviz.photometry.presets import moon_model_map
+from lunarviz.sky.ephemeris import time_list
+from lunarviz.spectral.moon import parameters_at
+from lunarviz.surfaces.earth_surface import EarthSurface
 
 #: the analytic method's point Sun is refused within this angle of new Moon (θ = 180° itself,
 #: where the exact reference is 4e-20 W m-2, is kept): its moonshine is 13 % low at 179°, 60 %
@@ -66,7 +71,6 @@ def _check_tasks(scene) -> None:
 
 def _check_times(scene) -> None:
     if scene.times is not None:
-        from lunarviz.sky.ephemeris import time_list
         if not scene.times:
             raise LunarvizError("no time given")
         object.__setattr__(scene, "times", time_list(",".join(scene.times)))  # canonical labels, checked
@@ -111,7 +115,6 @@ def _check_meshes_need_raytrace(scene) -> None:
 def _resolve_moon_map(scene) -> None:
     """A preset fitted on a mapped Moon brings its map; ``--moon-albedo-map none`` drops any."""
     if scene.moon_albedo_map is None and scene.moon_model != "paper":
-        from lunarviz.photometry.presets import moon_model_map
         preset_map = moon_model_map(scene.moon_model)
         if preset_map is not None:
             object.__setattr__(scene, "moon_albedo_map", preset_map)
@@ -140,7 +143,6 @@ def _read_files_once(scene) -> None:
     """The land mask and user meshes read once, here, before any worker (each then finds them in
     its caches: the same arguments as the tracer's own calls)."""
     if not scene.earth_uniform:
-        from lunarviz.surfaces.earth_surface import EarthSurface
         EarthSurface(earth_surface=scene.earth_surface, clouds=scene.clouds).clear_map()
     ts = scene.trace_settings()
     if scene.method == "raytrace":
@@ -148,7 +150,6 @@ def _read_files_once(scene) -> None:
             path = getattr(scene, f"{body}_mesh")
             if path is not None:
                 from lunarviz.bodies.meshes import NOMINAL_RADII  # trimesh: only when a mesh is given
-                from lunarviz.methods.tracer.settings import body_mesh_m
                 body_mesh_m(body, getattr(ts, f"{body}_level"), path, scene.mesh_units, NOMINAL_RADII[body])
     scene.analytic_settings()
 
@@ -188,7 +189,6 @@ def check_spectral(scene, models: dict) -> None:
             scene.estimator == "montecarlo" or scene.mapped_earth != "facets"):
         raise LunarvizError("a spectral run with a mapped Earth (--earth-surface/--clouds) needs the "
                             "deterministic estimator")
-    from lunarviz.spectral.moon import parameters_at
     for k, b in models.items():
         if req.kind == "band":  # name the band that leaves the lunar table's range
             for label, row in zip(req.labels, req.weights):
@@ -202,7 +202,6 @@ def check_spectral(scene, models: dict) -> None:
 def check_physical_earth(scene) -> None:
     """``--param earth.NAME`` only with ``--earth-brdf physical``, which takes its classes' own
     albedos and spectra, not the Lambert Earth's options."""
-    from lunarviz.surfaces.earth_surface import EarthSurface
     if "earth" in scene.params:
         earth_params(scene.params["earth"])
         if scene.earth_brdf != "physical":

@@ -14,8 +14,16 @@ from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods import accuracy
 from lunarviz.methods.analytic import AnalyticSettings
 from lunarviz.methods.reference import ReferenceSettings
+from lunarviz.methods.tracer.settings import TraceSettings
 from lunarviz.options import group
 from lunarviz.photometry.brdf import make_brdf
+from lunarviz.sky.dated_scene import sky_scene
+from lunarviz.sky.observers import parse_observer
+from lunarviz.spectral.inputs import SpectralInputs
+from lunarviz.spectral.request import spectral_request as make_request
+from lunarviz.surfaces.earth_surface import EarthSurface
+from lunarviz.surfaces.moon_map import MoonAlbedoMap
+from lunarviz.surfaces.point_values import Surfaces
 
 
 def brdf_models(scene) -> dict:
@@ -28,7 +36,6 @@ def spectral_request(scene):
     """The run's :class:`~lunarviz.spectral.request.SpectralRequest`, or ``None`` (grey)."""
     if scene.wavelengths is None and scene.bands is None:
         return None
-    from lunarviz.spectral.request import spectral_request as make_request
     return make_request(scene.wavelengths, scene.bands, scene.solar_spectrum)
 
 
@@ -36,7 +43,6 @@ def spectral_inputs(scene, request=None):
     """The :class:`~lunarviz.spectral.inputs.SpectralInputs` of a spectral run (``request``: one
     that replaces the scene's wavelengths or bands, e.g. an instrument's photon-counting
     response), or ``None`` for a grey run."""
-    from lunarviz.spectral.inputs import SpectralInputs
     request = scene.spectral_request() if request is None else request
     if request is None:
         return None
@@ -46,7 +52,6 @@ def spectral_inputs(scene, request=None):
 def earth_model(scene, model_earth: bool = False):
     """The Earth model (:class:`~lunarviz.surfaces.earth_surface.EarthSurface`); ``model_earth``:
     the uniform Lambert Earth of ``earth_albedo`` that an inversion assumes."""
-    from lunarviz.surfaces.earth_surface import EarthSurface
     return EarthSurface(earth_albedo=scene.earth_albedo) if model_earth else EarthSurface.from_options(scene)
 
 
@@ -54,8 +59,6 @@ def surfaces(scene, model_earth: bool = False):
     """The scene's :class:`~lunarviz.surfaces.point_values.Surfaces` for the quadrature methods;
     ``model_earth``: with the uniform Earth of ``earth_albedo`` (what an inversion assumes), the
     lunar map kept; ``None`` when both are the paper's."""
-    from lunarviz.surfaces.moon_map import MoonAlbedoMap
-    from lunarviz.surfaces.point_values import Surfaces
     earth = scene.earth_model(model_earth)
     moon = None if scene.moon_albedo_map is None else MoonAlbedoMap.parse(scene.moon_albedo_map)
     if moon is None and earth.uniform:
@@ -67,7 +70,6 @@ def mapped_moon(scene) -> bool:
     """A lunar map with any contrast (a uniform map is the scalar)."""
     if scene.moon_albedo_map in (None, "none"):
         return False
-    from lunarviz.surfaces.moon_map import MoonAlbedoMap
     return bool(np.ptp(MoonAlbedoMap.parse(scene.moon_albedo_map).values()) > 0)
 
 
@@ -94,7 +96,6 @@ def trace_settings(scene, threads: int | None = None, plan: dict | None = None):
     (``None``: the machine's cores; sweeps over several worker processes pass 1). Results do not
     depend on it. The tolerance's choices (``plan``, :func:`~lunarviz.scene.tolerance.trace_plan`
     if not given) fill the options left unset."""
-    from lunarviz.methods.tracer.settings import TraceSettings
     kw = {o.name: getattr(scene, o.name) for o in group(*TraceSettings.GROUPS)}
     kw.update((scene.trace_plan() if plan is None else plan)["settings"])
     return TraceSettings(threads=threads, mapped_earth=scene.mapped_earth,
@@ -103,7 +104,6 @@ def trace_settings(scene, threads: int | None = None, plan: dict | None = None):
 
 def observer_model(scene):
     """The parsed observer (an orbit's epoch defaults to the first time)."""
-    from lunarviz.sky.observers import parse_observer
     obs = parse_observer(scene.observer)
     return obs.with_epoch(scene.times[0]) if scene.times else obs
 
@@ -112,7 +112,6 @@ def task(scene, key) -> tuple[SceneGeometry, dict]:
     """The geometry of one task (a phase θ [deg], or a UTC time of a dated scene) and the fields its
     rows start with (θ; or the time, distances, sub-points and flags of the real sky)."""
     if scene.times is not None:
-        from lunarviz.sky.dated_scene import sky_scene
         return sky_scene(str(key), scene.observer_model())
     sc = SceneGeometry(float(key), detector=scene.detector)
     return sc, {"theta_deg": float(key)}

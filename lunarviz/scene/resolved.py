@@ -20,9 +20,6 @@ import lunarviz.constants as C
 from lunarviz.options import GROUPS, compose, from_settings_dict
 from lunarviz.scene import checks, inputs, tolerance
 
-#: the θ of the paper's half orbit, every 5° (the default phases)
-PAPER_PHASES_DEG = tuple(float(p) for p in C.PAPER_PHASES_DEG)
-
 
 @dataclass(frozen=True)
 @compose(*GROUPS)
@@ -44,7 +41,7 @@ class ResolvedScene:
     """
 
     #: the orbital angles θ [deg] of the paper's scene (ignored with ``times``)
-    phases_deg: tuple = PAPER_PHASES_DEG
+    phases_deg: tuple = C.PAPER_PHASES_DEG
     #: ``analytic``, ``raytrace`` or ``reference``
     method: str = "analytic"
     params: dict = field(default_factory=dict)  # {brdf: {name: value}}; the schema's None is {}

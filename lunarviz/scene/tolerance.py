@@ -13,6 +13,7 @@ import warnings
 from lunarviz.errors import LunarvizError, LunarvizWarning
 from lunarviz.methods import accuracy
 from lunarviz.options import DEFAULT_LEVELS, DEFAULT_ORDERS
+from lunarviz.photometry.presets import moon_model_map
 
 
 def rtol_or_default(scene) -> float:
@@ -79,7 +80,6 @@ def modelled(scene) -> bool:
     parameter overrides, the uniform Lambert Earth and the packaged spheres shaded exactly."""
     lunar_params = any(v for b, v in scene.params.items() if b != "earth")
     if scene.mapped_moon():  # the mapped model is rolo-fit-map's, on its own map
-        from lunarviz.photometry.presets import moon_model_map
         moon = scene.moon_model == "rolo-fit-map" and scene.moon_albedo_map == moon_model_map("rolo-fit-map")
     else:
         moon = scene.moon_model == "paper"

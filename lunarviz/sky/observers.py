@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.sky.ephemeris import format_time, kernels, parse_time
 
 #: WGS84 equatorial radius [m] (NIMA TR8350.2)
 WGS84_A_M = 6_378_137.0
@@ -50,7 +51,6 @@ class Observer:
     # ---- positions --------------------------------------------------------------------------
     def position(self, label: str) -> np.ndarray:
         """Geocentric position [m], ICRF axes, at the UTC time ``label``."""
-        from lunarviz.sky.ephemeris import kernels, parse_time
         ts, _, _ = kernels()
         t = ts.from_datetime(parse_time(label))
         if self.kind == "geocentre":
@@ -73,7 +73,6 @@ class Observer:
             return None
         from sgp4.api import Satrec
 
-        from lunarviz.sky.ephemeris import parse_time
         sat = Satrec.twoline2rv(self.tle[-2], self.tle[-1])
         t = parse_time(label)
         jd = (t - parse_time("2000-01-01T12:00Z")).total_seconds() / 86400 + 2451545.0
@@ -85,7 +84,6 @@ class Observer:
             return None
         from skyfield.framelib import itrs
 
-        from lunarviz.sky.ephemeris import kernels, parse_time
         ts, _, _ = kernels()
         t = ts.from_datetime(parse_time(label))
         la, lo = np.radians(self.lat_deg), np.radians(self.lon_deg)
@@ -102,7 +100,6 @@ class Observer:
         return EarthSatellite(self.tle[-2], self.tle[-1], name, ts)
 
     def _orbit_position(self, label: str) -> np.ndarray:
-        from lunarviz.sky.ephemeris import parse_time
         r = WGS84_A_M + self.alt_km * 1e3
         n = np.sqrt(GM_EARTH / r**3)  # mean motion [rad/s]
         dt = (parse_time(label) - parse_time(self.epoch_utc)).total_seconds()
@@ -201,7 +198,6 @@ def parse_observer(text: str | None) -> Observer:
         if not 0 <= inc <= 180:
             raise LunarvizError(f"--observer orbit inclination {inc!r} deg must be in [0, 180]")
         if epoch is not None:
-            from lunarviz.sky.ephemeris import format_time, parse_time
             epoch = format_time(parse_time(epoch))
         return Observer("orbit", s, alt_km=alt, inc_deg=inc, raan_deg=raan, arglat_deg=u, epoch_utc=epoch)
     raise LunarvizError(f"--observer {s!r} is not geocentre, site:LAT,LON[,HEIGHT_M], tle:FILE or "

@@ -28,8 +28,7 @@ import numpy as np
 
 from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
-from lunarviz.resources import DATA_DIR
-from lunarviz.resources import read_table
+from lunarviz.resources import DATA_DIR, read_table
 
 #: node step of band integrals [nm]: surface spectra (the vegetation's red edge is ~30 nm wide)
 #: and the lunar parameters are linear to ~1e-3 over it

@@ -22,6 +22,7 @@ import numpy as np
 
 from lunarviz.errors import LunarvizError
 from lunarviz.parsing import parse_float_list, wavelength_label
+from lunarviz.spectral.bands import band_nodes, band_weights, parse_bands
 from lunarviz.spectral.solar import AU_M, SolarSpectrum, solar_spectrum
 
 #: at most this many wavelengths in one run (memory per chunk grows with it: 5000 × a few
@@ -81,13 +82,11 @@ def spectral_request(wavelengths: str | None, bands: str | None, solar: str) -> 
         e = sun.at(lam)
         return SpectralRequest("wavelength", tuple(float(x) for x in lam), lam, np.diag(e), e, sun,
                                tuple(float(x) for x in lam))
-    from lunarviz.spectral.bands import parse_bands
     return band_request(parse_bands(bands), sun)
 
 
 def band_request(bs, sun: SolarSpectrum) -> SpectralRequest:
     """The request of bands ``bs`` (:class:`~lunarviz.spectral.bands.Band`, distinct names) lit by ``sun``."""
-    from lunarviz.spectral.bands import band_nodes, band_weights
     nodes = np.unique(np.concatenate([band_nodes(b) for b in bs]))
     W = np.stack([band_weights(b, nodes, sun) for b in bs])
     return SpectralRequest("band", tuple(b.name for b in bs), nodes, W, W.sum(axis=1), sun,

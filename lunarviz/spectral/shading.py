@@ -19,10 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lunarviz.photometry import shading_kernels as sk
 from lunarviz.photometry.brdf import Hapke, Lambert
+from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
 from lunarviz.spectral import kernels
 from lunarviz.spectral.inputs import SpectralInputs
 from lunarviz.spectral.moon import models_at, parameters_at
+from lunarviz.surfaces.moon_map import map_scale
 
 #: parameters that must be grey for the compiled path (they shape the effective geometry)
 GREY_GEOMETRY = ("theta_bar", "Bc0", "hc")
@@ -67,7 +70,6 @@ def spectral_brdfs(inputs: SpectralInputs, brdfs: dict) -> dict:
 
 def _compiled_codes(sb: SpectralBRDF):
     """(pcode, hcode, p1, p2) for the compiled path, or ``None`` where it does not apply."""
-    from lunarviz.photometry import shading_kernels as sk
     if not kernels.available():
         return None
     g = sb.grey
@@ -95,7 +97,6 @@ def _effective_geometry(sb: SpectralBRDF, tr):
     g = sb.model(0)  # θ̄, B_C0 and h_C: the nodes' own (one value for all of them on this path)
     if not g.rough:
         return mu0, mu, np.ones((len(mu), 1))
-    from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
     psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
     mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(g.theta_bar))
     if g.Bc0 > 0.0:
@@ -147,7 +148,6 @@ def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> 
         for alb, weight in factors:
             a = None
             if alb is not None:
-                from lunarviz.surfaces.moon_map import map_scale
                 k = 1.0 if absolute else sb.contrast[ll]
                 a = np.clip((k * alb + (1.0 - k)) * map_scale(absolute, m), 0.0, 1.0)[:, None]
             rf = m.radiance_factor(tr.mu0, tr.mu[:, None], tr.sin_hg, tr.cos_hg, albedo=a)

@@ -29,8 +29,11 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.caches import memoize
-from lunarviz.resources import DATA_DIR
 from lunarviz.earth_optics.spectra import class_spectrum
+from lunarviz.parsing import wavelength_label
+from lunarviz.resources import DATA_DIR
+from lunarviz.surfaces.earth_surface import land_fraction_map
+from lunarviz.surfaces.maps import facet_average, facet_sub_count, sample_map
 
 #: land-cover codes of ``earth_landcover.npy`` -> component
 LAND_CLASSES = {1: "vegetation", 2: "desert", 3: "snow"}
@@ -60,8 +63,6 @@ def components(surface) -> tuple[str, ...]:
 def weights_at(surface, dirs: np.ndarray) -> np.ndarray:
     """Component weights (n, C) at directions (n, 3) in the Earth's map frame, such that
     ``Σ_c weight_c · grey_albedo_c`` is :meth:`EarthSurface.albedo_at`."""
-    from lunarviz.surfaces.earth_surface import land_fraction_map
-    from lunarviz.surfaces.maps import sample_map
     c = surface.cloud_fraction_at(dirs)
     clear = 1.0 - c
     cols = []
@@ -107,7 +108,6 @@ def albedo_spectra(surface, names, wavelength_nm, mode: str = "surface") -> np.n
 def facet_weights(surface, body, frame: np.ndarray) -> np.ndarray:
     """(F, C) area-averaged component weights of an Embree body's facets (the same jittered
     points as :meth:`EarthSurface.facet_albedo`, so their grey sum is its albedo)."""
-    from lunarviz.surfaces.maps import facet_average, facet_sub_count
     memo = body.geometry.setdefault("surface_components", {})
     key = (surface, np.asarray(frame, dtype=float).tobytes())
     if key not in memo:
@@ -132,7 +132,6 @@ def spectral_components(surface, nodes, mode: str = "surface") -> tuple[tuple, n
     surface's classes (:func:`components`, :func:`albedo_spectra`), or for a physical Earth one
     component per node (its reflectance there is the component's weight: albedos the identity)."""
     if surface.physical:
-        from lunarviz.parsing import wavelength_label
         return tuple(f"{wavelength_label(x)} nm" for x in nodes), np.eye(len(nodes))
     names = components(surface)
     return names, albedo_spectra(surface, names, nodes, mode)

@@ -22,10 +22,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.surfaces.maps import map_frame, sample_map
+from lunarviz.earth_optics import rayleigh
+from lunarviz.earth_optics.atmosphere import lambert_toa
 from lunarviz.earth_optics.classes import Surface, surface_from_name, toa_reflectance
 from lunarviz.options import earth_params
+from lunarviz.photometry.earth_phase import lambert_phase_function
 from lunarviz.surfaces.earth_spectra import components, facet_weights, weights_at
+from lunarviz.surfaces.maps import map_frame, sample_map
 
 
 def _geometry(normals, to_sun, to_target):
@@ -88,8 +91,6 @@ def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, waveleng
 
 def _lambert_map(wavelength, albedo, ms, mt, phi, params):
     """A clear-sky map's places: Lambert at their own albedo under the layer above the surface."""
-    from lunarviz.earth_optics import rayleigh
-    from lunarviz.earth_optics.atmosphere import lambert_toa
     return lambert_toa(float(rayleigh.optical_depth(wavelength, params["surface_hpa"])), albedo, ms, mt, phi)
 
 
@@ -171,7 +172,6 @@ def bond_albedo(surface, scene, frame, wavelength_nm: float, order: int = 16, az
     """(Bond albedo, geometric albedo) of the model Earth lit as in ``scene``: the reflected power
     over all directions, ``A_B = (2 / 3π) ∫∫ a(β, ψ) f_L(β) sin β dβ dψ`` (Gauss–Legendre in β,
     midpoints in ψ; a Lambert sphere of albedo A gives A), and ``p = (2/3) a(β → 0)`` (β = 0.5°)."""
-    from lunarviz.photometry.earth_phase import lambert_phase_function
     x, w = np.polynomial.legendre.leggauss(order)
     beta = 0.5 * np.pi * (x + 1.0)
     psi = (np.arange(azimuths) + 0.5) * 360.0 / azimuths

@@ -9,7 +9,7 @@ import numpy as np
 import pyvista as pv
 
 from lunarviz.errors import LunarvizError
-from lunarviz.outputs.writers import check_free_space
+from lunarviz.outputs.writers import atomic_path, check_free_space
 
 
 def facet_polydata(res) -> pv.PolyData:
@@ -107,7 +107,6 @@ def write_facet_mesh(path, res) -> None:
     import json
     from pathlib import Path
 
-    from lunarviz.outputs.writers import atomic_path
     meta = json.dumps({**res.info, **res.totals})
     if Path(path).suffix.lower() == ".vtm":
         check_vtm_target(path)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from lunarviz.methods.tracer.facets import FacetResult
+from lunarviz.methods.tracer.facet_result import FacetResult
 
 
 @dataclass

@@ -27,10 +27,11 @@ import numpy as np
 import pyvista as pv
 
 from lunarviz.errors import LunarvizError
-from lunarviz.methods.tracer.facets import FacetResult
+from lunarviz.methods.tracer.facet_result import FacetResult
+from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, write_bytes_atomic
 from lunarviz.viz.meshio import facet_polydata
-from lunarviz.viz.view_data import ComputeView, ViewData
 from lunarviz.viz.render_window import choose_render_window
+from lunarviz.viz.view_data import ComputeView, ViewData
 
 VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
 #: Dynamic range of the logarithmic colour scales (max / floor).
@@ -438,7 +439,6 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
 def render_image(data: ViewData, view="composite", size=(1600, 900), out=None) -> np.ndarray:
     """One offscreen picture (RGB, height × width × 3) of what ``data`` holds; also written as PNG
     to ``out`` (atomically) when given."""
-    from lunarviz.outputs.writers import write_bytes_atomic
     pl = build_plotter(data, view, size, off_screen=True)
     pl.render()
     img = np.asarray(pl.screenshot(return_img=True))
@@ -454,7 +454,6 @@ def render_frames(compute: ComputeView, phases, brdf, out, view="composite", siz
     ``compute(key, brdf)``."""
     from pathlib import Path
 
-    from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, write_bytes_atomic
     targets = numbered_paths(out, len(phases))
     for target in targets + ([Path(gif)] if gif else []):
         check_output_path(target, (target.suffix.lower(),))  # a folder in the way: refused before work

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.errors import LunarvizWarning
 from lunarviz.viz.view_data import ComputeView
 from lunarviz.viz.views import build_plotter, numbers_text, populate
 
@@ -106,7 +107,6 @@ def serve(compute: ComputeView, key, brdf: str, times: tuple | None = None, host
     import secrets
     import warnings
 
-    from lunarviz.errors import LunarvizWarning
     server, _ = build_app(compute, key, brdf, times, size=size)
     cap_client_messages()
     secret = secrets.token_urlsafe(24)

@@ -22,7 +22,10 @@ import numpy as np
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, analytic_irradiance
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
+from lunarviz.outputs.writers import json_safe, save_figure, write_bytes_atomic, write_results
 from lunarviz.photometry.brdf import make_brdf
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.sweeps import run_sweep
 
 BRDFS = ("lambert", "shg", "dhg")
 
@@ -60,7 +63,6 @@ def run_bench(out, quick: bool = False, progress: bool = False) -> dict:
     res = {"quick": quick, "phases_deg": list(phases), "rows": rows, "throughput": throughput, "render": render,
            "skips": skips, "targets": targets, "seconds_total": time.perf_counter() - t_all,
            "machine": {"cpus": os.cpu_count()}}
-    from lunarviz.outputs.writers import json_safe, write_bytes_atomic, write_results
     write_bytes_atomic(out, json.dumps(json_safe(res), indent=1, allow_nan=False).encode())
     write_results(out.with_suffix(".csv"), {"rows": rows})
     plot_pareto(res, out.with_suffix(".png"))
@@ -171,8 +173,6 @@ def _bench_throughput(models) -> dict:
                 "bounding-sphere test answers); the rest of the time is numpy: quadrature rules, geometry, "
                 "shading. Sweeps parallelise over phases in processes instead (see sweep_speedup).",
     }
-    from lunarviz.scene import ResolvedScene
-    from lunarviz.workflows.sweeps import run_sweep
     six = ResolvedScene(method="raytrace", phases_deg=(20.0, 50.0, 80.0, 110.0, 140.0, 170.0))
     _, t_w1 = _timed(lambda: run_sweep(six, workers=1))
     _, t_w2 = _timed(lambda: run_sweep(six, workers=2))
@@ -220,8 +220,6 @@ def _bench_skips(models) -> dict:
 def _bench_targets(models, quick) -> dict:
     """The speed targets: the paper sweep, the analytic sweep, Monte Carlo at 0.2 %."""
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
-    from lunarviz.scene import ResolvedScene
-    from lunarviz.workflows.sweeps import run_sweep
     targets = {}
     if not quick:
         sw = ResolvedScene(method="raytrace", occlusion=False)
@@ -313,6 +311,5 @@ def plot_pareto(res: dict, path) -> None:
     axes[0].legend(fontsize=7)
     fig.suptitle("Error against run time (Pareto front of the methods)")
     fig.tight_layout()
-    from lunarviz.outputs.writers import save_figure
     save_figure(fig, path, dpi=110)
     plt.close(fig)

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.earth_optics.classes import surface_from_name, toa_reflectance
 from lunarviz.errors import LunarvizError
-from lunarviz.photometry.brdf import half_angle_from_angles
+from lunarviz.options import earth_params
+from lunarviz.photometry.brdf import brdf_from_angles, half_angle_from_angles
 
 
 def _geometry(inc, emi, azi):
@@ -30,7 +32,6 @@ def _row(g, phase, f) -> dict:
 
 def lunar_rows(model, inc, emi, azi) -> list[dict]:
     """Rows of a lunar BRDF ``model`` (:func:`lunarviz.photometry.brdf.make_brdf`)."""
-    from lunarviz.photometry.brdf import brdf_from_angles
     grid, phase = _geometry(inc, emi, azi)
     rows = []
     for g, p in zip(grid, phase):
@@ -43,8 +44,6 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
                ) -> tuple[list[dict], dict]:
     """Rows of the Earth's class ``surface`` (:func:`lunarviz.earth_optics.classes.surface_from_name`)
     at each wavelength [nm], and the settings that made them."""
-    from lunarviz.earth_optics.classes import surface_from_name, toa_reflectance
-    from lunarviz.options import earth_params
     if "wavelength_nm" in (params or {}):
         raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
     p = earth_params(params)

@@ -31,7 +31,14 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.photometry.brdf import FIT_BOUNDS
+from lunarviz.geometry.scene_geometry import SceneGeometry
+from lunarviz.methods.analytic import AnalyticSettings, moonshine_transport
+from lunarviz.outputs.writers import save_figure
+from lunarviz.parsing import parse_float_list
+from lunarviz.photometry.brdf import FIT_BOUNDS, make_brdf
+from lunarviz.photometry.presets import moon_model_params
+from lunarviz.surfaces.moon_map import MoonAlbedoMap
+from lunarviz.surfaces.point_values import Surfaces
 
 DEFAULT_FREE = {"dhg": ("w", "b", "c", "B0", "h", "theta_bar"), "shg": ("w", "xi", "B0", "h", "theta_bar"),
                 "lambert": ("albedo",)}
@@ -46,7 +53,6 @@ def disk_geometry(phase_deg: float, waxing: bool | None = None):
     (0°, 0°) toward the detector, north along +z, and the sub-solar point at longitude +g
     (waxing) or −g (waning), ROLO's convention; ``None`` keeps the unoriented scene (a uniform
     Moon, for which both branches are one)."""
-    from lunarviz.geometry.scene_geometry import SceneGeometry
     g = np.radians(phase_deg)
     moon = np.array([ROLO_DISTANCE_KM * 1e3, 0.0, 0.0])
     if waxing is None:
@@ -67,14 +73,11 @@ class DiskModel:
     ``waxing`` (one flag per phase) says which each phase is."""
 
     def __init__(self, phases_deg, order: int = 24, waxing=None, moon_map: str | None = None):
-        from lunarviz.methods.analytic import AnalyticSettings, moonshine_transport
         self.phases = np.asarray(phases_deg, dtype=float)
         if moon_map is None:
             self.scenes = [disk_geometry(p) for p in self.phases]
             st = AnalyticSettings(order=order)
         else:
-            from lunarviz.surfaces.moon_map import MoonAlbedoMap
-            from lunarviz.surfaces.point_values import Surfaces
             wax = np.broadcast_to(np.ones(1, bool) if waxing is None else np.asarray(waxing, bool), self.phases.shape)
             self.scenes = [disk_geometry(p, bool(w)) for p, w in zip(self.phases, wax)]
             st = AnalyticSettings(order=order, surfaces=Surfaces(moon_map=MoonAlbedoMap.parse(moon_map)))
@@ -250,7 +253,6 @@ def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | Non
     (its transports are the costly part; a band-by-band fit shares one)."""
     from scipy.optimize import least_squares
 
-    from lunarviz.photometry.brdf import make_brdf
     free = tuple(free or DEFAULT_FREE[brdf])
     if len(set(free)) != len(free):
         raise LunarvizError(f"free parameters {','.join(free)} name one twice")
@@ -328,7 +330,6 @@ def plot_fit(res: FitResult, path, title: str = "") -> None:
     ax[1].set_ylabel("model / target - 1 [%]")
     ax[1].set_xlabel("phase angle [deg]")
     fig.tight_layout()
-    from lunarviz.outputs.writers import save_figure
     save_figure(fig, path, dpi=110)
     plt.close(fig)
 
@@ -337,8 +338,6 @@ def run_fit(brdf: str, source: str = "rolo", band: str = "400-750", phases: str 
             start_model: str = "paper", dhg_convention: str = "paper", h_function: str = "hapke1981",
             moon_map: str | None = None, order: int = 24) -> FitResult:
     """The ``lunarviz fit`` pipeline: target from ROLO (both branches) or a CSV table."""
-    from lunarviz.parsing import parse_float_list
-    from lunarviz.photometry.presets import moon_model_params
     if source == "rolo":
         g = np.asarray(parse_float_list(phases, "phase", 0.5, 120.0))
         G = np.concatenate([g, g])

@@ -13,13 +13,16 @@ from lunarviz.errors import LunarvizError
 from lunarviz.instrument import budget
 from lunarviz.instrument.budget import halo_shape_sigma, with_budget
 from lunarviz.instrument.detector import frames as draw_frames
+from lunarviz.instrument.frames import read_frames
 from lunarviz.instrument.observation import Observation, check_exposure, instrument_camera, observe
 from lunarviz.instrument.pipeline import Calibration, calibrate, measure
-from lunarviz.instrument.response import instrument_request
+from lunarviz.instrument.response import instrument_request, photon_band, write_band_csv
 from lunarviz.instrument.spec import Instrument, instrument_from_dict
 from lunarviz.options import model_earth
+from lunarviz.scene import ResolvedScene
 from lunarviz.spectral.bands import parse_band
 from lunarviz.workflows import tasks
+from lunarviz.workflows.sweeps import run_sweep
 
 #: the most simulated measurements in one run
 MAX_SIMULATIONS = 100_000
@@ -78,7 +81,6 @@ def observation_calibration(settings, key, inst: Instrument, obs):
 def band_sigma(scene, key, inst: Instrument) -> float:
     """Relative σ of p* from the band centre's uncertainty (:mod:`lunarviz.instrument.budget`): the
     model Earth's p*(λ) from analytic sweeps ``BAND_STEP_NM`` either side of the band's centre."""
-    from lunarviz.workflows.sweeps import run_sweep
     if inst.band_centre_sigma_nm == 0:
         return 0.0
     c = parse_band(inst.band).centre_nm
@@ -109,8 +111,6 @@ def sweep_p_star(settings, key, inst: Instrument, photon: bool = True) -> float:
     import tempfile
     from pathlib import Path
 
-    from lunarviz.instrument.response import photon_band, write_band_csv
-    from lunarviz.workflows.sweeps import run_sweep
     s = instrument_scene(settings, inst)
     s = replace(s, method="raytrace", phases_deg=(float(key),) if s.times is None else s.phases_deg,
                 times=None if s.times is None else (str(key),))
@@ -178,8 +178,6 @@ def simulate(settings, key, inst: Instrument, n: int, seed: int, exposure_s: flo
 def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
     """Measure the frames of a ``lunarviz image --instrument`` FITS file (``use_expected``: its
     noise-free ``EXPECTED_COUNTS``)."""
-    from lunarviz.instrument.frames import read_frames
-    from lunarviz.scene import ResolvedScene
     fr = read_frames(path, use_expected)
     try:
         settings = ResolvedScene.from_dict(fr.settings)

@@ -20,7 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.constants import PAPER_RAYS, PAPER_RUNS
-from lunarviz.outputs.writers import save_figure
+from lunarviz.outputs.writers import json_safe, save_figure, write_bytes_atomic
+from lunarviz.photometry.brdf import brdf_from_angles, make_brdf
+from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.brdf_test import BrdfTestSettings, run_brdf_test
+from lunarviz.workflows.sweeps import run_sweep
 
 #: The paper's printed numbers (Table 5; Sec. 3.1; Sec. 3.2).
 PAPER_TABLE5 = {"lambert": {"analytic": 0.3009, "raytrace": 0.3030},
@@ -40,7 +44,6 @@ def _plt():
 
 
 def fig3_reflectance(out: Path) -> dict:
-    from lunarviz.photometry.brdf import brdf_from_angles, make_brdf
     plt = _plt()
     models = {"SHG": make_brdf("shg"), "DHG (paper Eq. 14 as printed)": make_brdf("dhg"),
               "DHG (Hapke 2012 convention)": make_brdf("dhg", dhg_convention="hapke2012")}
@@ -270,11 +273,6 @@ def _screenshots(scene, out, phases) -> list:
 
 def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "local",
               scheduler: str | None = None) -> dict:
-    from lunarviz.outputs.writers import write_bytes_atomic
-    from lunarviz.photometry.brdf import make_brdf
-    from lunarviz.workflows.brdf_test import BrdfTestSettings, run_brdf_test
-    from lunarviz.scene import ResolvedScene
-    from lunarviz.workflows.sweeps import run_sweep
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -353,7 +351,6 @@ def run_paper(out, quick: bool = False, progress: bool = True, executor: str = "
         "timings_s": {**timings, "total": time.perf_counter() - t_start},
         "screenshots": shots,
     }
-    from lunarviz.outputs.writers import json_safe
     write_bytes_atomic(out / "results.json", json.dumps(json_safe(results), indent=1, allow_nan=False).encode())
     write_bytes_atomic(out / "report.md", make_report(results).encode())
     if progress:

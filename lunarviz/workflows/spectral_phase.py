@@ -18,9 +18,11 @@ from dataclasses import replace
 import numpy as np
 
 from lunarviz.methods import accuracy
+from lunarviz.methods.analytic import earthshine_transport, moonshine_transport
 from lunarviz.photometry import albedo_inversion as alb
-from lunarviz.surfaces.earth_spectra import spectral_components, weights_toward
 from lunarviz.spectral.shading import SpectralShader, spectral_brdfs
+from lunarviz.surfaces.earth_spectra import spectral_components, weights_toward
+from lunarviz.surfaces.physical_earth import albedo_toward_moon
 
 
 def _earthshine_nodes(parts: np.ndarray, albedo: np.ndarray | None, uniform_albedo: float):
@@ -52,14 +54,12 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
     a0 = settings.earth_albedo
     extra: dict = {}
     if settings.method == "analytic":
-        from lunarviz.methods.analytic import earthshine_transport, moonshine_transport
         st = settings.analytic_settings()
         ms = shader.moonshine(moonshine_transport(sc, st))
         es_tr = earthshine_transport(sc, st)
         unit = shader.earthshine(es_tr)  # (1, L): a point Earth of albedo 1
         if mapped:  # the point Earth's components, weighted toward the Moon as its albedo is
             if surface.physical:  # one component per node: the disc's reflectance toward the Moon there
-                from lunarviz.surfaces.physical_earth import albedo_toward_moon
                 w = albedo_toward_moon(st.surfaces, sc, req.nodes)
             else:
                 w = weights_toward(st.surfaces, sc, sc.moon)

@@ -29,7 +29,9 @@ import numpy as np
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
-from lunarviz.photometry.brdf import make_brdf
+from lunarviz.outputs.writers import check_output_path, save_figure, write_results
+from lunarviz.photometry.brdf import BRDF_NAMES, make_brdf
+from lunarviz.workflows.sweeps import dask_client
 
 STUDY_SHAPES = ("sphere", "ellipsoid", "craters")
 
@@ -106,7 +108,6 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
         tasks = [(replace(base, **{f"{body}_mesh": paths[lv]}) if paths[lv] else
                   replace(base, **{f"{body}_level": int(lv)}), float(th), body, tuple(brdfs)) for lv, th in it]
         if executor == "dask":
-            from lunarviz.workflows.sweeps import dask_client
             client, cluster = dask_client(scheduler, workers)
             try:
                 outs = client.gather(client.map(_study_task, tasks, pure=False))
@@ -168,7 +169,6 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
                         "finest mesh of the study; order from successive differences"},
            "rows": rows, "summary": summary}
     if out is not None:
-        from lunarviz.outputs.writers import write_results
         out = Path(out)
         write_results(out, res)
         plot_study(res, out.with_suffix(".png"))
@@ -210,8 +210,6 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
         run time [s]. Nothing is written or drawn unless asked.
     """
     from lunarviz.bodies.meshes import MAX_LEVEL
-    from lunarviz.outputs.writers import check_output_path
-    from lunarviz.photometry.brdf import BRDF_NAMES
     levels = list(levels)
     if meshes is None:
         if not levels or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= MAX_LEVEL
@@ -244,7 +242,6 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
                      progress=progress, body=body, shape=shape, axes=tuple(axes), meshes=meshes,
                      mesh_units=mesh_units, executor=executor, scheduler=scheduler, workers=workers)
     if out is not None:
-        from lunarviz.outputs.writers import write_results
         write_results(out, res)
     if plot is not None:
         plot_study(res, plot)
@@ -274,6 +271,5 @@ def plot_study(res: dict, path) -> None:
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7)
     fig.tight_layout()
-    from lunarviz.outputs.writers import save_figure
     save_figure(fig, path, dpi=110)
     plt.close(fig)

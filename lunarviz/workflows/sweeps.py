@@ -23,8 +23,10 @@ from lunarviz.methods import accuracy
 from lunarviz.methods.analytic import DetectorIrradiance, analytic_irradiance
 from lunarviz.methods.reference import reference_irradiance
 from lunarviz.options import EXECUTORS
+from lunarviz.parsing import wavelength_label
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.scene import ResolvedScene
+from lunarviz.workflows.spectral_phase import spectral_rows
 
 
 def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[dict]:
@@ -34,7 +36,6 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
     base = {**fields, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
     t0 = time.perf_counter()
     if settings.spectral_request() is not None:
-        from lunarviz.workflows.spectral_phase import spectral_rows
         return spectral_rows(settings, sc, base, threads)
     brdfs = settings.brdf_models()
     rows = []
@@ -185,7 +186,6 @@ def spectral_label(row: dict) -> str | None:
     """A spectral row's wavelength (as text, e.g. ``"550"``, 12 significant digits) or band name;
     ``None`` for a grey row."""
     if "wavelength_nm" in row:
-        from lunarviz.parsing import wavelength_label
         return wavelength_label(row["wavelength_nm"])
     return row.get("band")
 

@@ -11,7 +11,8 @@ from dataclasses import replace
 
 from lunarviz.methods.analytic import analytic_irradiance
 from lunarviz.methods.camera import Camera, ImageResult, synthesize
-from lunarviz.methods.tracer.facets import FacetResult, sample_ray_paths, trace_facets
+from lunarviz.methods.tracer.facet_result import FacetResult
+from lunarviz.methods.tracer.facets import sample_ray_paths, trace_facets
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.viz.view_data import ViewData
 

@@ -13,6 +13,7 @@ from lunarviz.geometry.scene_geometry import unit
 from lunarviz.methods.sources import horizon_cuts_source
 from lunarviz.methods.tracer import ray_kernels
 from lunarviz.methods.tracer import settings as tuning
+from lunarviz.methods.tracer.ray_kernels import beam_angles, live_beams
 from lunarviz.methods.tracer.settings import (
     NORMAL_OFFSET,
 )
@@ -111,7 +112,6 @@ class DeterministicTransport:
             return self.mapped_earth_transport(x, n, o, mu, geom)
         if ray_kernels.available() and self._source(body)[2].mode(self.settings.shading) == "exact":
             return self._fused_beam_transport(x, n, o, mu, geom, body, order)
-        from lunarviz.methods.tracer.ray_kernels import beam_angles, live_beams
         dirs, omega = self.source_nodes(x, n, body, order)
         mu0, sh, ch = beam_angles(dirs, n, o)
         bi, ki, xb, nb, db = live_beams(x, n, dirs, omega, mu0)

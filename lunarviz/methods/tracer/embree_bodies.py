@@ -26,7 +26,7 @@ from embreex.mesh_construction import TriangleMesh
 
 from lunarviz.caches import BoundedCache, mesh_digest
 from lunarviz.geometry.subdivision import sub_barycentric
-from lunarviz.methods.tracer.ray_kernels import ray_batch32
+from lunarviz.methods.tracer.ray_kernels import occluder_rays, ray_batch32, ray_starts, sphere_refine
 
 #: Embree's coordinate type.
 EMBREE_DTYPE = np.float32
@@ -266,7 +266,6 @@ class EmbreeBody:
         idx = np.flatnonzero(live)
         if idx.size:
             prim[idx] = self.run_rays(*ray_batch32(o, d, t0, idx), "INTERSECT", scene=scene)
-        from lunarviz.methods.tracer.ray_kernels import sphere_refine
         prim, tt, point = sphere_refine(o, d, self.radius, prim, self.centre)
         return Hits(prim >= 0, prim, tt, point)
 
@@ -294,7 +293,6 @@ class EmbreeBody:
     def _prepare(self, origins, dirs, tmax, bound=None):
         """Body-frame float64 origins advanced to the bounding sphere (radius ``bound``, the
         mesh's by default); culled rays flagged."""
-        from lunarviz.methods.tracer.ray_kernels import ray_starts
         d = np.asarray(dirs, dtype=float)
         R = (self.bound if bound is None else bound) * (1.0 + ENTRY_MARGIN)
         o, t0, live = ray_starts(origins, d, self.centre, R, tmax)
@@ -372,7 +370,6 @@ class EmbreeBody:
         """:meth:`occluded` for the live beams of ``rays`` (a :class:`lunarviz.methods.tracer.ray_kernels.BeamRays`)
         in ``mask``, from their origins up to ``tmax``; False outside ``mask``. The same rays,
         gathered and culled in one compiled pass (numba only)."""
-        from lunarviz.methods.tracer.ray_kernels import occluder_rays
         rows, o32, d32, dists = occluder_rays(rays, tmax, mask, self.centre, self.bound * (1.0 + ENTRY_MARGIN))
         out = np.zeros(len(mask), dtype=bool)
         if rows.size:

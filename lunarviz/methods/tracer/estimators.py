@@ -57,6 +57,7 @@ from lunarviz.methods.tracer.settings import (
     TraceSettings,
 )
 from lunarviz.methods.tracer.trace_scene import TraceScene
+from lunarviz.surfaces.moon_map import map_scale
 
 __all__ = ["PathResult", "TraceScene", "TraceSettings", "trace_path"]
 
@@ -100,7 +101,6 @@ def _albedo_scale(ts: TraceScene, brdfs: dict) -> float:
     being shaded that are not linear in it (the largest: its reflectance's branch point at w = 1
     is the nearest), for the mapped lune rule's albedo nodes in γ = √(1 - w); 0 (nodes in the map's
     value) without a map or such a BRDF, or in a spectral run (whose w varies with wavelength)."""
-    from lunarviz.surfaces.moon_map import map_scale
     amap = ts.settings.moon_map()
     if amap is None:
         return 0.0

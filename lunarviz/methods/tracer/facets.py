@@ -1,52 +1,22 @@
-"""Per-facet results on the lunar mesh (cell data) for one phase and one BRDF.
-
-Arrays (one value per lunar facet, zero where a facet is dark or unseen):
-
-* ``solar_irradiance_W_m2``, ``earth_irradiance_W_m2`` — irradiance on the facet;
-* ``moonshine_radiance_W_m2_sr``, ``earthshine_radiance_W_m2_sr`` — radiance toward the
-  detector;
-* ``moonshine_contribution_W_m2``, ``earthshine_contribution_W_m2`` — each facet's share of the
-  detector irradiance (they sum to the totals exactly);
-* ``incidence_deg``, ``emission_deg``, ``phase_deg`` — at the centroid, for the Sun's centre
-  and the detector; ``earth_incidence_deg``, ``earth_phase_deg`` for the Earth's centre;
-* ``brdf_per_sr``, ``reflectance_factor`` — the BRDF at those angles (sunlight), and
-  ``earth_brdf_per_sr`` (earthlight);
-* ``moonshine_rays``, ``earthshine_rays`` — beams traced per facet (rays that carried light);
-* ``albedo_parameter`` — the BRDF's albedo parameter on the facet (Lambert albedo or Hapke w:
-  the scalar, or the lunar albedo map's area average, :mod:`lunarviz.surfaces.maps`).
-
-Earth facets carry ``albedo`` (their Lambert albedo: uniform, or the land/ocean/cloud surface
-averaged by area) and ``radiance_toward_moon_W_m2_sr``.
-"""
+"""Per-facet results of one task, ray traced: the arrays of
+:class:`~lunarviz.methods.tracer.facet_result.FacetResult` (its module lists them), and a few
+sample light paths for the views."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from lunarviz.geometry.scene_geometry import SceneGeometry, angle_between, half_angle_sin_cos, unit
+from lunarviz.methods.sources import earth_radiance
+from lunarviz.methods.tracer import settings as tuning
+from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.methods.tracer.settings import TraceSettings
+from lunarviz.surfaces.moon_map import map_scale
 
 if TYPE_CHECKING:
     from lunarviz.methods.tracer.trace_scene import TraceScene
-
-
-@dataclass
-class FacetResult:
-    vertices: np.ndarray  # (nv, 3) Moon-centred [m], the Moon's body frame (MOON_ME on dates)
-    faces: np.ndarray  # (nf, 3)
-    cell_data: dict
-    totals: dict
-    info: dict
-    #: the other bodies: ``{"earth": (vertices, faces, cell_data), "sun": ...}``, vertices
-    #: centred on each body [m]; centres in ``info["<body>_m"]``
-    bodies: dict = field(default_factory=dict)
-
-    @property
-    def n_faces(self) -> int:
-        return len(self.faces)
 
 
 def trace_facets(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdfs: dict,
@@ -107,7 +77,6 @@ def trace_facets(geometry: SceneGeometry, fields: dict, trace: TraceSettings, br
         alb = None
         cd["albedo_parameter"] = np.full(M.n_faces, model.albedo_parameter)
     else:
-        from lunarviz.surfaces.moon_map import map_scale
         alb = values * map_scale(amap.absolute, model)
         cd["albedo_parameter"] = alb
     cd.update(_facet_angles_and_brdf(ts, sc, model, alb))
@@ -143,7 +112,6 @@ def _facet_angles_and_brdf(ts, sc, model, alb) -> dict:
     """Per-facet angles at the centroid [deg] and the BRDF there [sr⁻¹] for sunlight and
     earthlight, computed in blocks of facets (a few dozen (F, 3) temporaries took 1 GB at 5 M
     facets)."""
-    from lunarviz.methods.tracer import settings as tuning
     M = ts.moon
     cd = {}
     names = ("incidence_deg", "emission_deg", "phase_deg", "earth_incidence_deg", "earth_phase_deg",
@@ -174,7 +142,6 @@ def _facet_angles_and_brdf(ts, sc, model, alb) -> dict:
 
 def _other_bodies(ts, sc) -> dict:
     """The Earth's and the Sun's meshes with their per-facet arrays."""
-    from lunarviz.methods.sources import earth_radiance
     E, S = ts.earth, ts.sun
     xe, ne = E.facet_points(ts.settings.shading)
     vis = ts.sun_visibility_of_earth()

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.geometry.mapped_lune import mapped_lune_rule
 from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.geometry.subdivision import sub_barycentric
+from lunarviz.methods.analytic import lunar_surface_rule
 from lunarviz.methods.tracer import settings as tuning
 from lunarviz.methods.tracer.settings import (
     KINK_FREE_WIDTH,
@@ -18,6 +20,8 @@ from lunarviz.methods.tracer.settings import (
     REFINE,
 )
 from lunarviz.methods.transport import detector_geometry
+from lunarviz.surfaces.maps import map_frame
+from lunarviz.surfaces.moon_map import moon_facet_values
 
 
 class LunarSampling:
@@ -148,8 +152,6 @@ class LunarSampling:
         if sub == 1 or len(faces) == 0:
             mean, sd = (a[faces] for a in self.moon_facet_albedo(spread=True))
         else:
-            from lunarviz.surfaces.maps import map_frame
-            from lunarviz.surfaces.moon_map import moon_facet_values
             M = self.moon
             _, tri_b = sub_barycentric(sub)
             corners = np.einsum("svk,fkj->fsvj", tri_b, M.vertices[M.faces[np.asarray(faces, dtype=np.int64)]])
@@ -183,8 +185,6 @@ class LunarSampling:
         once per body; ``None`` where its blocks are not smooth patches (the facets then)."""
         key = (body, self.rough_brdf and body == "sun", self.albedo_scale)
         if key not in self._mapped_lune_cache:
-            from lunarviz.surfaces.maps import map_frame
-            from lunarviz.geometry.mapped_lune import mapped_lune_rule
             c, R, _ = self._source(body)
             s = self.settings
             values = np.asarray(s.moon_map().values(), dtype=float)
@@ -269,7 +269,6 @@ class LunarSampling:
         if self._moon_map_contrast():  # the map's cells in the weights: AlbedoNodes
             x, n, dA, alb = self._mapped_lune(body)
             return x, n, dA, np.full(len(x), -1, dtype=np.int64), alb
-        from lunarviz.methods.analytic import lunar_surface_rule
         c, R, _ = self._source(body)
         sc = self.scene
         x, n, dA = lunar_surface_rule(sc, c, R, self.settings.lune_order[0 if body == "sun" else 1])

@@ -16,7 +16,10 @@ from typing import NamedTuple
 import numpy as np
 
 import lunarviz.compiled as compiled
-from lunarviz.photometry import shading_kernels
+from lunarviz.geometry.scene_geometry import half_angle_sin_cos
+from lunarviz.geometry.sphere_quadrature import cone_rule as numpy_rule
+from lunarviz.geometry.sphere_quadrature import gauss_legendre
+from lunarviz.photometry import rough_kernels, shading_kernels
 
 
 def available() -> bool:
@@ -543,7 +546,6 @@ def beam_angles(dirs, n, o):
     """``(μ0, sin(g/2), cos(g/2))`` (B, K) of beams ``dirs`` (B, K, 3) at points with normals
     ``n`` (B, 3) seen along ``o`` (B, 3): compiled, or numpy where numba is off."""
     if not _NUMBA:
-        from lunarviz.geometry.scene_geometry import half_angle_sin_cos
         sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
         return np.einsum("bkj,bj->bk", dirs, n), sh, ch
     B, K = dirs.shape[:2]
@@ -596,7 +598,6 @@ def sphere_cap_beams(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
 def _cap_setup(x, c, R: float, cap_u, cap_c, n_t: int, n_phi: int):
     """Contiguous inputs of :func:`_cap_beams`: x, c, (cap axes, cap cosines, Gauss rules) and
     the number of beams of each row."""
-    from lunarviz.geometry.sphere_quadrature import gauss_legendre
     f = np.ascontiguousarray
     x, c = f(x, dtype=float), f(c, dtype=float)
     B = len(x)
@@ -613,8 +614,6 @@ def cone_rule(axis, sin_rho, n_psi: int = 2, n_phi: int = 4):
     """:func:`lunarviz.geometry.sphere_quadrature.cone_rule` (directions (B, n_psi·n_phi, 3) and solid
     angles [sr] filling the cone of half-angle asin(sin_rho) about ``axis``), compiled; the
     numpy rule where numba is off."""
-    from lunarviz.geometry.sphere_quadrature import cone_rule as numpy_rule
-    from lunarviz.geometry.sphere_quadrature import gauss_legendre
     if not _NUMBA:
         return numpy_rule(axis, sin_rho, n_psi, n_phi)
     f = np.ascontiguousarray
@@ -792,7 +791,6 @@ def warm_up() -> None:
     if not _NUMBA:
         return
     shading_kernels.warm_up()
-    from lunarviz.photometry import rough_kernels
     rough_kernels.warm_up()
     one = np.ones((1, 1))
     beam_angles(np.ones((1, 1, 3)), np.ones((1, 3)), np.ones((1, 3)))

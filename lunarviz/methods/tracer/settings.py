@@ -8,10 +8,14 @@ from typing import ClassVar
 
 import numpy as np
 
+import lunarviz.constants as C
+from lunarviz.bodies.sphere_mesh import packaged_sphere
 from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.methods.accuracy import DEFAULT_RAYS
 from lunarviz.options import DEFAULT_LEVELS, DEFAULT_ORDERS, SHADINGS, compose, validate
+from lunarviz.surfaces.earth_surface import EarthSurface
+from lunarviz.surfaces.moon_map import MoonAlbedoMap
 
 #: Shadow-ray origins are offset along the normal by this fraction of the body radius
 #: (0.17 m on the Moon: above float32's 0.125 m step at the lunar radius, far below any facet).
@@ -87,7 +91,6 @@ class TraceSettings:
 
     def surface(self):
         """The Earth's :class:`~lunarviz.surfaces.earth_surface.EarthSurface`."""
-        from lunarviz.surfaces.earth_surface import EarthSurface
         return EarthSurface.from_options(self)
 
     def __post_init__(self):
@@ -129,7 +132,6 @@ def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None =
 def _parsed_moon_map(text: str, key: tuple | None):
     """:meth:`MoonAlbedoMap.parse` of ``text`` (``key``: the file's :func:`file_key`, where the whole
     text names a file): parsed and checked once, not at every one of a trace's many calls."""
-    from lunarviz.surfaces.moon_map import MoonAlbedoMap
     return MoonAlbedoMap.parse(text)
 
 
@@ -139,9 +141,7 @@ def _body_mesh_cached(body: str, level, key, units: str, radius: float | None):
         from lunarviz.bodies.meshes import NOMINAL_RADII, load_user_mesh
         nominal = NOMINAL_RADII[body] if radius is None else radius
         return load_user_mesh(key[0], body=body, units=units, nominal_radius=nominal)
-    from lunarviz.bodies.sphere_mesh import packaged_sphere  # (no trimesh for the packaged spheres)
     if radius is None:
-        import lunarviz.constants as C
         radius = {"moon": C.R_MOON_M, "earth": C.R_EARTH_M, "sun": C.R_SUN_M}[body]
     mesh = packaged_sphere(body, level, radius)
     if mesh is None:

@@ -11,6 +11,7 @@ import numpy as np
 from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.methods.sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
 from lunarviz.methods.tracer import ray_kernels
+from lunarviz.methods.tracer.ray_kernels import sphere_cap_beams
 from lunarviz.methods.tracer.settings import (
     ECLIPSE_ORDER,
     MESH_SOURCE_ORDER,
@@ -60,7 +61,6 @@ class SourceRules:
             if (body == "earth" and not with_horizon) or (body == "sun" and with_horizon):
                 # rules with one cap (compiled): the Earth's terminator where the horizon does not
                 # cut the Earth (nearly every lunar point), the horizon across the Sun (penumbra)
-                from lunarviz.methods.tracer.ray_kernels import sphere_cap_beams
                 if body == "earth":
                     cs = sc.sun - c
                     cap = unit(cs), R / np.linalg.norm(cs)

@@ -14,6 +14,7 @@ import threading
 
 import numpy as np
 
+from lunarviz.caches import BoundedCache, file_key, mesh_digest
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.tracer.deterministic import DeterministicTransport
 from lunarviz.methods.tracer.embree_bodies import EmbreeBody
@@ -25,8 +26,11 @@ from lunarviz.methods.tracer.settings import (
     body_mesh_m,
 )
 from lunarviz.methods.tracer.source_rules import SourceRules
-from lunarviz.caches import BoundedCache
 from lunarviz.methods.transport import Transport
+from lunarviz.surfaces.earth_spectra import facet_weights
+from lunarviz.surfaces.maps import map_frame
+from lunarviz.surfaces.moon_map import moon_facet_values
+from lunarviz.surfaces.physical_earth import facet_reflectance
 
 #: per-facet lunar map values per (map, mesh, frame) (:meth:`TraceScene.moon_map_values`)
 MOON_MAP_VALUES = BoundedCache(8)
@@ -100,9 +104,6 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         over the whole mesh). On dates the Moon's mesh turns with the Moon, so a facet covers the
         same part of the map at every date: the values are kept per map, mesh and frame for the
         process (:data:`MOON_MAP_VALUES`), and a time series computes them once."""
-        from lunarviz.surfaces.maps import map_frame
-        from lunarviz.surfaces.moon_map import moon_facet_values
-        from lunarviz.caches import file_key, mesh_digest
         M, amap = self.moon, self.settings.moon_map()
         frame = map_frame(self.scene, "moon")
         turned = M.rotation is not None and np.array_equal(frame, M.rotation)  # body frame: date-independent
@@ -123,10 +124,8 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         if surf.uniform:
             return None
         if self._earth_albedo is None:
-            from lunarviz.surfaces.maps import map_frame
             frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
             if surf.physical:  # each facet's reflectance toward the Moon as its albedo (earth_optics.planet)
-                from lunarviz.surfaces.physical_earth import facet_reflectance
                 self._earth_albedo = facet_reflectance(surf, self.earth, frame, self.scene.sun, self.scene.moon,
                                                        [surf.wavelength_nm])[:, 0]
                 return self._earth_albedo
@@ -140,12 +139,9 @@ class TraceScene(LunarSampling, SourceRules, DeterministicTransport, MappedEarth
         if self.earth_parts is None or self.earth_facet_albedo() is None:
             return None
         if self._earth_parts_w is None:
-            from lunarviz.surfaces.maps import map_frame
-            from lunarviz.surfaces.earth_spectra import facet_weights
             frame = map_frame(self.scene, "earth", self.settings.earth_rotation_deg)
             surf = self.settings.surface()
             if surf.physical:  # one component per node wavelength: the facets' reflectance there
-                from lunarviz.surfaces.physical_earth import facet_reflectance
                 self._earth_parts_w = facet_reflectance(surf, self.earth, frame, self.scene.sun, self.scene.moon,
                                                         self.earth_part_wavelengths)
             else:
