@@ -117,7 +117,25 @@ class Scene:
     __doc__ = __doc__.format(options=numpydoc_parameters(OPTIONS, "    "))
 
     def settings(self, method: str = "analytic"):
-        """The :class:`~lunarviz.workflows.sweeps.ResolvedScene` of this scene for ``method``."""
+        """The resolved scene: every option of this scene checked, for one method.
+
+        Parameters
+        ----------
+        method : {"analytic", "raytrace", "reference"}
+            The method the scene is resolved for (meshes and shading are the ray tracer's).
+
+        Returns
+        -------
+        lunarviz.scene.resolved.ResolvedScene
+            Immutable; its ``to_json()`` saves it and ``ResolvedScene.from_json`` restores it.
+
+        Examples
+        --------
+        >>> import lunarviz
+        >>> rs = lunarviz.Scene(phases="90", brdfs=("dhg",)).settings("raytrace")
+        >>> rs.method, rs.phases_deg, rs.brdfs
+        ('raytrace', (90.0,), ('dhg',))
+        """
         from lunarviz.scene import ResolvedScene
         o = dict(self.options)
         o["brdfs"] = tuple(o["brdfs"])
@@ -127,12 +145,23 @@ class Scene:
 
     @property
     def keys(self) -> list:
-        """One task key per phase θ [deg] or UTC time label."""
+        """One task key per phase θ [deg] or UTC time label (list of float or str)."""
         return list(self.times) if self.times is not None else list(self.phases)
 
     def geometry(self, key=None):
-        """The low-level :class:`~lunarviz.geometry.scene_geometry.SceneGeometry` (positions [m]) of one task, and its
-        row fields (time, distances, libration, flags)."""
+        """The geometry of one task.
+
+        Parameters
+        ----------
+        key : float or str, optional
+            Phase θ [deg], or a UTC time of a dated scene (default: the scene's first).
+
+        Returns
+        -------
+        (SceneGeometry, dict)
+            The bodies' positions [m] (:class:`~lunarviz.geometry.scene_geometry.SceneGeometry`) and
+            the row fields (time, distances, libration, flags).
+        """
         return self.settings("raytrace").task(self.keys[0] if key is None else key)
 
     def __repr__(self) -> str:
@@ -238,7 +267,14 @@ class Facets(FacetResult):
         return multiblock(self) if bodies else facet_polydata(self)
 
     def save(self, path) -> None:
-        """Write ``.vtp``/``.vtk``/``.ply`` (the Moon) or ``.vtm`` (every body), atomically."""
+        """Write the per-facet results to a VTK or PLY file, atomically.
+
+        Parameters
+        ----------
+        path : path
+            ``.vtp``, ``.vtk`` or ``.ply`` (the Moon with its cell arrays), or ``.vtm`` (a multiblock
+            of every body in scene coordinates [m]).
+        """
         from lunarviz.outputs.writers import check_output_path
         from lunarviz.viz.meshio import check_vtm_target, write_facet_mesh
         check_output_path(path, (".vtp", ".vtk", ".ply", ".vtm"))
@@ -339,6 +375,11 @@ def view(scene: Scene | None = None, key=None, brdf: str = "dhg", size=(1600, 90
         TCP port for ``web`` (0: a free one).
     host : str
         Interface to bind for ``web``: 127.0.0.1 unless asked otherwise.
+
+    Returns
+    -------
+    None
+        Blocks until the window is closed or the server is interrupted.
     """
     from functools import partial
 
@@ -438,8 +479,26 @@ def measure(path=None, *, expected: bool = False, scene: Scene | None = None, si
 
 
 def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, **scene_options) -> dict:
-    """The exposure [s] that reaches ``snr`` on the earthlit patch with nothing saturated, or the
-    statement that none does (:func:`lunarviz.workflows.measurement.plan`)."""
+    """The exposure that reaches a signal-to-noise ratio on the earthlit patch with nothing saturated.
+
+    Parameters
+    ----------
+    scene : Scene, optional
+        The scene (or its options as keywords); one lunar BRDF.
+    instrument : str or Instrument
+        ``salex``, ``bbso`` or a TOML file (:mod:`lunarviz.instrument.spec`).
+    snr : float
+        The earthlit patch's signal-to-noise ratio in one frame.
+    key : float or str, optional
+        Phase θ [deg] or a UTC time (default: the scene's first).
+
+    Returns
+    -------
+    dict
+        ``exposure_s`` [s] (``None`` when no exposure reaches ``snr`` unsaturated), ``feasible``,
+        ``saturation_exposure_s``, ``frames_needed_at_saturation_exposure``, the patch's signal
+        [e⁻ s⁻¹] and the definition of the SNR (:func:`lunarviz.workflows.measurement.plan`).
+    """
     from lunarviz.instrument.spec import load_instrument
     from lunarviz.workflows.measurement import plan as plan_exposure
     sc = _scene(scene, scene_options)
@@ -565,12 +624,38 @@ def _angles(values, what: str, lo: float, hi: float) -> tuple:
 def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = None, wavelengths=(550.0,),
          incidence, emission, azimuth=(0.0,), atmosphere: bool = True, params: dict | None = None,
          **moon_options) -> list[dict]:
-    """Rows of a lunar BRDF (``model``) or of the Earth's top-of-atmosphere reflectance (``body="earth"``,
-    ``surface`` one of black, lambert:A, ocean, land, vegetation, desert, snow, cloud), as
-    ``lunarviz brdf`` writes them (:mod:`lunarviz.workflows.brdf_tables`): angles in degrees,
-    azimuth 0 = the viewer on the source's side. ``params``: the Moon's model parameters
-    ``{name: value}`` (w, b, c, …) or the Earth's (wind_speed [m s⁻¹], cloud_top_hpa,
-    surface_hpa); ``moon_options``: dhg_convention, h_function, moon_model."""
+    """Rows of a lunar BRDF or of the Earth's top-of-atmosphere reflectance, as ``lunarviz brdf``
+    writes them (:mod:`lunarviz.workflows.brdf_tables`).
+
+    Parameters
+    ----------
+    body : {"moon", "earth"}
+        A lunar BRDF (``model``) or an Earth surface class under the Rayleigh atmosphere (``surface``).
+    model : str, optional
+        The Moon: ``lambert``, ``shg`` or ``dhg``.
+    surface : str, optional
+        The Earth: ``black``, ``lambert:A``, ``ocean``, ``land``, ``vegetation``, ``desert``, ``snow``
+        or ``cloud``.
+    wavelengths : sequence of float
+        The Earth: wavelengths [nm], 300-2500.
+    incidence, emission : float or sequence of float
+        Incidence and emission angles [deg], 0-90.
+    azimuth : float or sequence of float
+        Azimuths [deg]; 0 is the viewer on the source's side.
+    atmosphere : bool
+        The Earth: with the Rayleigh layer (False: the bare surface).
+    params : dict, optional
+        The Moon's model parameters ``{name: value}`` (w, b, c, …) or the Earth's
+        (:data:`lunarviz.options.EARTH_PARAMETERS`: wind_speed [m s⁻¹], cloud_top_hpa, surface_hpa).
+    **moon_options
+        The Moon: ``dhg_convention``, ``h_function``, ``moon_model``.
+
+    Returns
+    -------
+    list of dict
+        One row per (wavelength,) incidence, emission and azimuth: the angles [deg], the BRDF
+        [sr⁻¹] and ``reflectance_factor`` (πL/(μ₀E₀)).
+    """
     from lunarviz.workflows.brdf_tables import earth_rows, lunar_rows
     inc = _angles(incidence, "incidence", 0.0, 90.0)
     emi = _angles(emission, "emission", 0.0, 90.0)

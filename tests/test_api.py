@@ -222,3 +222,21 @@ def test_ratios_of_round_off_are_undefined():
     rows = lunarviz.run(phases="0,180", brdfs="lambert")["rows"]
     by = {r["theta_deg"]: r for r in rows}
     assert np.isnan(by[180.0]["ratio_earthshine_moonshine"])
+
+
+@pytest.mark.parametrize("where", ["lunarviz.scene.resolved", "lunarviz.api.Scene.settings"])
+def test_docstring_examples_run(where):
+    """The resolved scene's examples (JSON round trip, its typed inputs) run as written."""
+    import doctest
+    import importlib
+    mod, _, attr = where.partition(".Scene.") if ".Scene." in where else (where, "", "")
+    obj = importlib.import_module(mod)
+    if attr:
+        obj = getattr(obj.Scene, attr)
+    finder = doctest.DocTestFinder()
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
+    tests = [t for t in finder.find(obj) if t.examples]
+    assert tests, f"{where} has no example"
+    for t in tests:
+        runner.run(t)
+    assert runner.failures == 0

@@ -24,7 +24,7 @@ from lunarviz.options import BODIES, DEFAULT_LEVELS, MAX_LEVEL, MESH_UNITS
 from lunarviz.resources import MESH_DIR
 
 #: Default subdivision levels, chosen from the mesh-resolution study
-#: (benchmarks/mesh_study_auto.json; docs/user_guide/meshes.md, "Choosing the mesh levels").
+#: (the documentation's *Bodies as meshes* page, "Choosing the mesh levels").
 
 
 def _nominal_radii() -> dict:
@@ -94,7 +94,7 @@ def edge_checks(faces: np.ndarray, n_vertices: int) -> tuple[bool, bool]:
     meaningful, and used, only for watertight meshes).
 
     Computed on int64 edge keys (``a·V + b``) instead of trimesh's edge caches, which take
-    ~3 GB on a 5-million-facet mesh ; tests/test_trace.py checks both against
+    ~3 GB on a 5-million-facet mesh ; both are checked against
     trimesh on good and broken meshes."""
     f = np.asarray(faces, dtype=np.int64)
     a = f.reshape(-1)
@@ -116,7 +116,7 @@ def _refutes_convexity(v: np.ndarray, f: np.ndarray, lowest: int = 4, faces: int
     A closed convex mesh has every vertex on or below every face's plane, so this proves the
     mesh non-convex; ``depth`` (a dent 1/1000 of the body's size, 3.5 km on the Moon) is far
     above rounding, so a convex mesh stored in float32 with sliver faces (4.7e-5 × its scale
-    above a sliver's plane, found in review) is not refuted. A cratered or DEM Moon is (its
+    above a sliver's plane) is not refuted. A cratered or DEM Moon is (its
     lowest faces lie 7e-3 to 3e-2 × its scale below the terrain around them). False proves
     nothing: :func:`is_convex` then runs the full edge test. Memory: (CHECK_BLOCK, ``faces``)."""
     scale = float(np.linalg.norm(np.ptp(v, axis=0)))
@@ -140,7 +140,7 @@ def is_convex(vertices: np.ndarray, faces: np.ndarray, checked: bool = False) ->
     face's plane (projection < 1e-5 × the mesh's scale, trimesh's ``tol.planar``).
 
     On sorted undirected edge keys, as :func:`edge_checks`; ~0.5 GB on a 5 M-facet mesh where
-    trimesh's face adjacency takes ~3 GB. tests/test_trace.py compares it with trimesh.
+    trimesh's face adjacency takes ~3 GB; the two agree on good and broken meshes.
     ``checked``: the mesh already passed :func:`validate_mesh` (closed, one body), whose edge
     passes are then not run again.
 
@@ -396,7 +396,7 @@ def analytic_sphere(body: str, level: int, radius: float) -> trimesh.Trimesh:
 
 
 def write_packaged_meshes(levels: dict[str, list[int]]) -> Path:
-    """(Re)write the packaged meshes and their manifest (scripts/make_meshes.py)."""
+    """(Re)write the packaged meshes and their manifest (the documentation's *Bodies as meshes* page)."""
     MESH_DIR.mkdir(exist_ok=True)
     entries = []
     for body, lv in levels.items():

@@ -4,6 +4,6 @@ clouds, coupled into top-of-atmosphere reflectance factors per surface class.
 Modules, one job each: :mod:`.rayleigh` (the molecular optical depth and phase function),
 :mod:`.atmosphere` (the Rayleigh layer's reflectance, transmittance and spherical albedo from
 the packaged DISORT tables, and their coupling with a surface), :mod:`.ocean`, :mod:`.land`,
-:mod:`.cloud` (the surfaces), :mod:`.surfaces` (the classes by name: what ``lunarviz brdf --body
-earth --surface`` takes). The tables are made by ``scripts/make_earth_tables.py``.
+:mod:`.cloud` (the surfaces), :mod:`.classes` (the classes by name: what ``lunarviz brdf --body
+earth --surface`` takes). How the tables are made: the documentation's *Earth as it reflects* page.
 """

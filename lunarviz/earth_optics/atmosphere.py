@@ -22,7 +22,7 @@ sky reflected once with its own shape (it brightens toward the horizon and the S
 sea mirrors), the Sun's reflection scattered toward the viewer by the same integral (reciprocity),
 and only the light that meets the surface after scattering twice or more goes through the
 bi-hemispherical albedo ρ̿. Checked against disortpp over RPV surfaces (≤ 0.7 %) and against a
-Monte Carlo of the ocean (≤ 1.7 %) in tests/test_earth_optics.py. Lambert surfaces take the exact
+Monte Carlo of the ocean (≤ 1.7 %) (docs: the Earth as it reflects, "What it is checked against"). Lambert surfaces take the exact
 form above.
 """
 

@@ -1,6 +1,6 @@
 """The packaged DISORT tables of the physical Earth: their grids, their loading and interpolation.
 
-Made by ``scripts/make_earth_tables.py`` (its docstring says how). Interpolation is cubic in the
+How they are made: the documentation's *Earth as it reflects* page. Interpolation is cubic in the
 zenith angles (2° nodes) and, for the Rayleigh layer, cubic in log τ of the quantities divided by
 τ (smooth, finite as τ → 0); beyond 89° a zenith angle is held at 89° (the plane-parallel
 atmosphere is not valid there anyway, and such light carries the weight cos θ ≤ 0.017).
@@ -20,7 +20,7 @@ THETA_DEG = np.r_[np.arange(0.0, 86.5, 2.0), 87.0, 88.0, 89.0]
 RAYLEIGH_TAU = np.geomspace(1e-4, 2.0, 44)
 #: azimuth nodes of the cloud table [deg]; 0 = viewer on the Sun's side
 CLOUD_PHI_DEG = np.arange(0.0, 181.0, 5.0)
-#: the plane-parallel cloud tabulated (scripts/make_earth_tables.py)
+#: the plane-parallel cloud tabulated
 CLOUD = {"tau": 10.0, "ssalb": 0.99999, "g": 0.85, "surface_albedo": 0.06}
 MAX_THETA_DEG = float(THETA_DEG[-1])
 #: Gauss–Legendre nodes in cos θ' on (0, 1) of the tabulated sky (the coupling's quadrature)

@@ -13,7 +13,7 @@ class so that its white-sky (bi-hemispherical) albedo equals the class's package
 at λ. The kernels grow without bound toward the horizon (sec θ terms; the model is fitted to
 zenith angles up to ~70°), so zenith angles beyond :data:`MAX_ZENITH_DEG` are held at it, and the
 white-sky integrals are those of the kernels so held (computed here; unheld they are Lucht et al.
-2000's Table 1, 0.189184 and −1.377622, which tests/test_earth_optics.py checks). A bright class
+2000's Table 1, 0.189184 and −1.377622, the values the tests check). A bright class
 (snow) whose albedo leaves no room under 1 for the shape's anisotropy has the anisotropy scaled
 down until its directional albedo is at most 1 at every angle (energy conservation); where the
 kernels would give a negative reflectance the shape is held at 0 (before its white-sky albedo is

@@ -26,7 +26,7 @@ corners shared); cells that a block edge crosses or passes near
 (terminator, limb, penumbra band, t-rings, the kink) along lines cut at every edge (closed form
 for circles, bisection for the kink) with Gauss points per piece. Checks: a constant map against
 the plain lune rule ≤ 7e-7 from θ = 10° to 179.5°; a brute-force cell sum; the facets
-(tests/test_mapped_lune.py). Cost: 0.04-0.2 s per path and date (locating 2-8·10⁴ points, most
+(docs: accuracy, "A lunar map in the lune rule"). Cost: 0.04-0.2 s per path and date (locating 2-8·10⁴ points, most
 of them in the cut cells, and one GEMM per block), more than tracing the nodes. The model
 behind ``--rtol`` was measured on ``rolo-fit-map`` (w·m in 0.29-0.57); for maps spanning much
 wider albedos the 8 albedo nodes err more (a map of w·m in 0.05-0.9: 1.5e-5; rows on other maps
@@ -66,7 +66,7 @@ GAMMA_NODES = 5
 #: in the cells that a block's edge (terminator, limb, penumbra band, t-segment ring) crosses:
 #: Gauss lines, and points per piece of each line (:func:`_edge_cell_nodes`): 3 against 8 differ
 #: by ≤ 4e-8 for θ ≤ 120° and up to 1e-6 at θ = 175° (4: 4.4e-7 there), far under the rule's
-#: own error at the orders ``--rtol`` takes (benchmarks/error_models/mapped_lune.md)
+#: own error at the orders ``--rtol`` takes (docs: accuracy)
 EDGE_NODES = 3
 #: ... but 2 in lunes at least this wide [rad] (the Sun's path at θ ≤ 135°, the Earth's from
 #: near the Earth at every θ), where the cut cells are a small share of the region: 2 against 8
@@ -78,22 +78,22 @@ EDGE_NODES_WIDE = 2
 #: blocks thinner than this [rad of arc] one way (t-segments between nearby tangent rings, the
 #: penumbra band's own segments, slivers) and the penumbra band's blocks across it take a
 #: quarter of the rule's order that way, at least THIN_ORDER (cap_rule's ``thin``): across 3° a
-#: smooth integrand needs no more, and the band holds ~ρ² ≈ 2e-5 of the Sun's path. They were
-#: half the nodes of an order-24 moonshine rule and most of its beams (the band's nodes take
-#: 72-512 beams each: the Sun partly below their horizon). Measured (tests/test_mapped_lune.py):
+#: smooth integrand needs no more, and the band holds ~ρ² ≈ 2e-5 of the Sun's path. At full order
+#: such blocks hold half the nodes of an order-24 moonshine rule and most of its beams (the band's nodes take
+#: 72-512 beams each: the Sun partly below their horizon). Measured (docs: accuracy):
 #: ≤ 1e-7 against full orders for θ = 5-176° (orders 16-32)
 THIN_WIDTH = np.radians(3.0)
 THIN_ORDER = 6
 #: ... where such a block (or t-segment) holds under this share of the region's solid angle
 #: (a crescent near new Moon is thin as a whole and keeps its orders; at 5 % the band's blocks
-#: of θ = 172-175° crescents were thinned and erred by up to 1.9e-6, not converging)
+#: of θ = 172-175° crescents would be thinned and err by up to 1.9e-6, not converging)
 THIN_SHARE = 0.01
 #: whole panels: squares of PANEL_CELLS × PANEL_CELLS map cells that no block edge comes near take
 #: a body-fixed rule, PANEL_NODES² points at Gauss nodes in (sin lat, lon) whose weights against
 #: the map's cells are summed once per map (:func:`_panel_rule`), in place of each cell's centre
 #: and corners (~2 located points a cell): the interpolant of the coarse rule is a smooth
 #: function across a panel, its polynomial of degree PANEL_NODES - 1 errs by ~(panel/2)^PANEL_NODES
-#: times its derivatives (tests/test_mapped_lune.py: panels against cells)
+#: times its derivatives (docs: accuracy; panels against cells)
 PANEL_CELLS = 4
 PANEL_NODES = 3
 #: ... in latitudes up to this [deg] (nearer the map's poles (sin lat, lon) squeeze a panel)
@@ -640,7 +640,7 @@ def _curve_crossings(F, fixed, lo, hi, cut_mu: bool, samples: int = 8, steps: in
     """Where each line (``fixed`` (C, k), running from ``lo`` to ``hi`` in μ or longitude) meets
     ``F = 0``: a sign change between ``samples`` + 1 points, then the Illinois variant of regula
     falsi on those alone (bracketing, superlinear: F is smooth across a 1/8-cell step, so 6
-    steps put every root within 1e-12 of a cell of F = 0, tests/test_mapped_lune.py, where 4
+    steps put every root within 1e-12 of a cell of F = 0, where 4
     did not and 30 halvings reached ~1e-11; ≤ one crossing per sub-interval; NaN where none)."""
     def point(v, fx):
         mu, lon = np.broadcast_arrays(*((v, fx) if cut_mu else (fx, v)))

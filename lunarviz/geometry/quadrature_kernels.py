@@ -6,9 +6,9 @@ locates ~10⁵ map points per path and date and sums them into each block's weig
   midpoint test), so the same blocks and coordinates to rounding;
 * :func:`block_design`: a block's Lagrange rows in u_t and u_φ (barycentric form, as
   :func:`lunarviz.geometry.mapped_lune.lagrange_matrix`) and their product with the points'
-  albedo-node factors, written once (numpy built three temporaries of that size).
+  albedo-node factors, written once (the numpy path builds three temporaries of that size).
 
-tests/test_mapped_lune.py compares both with their numpy paths."""
+Both agree with their numpy paths to rounding (docs: accuracy)."""
 
 from __future__ import annotations
 

@@ -56,7 +56,7 @@ def segment_hits_sphere(a: np.ndarray, b: np.ndarray, c: np.ndarray, r: float) -
 
 
 #: the closest a detector may be to the Moon's centre [lunar radii]: near the surface one facet
-#: fills the view and the per-facet rules are wrong (1 km above the sub-solar point gave 0.11
+#: fills the view and the per-facet rules are wrong (1 km above the sub-solar point gives 0.11
 #: W m-2 where the exact answer is 57.8)
 MIN_DETECTOR_MOON_RADII = 10.0
 

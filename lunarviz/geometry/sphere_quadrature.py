@@ -6,7 +6,7 @@ a body's surface seen from a point (``n·(P - O) > R``), the part lit by a point
 radius ρ is partly below the horizon (``R - ρ < n·(S - O) < R + ρ``, an exact plane condition).
 The integrands are smooth inside such pieces, so Gauss-Legendre in polar coordinates about an
 axis converges spectrally once the φ-range of every ring is cut at the cap boundaries and the
-t-range at the rings tangent to them. Derivation: ``scripts/derivations.md`` (cap splitting).
+t-range at the rings tangent to them. Derivation: the documentation's *Derivations* page (cap splitting).
 
 All functions are vectorised over a batch B of independent rules.
 """

@@ -1,6 +1,6 @@
 """Accuracy as the input: the settings that meet a relative tolerance at least cost.
 
-The error models are measured, not derived: ``scripts/error_models.py`` runs every setting a
+The error models are measured, not derived (docs: accuracy, "Where the choices come from"): every setting a
 tolerance may choose over the paper's scene (θ = 5-175° every 2.5°, three BRDFs, both paths)
 against the exact reference at a high order and keeps, per setting, the largest relative error
 and the time per phase in ``lunarviz/data/error_models.json`` (regenerate it when a method
@@ -15,7 +15,7 @@ What the models cover, and what rows report where they do not:
   samples of an icosphere level as the fallback where the rule does not apply (an eclipse's
   penumbra or an outside detector's Earth limb across the lune); a lunar map: with a tolerance
   the mapped lune rule (the map's cells in its weights, :mod:`lunarviz.geometry.mapped_lune`;
-  ``scripts/mapped_lune_models.py``, against its order 48 with finer sums and sources), its
+  against its order 48 with finer sums and sources), its
   fallback and, without a tolerance, the facets on the mapped Moon (against the finest level:
   self-convergence). A user's Moon mesh, a mapped or physical Earth: no model (the rows'
   ``rtol`` is NaN; the settings are the defaults).
@@ -42,8 +42,8 @@ from lunarviz.resources import DATA_DIR
 
 #: a setting is chosen when its measured largest error is at most rtol / SAFETY
 SAFETY = 2.0
-#: each method's tolerance when none is given (the deterministic tracer's matches its former
-#: fixed defaults, level 4: 8.7e-5 on the paper's scene)
+#: each method's tolerance when none is given (the deterministic tracer's: what the facets at
+#: level 4 meet, 8.7e-5 on the paper's scene)
 DEFAULT_RTOL = {"raytrace": 1e-4, "analytic": 1e-6, "reference": 1e-6}
 #: Monte Carlo without a tolerance: the paper's 50,000 rays per run
 DEFAULT_RAYS = C.PAPER_RAYS
@@ -58,9 +58,9 @@ SOURCE_ORDER = {"moonshine": "sun_order", "earthshine": "earth_order"}
 #: a model row measured phase by phase (``errors_by_phase``) bounds a scene at θ by its largest
 #: error at the phases within this many degrees of θ (six or seven phases at 5° steps): the
 #: error swings with θ and with the map under the lune, and dates turn the map by their
-#: libration; within 10°, one of 40 orbit dates erred by 1.1x its bound (order 12 at θ = 168°,
-#: scripts/mapped_lune_dated_check.py), and low orders' lucky phases (errors falling 10-100x
-#: where a sign changes) were taken
+#: libration; within 10°, one of 40 orbit dates errs by 1.1x its bound (order 12 at θ = 168°;
+#: docs: accuracy), and low orders' lucky phases (errors falling 10-100x where a sign changes)
+#: get chosen
 PHASE_WINDOW_DEG = 15.0
 
 
@@ -240,7 +240,7 @@ def earth_source_modelled(scene, brdf) -> bool:
     ~1° off the centre) puts them off that pole, inside or beside the disc, and the beam rules
     converge slowly there. Measured: Hapke DHG of rolo-fit-map from a 550 km orbit, earthshine
     at Earth order 7 against 28, 7.6e-4 and 2.7e-3 on two dates; against the reference rule up
-    to 4.7e-3 on 80 dates (``scripts/mapped_lune_dated_check.py``). Lambert is smooth there and
+    to 4.7e-3 on 80 dates (docs: accuracy). Lambert is smooth there and
     keeps its bound."""
     if not peaks_at_zero_phase(brdf):
         return True

@@ -9,7 +9,7 @@ Two surface rules:
 
 * ``grid="converged"`` (default): product Gauss rules over the part of the lunar sphere seen by
   the detector, cut at the lit boundary (:mod:`lunarviz.geometry.sphere_quadrature`); converged to
-  < 1e-6 relative at ``order=24`` (tests/test_analytic.py shows the convergence).
+  < 1e-6 relative at ``order=24`` (the documentation's validation page shows the convergence).
 * ``grid="paper"``: the paper's grid of Eq. 4, latitude φ and longitude δ in
   [-85°, 85°] about the sub-Earth point at ``paper_step_deg`` spacing; it misses the limb
   zones beyond 85°, which is its truncation error (shown by ``lunarviz sweep --grid paper``).

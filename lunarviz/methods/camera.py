@@ -20,7 +20,7 @@ packaged icospheres; facets or smoothed normals for a user's mesh), and also:
   for the whole image. The camera sits at the detector, so that radiance is the one it records.
 
 The image integrated over the Moon, Σ L Ω cos δ (δ off the boresight), is the detector
-irradiance of ``sweep --method raytrace`` (tests/test_images.py checks it at three phases).
+irradiance of ``sweep --method raytrace`` (docs: synthetic images, checked at three phases).
 """
 
 from __future__ import annotations

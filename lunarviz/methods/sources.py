@@ -3,7 +3,7 @@
 Shared by the exact reference (:mod:`lunarviz.methods.reference`) and the deterministic ray tracer
 (:mod:`lunarviz.methods.tracer.estimators`): the product Gauss rule over the part of a source's sphere
 that a lunar point sees above its horizon (and, for the Earth, that the Sun lights), and the
-beams (directions, solid angles) toward its nodes. Regions are caps (scripts/derivations.md §1).
+beams (directions, solid angles) toward its nodes. Regions are caps (docs: derivations, §1).
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ lives, and near g = π, where a forward HG lobe with b → 1 lives (paper notes,
 ``radiance_factor = brdf * mu0`` is finite even where μ0 + μ → 0 (the BRDF diverges there,
 the reflected radiance does not); transport code uses it.
 
-Options beyond the paper (off by default, so the paper's numbers are unchanged bit for bit):
+Options beyond the paper (off by default, so the defaults are the paper's model, bit for bit):
 Hapke's macroscopic roughness θ̄ (1984) and the coherent-backscatter opposition effect (2002),
 :mod:`lunarviz.photometry.roughness`. Neglected: the porosity factor K.
 

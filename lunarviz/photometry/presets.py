@@ -4,8 +4,8 @@
   Lambert albedo 0.10 of its Table 5. The default, and what ``lunarviz paper`` uses.
 * ``rolo-fit``: each BRDF fitted to the ROLO lunar model's disk reflectance (Kieffer & Stone
   2005 as implemented in rimopy), 400-750 nm band, phase angles 2-96° waxing and waning, zero
-  libration; written by ``scripts/fit_rolo.py`` into ``lunarviz/data/moon_models.json`` with
-  its provenance (fit residuals and uncertainties in ``benchmarks/rolo_fit/``).
+  libration; kept in ``lunarviz/data/moon_models.json`` with its provenance (fit residuals and
+  uncertainties: the documentation's *Photometry* page).
 * ``rolo-fit-map``: the same fit on a Moon carrying the synthetic lunar albedo map
   (:mod:`lunarviz.surfaces.maps`, ``--moon-albedo-map synthetic``), which the preset brings with it
   unless a map is given: its maria make the waxing and waning branches differ, as ROLO's do.
@@ -55,7 +55,7 @@ def moon_model_params(model: str, brdf: str) -> dict:
 
 def spectral_table(model: str, brdf: str) -> dict | None:
     """``{"wavelength_nm": [...], "params": {name: [...]}, ...}``: a preset's band-by-band fit
-    (``scripts/fit_rolo_spectral.py``), or ``None`` (the paper's model, or none kept)."""
+    (docs: light in colour), or ``None`` (the paper's model, or none kept)."""
     if model == "paper":
         return None
     return _fitted().get("models", {}).get(model, {}).get("spectral", {}).get(brdf)

@@ -10,7 +10,7 @@ depend on w, once per value.
 
 Same formulas as :mod:`lunarviz.photometry.roughness` and
 :meth:`lunarviz.photometry.brdf.Hapke._rough_r` (the reference implementation, compared with this
-to 1e-12 in tests/test_kernels.py): Hapke (1984) Eqs. 46-51, Hapke (2002) Eq. 8, SHG or DHG
+to 1e-12: docs, validation): Hapke (1984) Eqs. 46-51, Hapke (2002) Eq. 8, SHG or DHG
 (both conventions), the Hapke 1981 or 2002 H-functions.
 """
 

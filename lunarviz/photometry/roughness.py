@@ -24,7 +24,7 @@ y = tan(g/2)/h_C::
     B_C(g) = [1 + (1 - exp(-y))/y] / [2 (1 + y)²]          (B_C(0) = 1)
 
 θ̄ = 0 gives μ0e = μ0, μe = μ, S = 1 exactly, and B_C0 = 0 no coherent term: the smooth
-model, bit for bit (:class:`lunarviz.photometry.brdf.Hapke` then takes its old code path).
+model, bit for bit (:class:`lunarviz.photometry.brdf.Hapke` then evaluates the smooth model).
 
 Neglected: the porosity factor K (Hapke 2008) and the anisotropic multiple scattering of the
 2002 H-function (isotropic multiple scattering, as in the paper).

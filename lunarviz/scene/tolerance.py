@@ -55,9 +55,9 @@ def trace_plan(scene, theta: float | None = None) -> dict:
     fixed = {k: getattr(scene, k) for k in ("moon_level", "sun_order", "earth_order")
              if getattr(scene, k) is not None}
     asked_level = "moon_level" in fixed
-    if scene.rtol is None:  # without a tolerance the facets keep the former default, level 4 (8.7e-5
-        fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])  # measured; the rows report 2x that)
-        if asked_level:  # a mesh level asked for without a tolerance: the former default orders too
+    if scene.rtol is None:  # without a tolerance the facets take level 4 (8.7e-5 measured; the rows
+        fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])  # report 2x that)
+        if asked_level:  # a mesh level asked for without a tolerance: the default source orders too
             fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
             fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
     choice = accuracy.trace_choice(scene.rtol_or_default, fixed, scene.mapped_moon(), theta)

@@ -28,7 +28,7 @@ from lunarviz.sky.ephemeris import format_time, kernels, parse_time
 WGS84_A_M = 6_378_137.0
 #: geocentric gravitational constant [m^3 s^-2] (IERS Conventions 2010, Table 1.1)
 GM_EARTH = 3.986004418e14
-#: the highest orbit accepted [km]: beyond ~ 1e5 km the observer is no longer "near the Earth"
+#: the highest orbit accepted [km]: beyond ~ 1e5 km the observer is not "near the Earth"
 MAX_ORBIT_KM = 100_000.0
 
 

@@ -12,7 +12,7 @@ depending on how its table is read).
 
 ``grey`` is the paper's Sun spread flat over 400-750 nm (``Φ / (4π au² · 350 nm)``, zero outside):
 a spectral run with it and grey surfaces reproduces the grey run exactly (the conservation
-check of ``tests/test_spectral.py``). Tables are ``wavelength_nm,irradiance_W_m2_nm`` CSV files
+check of the documentation's light-in-colour page). Tables are ``wavelength_nm,irradiance_W_m2_nm`` CSV files
 (``#`` lines are comments), wavelengths increasing; between rows the spectrum is linear.
 
 Neglected: the Sun's variability (≈0.1 % over a solar cycle in the visible), limb darkening's

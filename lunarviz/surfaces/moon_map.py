@@ -13,7 +13,7 @@ from lunarviz.errors import LunarvizError
 from lunarviz.resources import DATA_DIR
 from lunarviz.surfaces.maps import check_range, facet_average, facet_sub_count, map_mean, read_map, sample_map
 
-#: the synthetic lunar albedo map shipped for tests and demos (scripts/make_synthetic_moon_map.py)
+#: the synthetic lunar albedo map shipped for tests and demos (docs: surfaces)
 SYNTHETIC_MOON_MAP = DATA_DIR / "synthetic_moon_albedo.npy"
 
 

@@ -55,5 +55,5 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
         rf = toa_reflectance(s, float(lam), mu0, mu, grid[:, 2], atmosphere=atmosphere, params=p)
         rows += [{"wavelength_nm": float(lam), **_row(g, ph, f)} for g, ph, f in zip(grid, phase, rf)]
     settings = {"body": "earth", "surface": surface, "atmosphere": "rayleigh" if atmosphere else "none",
-                "params": p, "model": "lunarviz.earth_optics (DISORT tables, scripts/make_earth_tables.py)"}
+                "params": p, "model": "lunarviz.earth_optics (packaged DISORT tables)"}
     return rows, settings

@@ -136,7 +136,7 @@ def expected_brdf(model, e_deg, az_deg, order=24):
     the footprint ellipse and over the detector disk, each pair's incidence, emission and
     relative azimuth computed as angles and the BRDF evaluated by :func:`brdf_from_angles`
     (Eq. 12 in its angle form). Shared with the recovered value: only the BRDF formula itself,
-    which tests/test_brdf.py checks against a textbook implementation.
+    checked against a textbook implementation (docs: the notes on the paper).
     """
     i = np.radians(INCIDENCE_DEG)
     e0, a0 = np.radians(e_deg), np.radians(az_deg)

@@ -306,7 +306,7 @@ def _worker_init() -> None:
     BLAS runs on one thread: each worker is one of ``cpu_count`` single-threaded processes, and
     OpenBLAS's own threads (one per core by default) fought the other workers for the cores (a
     mapped Moon's dates, whose weights are GEMMs: 1.47 s a date on 2 workers, 0.94 s with one
-    BLAS thread each; ``benchmarks/speed``)."""
+    BLAS thread each; docs: accuracy, "Dates in bulk")."""
     import signal
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     from threadpoolctl import threadpool_limits

@@ -60,7 +60,7 @@ def view_data(scene, key, brdf: str) -> ViewData:
         "point_source_earthshine_W_m2": pt.earthshine_W_m2,
         "rays": fr.totals["rays"],
         "earth_visible_lit_albedo": fr.totals.get("earth_visible_lit_albedo", float("nan")),
-        "error_note": "deterministic: error <= 2e-4 vs exact reference (benchmarks/)"
+        "error_note": "deterministic: within the tolerance against the exact reference (docs: accuracy)"
         if fr.info["estimator"] == "deterministic" else "Monte Carlo: see std in sweep",
     }
     return ViewData(fr, sample_ray_paths(sc, scene.trace_settings(), n=10), numbers)

@@ -32,7 +32,7 @@ class DeterministicTransport:
         consumer: Embree and the compiled kernels release the GIL, so one chunk's Embree
         queries run while another's rules and beams are built (both cores busy).
         The chunks and their order are the same for any thread count, so are the results,
-        bit for bit (tests/test_trace.py)."""
+        bit for bit (docs: validation)."""
         x_all, n_all, dA_all, owner_all, alb_all = self.lunar_samples(body)
         self._warm_shared(body)
 

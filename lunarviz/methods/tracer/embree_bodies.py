@@ -380,7 +380,7 @@ class EmbreeBody:
 #: body geometries kept (the least recently used dropped first): a θ sweep needs three entries
 #: (one per body), a dated sweep turns the Moon at every time and never reuses it (the packaged
 #: Earth keeps one orientation; the Sun and the Earth stay, used at every date); each Earth at
-#: level 6 holds ~100 MB with its Embree scenes (16 entries made dated sweeps take 3 GB)
+#: level 6 holds ~100 MB with its Embree scenes (16 entries would hold 3 GB in a dated sweep)
 GEOMETRY_CACHE_SIZE = 6
 _GEOMETRY_CACHE = BoundedCache(GEOMETRY_CACHE_SIZE)
 

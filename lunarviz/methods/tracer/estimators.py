@@ -22,7 +22,7 @@ from every lunar sample a beam toward the detector, weighted by μ cosδ dA / d�
   sphere-surface rule of :mod:`lunarviz.geometry.sphere_quadrature` cut at the horizon elsewhere; for
   the Earth, the sphere-surface rule cut at the horizon and at the Earth's terminator.
   ``montecarlo``: one direction per sample, uniform in the Sun's cone, or drawn over the
-  Earth's lit, visible part (scripts/derivations.md §4). Every beam is a ray traced
+  Earth's lit, visible part (docs: derivations, §4). Every beam is a ray traced
   against the source's mesh. The Sun's radiance is uniform, Φ/(4π² R_S²); the Earth's is
   Lambertian, (A/π) E_sun μ_s at the hit, times the fraction of the Sun that the hit facet sees
   (the Moon's shadow, with occlusion on).
@@ -191,7 +191,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
             continue
         # pooled: every run's σ is estimated from its own N samples, so the pooled value is as
         # good with one run as with many (the spread of a few runs is not: with 4 runs its
-        # relative error is ~40 %, which made "7.9 σ" deviations in the quick report)
+        # relative error is ~40 %, enough to show "7.9 σ" deviations in a quick report)
         std[k] = float(np.sqrt(np.mean(np.square(within[k]))))
         sem[k] = std[k] / np.sqrt(runs)
         spread[k] = float(np.std(vals[k], ddof=1)) if runs >= 2 else float("nan")

@@ -110,7 +110,7 @@ def trace_facets(geometry: SceneGeometry, fields: dict, trace: TraceSettings, br
 
 def _facet_angles_and_brdf(ts, sc, model, alb) -> dict:
     """Per-facet angles at the centroid [deg] and the BRDF there [sr⁻¹] for sunlight and
-    earthlight, computed in blocks of facets (a few dozen (F, 3) temporaries took 1 GB at 5 M
+    earthlight, computed in blocks of facets (a few dozen (F, 3) temporaries would take 1 GB at 5 M
     facets)."""
     M = ts.moon
     cd = {}

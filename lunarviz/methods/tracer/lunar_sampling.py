@@ -115,7 +115,7 @@ class LunarSampling:
 
     def _kink_values(self, x, n, c, R):
         """``n·(c - x)/R`` (> 1 source wholly above the horizon, < -1 wholly below, between:
-        penumbra; scripts/derivations.md §1) and μ toward the detector."""
+        penumbra; docs: derivations, §1) and μ toward the detector."""
         lit = np.einsum("ij,ij->i", n, c - x) / R
         w = self.scene.det - x
         return lit, np.einsum("ij,ij->i", n, w) / np.linalg.norm(w, axis=1)

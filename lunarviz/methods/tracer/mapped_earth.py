@@ -36,7 +36,7 @@ class MappedEarthTransport:
         sc, s, E = self.scene, self.settings, self.earth
         # three points per facet (the degree-2 rule of surface_samples; on the packaged sphere
         # they lie on the exact sphere): the terminator crosses facets, and a one-point rule
-        # there costs 6e-4 where the lit part is a thin band (tests/test_surfaces.py)
+        # there costs 6e-4 where the lit part is a thin band (docs: surfaces)
         # facets the terminator crosses (corners lit and unlit) are split TERMINATOR_SUB² ways:
         # the lit edge is a kink the map's light ends at, coherently along the whole terminator
         corners = E.vertices[E.faces] + E.centre  # (F, 3, 3)
@@ -107,7 +107,7 @@ class MappedEarthTransport:
         (:data:`EARTH_CELLS`² cells, each ≤ 0.08° across seen from the Moon) along the cell's
         flux-weighted centre. A map's edges are thus integrated by the facets' area averages
         (second order), not by a few Gauss beams across the disc, which leave ~1 % errors
-        (tests/test_surfaces.py). The BRDF sees each cell's light from one direction: the
+        (docs: surfaces). The BRDF sees each cell's light from one direction: the
         error is second order in the cell's angular size. Lunar points whose horizon does not
         cut the Earth (nearly all) take each cell's sum from its first-order expansion about the
         Moon's centre (error ~(R_M/D)² ≈ 2e-5); the others sum the elements one by one.

@@ -56,7 +56,7 @@ class SourceRules:
                         parts.append((rows[sub], om, w))
                 continue
             # The Sun partly below the horizon (penumbra rows, few) needs a finer sphere rule
-            # than its cone rule (tests/test_trace.py checks the moonshine against the reference).
+            # than its cone rule (its moonshine is checked against the exact reference: docs, validation).
             o_s = max(order, PENUMBRA_ORDER) if body == "sun" else order
             if (body == "earth" and not with_horizon) or (body == "sun" and with_horizon):
                 # rules with one cap (compiled): the Earth's terminator where the horizon does not
@@ -86,8 +86,8 @@ class SourceRules:
         """Points from which the Earth's disc overlaps the Sun's (a lunar eclipse's penumbra and
         umbra), when occlusion is on. There the Earth's limb cuts the solar cone and its
         default rule (a few beams) would round the partial Sun to all or nothing: those
-        points get the ECLIPSE_ORDER rule (tests/test_sky.py checks the penumbra against the
-        exact overlap of the two discs)."""
+        points get the ECLIPSE_ORDER rule (the penumbra within 1.5e-4 of the exact overlap of the
+        two discs: docs, the real sky)."""
         if not self.settings.occlusion:
             return np.zeros(len(x), dtype=bool)
         sc = self.scene
