@@ -22,8 +22,8 @@ sky reflected once with its own shape (it brightens toward the horizon and the S
 sea mirrors), the Sun's reflection scattered toward the viewer by the same integral (reciprocity),
 and only the light that meets the surface after scattering twice or more goes through the
 bi-hemispherical albedo ρ̿. Checked against disortpp over RPV surfaces (≤ 0.7 %) and against a
-Monte Carlo of the ocean (≤ 1.7 %) (docs: the Earth as it reflects, "What it is checked against"). Lambert surfaces take the exact
-form above.
+Monte Carlo of the ocean (≤ 1.7 %) (docs: the Earth as it reflects, "What it is checked
+against"). Lambert surfaces take the exact form above.
 """
 
 from __future__ import annotations
