@@ -2,8 +2,8 @@
 
 ``--moon-model rolo-fit`` and ``rolo-fit-map`` carry a table per BRDF fitted to ROLO at its 32
 band wavelengths (350-2383.6 nm; the fit and its residuals: docs, light in colour): w and the
-phase function per band (and the map's contrast, below), the roughness θ̄ and the opposition effect (B0, h) one value for all bands.
-Between the bands every parameter is linear in λ; outside
+phase function per band (and the map's contrast, below), the roughness θ̄ and the opposition
+effect (B0, h) one value for all bands. Between the bands every parameter is linear in λ; outside
 350-2383.6 nm a spectral run with such a model is refused. The ``paper`` model (Table 2, Apollo
 soil 10084 at 750 nm, and the Lambert 0.10) has no colour: it is grey, the same parameters at
 every wavelength, and so is every parameter a user sets with ``--param``: it replaces that
