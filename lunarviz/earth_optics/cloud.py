@@ -1,12 +1,13 @@
 """A cloud: the reflectance factor of a plane-parallel water cloud, from the packaged DISORT table.
 
 The cloud of :data:`~lunarviz.earth_optics.disort_tables.CLOUD` (optical depth 10, single-scattering
-albedo 0.99999, Henyey–Greenstein g = 0.85, over a surface of albedo 0.06), solved by
-DISORT when the tables were made (docs: the Earth as it reflects); here interpolated cubically in
-the zenith angles and linearly in azimuth (5° nodes). Grey: a thick water cloud's albedo changes
-by ~3 % from 450 to 865 nm (King 1997), neglected. The Rayleigh layer above the cloud top is
-:mod:`.atmosphere`'s job (the cloud class takes the optical depth above ``cloud_top_hpa``).
-Neglected: the droplets' glory and rainbow (a Henyey–Greenstein phase function has neither), ice clouds, broken clouds' 3-D effects.
+albedo 0.99999, Henyey–Greenstein g = 0.85, over a surface of albedo 0.06), solved by DISORT when
+the tables were made (docs: the Earth as it reflects); here interpolated cubically in the zenith
+angles and linearly in azimuth (5° nodes). Grey: a thick water cloud's albedo changes by ~3 % from
+450 to 865 nm (King 1997), neglected. The Rayleigh layer above the cloud top is :mod:`.atmosphere`'s
+job (the cloud class takes the optical depth above ``cloud_top_hpa``). Neglected: the droplets'
+glory and rainbow (a Henyey–Greenstein phase function has neither), ice clouds, broken clouds' 3-D
+effects.
 """
 
 from __future__ import annotations
