@@ -15,7 +15,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from lunarviz.errors import LunarvizError
 
@@ -80,6 +79,8 @@ def parse_halo(text: str | None, pixel_arcsec: float, shape):
 
 
 def apply_optics(plane: np.ndarray, psf, halo) -> np.ndarray:
+    """``plane`` through the PSF and the halo (FFT convolutions; unchanged without either)."""
+    from scipy.signal import fftconvolve  # (scipy.signal: loaded where an image is convolved)
     out = plane
     if psf is not None:
         out = fftconvolve(out, psf, mode="same")

@@ -250,6 +250,7 @@ def synthesize(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdf
     ImageResult
         Radiance planes [W m⁻² sr⁻¹, or per nm], pixel solid angles [sr], ``info``.
     """
+    from lunarviz.methods.tracer.trace_scene import TraceScene  # Embree: loaded to trace
     sc = geometry
     ts = trace_scene or TraceScene(sc, trace)
     models = brdfs
