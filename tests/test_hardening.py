@@ -265,7 +265,8 @@ def test_a_full_disk_is_one_line_and_no_file(full_disk, out):
     """trace used to print 'wrote' with a truncated .ply and exit 0, .vtm left 0-byte files,
     and a NetCDF on a full disk crashed the process (rc 139)."""
     if out.endswith((".nc", ".json")):
-        args = ["sweep", "--phases", "0:179:0.5" if out.endswith(".nc") else "0:179:0.1", "--brdf", "lambert,dhg"]
+        # outputs of 108 kB (NetCDF) and 193 kB (JSON): three times what the 64 KiB disk holds
+        args = ["sweep", "--phases", "0:179:0.5" if out.endswith(".nc") else "0:179:1", "--brdf", "lambert,dhg"]
     else:
         args = ["trace", "--phase", "90", "--brdf", "lambert"]
     r = subprocess.run([sys.executable, "-m", "lunarviz", *args, "--out", str(full_disk / out), "--quiet"],

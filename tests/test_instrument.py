@@ -41,6 +41,10 @@ def run_cli(*args, cwd=None):
     return subprocess.run([sys.executable, "-m", "lunarviz", *args], capture_output=True, text=True, cwd=cwd)
 
 
+#: the module's tests share module fixtures: they run on one worker (pytest-xdist's loadgroup)
+pytestmark = pytest.mark.xdist_group("test_instrument")
+
+
 @pytest.fixture(scope="module")
 def small_observation():
     settings = Scene([120.0], brdfs="dhg").settings("raytrace")

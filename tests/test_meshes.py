@@ -28,6 +28,10 @@ def _write(mesh, path):
     return str(path)
 
 
+#: the module's tests share module fixtures: they run on one worker (pytest-xdist's loadgroup)
+pytestmark = pytest.mark.xdist_group("test_meshes")
+
+
 @pytest.fixture(scope="module")
 def lam_dhg():
     from lunarviz.photometry.brdf import make_brdf

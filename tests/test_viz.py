@@ -17,6 +17,10 @@ from lunarviz.workflows.tasks import view_data  # noqa: E402
 REF_DIR = os.path.join(os.path.dirname(__file__), "data")
 
 
+#: the module's tests share module fixtures: they run on one worker (pytest-xdist's loadgroup)
+pytestmark = pytest.mark.xdist_group("test_viz")
+
+
 @pytest.fixture(scope="module")
 def data120():
     return view_data(ResolvedScene(method="raytrace"), 120.0, "dhg")

@@ -22,8 +22,10 @@ import numpy as np
 import pytest
 from web_browser import Browser, chromium_path
 
-pytestmark = pytest.mark.skipif(chromium_path() is None and not os.environ.get("CI"),
-                                reason="no chromium here (CI installs it: scripts/install.sh test)")
+pytestmark = [pytest.mark.skipif(chromium_path() is None and not os.environ.get("CI"),
+                                 reason="no chromium here (CI installs it: scripts/install.sh test)"),
+              # one server for the module's tests: they run on one worker (pytest-xdist's loadgroup)
+              pytest.mark.xdist_group("web_server")]
 
 
 def _free_port() -> int:
@@ -32,8 +34,9 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture
-def web_server(tmp_path):
+@pytest.fixture(scope="module")
+def web_server(tmp_path_factory):
+    tmp_path = tmp_path_factory.mktemp("web")
     port = _free_port()
     log = open(tmp_path / "server.log", "w")  # noqa: SIM115 (closed at teardown)
     proc = subprocess.Popen([sys.executable, "-m", "lunarviz.cli", "view", "--web", "--port", str(port),
@@ -115,7 +118,13 @@ def test_web_viewer_refuses_the_default_secret(web_server):
     async def run():
         async with Browser(1000, 700) as b:
             await b.goto(without)
-            await asyncio.sleep(15)  # time enough to connect, were it allowed
+            # the client gives up on its refused connection within a second or two (it then shows
+            # its connect() error); failing that, 15 s is time enough to connect, were it allowed
+            try:
+                await b.wait_for("document.body && document.body.innerText.includes('connect()')", 15)
+            except TimeoutError:
+                pass
+            await asyncio.sleep(1)
             return await b.evaluate("document.body ? document.body.innerText : ''")
 
     text = asyncio.run(run())

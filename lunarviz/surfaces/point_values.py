@@ -65,7 +65,12 @@ class Surfaces:
             w = np.clip(ds @ us, 0, None) * np.clip(ds @ ut, 0, None) * np.cos(la)
             if not w.any():
                 continue
-            A = values(d.reshape(-1, 3))
+            # the map is read only where the cell is lit and faces the target (w > 0): the others
+            # add exact zeros to the same sums
+            seen = w.reshape(-1) > 0
+            got = values(d.reshape(-1, 3)[seen])
+            A = np.zeros((seen.size,) + got.shape[1:])
+            A[seen] = got
             A = A.reshape(w.shape + A.shape[1:])
             if A.ndim == 2:
                 num += float((A * w).sum())

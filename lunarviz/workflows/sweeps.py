@@ -210,12 +210,31 @@ def dask_client(scheduler: str | None, workers: int | None):
                             "pip install 'lunarviz[dask]'") from None
     if scheduler:
         try:
+            _refused_at_once(scheduler)
             return Client(scheduler, timeout="10s"), None
         except (OSError, TimeoutError) as exc:
             raise LunarvizError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
     cluster = LocalCluster(n_workers=min(workers or os.cpu_count() or 1, os.cpu_count() or 1), threads_per_worker=1,
                            processes=True, dashboard_address=None)
     return Client(cluster), cluster
+
+
+def _refused_at_once(address: str) -> None:
+    """Raise ``OSError`` where a ``tcp://HOST:PORT`` scheduler address refuses a connection: a
+    closed port answers at once, where Dask's client would retry until its timeout."""
+    import socket
+    from urllib.parse import urlsplit
+    if not address.startswith("tcp://"):
+        return
+    try:
+        parts = urlsplit(address)
+        host, port = parts.hostname, parts.port
+    except ValueError:  # not HOST:PORT: Dask's client says what is wrong with it
+        return
+    if host is None or port is None:
+        return
+    with socket.create_connection((host, port), timeout=10):
+        pass
 
 
 def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: bool = False,
