@@ -6,10 +6,10 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
+import independent as I
 import numpy as np
 import pytest
 
-import independent as I
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods import accuracy

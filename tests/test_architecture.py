@@ -265,3 +265,11 @@ def test_an_analytic_sweep_imports_no_heavy_package(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_one_module_name_means_one_thing():
+    """No two modules of the package share a file name (``__init__`` aside): a name says what
+    its module holds, wherever it is imported from."""
+    from collections import Counter
+    names = Counter(p.name for p in PKG.rglob("*.py") if p.name != "__init__.py")
+    assert sorted(n for n, k in names.items() if k > 1) == []

@@ -13,15 +13,15 @@ import csv
 import independent as ind
 import numpy as np
 import pytest
+from rt_reference import disortpp_toa, single_scattering
 
 from lunarviz.cli import main
 from lunarviz.earth_optics import rayleigh
 from lunarviz.earth_optics.atmosphere import path_reflectance
-from lunarviz.earth_optics.land import WHITE_SKY, kernels
-from lunarviz.earth_optics.ocean import glint
 from lunarviz.earth_optics.classes import SURFACE_NAMES, surface_from_name, toa_reflectance
 from lunarviz.earth_optics.disort_tables import CLOUD
-from rt_reference import disortpp_toa, single_scattering
+from lunarviz.earth_optics.land import WHITE_SKY, kernels
+from lunarviz.earth_optics.ocean import glint
 
 #: the judged geometries: view zenith 0–70°, azimuths on the Sun's side, across and opposite
 VIEW_MU = np.cos(np.radians(np.arange(0.0, 71.0, 5.0)))
@@ -199,8 +199,9 @@ def test_coupling_over_a_non_lambert_surface_matches_disortpp(params):
     # beam (32 streams) is up to 1.7 % for the forward-scattering RPV (measured against the closed
     # form at τ → 0): it is measured at τ = 1e-6 and taken out of its answer, times the direct
     # transmissions. What remains: ≤ 0.1 % (backscattering RPV) and ≤ 0.7 % (forward) measured; 1 %
-    from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
     from rt_reference import RpvSurface, disortpp_rpv_toa, rpv
+
+    from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
     surf = RpvSurface(*params)
     moments = [1.0, 0.0, rayleigh.legendre_moment_2()]
     for lam in (450.0, 865.0):
@@ -224,6 +225,7 @@ def test_ocean_under_rayleigh_matches_monte_carlo(wavelength, sza):
     # to ~1.5 % at 70° view zenith (three seeds); measured difference ≤ 1.7 %. Bars: 5 % at every
     # geometry (the issue's bar outside the glint lobe), 1 % on the mean over the geometries
     from rt_reference import monte_carlo_toa, sample_rayleigh_cos
+
     from lunarviz.earth_optics.ocean import ocean_reflectance
     tau = float(rayleigh.optical_depth(wavelength))
     mu0 = np.cos(np.radians(sza))
@@ -241,11 +243,11 @@ def test_bond_albedo_conserves_energy_and_matches_the_spherical_albedo():
     # black one returns the layer's spherical albedo S (a plane-parallel layer's Bond albedo), taken
     # from the tables' own flux solution: two checks of the disc integral, the coupling and the
     # tables at once. Measured 9e-7 and 2.5e-4 (the 16 × 8 direction rule); bars 1e-3
-    from lunarviz.surfaces.physical_earth import bond_albedo
-    from lunarviz.surfaces.earth_surface import EarthSurface
-    from lunarviz.surfaces.maps import map_frame
     from lunarviz.earth_optics.atmosphere import spherical_albedo
     from lunarviz.geometry.scene_geometry import SceneGeometry
+    from lunarviz.surfaces.earth_surface import EarthSurface
+    from lunarviz.surfaces.maps import map_frame
+    from lunarviz.surfaces.physical_earth import bond_albedo
     sc = SceneGeometry(90.0)
     frame = map_frame(sc, "earth", 0.0)
     white, _ = bond_albedo(EarthSurface(earth_brdf="physical", earth_albedo=1.0), sc, frame, 550.0)

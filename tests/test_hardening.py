@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from lunarviz.bodies.meshes import MeshError, load_user_mesh
-from lunarviz.surfaces.maps import MAX_MAP_CELLS, read_grid
 from lunarviz.errors import LunarvizError
+from lunarviz.surfaces.maps import MAX_MAP_CELLS, read_grid
 
 TINY_PLY = b"""ply
 format ascii 1.0

@@ -16,9 +16,9 @@ import pytest
 import sky_reference as ref
 
 from lunarviz.methods.camera import Camera
-from lunarviz.workflows.tasks import image as synthesize
 from lunarviz.scene import ResolvedScene
 from lunarviz.workflows.sweeps import run_phase
+from lunarviz.workflows.tasks import image as synthesize
 
 
 @pytest.mark.slow

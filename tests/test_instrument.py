@@ -25,9 +25,9 @@ from scipy import stats
 from lunarviz.api import Scene
 from lunarviz.errors import LunarvizError
 from lunarviz.instrument.detector import expected_counts, frames
-from lunarviz.workflows.measurement import observation as observe
 from lunarviz.instrument.pipeline import measure
 from lunarviz.instrument.spec import instrument_from_dict, load_instrument
+from lunarviz.workflows.measurement import observation as observe
 from lunarviz.workflows.measurement import observation_calibration, plan, simulate, sweep_p_star
 
 SMALL = replace(load_instrument("salex"), width=128, height=128, pixel_size_um=52.0, supersample=1)
@@ -193,7 +193,7 @@ def test_sky_model_in_photons_matches_the_v_band_zero_point():
     # energy zero point (lunarviz) against 1000 photons s-1 cm-2 Å-1 at V = 0 times ∫ S T Q dλ
     # (Å); they differ by the V band's photon-vs-energy weighting (λ/λ_V across the band): 3 %
     from lunarviz.instrument.response import electron_rate, photon_band
-    from lunarviz.instrument.sky import ARCSEC2_SR, site_sky
+    from lunarviz.instrument.sky_background import ARCSEC2_SR, site_sky
     inst = load_instrument("bbso")
     sky = site_sky(90.0, 0.0, 21.0)  # zenith, no extinction: the dark sky at its zenith value
     band = photon_band(inst)

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 import lunarviz
-from lunarviz.surfaces.maps import map_frame
-from lunarviz.surfaces.moon_map import MoonAlbedoMap
 from lunarviz.geometry.mapped_lune import chebyshev_nodes, lagrange_matrix, lune_caps, mapped_lune_rule
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.geometry.sphere_quadrature import cap_rule, gauss_legendre, rule_coordinates
+from lunarviz.surfaces.maps import map_frame
+from lunarviz.surfaces.moon_map import MoonAlbedoMap
 
 
 def map_cell_nodes(shape: tuple[int, int], k: int):

@@ -208,8 +208,8 @@ def test_rolo_fit_map_preset_within_5_percent_at_real_dates():
     (rimopy, independent of lunarviz), analytic and ray traced. Measured ≤ 2.7 % (kept in
     benchmarks/rolo_fit/summary.md); the tolerance is the issue's."""
     pytest.importorskip("rimopy")
-    from lunarviz.workflows.fit import rolo_irradiance
     from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.fit import rolo_irradiance
     from lunarviz.workflows.sweeps import run_phase
     checked = 0
     for iso, method in (("2026-06-05T12:00Z", "analytic"), ("2026-06-25T00:00Z", "analytic"),

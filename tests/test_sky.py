@@ -24,9 +24,9 @@ import sky_reference as ref
 
 from lunarviz import constants as C
 from lunarviz.photometry.brdf import make_brdf
+from lunarviz.scene import ResolvedScene
 from lunarviz.sky.dated_scene import sky_scene
 from lunarviz.sky.observers import parse_observer
-from lunarviz.scene import ResolvedScene
 from lunarviz.workflows.sweeps import run_phase, run_sweep
 
 HERE = os.path.dirname(__file__)
@@ -392,6 +392,7 @@ def test_earth_limb_check_never_skips_a_limb_across_the_moon():
     every 10 s: wherever the test says no, tracing the edges anyway finds none; the traced edges
     do appear in the scan (so the comparison can fail), and visible dates skip the tracing."""
     import datetime as dt
+
     from lunarviz.methods.tracer.estimators import TraceScene
     s = ResolvedScene(times=("2026-01-01T00:00:00Z",), brdfs=("dhg",), method="raytrace", moon_model="rolo-fit-map",
                       rtol=1e-4, observer="orbit:550,97.6,0,0")

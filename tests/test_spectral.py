@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from lunarviz.errors import LunarvizError
+from lunarviz.scene import ResolvedScene
 from lunarviz.spectral.bands import band_nodes, band_solar_irradiance, band_weights, parse_band, parse_bands
 from lunarviz.spectral.request import spectral_request
 from lunarviz.spectral.solar import AU_M, grey_sun, solar_spectrum
-from lunarviz.scene import ResolvedScene
 from lunarviz.workflows.sweeps import run_phase, run_sweep
 
 
@@ -118,8 +118,8 @@ def test_a_wavelength_row_is_the_grey_run_at_that_wavelengths_parameters(method,
     for rolo-fit-map; the grey compiled kernel where smooth) whose BRDF parameters are the
     spectral table's at λ, on the lunar map with the table's contrast k(λ) applied to it
     (1 − k + k·map, written to a file), times the Sun's spectral over grey power 4π au² E_sun(λ)/Φ."""
-    from lunarviz.surfaces.moon_map import MoonAlbedoMap
     from lunarviz.spectral.moon import MAP_CONTRAST, parameters_at
+    from lunarviz.surfaces.moon_map import MoonAlbedoMap
     lam = 612.5  # between two ROLO bands: the table is interpolated
     extra = {"moon_level": 3} if method == "raytrace" else {}
     s = ResolvedScene(phases_deg=(50.0,), method=method, moon_model="rolo-fit-map", wavelengths=str(lam), **extra)
@@ -148,7 +148,8 @@ def test_spectral_moon_within_5_percent_of_rolo_at_real_dates():
     (rimopy, independent of lunarviz) at 440-1000 nm. The dates are not in the fit (zero
     libration); the tolerance is the issue's (measured ≤ 2.6 % over the script's 20 dates)."""
     pytest.importorskip("rimopy")
-    from lunarviz.workflows.fit import AU_M as AU, rolo_reflectance
+    from lunarviz.workflows.fit import AU_M as AU
+    from lunarviz.workflows.fit import rolo_reflectance
     checked = 0
     for iso, obs, method in (("2028-01-13T01:00Z", "geocentre", "analytic"),  # phase 12°, waning
                              ("2029-02-03T16:00Z", "geocentre", "raytrace"),  # 60°, waning
@@ -177,8 +178,8 @@ def test_mapped_earth_spectral_earthshine_is_the_grey_run_of_that_wavelengths_ma
     through different grids (1° against the 0.1° composite), and a point on a 1° cell's edge can
     fall on either side in one of the two readings (measured 9e-9; the arithmetic alone agrees to
     1e-14, test_constant_spectrum_run_equals_the_grey_run)."""
-    from lunarviz.surfaces.earth_surface import land_fraction_map
     from lunarviz.surfaces.earth_spectra import albedo_spectra, components, land_cover
+    from lunarviz.surfaces.earth_surface import land_fraction_map
     f = land_fraction_map()
     cover = np.repeat(np.repeat(land_cover(), 10, axis=0), 10, axis=1)  # 1° → 0.1° cells
     s = ResolvedScene(earth_surface="landocean")

@@ -16,11 +16,11 @@ import independent as ind
 import numpy as np
 import pytest
 
-from lunarviz.surfaces.earth_surface import EarthSurface, zonal_cloud_table
-from lunarviz.surfaces.maps import map_frame, map_mean
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.photometry.brdf import make_brdf
 from lunarviz.scene import ResolvedScene
+from lunarviz.surfaces.earth_surface import EarthSurface, zonal_cloud_table
+from lunarviz.surfaces.maps import map_frame, map_mean
 from lunarviz.workflows.sweeps import run_phase
 
 MODELS = {"lambert": make_brdf("lambert"), "dhg": make_brdf("dhg")}
@@ -335,8 +335,8 @@ def test_images_read_as_linear_values(tmp_path):
     """Palette images by their colours, 16-bit by 65535; 32-bit integer images refused."""
     from PIL import Image
 
-    from lunarviz.surfaces.maps import read_map
     from lunarviz.errors import LunarvizError
+    from lunarviz.surfaces.maps import read_map
     grey = np.zeros((10, 20), dtype=np.uint8)
     grey[:, 10:] = 200
     im = Image.fromarray(grey).convert("P")

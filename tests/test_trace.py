@@ -164,8 +164,8 @@ def test_float32_hits_at_real_scale():
 
 
 def test_facet_sums_equal_totals():
-    from lunarviz.workflows.tasks import facets as trace_facets
     from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.tasks import facets as trace_facets
     res = trace_facets(ResolvedScene(brdfs=("shg",), method="raytrace"), 130.0)
     for path in ("moonshine", "earthshine"):
         assert res.cell_data[f"{path}_contribution_W_m2"].sum() == pytest.approx(res.totals[f"{path}_W_m2"], rel=1e-12)

@@ -5,7 +5,7 @@ rate per pixel.
 The camera (:func:`lunarviz.methods.camera.synthesize`, the caller's) images the scene in the
 instrument's band and in its photon band (:mod:`lunarviz.instrument.response`); the PSF and the halo act on
 both (:func:`lunarviz.instrument.optics.apply_optics`); at a ground site the Moon's light is dimmed
-and a uniform sky is added (:mod:`lunarviz.instrument.sky`). The radiance planes stay those above
+and a uniform sky is added (:mod:`lunarviz.instrument.sky_background`). The radiance planes stay those above
 the atmosphere (as every lunarviz image); the electron rates carry everything.
 """
 
@@ -21,7 +21,7 @@ from lunarviz.instrument.detector import expected_counts, expected_electrons
 from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, masked_pixels
 from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
 from lunarviz.instrument.response import electron_rate, photon_band, photon_label
-from lunarviz.instrument.sky import SiteSky, site_sky
+from lunarviz.instrument.sky_background import SiteSky, site_sky
 from lunarviz.instrument.spec import Instrument
 from lunarviz.methods.camera import Camera, ImageResult
 

@@ -35,7 +35,7 @@ from lunarviz.methods.camera_shading import GreyShading, SpectralImageShading
 from lunarviz.methods.tracer.settings import TraceSettings
 from lunarviz.methods.tracer.trace_scene import TraceScene
 from lunarviz.sky.dated_scene import moon_direction_radec
-from lunarviz.spectral.inputs import SpectralInputs
+from lunarviz.spectral.shading_inputs import SpectralInputs
 
 MAX_PIXELS = 4096
 MAX_SUPERSAMPLE = 16

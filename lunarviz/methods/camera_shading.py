@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.outputs.images import plane_key
-from lunarviz.spectral.inputs import SpectralInputs
 from lunarviz.spectral.shading import shade, spectral_brdfs
+from lunarviz.spectral.shading_inputs import SpectralInputs
 from lunarviz.surfaces.earth_spectra import spectral_components
 from lunarviz.surfaces.moon_map import map_scale
 

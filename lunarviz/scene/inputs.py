@@ -19,8 +19,8 @@ from lunarviz.options import group
 from lunarviz.photometry.brdf import make_brdf
 from lunarviz.sky.dated_scene import sky_scene
 from lunarviz.sky.observers import parse_observer
-from lunarviz.spectral.inputs import SpectralInputs
 from lunarviz.spectral.request import spectral_request as make_request
+from lunarviz.spectral.shading_inputs import SpectralInputs
 from lunarviz.surfaces.earth_surface import EarthSurface
 from lunarviz.surfaces.moon_map import MoonAlbedoMap
 from lunarviz.surfaces.point_values import Surfaces
@@ -40,7 +40,7 @@ def spectral_request(scene):
 
 
 def spectral_inputs(scene, request=None):
-    """The :class:`~lunarviz.spectral.inputs.SpectralInputs` of a spectral run (``request``: one
+    """The :class:`~lunarviz.spectral.shading_inputs.SpectralInputs` of a spectral run (``request``: one
     that replaces the scene's wavelengths or bands, e.g. an instrument's photon-counting
     response), or ``None`` for a grey run."""
     request = scene.spectral_request() if request is None else request

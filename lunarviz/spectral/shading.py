@@ -23,8 +23,8 @@ from lunarviz.photometry import shading_kernels as sk
 from lunarviz.photometry.brdf import Hapke, Lambert
 from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
 from lunarviz.spectral import kernels
-from lunarviz.spectral.inputs import SpectralInputs
 from lunarviz.spectral.moon import models_at, parameters_at
+from lunarviz.spectral.shading_inputs import SpectralInputs
 from lunarviz.surfaces.moon_map import map_scale
 
 #: parameters that must be grey for the compiled path (they shape the effective geometry)
