@@ -164,7 +164,8 @@ def test_packages_import_only_lower_layers():
 #: the resolved scene's input methods (lunarviz.scene.inputs, lunarviz.scene.tolerance): called only
 #: at its layer and above, which hand the layers below their typed inputs
 SCENE_INPUTS = ("brdf_models", "spectral_request", "spectral_inputs", "earth_model", "surfaces", "mapped_moon",
-                "analytic_settings", "reference_settings", "trace_settings", "observer_model", "task", "geometry",
+                "analytic_settings", "point_calibration_settings", "reference_settings", "trace_settings",
+                "observer_model", "task", "geometry",
                 "trace_plan", "reference_orders", "modelled", "warn_unmet_tolerance")
 
 

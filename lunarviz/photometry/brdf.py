@@ -31,7 +31,7 @@ import numpy as np
 import lunarviz.constants as C
 from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError
-from lunarviz.options import BRDF_NAMES, DHG_CONVENTIONS, H_FUNCTIONS
+from lunarviz.options import BRDF_NAMES, BY_NAME, DHG_CONVENTIONS, H_FUNCTIONS
 from lunarviz.photometry.presets import moon_model_params
 from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
 
@@ -128,7 +128,7 @@ class DoubleHG:
 
     b: float = 0.308
     c: float = 0.425
-    convention: str = "paper"
+    convention: str = BY_NAME["dhg_convention"].default
 
     def __post_init__(self):
         _check("b", self.b, 0.0, 1.0, hi_open=True)
@@ -283,7 +283,7 @@ class Hapke:
     h: float = 0.017
     B0: float = 1.0
     phase: SingleHG | DoubleHG = field(default_factory=DoubleHG)
-    h_function: str = "hapke1981"
+    h_function: str = BY_NAME["h_function"].default
     name: str = field(default="hapke", compare=False)
     #: macroscopic roughness, mean slope angle θ̄ [deg] (Hapke 1984); 0 = smooth (the paper)
     theta_bar: float = 0.0
@@ -389,8 +389,9 @@ def brdf_from_angles(model, i, e, azimuth):
     return model.brdf(np.cos(i), np.cos(e), s, c)
 
 
-def make_brdf(name: str, *, dhg_convention: str = "paper", h_function: str = "hapke1981",
-              params: dict | None = None, moon_model: str = "paper"):
+def make_brdf(name: str, *, dhg_convention: str = BY_NAME["dhg_convention"].default,
+              h_function: str = BY_NAME["h_function"].default, params: dict | None = None,
+              moon_model: str = BY_NAME["moon_model"].default):
     """Build a named BRDF, with the parameters of preset ``moon_model`` (``paper`` or a fitted
     set, :mod:`lunarviz.photometry.presets`) and optional overrides ``params`` on top.
 

@@ -8,6 +8,8 @@ analytic, reference and tracer settings (methods) and one task's geometry (geome
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from lunarviz.geometry.scene_geometry import SceneGeometry
@@ -82,6 +84,13 @@ def analytic_settings(scene, model_earth: bool = False) -> AnalyticSettings:
     return AnalyticSettings(grid=scene.grid, order=order, paper_step_deg=scene.paper_step_deg,
                             earth_law=scene.earth_law, earth_albedo=scene.earth_albedo,
                             surfaces=scene.surfaces(model_earth))
+
+
+def point_calibration_settings(scene) -> AnalyticSettings:
+    """The point-source calibration's analytic settings (the lunar terms of Eq. 15, and the
+    point-against-extended comparison): the scene's, on the converged grid with the correct
+    Lambert-sphere Earth law."""
+    return replace(scene.analytic_settings(), grid="converged", earth_law="lambert")
 
 
 def reference_settings(scene) -> ReferenceSettings:

@@ -65,6 +65,7 @@ class ResolvedScene:
     surfaces = inputs.surfaces
     mapped_moon = inputs.mapped_moon
     analytic_settings = inputs.analytic_settings
+    point_calibration_settings = inputs.point_calibration_settings
     reference_settings = inputs.reference_settings
     trace_settings = inputs.trace_settings
     observer_model = inputs.observer_model

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from lunarviz.options import BY_NAME
 from lunarviz.spectral.request import SpectralRequest
 
 
@@ -26,6 +27,6 @@ class SpectralInputs:
     """
 
     request: SpectralRequest
-    moon_model: str = "paper"
+    moon_model: str = BY_NAME["moon_model"].default
     params: dict = field(default_factory=dict)
-    earth_spectra: str = "surface"
+    earth_spectra: str = BY_NAME["earth_spectra"].default

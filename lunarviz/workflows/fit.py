@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.options import BY_NAME
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, moonshine_transport
 from lunarviz.outputs.writers import save_figure
@@ -245,7 +246,8 @@ class FitResult:
 
 
 def fit(brdf: str, phases_deg, target, waxing=None, free=None, start: dict | None = None,
-        fixed: dict | None = None, dhg_convention: str = "paper", h_function: str = "hapke1981",
+        fixed: dict | None = None, dhg_convention: str = BY_NAME["dhg_convention"].default,
+        h_function: str = BY_NAME["h_function"].default,
         moon_map: str | None = None, order: int = 24, disk_model: DiskModel | None = None) -> FitResult:
     """Least-squares fit of ``brdf``'s ``free`` parameters to disk reflectance ``target``
     (on a Moon carrying the albedo map ``moon_map``, if given: then waxing and waning differ).
@@ -335,7 +337,8 @@ def plot_fit(res: FitResult, path, title: str = "") -> None:
 
 
 def run_fit(brdf: str, source: str = "rolo", band: str = "400-750", phases: str = "2:96:2", free=None,
-            start_model: str = "paper", dhg_convention: str = "paper", h_function: str = "hapke1981",
+            start_model: str = BY_NAME["moon_model"].default,
+            dhg_convention: str = BY_NAME["dhg_convention"].default, h_function: str = BY_NAME["h_function"].default,
             moon_map: str | None = None, order: int = 24) -> FitResult:
     """The ``lunarviz fit`` pipeline: target from ROLO (both branches) or a CSV table."""
     if source == "rolo":

@@ -13,7 +13,6 @@ over runs, without the per-wavelength standard deviations of the grey rows.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -66,7 +65,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             es = {k: np.concatenate([w[:, None] * u[-1][None, :], u[-1:]]) for k, u in unit.items()}
         else:
             es = unit
-        cal_st = replace(st, grid="converged", earth_law="lambert")
+        cal_st = settings.point_calibration_settings()
         if cal_st == st:
             cal_ms, cal_es = ms, es
         else:

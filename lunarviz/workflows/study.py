@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.errors import LunarvizError
+from lunarviz.options import BY_NAME
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 from lunarviz.outputs.writers import check_output_path, save_figure, write_results
@@ -77,9 +78,10 @@ def _study_task(task):
     return time.perf_counter() - t0, int(getattr(ts, body).n_faces), ms.mean, es.mean, (ms.rays, es.rays)
 
 
-def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: bool = True,
+def mesh_study(levels, phases, brdfs, out=None, shading: str = BY_NAME["shading"].default, refine: bool = True,
                progress: bool = False, body: str = "moon", shape: str = "sphere",
-               axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m", executor: str = "local",
+               axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = BY_NAME["mesh_units"].default,
+               executor: str = "local",
                scheduler: str | None = None, workers: int | None = None) -> dict:
     from lunarviz.methods.tracer.estimators import TraceSettings
     if body not in ("moon", "earth", "sun"):
@@ -176,7 +178,8 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = "auto", refine: b
 
 
 def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg", "dhg"), *, body: str = "moon",
-         shape: str = "sphere", axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = "m", shading: str = "auto",
+         shape: str = "sphere", axes=(1.15, 1.0, 0.85), meshes=None, mesh_units: str = BY_NAME["mesh_units"].default,
+         shading: str = BY_NAME["shading"].default,
          refine: bool = True, out=None, plot=None, progress: bool = False, executor: str = "local",
          scheduler: str | None = None, workers: int | None = None) -> dict:
     """Mesh-resolution study (the Python face of ``lunarviz study mesh``).

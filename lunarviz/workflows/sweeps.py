@@ -13,7 +13,6 @@ import multiprocessing
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 
 import numpy as np
 
@@ -49,7 +48,7 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
     def model_es(es, es_unit):
         """Earthshine of the model Earth (uniform albedo a0) on the same transport."""
         return es if uniform else a0 * es_unit
-    cal_settings = replace(settings.analytic_settings(), grid="converged", earth_law="lambert")
+    cal_settings = settings.point_calibration_settings()
     point = None if settings.method == "raytrace" else analytic_irradiance(sc, brdfs, cal_settings)
     if settings.method == "analytic":
         res = point if settings.analytic_settings() == cal_settings else \

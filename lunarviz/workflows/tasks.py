@@ -39,8 +39,7 @@ def view_data(scene, key, brdf: str) -> ViewData:
     sc, fields = scene.task(key)
     ms, es = fr.totals["moonshine_W_m2"], fr.totals["earthshine_W_m2"]
     model = scene.brdf_models()
-    pt = analytic_irradiance(sc, model, replace(scene.analytic_settings(), grid="converged",
-                                                earth_law="lambert"))[brdf]
+    pt = analytic_irradiance(sc, model, scene.point_calibration_settings())[brdf]
     # inversions assume the uniform model Earth of earth_albedo (as the sweep's rows): a mapped
     # Earth never calibrates its own inversion; both terms come from unit-albedo transports
     a0 = scene.earth_albedo
