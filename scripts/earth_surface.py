@@ -42,7 +42,7 @@ def global_mean(clouds: str) -> float:
     from lunarviz.geometry.scene_geometry import SceneGeometry
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean", clouds=clouds))
-    a = ts.earth_facet_albedo()
+    a = ts.surfaces.earth_facet_albedo()
     return float((a * ts.earth.areas).sum() / ts.earth.areas.sum())
 
 

@@ -58,7 +58,7 @@ def main(argv=None) -> int:
             continue
         ts = TraceScene(sc, ts_set)
         got = {p: trace_path(ts, p, brdfs).mean for p in M.PATHS}
-        if not all(ts.mapped_rule_used(b) is not None for b in M.PATHS.values()) or \
+        if not all(ts.sampling.mapped_rule_used(b) is not None for b in M.PATHS.values()) or \
                 not all(ref_value for ref_value in got["moonshine"].values()):
             continue  # (the facets took this date: an Earth limb across the Moon, an eclipse possible)
         ref_set = replace(ts_set, lune_order=M.REFERENCE["lune_order"], sun_order=M.REFERENCE["sun_order"],

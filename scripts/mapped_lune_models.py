@@ -73,7 +73,7 @@ def _run(phases, base, brdfs, settings: dict, rule: dict | None = None) -> dict:
                 ts = TraceScene(SceneGeometry(th), replace(base, **settings))
                 t0 = time.perf_counter()
                 r = trace_path(ts, path, brdfs)
-                if not ts.lune_rule_applies(body):
+                if not ts.sampling.lune_rule_applies(body):
                     raise SystemExit(f"θ = {th}: the mapped lune rule does not apply")
                 out[(path, th)] = (r.mean, time.perf_counter() - t0, r.rays)
         return out

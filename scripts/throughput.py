@@ -18,7 +18,7 @@ batches through ``embreex`` alone (``scene.run``), one thread, best of three. Th
   loop: sums and per-facet bincounts).
 
 Both cores: the same trace with ``threads=2`` (chunks of lunar samples traced on two threads,
-``TraceScene.deterministic_transport``) against raw Embree on one thread and on two
+``TraceScene.deterministic.transport``) against raw Embree on one thread and on two
 (``replay_threads``).
 
 Two scenes: the paper's (θ = 90°, packaged spheres, occlusion on) and a cratered Moon (level 6,
@@ -39,9 +39,13 @@ import numpy as np
 
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods import transport as T
+from lunarviz.methods.tracer import deterministic as DT
 from lunarviz.methods.tracer import embree_bodies as B
 from lunarviz.methods.tracer import estimators as E
+from lunarviz.methods.tracer import lunar_sampling as LS
+from lunarviz.methods.tracer import mapped_earth as ME
 from lunarviz.methods.tracer import ray_kernels as K
+from lunarviz.methods.tracer import source_rules as SR
 from lunarviz.photometry.brdf import make_brdf
 
 MODELS = {b: make_brdf(b) for b in ("lambert", "shg", "dhg")}
@@ -81,17 +85,17 @@ class StageTimer:
 
 
 def instrument(timer: StageTimer):
-    TS = E.TraceScene
-    for name in ("lunar_samples", "candidates", "source_nodes", "detector_view", "_earth_elements",
-                 "sun_visibility_of_earth"):
-        timer.wrap(TS, name, "ray generation")
-    for name in ("source_radiance", "mapped_earth_transport"):
-        timer.wrap(TS, name, "source look-ups")
+    for owner, name in ((LS.LunarSampling, "lunar_samples"), (LS.LunarSampling, "candidates"),
+                        (SR.SourceRules, "source_nodes"), (LS.LunarSampling, "detector_view"),
+                        (ME.MappedEarthTransport, "earth_elements"), (SR.SourceRules, "sun_visibility_of_earth")):
+        timer.wrap(owner, name, "ray generation")
+    for owner, name in ((SR.SourceRules, "source_radiance"), (ME.MappedEarthTransport, "transport")):
+        timer.wrap(owner, name, "source look-ups")
     for name in ("beam_angles", "cap_beam_rays", "beam_rays", "occluder_rays"):
         timer.wrap(K, name, "ray generation")
     timer.wrap(K, "source_hits", "source look-ups")
     timer.wrap(K, "scatter_beams", "beam assembly")
-    timer.wrap(TS, "beam_transport", "beam assembly")
+    timer.wrap(DT.DeterministicTransport, "beam_transport", "beam assembly")
     timer.wrap(B.EmbreeBody, "run_rays", "embree")
     timer.wrap(T.Transport, "radiances", "shading")
     timer.wrap(E, "trace_path", "accumulation")
@@ -218,7 +222,7 @@ def measure(name: str, out: Path, quick: bool) -> dict:
     n = sum(len(b[3]) for b in batches)
     raw = min(replay(batches) for _ in range(3))
     e2e = min(trace_once(scene, settings)[1] for _ in range(3))
-    # both cores: chunks traced on two threads (TraceScene.deterministic_transport), against
+    # both cores: chunks traced on two threads (TraceScene.deterministic.transport), against
     # raw Embree on one thread and on two
     from dataclasses import replace as _replace
     settings2 = _replace(settings, threads=2)

@@ -142,7 +142,7 @@ def main(argv=None) -> int:
     w = np.cos(np.radians(globe._lat.astype(float) - 1 / 240))
     f = float(((~globe._mask).mean(axis=1) * w).sum() / w.sum())
     ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean"))
-    fa = ts.earth_facet_albedo()
+    fa = ts.surfaces.earth_facet_albedo()
     mean = float((fa * ts.earth.areas).sum() / ts.earth.areas.sum())
     res["landocean"] = {"mask_land_fraction": f, "expected_mean": 0.25 * f + 0.06 * (1 - f), "facet_mean": mean,
                         "rel_error": mean / (0.25 * f + 0.06 * (1 - f)) - 1}

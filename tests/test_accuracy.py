@@ -90,8 +90,8 @@ def test_no_bound_outside_what_the_models_hold():
     params = ResolvedScene(method="raytrace", brdfs=("shg",), phases_deg=(90.0,), params={"shg": {"w": 0.3}})
     assert math.isnan(run_phase(params, 90.0)[0]["rtol"])
     occ = ResolvedScene(method="raytrace", brdfs=("dhg",), phases_deg=(178.0, 90.0))
-    assert TraceScene(occ.geometry(178.0), occ.trace_settings()).moon_shadow_on_earth_possible()
-    assert not TraceScene(occ.geometry(90.0), occ.trace_settings()).moon_shadow_on_earth_possible()
+    assert TraceScene(occ.geometry(178.0), occ.trace_settings()).sampling.moon_shadow_on_earth_possible()
+    assert not TraceScene(occ.geometry(90.0), occ.trace_settings()).sampling.moon_shadow_on_earth_possible()
 
 
 def test_a_mapped_moon_runs_the_orders_its_model_was_measured_with():
@@ -113,9 +113,10 @@ def test_the_mapped_lune_rule_takes_its_own_source_orders():
                    and r[key] == ts_set.lune_source_orders[i])
         assert s.trace_plan()["bounds"][("lune", path)] == accuracy.SAFETY * row["max_rel_error"]
     ts = TraceScene(s.geometry(90.0), ts_set)
-    assert ts.lune_rule_applies("earth") and ts.beam_order("earth") == ts_set.lune_source_orders[1]
+    assert ts.sampling.lune_rule_applies("earth")
+    assert ts.deterministic.beam_order("earth") == ts_set.lune_source_orders[1]
     facets = TraceScene(s.geometry(90.0), replace(ts_set, lune_order=None))
-    assert facets.beam_order("earth") == ts_set.earth_order != ts_set.lune_source_orders[1]
+    assert facets.deterministic.beam_order("earth") == ts_set.earth_order != ts_set.lune_source_orders[1]
 
 
 def test_a_tasks_orders_come_from_its_own_phase():
@@ -201,10 +202,10 @@ def test_the_lune_rule_leaves_eclipses_to_the_facets(theta):
     from lunarviz.methods.tracer.estimators import TraceScene
     s = ResolvedScene(method="raytrace", brdfs=("lambert",), phases_deg=(theta, 90.0), rtol=1e-3)
     ts_set = s.trace_settings()
-    assert not TraceScene(s.geometry(theta), ts_set).lune_rule_applies("sun")
-    assert TraceScene(s.geometry(90.0), ts_set).lune_rule_applies("sun")
+    assert not TraceScene(s.geometry(theta), ts_set).sampling.lune_rule_applies("sun")
+    assert TraceScene(s.geometry(90.0), ts_set).sampling.lune_rule_applies("sun")
     assert math.isnan(run_phase(s, theta)[0]["rtol"])
-    assert not TraceScene(s.geometry(theta), replace(ts_set, occlusion=False)).eclipse_possible()
+    assert not TraceScene(s.geometry(theta), replace(ts_set, occlusion=False)).sampling.eclipse_possible()
 
 
 def test_rows_report_the_bound_of_every_method():

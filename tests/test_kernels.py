@@ -200,9 +200,9 @@ def test_monte_carlo_earth_directions_kernel_matches_numpy(theta, monkeypatch):
     rng = np.random.default_rng(4)
     n = unit(rng.normal(size=(3000, 3)))
     xs = ts.scene.moon + ts.scene.radii["moon"] * n
-    d_fast, w_fast = ts._earth_lit_directions(xs, np.random.default_rng(9))
+    d_fast, w_fast = ts.montecarlo._earth_lit_directions(xs, np.random.default_rng(9))
     monkeypatch.setattr(ray_kernels, "_NUMBA", False)
-    d_ref, w_ref = ts._earth_lit_directions(xs, np.random.default_rng(9))
+    d_ref, w_ref = ts.montecarlo._earth_lit_directions(xs, np.random.default_rng(9))
     assert np.all(np.isfinite(d_fast)) and np.all(w_fast >= 0)
     # Each path's choice of table cell (u against the cdf) and of "lit" (hw > 0) is a branch on
     # sums the two compute in different orders, so a sample on a branch's edge may land in the
@@ -239,7 +239,7 @@ def test_lambert_kernel_matches_numpy():
 
 @pytest.mark.parametrize("theta", [30.0, 90.0, 176.0])
 def test_fused_beam_transport_matches_numpy_path(theta, tmp_path, monkeypatch):
-    """TraceScene._fused_beam_transport (the compiled pass from rule to Embree's rays, radiance
+    """DeterministicTransport._fused_beam_transport (the compiled pass from rule to Embree's rays, radiance
     and shadow rays) against the numpy path (beam_angles, live_beams, source_radiance) on a
     cratered Moon with self-shadowing and occlusion on: the same rays cast and source facets hit
     (exactly: both send the same float32 rays to Embree), the same totals to rounding (1e-12:
@@ -262,7 +262,7 @@ def test_fused_beam_transport_matches_numpy_path(theta, tmp_path, monkeypatch):
         res = {p: trace_path(ts, p, models, keep_facets=True) for p in ("moonshine", "earthshine")}
         return ts, res
     ts_f, fused = run()
-    assert ts_f._self_shadows()
+    assert ts_f.bodies.self_shadows()
     monkeypatch.setattr(ray_kernels, "_NUMBA", False)
     monkeypatch.setattr(shading_kernels, "_NUMBA", False)
     ts_n, ref = run()

@@ -122,8 +122,8 @@ def test_the_rule_in_gamma_gives_the_integral_in_the_map_value(theta, monkeypatc
             monkeypatch.setattr(estimators, "_albedo_scale", lambda ts, brdfs: 0.0)
         ts = estimators.TraceScene(SceneGeometry(theta), s.trace_settings(threads=1))
         out[label] = [estimators.trace_path(ts, p, s.brdf_models()).mean["dhg"] for p in ("moonshine", "earthshine")]
-        assert ts.lune_rule_applies("sun") and ts.lune_rule_applies("earth")
-        assert (ts.albedo_scale > 0) == (label == "gamma")
+        assert ts.sampling.lune_rule_applies("sun") and ts.sampling.lune_rule_applies("earth")
+        assert (ts.sampling.albedo_scale > 0) == (label == "gamma")
     np.testing.assert_allclose(out["gamma"], out["m"], rtol=1e-6, atol=0)
 
 
@@ -463,7 +463,7 @@ def test_point_source_calibration_on_the_traced_rule_against_a_cell_sum(theta):
     ts = TraceScene(sc, s.trace_settings(threads=1))
     for path in ("moonshine", "earthshine"):
         trace_path(ts, path, brdfs)
-    rules = {b: ts.mapped_rule_used(b) for b in ("sun", "earth")}
+    rules = {b: ts.sampling.mapped_rule_used(b) for b in ("sun", "earth")}
     assert all(r is not None for r in rules.values())
     cal = replace(s.analytic_settings(), grid="converged", earth_law="lambert")
     got = A.analytic_irradiance(sc, brdfs, cal, rules=rules)["dhg"]

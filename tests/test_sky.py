@@ -371,7 +371,7 @@ def test_moon_shadow_on_the_earth_matches_disc_overlap():
     from lunarviz.methods.tracer.settings import NORMAL_OFFSET
     sc = SceneGeometry(179.5)
     ts = E.TraceScene(sc, E.TraceSettings(occlusion=True))
-    vis = ts.sun_visibility_of_earth()
+    vis = ts.sources.sun_visibility_of_earth()
     Eb = ts.earth
     n = Eb.normals_for("auto")
     xo = Eb.centroids + n * (NORMAL_OFFSET * Eb.radius)
@@ -404,12 +404,13 @@ def test_earth_limb_check_never_skips_a_limb_across_the_moon():
             if sc.moon_wholly_hidden():
                 continue
             ts = TraceScene(sc, ts_set)
-            edges = ts._shadow_edges(ts.candidates("sun"), ts._source("sun")[0])
+            edges = ts.sampling._shadow_edges(ts.sampling.candidates("sun"), ts.bodies.source("sun")[0])
             found_any |= edges.size > 0
-            if not ts.earth_may_hide_moon():
+            if not ts.sampling.earth_may_hide_moon():
                 skipped += 1
                 assert edges.size == 0
     assert found_any and skipped > 0
     sc, _ = s.task("2026-01-01T02:00:00Z")
     ts = TraceScene(sc, ts_set)
-    assert not ts.earth_may_hide_moon() and ts.lune_rule_applies("sun") and "sun" not in ts._edge_cache
+    assert not ts.sampling.earth_may_hide_moon() and ts.sampling.lune_rule_applies("sun")
+    assert "sun" not in ts.sampling._edge_cache

@@ -327,8 +327,8 @@ def test_compiled_and_numpy_spectral_shading_agree(monkeypatch):
     s = ResolvedScene(phases_deg=(70.0,), method="raytrace", moon_model="rolo-fit-map", moon_level=3,
                       wavelengths="420,555.5,870,1000")
     ts = TraceScene(s.geometry(70.0), s.trace_settings())
-    tr, _ = next(iter(ts.deterministic_transport("sun")))
-    ts.with_moon_albedo(tr, _)  # the map's mean and spread per sample
+    tr, _ = next(iter(ts.deterministic.transport("sun")))
+    ts.surfaces.with_moon_albedo(tr, _)  # the map's mean and spread per sample
     sbs = spectral_brdfs(s.spectral_inputs(), s.brdf_models())
     got = {k: (shade(tr, sb, tr.e_beam[None]), shade(tr, sb, tr.e_beam[None], per_sample=True))
            for k, sb in sbs.items()}

@@ -112,7 +112,7 @@ def test_landocean_mean_matches_the_mask():
     f = float((land_rows * w).sum() / w.sum())
     assert 0.28 < f < 0.30  # the Earth: 29 % land
     ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean"))
-    a = ts.earth_facet_albedo()
+    a = ts.surfaces.earth_facet_albedo()
     mean = float((a * ts.earth.areas).sum() / ts.earth.areas.sum())
     expect = 0.25 * f + 0.06 * (1 - f)
     assert mean == pytest.approx(expect, rel=5e-3)
@@ -127,7 +127,7 @@ def test_zonal_clouds_give_the_documented_mean():
     assert mean_cloud == pytest.approx(0.64, abs=0.01)
     from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     ts = TraceScene(SceneGeometry(90.0), TraceSettings(earth_surface="landocean", clouds="zonal"))
-    a = ts.earth_facet_albedo()
+    a = ts.surfaces.earth_facet_albedo()
     assert float((a * ts.earth.areas).sum() / ts.earth.areas.sum()) == pytest.approx(0.30, abs=0.01)
 
 
@@ -187,7 +187,7 @@ def test_moon_map_frame_faces_the_earth(tmp_path):
     path = _save(tmp_path, "spot.npy", m)
     for th in (30.0, 150.0, 250.0):
         ts = TraceScene(SceneGeometry(th), TraceSettings(moon_albedo_map=path))
-        v = ts.moon_facet_albedo()
+        v = ts.surfaces.moon_facet_albedo()
         brightest = ts.moon.centroids[np.argmax(v)] - ts.moon.centre
         to_earth = -ts.scene.moon / np.linalg.norm(ts.scene.moon)
         assert np.degrees(np.arccos(brightest @ to_earth / np.linalg.norm(brightest))) < 4.0
@@ -205,7 +205,7 @@ def test_moon_map_follows_libration_on_dates(tmp_path):
                       moon_level=6)
     sc, fields = s.task(s.tasks()[0])
     ts = TraceScene(sc, s.trace_settings())
-    v = ts.moon_facet_albedo()
+    v = ts.surfaces.moon_facet_albedo()
     c = ts.moon.centroids - ts.moon.centre
     facing = np.argmax(c @ (sc.det - sc.moon))
     la, lo = np.radians(fields["sub_observer_lat_deg"]), np.radians(fields["sub_observer_lon_deg"])

@@ -297,7 +297,7 @@ def test_montecarlo_sigma_over_many_seeds(paper_brdfs):
 
 
 def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
-    """Chunks traced on two threads (TraceScene.deterministic_transport) against one thread:
+    """Chunks traced on two threads (TraceScene.deterministic.transport) against one thread:
     the same chunks summed in the same order, so every number is identical (not just close):
     totals, per-facet arrays, the rays counted and the source facets hit. A cratered Moon with
     self-shadowing and occlusion on, cut into ~10 chunks so the threads really interleave, and its
@@ -320,7 +320,7 @@ def test_chunks_on_two_threads_give_identical_results(tmp_path, monkeypatch):
         res = [E.trace_path(ts, p, models, keep_facets=True) for p in ("moonshine", "earthshine")]
         out[threads, block] = (res, ts.rays_cast, ts.source_hits["earth"].copy(), ts.source_hits["sun"].copy())
     one = E.TraceScene(SceneGeometry(100.0), E.TraceSettings(moon_mesh=str(path)))
-    assert len(one.lunar_samples("sun")[0]) > 5 * 100
+    assert len(one.sampling.lunar_samples("sun")[0]) > 5 * 100
     r1, n1, e1, s1 = out[1, 1000]
     for r2, n2, e2, s2 in (out[2, 1000], out[1, 1 << 18]):
         assert n1 == n2 and np.array_equal(e1, e2) and np.array_equal(s1, s2)

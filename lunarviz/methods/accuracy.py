@@ -300,13 +300,13 @@ def traced_bound(bounds: dict, ts, ms, es) -> float:
     if ts.settings.estimator == "montecarlo":
         rel = [r.sem[k] / r.mean[k] for r in (ms, es) for k in r.mean if r.mean[k] > 0]
         return SAFETY * max(rel) if rel else math.nan
-    if ts.eclipse_possible() or ts.moon_shadow_on_earth_possible():  # measured without occlusion
+    if ts.sampling.eclipse_possible() or ts.sampling.moon_shadow_on_earth_possible():  # measured without occlusion
         return math.nan
     got = []
     for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
-        if ts.lune_rule_applies(body):
+        if ts.sampling.lune_rule_applies(body):
             got.append(bounds.get(("lune", path), math.nan))
-        elif ts.edges_found(body):  # a horizon, an Earth limb or a cast shadow across the Moon: not measured
+        elif ts.sampling.edges_found(body):  # a horizon, an Earth limb or a cast shadow across the Moon: not measured
             got.append(math.nan)
         else:
             got.append(bounds.get(("facets", path), math.nan))

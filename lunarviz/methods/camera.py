@@ -11,7 +11,8 @@ Every sub-pixel ray is traced with Embree into the Moon mesh (the exact sphere f
 packaged icospheres; facets or smoothed normals for a user's mesh), and also:
 
 * hidden by the Earth (Embree; a site's horizon plane) or by the Moon's own relief, exactly
-  as the detector's sight lines of the transport (:meth:`TraceScene.detector_view`);
+  as the detector's sight lines of the transport
+  (:meth:`~lunarviz.methods.tracer.lunar_sampling.LunarSampling.detector_view`);
 * **moonshine**: shaded at the hit with the extended Sun's beams (the transport's Sun rule,
   eclipse and self-shadowing included) for each BRDF — the terminator is smooth;
 * **earthshine**: the transport's earthlight (extended Earth, its lit part, shadows) evaluated
@@ -187,7 +188,7 @@ def _vertex_transports(ts):
         xs, ns = x[sl], nrm[sl]
         o = unit(det - xs)
         mu = np.clip(np.einsum("ij,ij->i", ns, o), 0.0, 1.0)
-        yield sl, ts.beam_transport(xs, ns, o, mu, np.ones(len(mu)), "earth", order)
+        yield sl, ts.deterministic.beam_transport(xs, ns, o, mu, np.ones(len(mu)), "earth", order)
 
 
 def _barycentric(tri, p):
@@ -279,7 +280,7 @@ def synthesize(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdf
         if h.size == 0:
             continue
         # hidden by the Earth or by the Moon's relief: the transport's own sight-line test
-        mu, geom, o_dir = ts.detector_view(x, nrm, np.ones(len(h)))
+        mu, geom, o_dir = ts.sampling.detector_view(x, nrm, np.ones(len(h)))
         vis = geom > 0
         h, x, nrm, mu, o_dir = h[vis], x[vis], nrm[vis], mu[vis], o_dir[vis]
         if h.size == 0:  # all hidden (the Moon below a site's horizon, behind the Earth)
@@ -290,7 +291,8 @@ def synthesize(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdf
         w_sub = omega[idx] * cosd[idx]
         # moonshine: the extended Sun's beams at the hit (eclipses, self-shadowing)
         prim = hits.prim[h]
-        tr = ts.with_moon_albedo(ts.beam_transport(x, nrm, o_dir, mu, np.ones(len(mu)), "sun", order), prim)
+        beams = ts.deterministic.beam_transport(x, nrm, o_dir, mu, np.ones(len(mu)), "sun", order)
+        tr = ts.surfaces.with_moon_albedo(beams, prim)
         n_lit += int(np.count_nonzero(tr.e_beam.sum(1) > 0))
         bary = _barycentric(M.vertices[M.faces[prim]] + M.centre, x)
         for b, rad in shading.moon_radiances(tr).items():

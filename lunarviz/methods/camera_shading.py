@@ -28,7 +28,7 @@ from lunarviz.surfaces.moon_map import map_scale
 
 def facet_params(ts, models) -> dict | None:
     """Each BRDF's albedo parameter per Moon facet under a lunar albedo map, or ``None``."""
-    v = ts.moon_facet_albedo()
+    v = ts.surfaces.moon_facet_albedo()
     if v is None:
         return None
     absolute = ts.settings.moon_map().absolute
@@ -85,12 +85,12 @@ class SpectralImageShading:
         surface = ts.settings.surface()
         self.mapped = not surface.uniform
         if self.mapped:
-            ts.earth_parts, self.albedo = spectral_components(surface, self.req.nodes, inputs.earth_spectra)
-            ts.earth_part_wavelengths = self.req.nodes if surface.physical else None
+            ts.surfaces.earth_parts, self.albedo = spectral_components(surface, self.req.nodes, inputs.earth_spectra)
+            ts.surfaces.earth_part_wavelengths = self.req.nodes if surface.physical else None
         self.phi = ts.scene.phi_sun
         self.keys = [plane_key(b, lab) for b in models for lab in self.req.labels]
         self.factors = None
-        fa = ts.moon_facet_albedo()
+        fa = ts.surfaces.moon_facet_albedo()
         if fa is not None:
             self.factors = {k: fa for k in self.keys}
 
@@ -119,7 +119,7 @@ class SpectralImageShading:
             if self.mapped and tr.e_beam_parts:
                 es = np.einsum("npl,pl->nl", node[:, :-1, :], self.albedo)
             else:
-                es = self.ts.earth_albedo_value() * node[:, -1, :]
+                es = self.ts.surfaces.earth_albedo_value() * node[:, -1, :]
             res.update(self._outputs(b, es))
         return res
 

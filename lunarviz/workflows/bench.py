@@ -193,7 +193,7 @@ def _bench_skips(models) -> dict:
                         {b: models[b]}).seconds for b in BRDFS)
     skips["transport_reused_across_3_brdfs"] = {"seconds_one_trace": t3, "seconds_three_traces": t1,
                                                 "saving": 1 - t3 / t1}
-    cand = ts.candidates("sun").size
+    cand = ts.sampling.candidates("sun").size
     skips["facets_culled_moonshine_theta90"] = {"facets": ts.moon.n_faces, "traced": int(cand),
                                                 "saving": 1 - cand / ts.moon.n_faces}
     on = TraceScene(SceneGeometry(90.0), TraceSettings(occlusion=True))
@@ -204,7 +204,7 @@ def _bench_skips(models) -> dict:
         "seconds_with": r_on.seconds, "seconds_without": r_off.seconds, "saving": 1 - r_off.seconds / r_on.seconds}
     dets = TraceScene(SceneGeometry(90.0), TraceSettings())
     skips["detector_inside_earth_no_sightline_rays"] = {
-        "detector_inside_earth": True, "sight_line_rays_skipped": int(dets.candidates("sun").size)}
+        "detector_inside_earth": True, "sight_line_rays_skipped": int(dets.sampling.candidates("sun").size)}
     rf_on = trace_path(TraceScene(SceneGeometry(170.0), TraceSettings(occlusion=False)), "moonshine", one)
     rf_off = trace_path(TraceScene(SceneGeometry(170.0), TraceSettings(occlusion=False, refine=False)), "moonshine",
                         one)

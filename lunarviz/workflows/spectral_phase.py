@@ -80,14 +80,14 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         plan = settings.trace_plan(sc.theta_deg)  # once per task: the settings and the bounds both come from it
         ts_set = settings.trace_settings(threads, plan)
         ts = TraceScene(sc, ts_set)
-        ts.earth_parts = names if mapped else None
-        ts.earth_part_wavelengths = req.nodes if mapped and surface.physical else None
+        ts.surfaces.earth_parts = names if mapped else None
+        ts.surfaces.earth_part_wavelengths = req.nodes if mapped and surface.physical else None
         ms_r = trace_path(ts, "moonshine", brdfs, spectral=shader)
         es_r = trace_path(ts, "earthshine", brdfs, spectral=shader)
         zeros = np.zeros(len(req.nodes))
         ms = {k: ms_r.spectral.get(k, zeros) for k in brdfs}
         es = {k: es_r.spectral.get(k, np.zeros((len(names) + 1 if mapped else 1, len(req.nodes)))) for k in brdfs}
-        uniform_albedo = ts.earth_albedo_value()
+        uniform_albedo = ts.surfaces.earth_albedo_value()
         if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
             cal_ms, cal_es = ms, es
         else:  # the model Earth (the nominal sphere, uniform): as the grey run's calibration

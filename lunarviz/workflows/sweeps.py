@@ -118,7 +118,7 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
     if ts is None:  # (the Moon wholly hidden: the point sources' sight lines are blocked too)
         point = {k: DetectorIrradiance(0.0, 0.0, 0.0) for k in brdfs}
     else:
-        rules = {b: r for b in ("sun", "earth") if (r := ts.mapped_rule_used(b)) is not None}
+        rules = {b: r for b in ("sun", "earth") if (r := ts.sampling.mapped_rule_used(b)) is not None}
         point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
     if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
         cal_ms = ms.mean

@@ -1,8 +1,8 @@
 """The deterministic estimator's transport: lunar samples in chunks (on the trace's threads), rule
 groups, beams through Embree (the fused compiled pass for exact-sphere sources).
 
-A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
-methods use the scene's bodies, settings and caches set up there."""
+A job of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one per module); its
+collaborators (the traced bodies, the facets' surfaces, the other jobs it calls) are passed in."""
 
 from __future__ import annotations
 
@@ -13,19 +13,33 @@ from lunarviz.geometry.scene_geometry import unit
 from lunarviz.methods.sources import horizon_cuts_source
 from lunarviz.methods.tracer import ray_kernels
 from lunarviz.methods.tracer import settings as tuning
+from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
+from lunarviz.methods.tracer.lunar_sampling import LunarSampling
+from lunarviz.methods.tracer.mapped_earth import MappedEarthTransport
 from lunarviz.methods.tracer.ray_kernels import beam_angles, live_beams
 from lunarviz.methods.tracer.settings import (
     NORMAL_OFFSET,
 )
+from lunarviz.methods.tracer.source_rules import SourceRules
+from lunarviz.methods.tracer.traced_bodies import TracedBodies
 from lunarviz.methods.transport import Transport
 
 
 class DeterministicTransport:
-    """The deterministic estimator's transport: methods of
-    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+    """The deterministic estimator's transport: a job of
+    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`, with its collaborators passed in."""
+
+    def __init__(self, bodies: TracedBodies, surfaces: FacetSurfaces, sampling: LunarSampling, sources: SourceRules,
+                 mapped_earth: MappedEarthTransport):
+        self.bodies = bodies
+        self.surfaces = surfaces
+        self.sampling = sampling
+        self.sources = sources
+        self.mapped_earth = mapped_earth
+
 
     # ---- transports --------------------------------------------------------------------------
-    def deterministic_transport(self, body: str):
+    def transport(self, body: str):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK lunar samples, in order.
 
         With ``threads`` > 1 the chunks are traced on that many threads, a few ahead of the
@@ -33,13 +47,13 @@ class DeterministicTransport:
         queries run while another's rules and beams are built (both cores busy).
         The chunks and their order are the same for any thread count, so are the results,
         bit for bit (docs: validation)."""
-        x_all, n_all, dA_all, owner_all, alb_all = self.lunar_samples(body)
-        self._warm_shared(body)
+        x_all, n_all, dA_all, owner_all, alb_all = self.sampling.lunar_samples(body)
+        self.warm_shared(body)
 
         def chunk(a):
             sl = slice(a, a + tuning.CHUNK)
             x, n, dA, owner = x_all[sl], n_all[sl], dA_all[sl], owner_all[sl]
-            mu, geom, o = self.detector_view(x, n, dA)
+            mu, geom, o = self.sampling.detector_view(x, n, dA)
             keep = geom > 0
             x, n, owner, mu, geom, o = x[keep], n[keep], owner[keep], mu[keep], geom[keep], o[keep]
             out = []
@@ -50,37 +64,37 @@ class DeterministicTransport:
                 tr = self.beam_transport(x[g], n[g], o[g], mu[g], geom[g], body, order)
                 if isinstance(alb_all, AlbedoNodes):  # the mapped lune rule: shaded at every map value
                     tr.albedo_nodes = (alb_all.values, alb_all.factors[sl][keep][g])
-                    tr.albedo_absolute = self.settings.moon_map().absolute
+                    tr.albedo_absolute = self.bodies.settings.moon_map().absolute
                     out.append((tr, owner[g]))
                     continue
                 if alb_all is not None:
-                    self.with_moon_albedo(tr, values=(alb_all[0][sl][keep][g], alb_all[1][sl][keep][g]))
+                    self.surfaces.with_moon_albedo(tr, values=(alb_all[0][sl][keep][g], alb_all[1][sl][keep][g]))
                 out.append((tr, owner[g]))
             return out
 
         starts = list(range(0, len(x_all), tuning.CHUNK))
-        yield from self._chunks_in_order(lambda i: chunk(starts[i]), len(starts))
+        yield from self.bodies.chunks_in_order(lambda i: chunk(starts[i]), len(starts))
 
     def beam_order(self, body: str) -> int:
         """The Gauss order of ``body``'s beams: the lune rule's own (``lune_source_orders``) where
         its samples are used, else ``sun_order`` or ``earth_order``."""
-        s = self.settings
-        if s.lune_source_orders is not None and self.lune_rule_applies(body):
+        s = self.bodies.settings
+        if s.lune_source_orders is not None and self.sampling.lune_rule_applies(body):
             return s.lune_source_orders[0 if body == "sun" else 1]
         return s.sun_order if body == "sun" else s.earth_order
 
-    def _warm_shared(self, body: str) -> None:
+    def warm_shared(self, body: str) -> None:
         """Fill the scene's lazy caches before chunks are traced on several threads."""
         if body == "earth":
-            self.earth_facet_albedo()
-            self.sun_visibility_of_earth()
-            if self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
-                self._earth_elements()
-        self.moon_facet_albedo()
-        for b in (self.sun, self.earth):
-            if b.mode(self.settings.shading) == "exact":
+            self.surfaces.earth_facet_albedo()
+            self.sources.sun_visibility_of_earth()
+            if self.surfaces.earth_facet_albedo() is not None and self.bodies.settings.mapped_earth == "facets":
+                self.mapped_earth.earth_elements()
+        self.surfaces.moon_facet_albedo()
+        for b in (self.bodies.sun, self.bodies.earth):
+            if b.mode(self.bodies.settings.shading) == "exact":
                 b.outer_scene()
-            elif b.mode(self.settings.shading) == "interp":
+            elif b.mode(self.bodies.settings.shading) == "interp":
                 b.corner_normals  # noqa: B018 (a cached property: built here, once)
 
     def _rule_groups(self, x, n, body: str) -> list:
@@ -90,13 +104,14 @@ class DeterministicTransport:
         are padded to their longest row, so tracing the groups apart spares ~10x padded beams
         in a moonshine chunk. Each group keeps the rows' order; results only change by the
         order of the sums (rounding)."""
-        c, R, B = self._source(body)
-        if B.mode(self.settings.shading) != "exact" or body == "earth" and self.earth_facet_albedo() is not None \
-                and self.settings.mapped_earth == "facets":
+        c, R, B = self.bodies.source(body)
+        s = self.bodies.settings
+        if B.mode(s.shading) != "exact" or body == "earth" and self.surfaces.earth_facet_albedo() is not None \
+                and s.mapped_earth == "facets":
             return [slice(None)]
-        cut = horizon_cuts_source(self.scene, x, n, body)
+        cut = horizon_cuts_source(self.bodies.scene, x, n, body)
         if body == "sun":
-            ecl = ~cut & self._earth_crosses_sun(x, np.linalg.norm(x - c, axis=1))
+            ecl = ~cut & self.sources.earth_crosses_sun(x, np.linalg.norm(x - c, axis=1))
             groups = [~cut & ~ecl, cut, ecl]
         else:
             groups = [~cut, cut]
@@ -107,15 +122,16 @@ class DeterministicTransport:
         detector, ``mu`` and ``geom``: ``body``'s deterministic beams (:meth:`source_nodes`),
         each traced to the source (:meth:`source_radiance`). Shared by the detector transport
         and the synthetic camera (lunarviz.methods.camera). An Earth with an albedo map takes
-        :meth:`mapped_earth_transport` instead."""
-        if body == "earth" and self.earth_facet_albedo() is not None and self.settings.mapped_earth == "facets":
-            return self.mapped_earth_transport(x, n, o, mu, geom)
-        if ray_kernels.available() and self._source(body)[2].mode(self.settings.shading) == "exact":
+        :meth:`~lunarviz.methods.tracer.mapped_earth.MappedEarthTransport.transport` instead."""
+        if body == "earth" and self.surfaces.earth_facet_albedo() is not None \
+                and self.bodies.settings.mapped_earth == "facets":
+            return self.mapped_earth.transport(x, n, o, mu, geom)
+        if ray_kernels.available() and self.bodies.source(body)[2].mode(self.bodies.settings.shading) == "exact":
             return self._fused_beam_transport(x, n, o, mu, geom, body, order)
-        dirs, omega = self.source_nodes(x, n, body, order)
+        dirs, omega = self.sources.source_nodes(x, n, body, order)
         mu0, sh, ch = beam_angles(dirs, n, o)
         bi, ki, xb, nb, db = live_beams(x, n, dirs, omega, mu0)
-        Lb, Lb_free, lu = self.source_radiance(xb, nb, db, body)
+        Lb, Lb_free, lu = self.sources.source_radiance(xb, nb, db, body)
         flat = bi * omega.shape[1] + ki  # scatter through flat indices (2-D fancy indexing is slower)
         om_b = omega.reshape(-1)[flat]
 
@@ -137,65 +153,41 @@ class DeterministicTransport:
         (the kernel tests)."""
         from lunarviz.methods.tracer.embree_bodies import ENTRY_MARGIN
         K = ray_kernels
-        sc, s = self.scene, self.settings
-        src = self.sun if body == "sun" else self.earth
+        sc, s = self.bodies.scene, self.bodies.settings
+        src = self.bodies.sun if body == "sun" else self.bodies.earth
         outer = src.outer_scene()  # (built once per body; sets its bounding radius)
-        off, Rb = NORMAL_OFFSET * self.moon.radius, src.outer_bound * (1.0 + ENTRY_MARGIN)
-        c, R, _ = self._source(body)
+        off, Rb = NORMAL_OFFSET * self.bodies.moon.radius, src.outer_bound * (1.0 + ENTRY_MARGIN)
+        c, R, _ = self.bodies.source(body)
         if body == "earth" and not horizon_cuts_source(sc, x, n, body).any():
             cs = sc.sun - c  # the rule's one cap: the Earth's sunlit hemisphere (as in source_nodes)
             rays = K.cap_beam_rays(x, n, o, c, R, unit(cs), R / np.linalg.norm(cs), order, off, Rb)
         else:
-            dirs, omega = self.source_nodes(x, n, body, order)
+            dirs, omega = self.sources.source_nodes(x, n, body, order)
             rays = K.beam_rays(x, n, o, dirs, omega, off, c, Rb)
-        self._count(len(rays.bi))
+        self.bodies.count(len(rays.bi))
         prim = src.run_rays(rays.o32, rays.d32, "INTERSECT", scene=outer) if len(rays.idx) else np.empty(0, np.int64)
         if body == "sun":
             t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
-                                                 sun_radiance=self.sun_surface_radiance())
+                                                 sun_radiance=self.sources.sun_surface_radiance())
         else:
-            fa = self.earth_facet_albedo()
-            alb = np.array([self.earth_albedo_value()]) if fa is None else fa
+            fa = self.surfaces.earth_facet_albedo()
+            alb = np.array([self.surfaces.earth_albedo_value()]) if fa is None else fa
             t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
-                                                 earth=(sc.sun, sc.phi, self.sun_visibility_of_earth(), alb))
-        with self._lock:
-            self.source_hits[body] += counts
+                                                 earth=(sc.sun, sc.phi, self.sources.sun_visibility_of_earth(), alb))
+        with self.bodies.lock:
+            self.bodies.source_hits[body] += counts
         L_free = L.copy()
         if body == "sun" and s.occlusion:  # the Earth between the Moon and the Sun
             live = L > 0
-            self._count(int(np.count_nonzero(live)))
-            L[self.earth.occluded_beams(rays, t, live)] = 0.0
-        if self._self_shadows():
+            self.bodies.count(int(np.count_nonzero(live)))
+            L[self.bodies.earth.occluded_beams(rays, t, live)] = 0.0
+        if self.bodies.self_shadows():
             live = (L > 0) | (L_unit > 0) if body == "earth" else L > 0
-            self._count(int(np.count_nonzero(live)))
-            blocked = self.moon.occluded_beams(rays, t, live)
+            self.bodies.count(int(np.count_nonzero(live)))
+            blocked = self.bodies.moon.occluded_beams(rays, t, live)
             L[blocked] = 0.0
             L_unit[blocked] = 0.0
         e, e_free, e_unit = K.scatter_beams(rays, L, L_free, L_unit if body == "earth" else None)
         return Transport(mu0=np.clip(rays.mu0, 0.0, 1.0), sin_hg=rays.sin_hg, cos_hg=rays.cos_hg, e_beam=e,
                          mu=mu, geom=geom, e_beam_free=e_free, e_beam_unit=e_unit)
 
-    def _chunks_in_order(self, chunk, n: int):
-        """``chunk(0), chunk(1), …`` (each a list of ``(Transport, owner)``), flattened in order;
-        on ``threads`` threads a few ahead of the consumer when there are several."""
-        threads = self.moon.threads
-        if threads <= 1 or n <= 1:
-            for i in range(n):
-                yield from chunk(i)
-            return
-        from collections import deque
-        from concurrent.futures import ThreadPoolExecutor
-
-        from lunarviz.methods.tracer.embree_bodies import serial_embree
-
-        def job(i):
-            with serial_embree():  # the chunks share the cores; Embree calls are not split again
-                return chunk(i)
-        with ThreadPoolExecutor(threads) as ex:
-            ahead = deque()
-            for i in range(n):
-                ahead.append(ex.submit(job, i))
-                if len(ahead) > threads:  # bounded: ≤ threads + 2 chunks in memory (one being consumed)
-                    yield from ahead.popleft().result()
-            while ahead:
-                yield from ahead.popleft().result()

@@ -47,7 +47,7 @@ _SCENE_LOCK = threading.Lock()
 @contextmanager
 def serial_embree():
     """Within this block (per thread), Embree batches are not split over the body's threads:
-    the caller already runs several chunks on the cores (TraceScene.deterministic_transport)."""
+    the caller already runs several chunks on the cores (TraceScene.deterministic.transport)."""
     _SERIAL.on = True
     try:
         yield

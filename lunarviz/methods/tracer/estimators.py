@@ -113,9 +113,9 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     :class:`~lunarviz.spectral.shading.SpectralShader`) also shades every node wavelength from it."""
     s = ts.settings
     body = PATHS[path]
-    ts.per_facet = keep_facets  # per-facet arrays need facet samples (never the lune rule's)
-    ts.rough_brdf = any(getattr(b, "rough", False) for b in brdfs.values())
-    ts.albedo_scale = 0.0 if spectral is not None else _albedo_scale(ts, brdfs)
+    ts.sampling.per_facet = keep_facets  # per-facet arrays need facet samples (never the lune rule's)
+    ts.sampling.rough_brdf = any(getattr(b, "rough", False) for b in brdfs.values())
+    ts.sampling.albedo_scale = 0.0 if spectral is not None else _albedo_scale(ts, brdfs)
     t0 = time.perf_counter()
     r0 = ts.rays_cast
     runs = 1 if s.estimator == "deterministic" else s.runs
@@ -127,9 +127,9 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     nf = ts.moon.n_faces
     for run in range(runs):
         if s.estimator == "deterministic":
-            chunks = ts.deterministic_transport(body)
+            chunks = ts.deterministic.transport(body)
         else:
-            chunks = ts.montecarlo_transport(body, [s.seed, run, 0 if path == "moonshine" else 1])
+            chunks = ts.montecarlo.transport(body, [s.seed, run, 0 if path == "moonshine" else 1])
         tot = {k: 0.0 for k in brdfs}
         tot_unit = {k: 0.0 for k in brdfs}
         sq = {k: 0.0 for k in brdfs}

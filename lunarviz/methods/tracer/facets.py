@@ -72,7 +72,7 @@ def trace_facets(geometry: SceneGeometry, fields: dict, trace: TraceSettings, br
         lit, free = f[f"{path}_lit_sum"], f[f"{path}_free_sum"]
         cd[name] = np.where(free > 0, lit / np.where(free > 0, free, 1), 0.0)
     model = models[brdf_name]
-    amap, values = ts.settings.moon_map(), ts.moon_facet_albedo()
+    amap, values = ts.settings.moon_map(), ts.surfaces.moon_facet_albedo()
     if values is None:
         alb = None
         cd["albedo_parameter"] = np.full(M.n_faces, model.albedo_parameter)
@@ -144,12 +144,12 @@ def _other_bodies(ts, sc) -> dict:
     """The Earth's and the Sun's meshes with their per-facet arrays."""
     E, S = ts.earth, ts.sun
     xe, ne = E.facet_points(ts.settings.shading)
-    vis = ts.sun_visibility_of_earth()
-    fa = ts.earth_facet_albedo()
-    fa = np.full(E.n_faces, ts.earth_albedo_value()) if fa is None else fa
+    vis = ts.sources.sun_visibility_of_earth()
+    fa = ts.surfaces.earth_facet_albedo()
+    fa = np.full(E.n_faces, ts.surfaces.earth_albedo_value()) if fa is None else fa
     earth_cd = {"radiance_toward_moon_W_m2_sr": earth_radiance(sc, xe, ne, 1.0) * fa * vis,
                 "albedo": fa, "sun_visibility": vis, "earthshine_beam_hits": ts.source_hits["earth"].copy()}
-    L_sun = ts.sun_surface_radiance()
+    L_sun = ts.sources.sun_surface_radiance()
     sun_cd = {"radiance_W_m2_sr": np.full(S.n_faces, L_sun),
               "moonshine_beam_hits": ts.source_hits["sun"].copy()}
     bodies = {"earth": (E.vertices.copy(), E.faces.copy(), earth_cd),
@@ -170,7 +170,7 @@ def sample_ray_paths(geometry: SceneGeometry, trace: TraceSettings, n: int = 12,
     M = ts.moon
     out = {}
     for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
-        cand = ts.candidates(body)
+        cand = ts.sampling.candidates(body)
         c = {"sun": sc.sun, "earth": sc.earth}[body]
         x = M.centroids[cand]
         lit = np.einsum("ij,ij->i", M.normals_for(trace.shading)[cand], unit(c - x)) > 0

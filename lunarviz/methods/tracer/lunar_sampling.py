@@ -1,8 +1,8 @@
 """Lunar samples: facets worth tracing, shadow-edge and lune refinement, sample albedo, the
 detector's view.
 
-A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
-methods use the scene's bodies, settings and caches set up there."""
+A job of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one per module); its
+collaborators (the traced bodies, the facets' surfaces, the other jobs it calls) are passed in."""
 
 from __future__ import annotations
 
@@ -13,19 +13,39 @@ from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.methods.analytic import lunar_surface_rule
 from lunarviz.methods.tracer import settings as tuning
+from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
 from lunarviz.methods.tracer.settings import (
     KINK_FREE_WIDTH,
     LUNE_SAMPLES,
     NORMAL_OFFSET,
     REFINE,
 )
+from lunarviz.methods.tracer.traced_bodies import TracedBodies
 from lunarviz.methods.transport import detector_geometry
 from lunarviz.surfaces.maps import map_frame
 from lunarviz.surfaces.moon_map import moon_facet_values
 
 
 class LunarSampling:
-    """Lunar samples: methods of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+    """Lunar samples: a job of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`, with its
+    collaborators passed in."""
+
+    def __init__(self, bodies: TracedBodies, surfaces: FacetSurfaces):
+        self.bodies = bodies
+        self.surfaces = surfaces
+        self._cand_cache: dict = {}
+        self._kinks = None
+        #: per body: candidate facets that a shadow or hidden-view edge crosses (``candidates``)
+        self._edge_cache: dict = {}
+        self._mapped_lune_cache: dict = {}  # (body, cut at i = e) -> the mapped lune rule (or None: facets)
+        #: per-facet arrays are being accumulated (:func:`~lunarviz.methods.tracer.estimators.trace_path`'s
+        #: ``keep_facets``): lunar samples then come from the facets, never the lune rule
+        self.per_facet = False
+        #: a BRDF being shaded has Hapke's roughness (its kink at i = e: the mapped lune rule cuts
+        #: there); set by :func:`~lunarviz.methods.tracer.estimators.trace_path`
+        self.rough_brdf = False
+        self.albedo_scale = 0.0  # from the lunar map to the shaded BRDFs' w (trace_path sets both)
+
 
     def candidates(self, body: str) -> np.ndarray:
         """Lunar facets that the detector may see and the source may (partly) light.
@@ -37,10 +57,10 @@ class LunarSampling:
         if body in self._cand_cache:
             cand, self._kinks = self._cand_cache[body]
             return cand
-        M = self.moon
-        c, R, _ = self._source(body)
-        x_all, n_all = M.facet_points(self.settings.shading)
-        if M.mode(self.settings.shading) == "interp":
+        M = self.bodies.moon
+        c, R, _ = self.bodies.source(body)
+        x_all, n_all = M.facet_points(self.bodies.settings.shading)
+        if M.mode(self.bodies.settings.shading) == "interp":
             M.corner_normals  # noqa: B018 (a cached property: built here, before the blocks' threads)
         F = M.n_faces
         keep = np.zeros(F, dtype=bool)
@@ -50,7 +70,7 @@ class LunarSampling:
             blk = slice(i * tuning.FACET_BLOCK, min(F, (i + 1) * tuning.FACET_BLOCK))
             lit, vis = self._kink_values(x_all[blk], n_all[blk], c, R)
             tri = M.vertices[M.faces[blk]] + M.centre
-            vn = self._corner_normals(M, blk)
+            vn = self.bodies.corner_normals(M, blk)
             lit_v, vis_v = self._kink_values(tri.reshape(-1, 3), vn.reshape(-1, 3), c, R)
             lit_v, vis_v = lit_v.reshape(-1, 3), vis_v.reshape(-1, 3)
             up = (lit > -1) | (lit_v > -1).any(1)
@@ -61,13 +81,13 @@ class LunarSampling:
             keep[blk] = up & seen
             return []
         # blocks on the trace's threads (numpy and Embree release the GIL); each writes its own slice
-        list(self._chunks_in_order(block, -(-F // tuning.FACET_BLOCK)))
+        list(self.bodies.chunks_in_order(block, -(-F // tuning.FACET_BLOCK)))
         cand = np.flatnonzero(keep)
         self._kinks = kinks
         if self._edge_tests(body):
             def edges(i):
                 return [self._shadow_edges(cand[i * tuning.FACET_BLOCK:(i + 1) * tuning.FACET_BLOCK], c)]
-            found = np.concatenate([np.empty(0, np.int64), *self._chunks_in_order(
+            found = np.concatenate([np.empty(0, np.int64), *self.bodies.chunks_in_order(
                 edges, -(-len(cand) // tuning.FACET_BLOCK))])
             self._kinks[found] = True
             self._edge_cache[body] = found
@@ -86,8 +106,8 @@ class LunarSampling:
         disagree is a kink facet and gets refined like a terminator facet. Returns those
         facets (indices).
         """
-        M = self.moon
-        s = self.settings
+        M = self.bodies.moon
+        s = self.bodies.settings
         if cand.size == 0:
             return cand
         tri = M.vertices[M.faces[cand]] + M.centre
@@ -95,20 +115,20 @@ class LunarSampling:
         off = M.normals[cand][:, None, :] * (NORMAL_OFFSET * M.radius)
         p = (pts + off).reshape(-1, 3)
         mixed = np.zeros(len(cand), dtype=bool)
-        det = self.scene.det
+        det = self.bodies.scene.det
         for to_det, target in ((False, c), (True, det)):
             v = target - p
             dist = np.linalg.norm(v, axis=1)
             d = v / dist[:, None]
             blocked = np.zeros(len(p), dtype=bool)
-            if self._self_shadows():
-                blocked |= self.moon.occluded(p, d, dist)
-                self._count(len(p))
-            if to_det and self.scene.horizon_normal is not None:
-                blocked |= ~self.scene.sight_lines_clear(p)
-            elif (to_det and not self.scene.detector_inside("earth")) or (not to_det and s.occlusion):
-                blocked |= self.earth.occluded(p, d, dist)
-                self._count(len(p))
+            if self.bodies.self_shadows():
+                blocked |= self.bodies.moon.occluded(p, d, dist)
+                self.bodies.count(len(p))
+            if to_det and self.bodies.scene.horizon_normal is not None:
+                blocked |= ~self.bodies.scene.sight_lines_clear(p)
+            elif (to_det and not self.bodies.scene.detector_inside("earth")) or (not to_det and s.occlusion):
+                blocked |= self.bodies.earth.occluded(p, d, dist)
+                self.bodies.count(len(p))
             b = blocked.reshape(-1, 4)
             mixed |= b.any(1) & ~b.all(1)
         return cand[mixed]
@@ -117,7 +137,7 @@ class LunarSampling:
         """``n·(c - x)/R`` (> 1 source wholly above the horizon, < -1 wholly below, between:
         penumbra; docs: derivations, §1) and μ toward the detector."""
         lit = np.einsum("ij,ij->i", n, c - x) / R
-        w = self.scene.det - x
+        w = self.bodies.scene.det - x
         return lit, np.einsum("ij,ij->i", n, w) / np.linalg.norm(w, axis=1)
 
     def lunar_refinement(self, body: str) -> int:
@@ -128,8 +148,8 @@ class LunarSampling:
         ~(h/w)² (1 % at θ = 175° on level 6). Powers of two up to 16. Flat facets carry no
         kink inside (constant normal), so they are never split for this.
         """
-        M = self.moon
-        if M.mode(self.settings.shading) == "flat":
+        M = self.bodies.moon
+        if M.mode(self.bodies.settings.shading) == "flat":
             return 1
         w = self._lune_width(body)
         h = np.sqrt(np.mean(M.areas)) / M.radius
@@ -137,8 +157,8 @@ class LunarSampling:
         return int(min(16, 2 ** int(np.ceil(np.log2(max(need, 1.0))))))
 
     def _lune_width(self, body: str) -> float:
-        sc = self.scene
-        c, _, _ = self._source(body)
+        sc = self.bodies.scene
+        c, _, _ = self.bodies.source(body)
         return np.pi - float(np.arccos(np.clip(np.dot(unit(c - sc.moon), unit(sc.det - sc.moon)), -1, 1)))
 
     def sample_albedo(self, faces, sub: int):
@@ -146,19 +166,19 @@ class LunarSampling:
         in its order: the map's area average over the sample's own sub-triangle (so refined
         facets, at terminators and limbs, see the map at their finer scale; ``sub = 1`` gives
         the facet averages of :meth:`moon_facet_albedo`). ``None`` without a map."""
-        amap = self.settings.moon_map()
+        amap = self.bodies.settings.moon_map()
         if amap is None:
             return None
         if sub == 1 or len(faces) == 0:
-            mean, sd = (a[faces] for a in self.moon_facet_albedo(spread=True))
+            mean, sd = (a[faces] for a in self.surfaces.moon_facet_albedo(spread=True))
         else:
-            M = self.moon
+            M = self.bodies.moon
             _, tri_b = sub_barycentric(sub)
             corners = np.einsum("svk,fkj->fsvj", tri_b, M.vertices[M.faces[np.asarray(faces, dtype=np.int64)]])
             verts = corners.reshape(-1, 3)
-            mean, sd = moon_facet_values(amap, M, map_frame(self.scene, "moon"),
+            mean, sd = moon_facet_values(amap, M, map_frame(self.bodies.scene, "moon"),
                                          faces=(verts, np.arange(len(verts)).reshape(-1, 3)))  # (F·sub²,)
-        per = 1 if self.moon.mode(self.settings.shading) == "flat" else 3
+        per = 1 if self.bodies.moon.mode(self.bodies.settings.shading) == "flat" else 3
         return np.repeat(mean, per), np.repeat(sd, per)
 
     def lune_rule_applies(self, body: str) -> bool:
@@ -168,8 +188,8 @@ class LunarSampling:
         allow (:meth:`_mapped_lune`), with no eclipse possible (:meth:`eclipse_possible`) and no shadow or
         hidden-view edge across the lit, visible lune (found on the facets, as for refinement:
         the Earth's limb hiding part of the Moon from an outside detector)."""
-        s = self.settings
-        if s.lune_order is None or self.per_facet or self.moon.mode(s.shading) != "exact":
+        s = self.bodies.settings
+        if s.lune_order is None or self.per_facet or self.bodies.moon.mode(s.shading) != "exact":
             return False
         if body == "sun" and self.eclipse_possible():  # the penumbra's edges are kinks inside the lune
             return False
@@ -185,18 +205,19 @@ class LunarSampling:
         once per body; ``None`` where its blocks are not smooth patches (the facets then)."""
         key = (body, self.rough_brdf and body == "sun", self.albedo_scale)
         if key not in self._mapped_lune_cache:
-            c, R, _ = self._source(body)
-            s = self.settings
+            c, R, _ = self.bodies.source(body)
+            s = self.bodies.settings
             values = np.asarray(s.moon_map().values(), dtype=float)
+            sc = self.bodies.scene
             self._mapped_lune_cache[key] = mapped_lune_rule(
-                self.scene, c, R, s.lune_order[0 if body == "sun" else 1], values, map_frame(self.scene, "moon"),
+                sc, c, R, s.lune_order[0 if body == "sun" else 1], values, map_frame(sc, "moon"),
                 kink=key[1], albedo_scale=self.albedo_scale)
         return self._mapped_lune_cache[key]
 
     def mapped_rule_used(self, body: str):
         """The mapped lune rule (:meth:`_mapped_lune`: x, n, dA, AlbedoNodes) that ``body``'s
         deterministic samples came from, or ``None`` (no map contrast, the facets, Monte Carlo)."""
-        s = self.settings
+        s = self.bodies.settings
         if s.estimator != "deterministic" or not self.lune_rule_applies(body) or not self._moon_map_contrast():
             return None
         return self._mapped_lune(body)
@@ -209,13 +230,14 @@ class LunarSampling:
         """With occlusion, whether the Moon's shadow may fall on the Earth (a solar eclipse, the
         earthshine's source partly dark): seen from the Earth's centre, the Moon's and the Sun's
         discs come closer than their radii plus the Earth's parallax, with a margin."""
-        if not self.settings.occlusion:
+        if not self.bodies.settings.occlusion:
             return False
-        sc = self.scene
+        sc = self.bodies.scene
         vs, vm = sc.sun - sc.earth, sc.moon - sc.earth
         ds, dm = np.linalg.norm(vs), np.linalg.norm(vm)
+        moon, earth = self.bodies.moon, self.bodies.earth
         reach = np.arcsin(min(1.0, sc.radii["sun"] / ds)) \
-            + np.arcsin(min(1.0, self.moon.bound / (dm - self.earth.bound))) + 2.0 * self.earth.bound / dm
+            + np.arcsin(min(1.0, moon.bound / (dm - earth.bound))) + 2.0 * earth.bound / dm
         return bool(angle_between(vs, vm) < reach * (1 + 1e-3))
 
     def eclipse_possible(self) -> bool:
@@ -223,13 +245,14 @@ class LunarSampling:
         (a lunar eclipse, penumbral included): seen from the Moon's centre, the two discs come
         closer than their radii plus the Moon's own parallax (its radius seen from the Earth),
         with a margin. Conservative: false only where no lunar point can be shaded."""
-        if not self.settings.occlusion:
+        if not self.bodies.settings.occlusion:
             return False
-        sc = self.scene
+        sc = self.bodies.scene
         vs, ve = sc.sun - sc.moon, sc.earth - sc.moon
         ds, de = np.linalg.norm(vs), np.linalg.norm(ve)
-        reach = np.arcsin(min(1.0, sc.radii["sun"] / (ds - self.moon.bound))) \
-            + np.arcsin(min(1.0, self.earth.bound / (de - self.moon.bound))) + 2.0 * self.moon.bound / de
+        moon, earth = self.bodies.moon, self.bodies.earth
+        reach = np.arcsin(min(1.0, sc.radii["sun"] / (ds - moon.bound))) \
+            + np.arcsin(min(1.0, earth.bound / (de - moon.bound))) + 2.0 * moon.bound / de
         return bool(angle_between(vs, ve) < reach * (1 + 1e-3))
 
     def _edge_tests(self, body: str) -> bool:
@@ -238,9 +261,9 @@ class LunarSampling:
         :meth:`eclipse_possible`), the detector is on the ground, or it is outside the Earth and
         the Earth's disc may cover part of the Moon's (:meth:`earth_may_hide_moon`)
         (:meth:`candidates` then traces the edges)."""
-        sc = self.scene
+        sc = self.bodies.scene
         hidden_view = (not sc.detector_inside("earth") and self.earth_may_hide_moon()) or sc.horizon_normal is not None
-        return self._self_shadows() or (body == "sun" and self.eclipse_possible()) or hidden_view
+        return self.bodies.self_shadows() or (body == "sun" and self.eclipse_possible()) or hidden_view
 
     def earth_may_hide_moon(self) -> bool:
         """From a detector outside the Earth, whether the Earth's disc may cover some of the
@@ -248,12 +271,12 @@ class LunarSampling:
         their centres (with a 0.1 % margin). Conservative: false only where no sight line from
         the Moon to the detector can meet the Earth, so no hidden-view edge needs tracing (from
         a 550 km orbit: all dates but those within ~0.3° of moonrise or moonset behind the Earth)."""
-        sc = self.scene
+        sc = self.bodies.scene
         v, w = sc.moon - sc.det, sc.earth - sc.det
-        if np.linalg.norm(w) <= self.earth.bound * (1 + 1e-3):  # within the mesh's bounding sphere: any way
+        if np.linalg.norm(w) <= self.bodies.earth.bound * (1 + 1e-3):  # within the mesh's bounding sphere: any way
             return True
-        reach = np.arcsin(min(1.0, self.moon.bound * (1 + 1e-3) / np.linalg.norm(v))) \
-            + np.arcsin(min(1.0, self.earth.bound * (1 + 1e-3) / np.linalg.norm(w)))
+        reach = np.arcsin(min(1.0, self.bodies.moon.bound * (1 + 1e-3) / np.linalg.norm(v))) \
+            + np.arcsin(min(1.0, self.bodies.earth.bound * (1 + 1e-3) / np.linalg.norm(w)))
         return bool(angle_between(v, w) < reach * (1 + 1e-3))
 
     def lune_samples(self, body: str):
@@ -269,24 +292,24 @@ class LunarSampling:
         if self._moon_map_contrast():  # the map's cells in the weights: AlbedoNodes
             x, n, dA, alb = self._mapped_lune(body)
             return x, n, dA, np.full(len(x), -1, dtype=np.int64), alb
-        c, R, _ = self._source(body)
-        sc = self.scene
-        x, n, dA = lunar_surface_rule(sc, c, R, self.settings.lune_order[0 if body == "sun" else 1])
-        fa = self.moon_facet_albedo(spread=True)  # a uniform map (no contrast): its one value everywhere
+        c, R, _ = self.bodies.source(body)
+        sc = self.bodies.scene
+        x, n, dA = lunar_surface_rule(sc, c, R, self.bodies.settings.lune_order[0 if body == "sun" else 1])
+        fa = self.surfaces.moon_facet_albedo(spread=True)  # a uniform map (no contrast): its one value everywhere
         alb = None if fa is None else (np.full(len(x), fa[0][0]), np.zeros(len(x)))
         return x, n, dA, np.full(len(x), -1, dtype=np.int64), alb
 
     def _moon_map_contrast(self) -> bool:
         """A lunar map whose facets differ (its cells are edges the lune rule does not know)."""
-        fa = self.moon_facet_albedo(spread=True)
+        fa = self.surfaces.moon_facet_albedo(spread=True)
         return fa is not None and bool(np.ptp(fa[0]) > 0 or np.any(fa[1] > 0))
 
     def lunar_samples(self, body: str):
         """Deterministic lunar samples: points, normals, areas, owning facets, and the lunar
         map's value per sample (``None`` without a map; :meth:`sample_albedo`); the lune rule's
         samples where it applies (:meth:`lune_rule_applies`)."""
-        M = self.moon
-        s = self.settings
+        M = self.bodies.moon
+        s = self.bodies.settings
         if self.lune_rule_applies(body):
             return self.lune_samples(body)
         cand = self.candidates(body)
@@ -309,7 +332,7 @@ class LunarSampling:
         """mu, geom and unit directions to the detector, with the sight line's occlusion (the
         Earth, for a detector outside it; the Moon itself, with ``self_shadow`` on a non-convex
         Moon)."""
-        sc = self.scene
+        sc = self.bodies.scene
         mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
         # The Earth between the Moon and the detector always hides it, as in every method
         # (--no-occlusion removes shadows, i.e. bodies between a source and the Moon; it
@@ -318,17 +341,17 @@ class LunarSampling:
         earth_blocks = not sc.detector_inside("earth") and not horizon
         if horizon:  # a site on the WGS84 Earth: its horizon plane, not the model sphere
             geom = np.where(sc.sight_lines_clear(x), geom, 0.0)
-        if earth_blocks or self._self_shadows():
+        if earth_blocks or self.bodies.self_shadows():
             idx = np.flatnonzero(geom > 0)
-            xo = x[idx] + n[idx] * (NORMAL_OFFSET * self.moon.radius)
+            xo = x[idx] + n[idx] * (NORMAL_OFFSET * self.bodies.moon.radius)
             dist = np.linalg.norm(sc.det - xo, axis=1)
             blocked = np.zeros(idx.size, dtype=bool)
             if earth_blocks:
-                blocked |= self.earth.occluded(xo, o[idx], dist)
-                self._count(idx.size)
-            if self._self_shadows():
-                blocked |= self.moon.occluded(xo, o[idx], dist)
-                self._count(idx.size)
+                blocked |= self.bodies.earth.occluded(xo, o[idx], dist)
+                self.bodies.count(idx.size)
+            if self.bodies.self_shadows():
+                blocked |= self.bodies.moon.occluded(xo, o[idx], dist)
+                self.bodies.count(idx.size)
             geom = geom.copy()
             geom[idx[blocked]] = 0.0
         return mu, geom, o

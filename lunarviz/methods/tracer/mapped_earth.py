@@ -1,8 +1,8 @@
 """Earthlight from a mapped Earth (land, ocean, clouds): the Earth's facets grouped into cells of
 its disc seen from the Moon, summed per facet.
 
-A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
-methods use the scene's bodies, settings and caches set up there."""
+A job of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one per module); its
+collaborators (the traced bodies, the facets' surfaces, the other jobs it calls) are passed in."""
 
 from __future__ import annotations
 
@@ -11,19 +11,29 @@ import numpy as np
 from lunarviz.geometry.scene_geometry import half_angle_sin_cos, unit
 from lunarviz.geometry.sphere_quadrature import orthonormal_basis
 from lunarviz.methods.sources import earth_radiance
+from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
 from lunarviz.methods.tracer.settings import (
     EARTH_CELLS,
     NORMAL_OFFSET,
     TERMINATOR_SUB,
 )
+from lunarviz.methods.tracer.source_rules import SourceRules
+from lunarviz.methods.tracer.traced_bodies import TracedBodies
 from lunarviz.methods.transport import Transport
 
 
 class MappedEarthTransport:
-    """Earthlight from a mapped Earth (land, ocean, clouds): methods of
-    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+    """Earthlight from a mapped Earth (land, ocean, clouds): a job of
+    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`, with its collaborators passed in."""
 
-    def _earth_elements(self):
+    def __init__(self, bodies: TracedBodies, surfaces: FacetSurfaces, sources: SourceRules):
+        self.bodies = bodies
+        self.surfaces = surfaces
+        self.sources = sources
+        self._earth_el = None
+
+
+    def earth_elements(self):
         """The mapped Earth as surface elements, one per facet: points y, normals m, areas
         [m²] (spherical areas on the exact sphere), radiance for albedo 1 (point Sun, the
         Moon's shadow traced per facet) and the facet's albedo; sorted into the cells of a
@@ -33,32 +43,32 @@ class MappedEarthTransport:
         (traced)."""
         if getattr(self, "_earth_el", None) is not None:
             return self._earth_el
-        sc, s, E = self.scene, self.settings, self.earth
+        sc, s, E = self.bodies.scene, self.bodies.settings, self.bodies.earth
         # three points per facet (the degree-2 rule of surface_samples; on the packaged sphere
         # they lie on the exact sphere): the terminator crosses facets, and a one-point rule
         # there costs 6e-4 where the lit part is a thin band (docs: surfaces)
         # facets the terminator crosses (corners lit and unlit) are split TERMINATOR_SUB² ways:
         # the lit edge is a kink the map's light ends at, coherently along the whole terminator
         corners = E.vertices[E.faces] + E.centre  # (F, 3, 3)
-        cn = self._corner_normals(E)
+        cn = self.bodies.corner_normals(E)
         mu_c = np.einsum("fkj,fkj->fk", cn, sc.sun - corners)
         term = (mu_c > 0).any(1) & (mu_c <= 0).any(1)
         parts = [E.surface_samples(np.flatnonzero(~term), s.shading),
                  E.surface_samples(np.flatnonzero(term), s.shading, sub=TERMINATOR_SUB)]
         y, m, area_f, owner = (np.concatenate([u, v]) for u, v in zip(*parts))
-        L1 = earth_radiance(sc, y, m, 1.0) * self.sun_visibility_of_earth()[owner]
-        a = self.earth_facet_albedo()[owner]
-        parts = self.earth_facet_parts()
+        L1 = earth_radiance(sc, y, m, 1.0) * self.sources.sun_visibility_of_earth()[owner]
+        a = self.surfaces.earth_facet_albedo()[owner]
+        parts = self.surfaces.earth_facet_parts()
         comp = None if parts is None else parts[owner]  # (n, C) weights of a spectral run's components
         rm = sc.radii["moon"]
         keep = (L1 > 0) & (np.einsum("ij,ij->i", m, sc.moon - y) > -rm)
-        if self.settings.self_shadow and not E.convex:
+        if self.bodies.settings.self_shadow and not E.convex:
             idx = np.flatnonzero(keep)
             yo = y[idx] + m[idx] * (NORMAL_OFFSET * E.radius)
             v = sc.moon - yo
             dist = np.linalg.norm(v, axis=1)
             hid = E.occluded(yo, v / dist[:, None], dist - rm)
-            self._count(idx.size)
+            self.bodies.count(idx.size)
             keep[idx[hid]] = False
         idx = np.flatnonzero(keep)
         y, m, L1A, a = y[idx], m[idx], L1[idx] * area_f[idx], a[idx]
@@ -98,13 +108,13 @@ class MappedEarthTransport:
         self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, lin=lin, comp=comp)
         return self._earth_el
 
-    def mapped_earth_transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
+    def transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
         """Earthshine :class:`Transport` at lunar points x from an Earth with an albedo map.
 
         The earthlight of every Earth facet reaching x is summed exactly per facet,
         ``a_f · L1_f · A_f · cos_f(x) / r_f(x)²`` (zero below x's horizon or behind the Earth's
         limb seen from x), and gathered into one beam per cell of the Earth's disc
-        (:data:`EARTH_CELLS`² cells, each ≤ 0.08° across seen from the Moon) along the cell's
+        (:data:`EARTH_CELLS` × :data:`EARTH_CELLS` cells, each ≤ 0.08° across seen from the Moon) along the cell's
         flux-weighted centre. A map's edges are thus integrated by the facets' area averages
         (second order), not by a few Gauss beams across the disc, which leave ~1 % errors
         (docs: surfaces). The BRDF sees each cell's light from one direction: the
@@ -115,7 +125,7 @@ class MappedEarthTransport:
         shadow on each facet, a non-convex Earth hiding facets, a non-convex Moon shadowing
         each beam. Neglected: the Sun's extent lighting the Earth (as for the uniform Earth).
         """
-        el = self._earth_elements()
+        el = self.earth_elements()
         B, C = len(x), len(el["starts"])
         e_map, e_unit = np.zeros((B, C)), np.zeros((B, C))
         comp = el["comp"]
@@ -126,9 +136,9 @@ class MappedEarthTransport:
             y, m, L1A, a, st = el["y"], el["m"], el["L1A"], el["a"], el["starts"]
             # points whose horizon does not cut the Earth see every element: the cell sums are
             # smooth in x there and their first-order expansion about the Moon's centre serves
-            cut = np.einsum("ij,ij->i", n, self.scene.earth - x) < self.earth.bound * (1 + 1e-6)
+            cut = np.einsum("ij,ij->i", n, self.bodies.scene.earth - x) < self.bodies.earth.bound * (1 + 1e-6)
             far = np.flatnonzero(~cut)
-            dx = x[far] - self.scene.moon
+            dx = x[far] - self.bodies.scene.moon
             unit_far = None
             for name, out in outs:
                 s0, s1 = el["lin"][name]
@@ -157,15 +167,15 @@ class MappedEarthTransport:
         dirs = unit(el["centre"][None, :, :] - x[:, None, :]) if C else np.zeros((B, 0, 3))
         mu0 = np.einsum("bkj,bj->bk", dirs, n)
         e_free = e_map.copy()
-        if self._self_shadows() and C:
+        if self.bodies.self_shadows() and C:
             bi, ki = np.nonzero((e_unit > 0) & (mu0 > 0))
-            xo = x[bi] + n[bi] * (NORMAL_OFFSET * self.moon.radius)
-            blocked = self.moon.occluded(xo, dirs[bi, ki])
-            self._count(bi.size)
+            xo = x[bi] + n[bi] * (NORMAL_OFFSET * self.bodies.moon.radius)
+            blocked = self.bodies.moon.occluded(xo, dirs[bi, ki])
+            self.bodies.count(bi.size)
             e_map[bi[blocked], ki[blocked]] = 0.0
             e_unit[bi[blocked], ki[blocked]] = 0.0
             e_parts[:, bi[blocked], ki[blocked]] = 0.0
         sh, ch = half_angle_sin_cos(dirs, o[:, None, :])
-        parts = None if comp is None else dict(zip(self.earth_parts, e_parts))
+        parts = None if comp is None else dict(zip(self.surfaces.earth_parts, e_parts))
         return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=e_map, mu=mu, geom=geom,
                          e_beam_free=e_free, e_beam_unit=e_unit, e_beam_parts=parts)

@@ -1,8 +1,8 @@
 """The Monte Carlo estimator's transport: lunar samples drawn by a facet pdf, one source direction
 per sample (the Sun's cone, or the Earth's lit part), chunks with their own generators.
 
-A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
-methods use the scene's bodies, settings and caches set up there."""
+A job of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one per module); its
+collaborators (the traced bodies, the facets' surfaces, the other jobs it calls) are passed in."""
 
 from __future__ import annotations
 
@@ -12,43 +12,57 @@ from lunarviz.geometry.scene_geometry import half_angle_sin_cos, unit
 from lunarviz.geometry.sphere_quadrature import orthonormal_basis
 from lunarviz.methods.tracer import ray_kernels
 from lunarviz.methods.tracer import settings as tuning
+from lunarviz.methods.tracer.deterministic import DeterministicTransport
+from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
+from lunarviz.methods.tracer.lunar_sampling import LunarSampling
 from lunarviz.methods.tracer.settings import (
     UNIFORM_SHARE,
 )
+from lunarviz.methods.tracer.source_rules import SourceRules
+from lunarviz.methods.tracer.traced_bodies import TracedBodies
 from lunarviz.methods.transport import Transport, detector_geometry
 
 
 class MonteCarloTransport:
-    """The Monte Carlo estimator's transport: methods of
-    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+    """The Monte Carlo estimator's transport: a job of
+    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`, with its collaborators passed in."""
 
-    def montecarlo_transport(self, body: str, key):
+    def __init__(self, bodies: TracedBodies, surfaces: FacetSurfaces, sampling: LunarSampling, sources: SourceRules,
+                 deterministic: DeterministicTransport):
+        self.bodies = bodies
+        self.surfaces = surfaces
+        self.sampling = sampling
+        self.sources = sources
+        self.deterministic = deterministic
+
+
+    def transport(self, body: str, key):
         """Yield ``(Transport, owning facets)`` for chunks of ≤ CHUNK of the N Monte Carlo
         samples; each sample's weight already carries the 1/N of the estimator.
 
         Chunk i draws from its own generator, ``default_rng([*key, i])`` (``key`` = seed, run,
         path), so the chunks are independent of each other and of the thread count: with
         ``threads`` > 1 they are traced on that many threads, in order, with the same numbers."""
-        s = self.settings
+        s = self.bodies.settings
         sizes = [min(tuning.CHUNK, s.rays - a) for a in range(0, s.rays, tuning.CHUNK)]
-        self._warm_shared(body)
+        self.deterministic.warm_shared(body)
         self._facet_pdf(body)  # memoised here (with the candidates), before any thread asks
 
         def chunk(i):
             return [self._montecarlo_chunk(body, np.random.default_rng([*key, i]), sizes[i], s.rays)]
-        yield from self._chunks_in_order(chunk, len(sizes))
+        yield from self.bodies.chunks_in_order(chunk, len(sizes))
 
     def _facet_pdf(self, body: str):
         """Candidate facets, their areas and the probability of drawing each (memoised per
         body: every Monte Carlo chunk draws from the same distribution)."""
         key = ("pdf", body)
-        if key in self._cand_cache:
-            return self._cand_cache[key]
-        sc = self.scene
-        M = self.moon
-        c, R, _ = self._source(body)
-        cand = self.candidates(body)
-        x, n = (a[cand] for a in M.facet_points(self.settings.shading))
+        if key in self.sampling._cand_cache:
+            return self.sampling._cand_cache[key]
+        sc = self.bodies.scene
+        M = self.bodies.moon
+        c, R, _ = self.bodies.source(body)
+        cand = self.sampling.candidates(body)
+        x, n = (a[cand] for a in M.facet_points(self.bodies.settings.shading))
         dA = M.areas[cand]
         _, g0, _ = detector_geometry(x, n, dA, sc.det, sc.det_normal)
         v = c - x
@@ -64,13 +78,13 @@ class MonteCarloTransport:
             p = p + (1 - UNIFORM_SHARE) * proxy / proxy.sum()
         else:
             p = p / UNIFORM_SHARE
-        self._cand_cache[key] = (cand, dA, p)
+        self.sampling._cand_cache[key] = (cand, dA, p)
         return cand, dA, p
 
     def _montecarlo_chunk(self, body: str, rng: np.random.Generator, N: int, N_total: int):
-        s = self.settings
-        M = self.moon
-        c, R, src = self._source(body)
+        s = self.bodies.settings
+        M = self.bodies.moon
+        c, R, src = self.bodies.source(body)
         cand, dA, p = self._facet_pdf(body)
         mode = M.mode(s.shading)
         pick = rng.choice(len(cand), size=N, p=p)
@@ -93,7 +107,7 @@ class MonteCarloTransport:
             ns = M.shading_normals(f, xs)
         else:
             xs, ns = pts + M.centre, M.normals[f]
-        mu, geom, o = self.detector_view(xs, ns, area_w)
+        mu, geom, o = self.sampling.detector_view(xs, ns, area_w)
         if body == "earth" and src.mode(s.shading) == "exact":
             dirs, omega = self._earth_lit_directions(xs, rng)
         else:
@@ -102,14 +116,14 @@ class MonteCarloTransport:
         li = np.flatnonzero((mu0 > 0) & (geom > 0))
         L = np.zeros(N)
         L_unit = np.zeros(N) if body == "earth" else None
-        L[li], _, lu = self.source_radiance(xs[li], ns[li], dirs[li], body)
+        L[li], _, lu = self.sources.source_radiance(xs[li], ns[li], dirs[li], body)
         if L_unit is not None:
             L_unit[li] = lu
         sh, ch = half_angle_sin_cos(dirs, o)
         tr = Transport(mu0=np.clip(mu0, 0, 1)[:, None], sin_hg=sh[:, None], cos_hg=ch[:, None],
                        e_beam=(L * omega)[:, None], mu=mu, geom=geom,
                        e_beam_unit=None if L_unit is None else (L_unit * omega)[:, None])
-        return self.with_moon_albedo(tr, f), f
+        return self.surfaces.with_moon_albedo(tr, f), f
 
     @staticmethod
     def _cone_directions(xs, c, R, rng):
@@ -138,7 +152,7 @@ class MonteCarloTransport:
         floored so every lit ring keeps a positive density), so the estimator is unbiased.
         Dark Earth is never sampled: at a crescent Earth this removes most of the variance.
         """
-        sc = self.scene
+        sc = self.bodies.scene
         N = len(xs)
         R = sc.radii["earth"]
         us = unit(sc.sun - sc.earth)

@@ -240,7 +240,7 @@ def _ray_batch32(o, d, t0, idx, o32, d32):
 
 def _earth_lit_dirs(xs, earth, R, us, c_s, n_tab, r1, r2, dirs, weight):
     """One direction per sample toward the Earth's lit, visible part and its weight [sr]:
-    the tabulated polar pdf of ``TraceScene._earth_lit_directions`` (same formulas, same
+    the tabulated polar pdf of ``MonteCarloTransport._earth_lit_directions`` (same formulas, same
     uniforms ``r1`` for t and ``r2`` for φ), one sample at a time instead of (N, n_tab) arrays."""
     N = xs.shape[0]
     cell = np.empty(n_tab)
@@ -318,7 +318,7 @@ def _jac_t(ct, st, d, R):
     return max(d * ct - R, 0.0) * R * R * st / (r2 * np.sqrt(r2))
 
 
-# ---- one compiled pass per stage between the Embree calls (TraceScene._fused_beam_transport) ----
+# ---- one compiled pass per stage between the Embree calls (DeterministicTransport._fused_beam_transport) ----
 def _live_beam(i, q, d0, d1, d2, w, n, o, xo0, xo1, xo2, c, Rb, mu0, sh, ch, bi, ki, ds, om_b, idx, o32, d32, m, p):
     """Beam (i, q) of direction d and solid angle w: μ0 and the half phase angle
     (:func:`_beam_angles`); if live (ω > 0, μ0 > 0) it becomes live beam m, and its ray from xo
@@ -774,7 +774,7 @@ def scatter_beams(rays: BeamRays, L, L_free, L_unit=None):
 
 
 def earth_lit_directions(xs, earth, R: float, sun_dir, c_s: float, n_tab: int, r1, r2):
-    """Compiled ``TraceScene._earth_lit_directions`` given its two uniforms per sample
+    """Compiled ``MonteCarloTransport._earth_lit_directions`` given its two uniforms per sample
     (``r1`` picks the polar angle, ``r2`` the azimuth); ``None`` where numba is off."""
     if not _NUMBA:
         return None

@@ -66,7 +66,8 @@ class TraceSettings:
     #: per-body shading overriding ``shading``, e.g. ``(("earth", "flat"),)`` (mesh studies)
     body_shading: tuple = ()
     #: a mapped Earth's earthlight: ``facets`` (default: summed per facet into disc cells,
-    #: :meth:`TraceScene.mapped_earth_transport`) or ``beams`` (the uniform Earth's Gauss beams
+    #: :meth:`~lunarviz.methods.tracer.mapped_earth.MappedEarthTransport.transport`) or ``beams``
+    #: (the uniform Earth's Gauss beams
     #: with each hit facet's albedo: ~2 % off at a map's edges; a diagnostic for comparisons)
     mapped_earth: str = "facets"
     #: lunar samples from the lune rule of this Gauss order (one for both paths, or a pair:

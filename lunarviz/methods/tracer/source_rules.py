@@ -1,8 +1,8 @@
 """Source rules and visibility: beams toward the Sun and the Earth per lunar sample, eclipses, the
 Moon's shadow on the Earth, the sources' radiance at the hits.
 
-A part of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one job per module); its
-methods use the scene's bodies, settings and caches set up there."""
+A job of :class:`~lunarviz.methods.tracer.trace_scene.TraceScene` (one per module); its
+collaborators (the traced bodies, the facets' surfaces, the other jobs it calls) are passed in."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ import numpy as np
 from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.methods.sources import earth_radiance, horizon_cuts_source, source_beams, source_sphere_rule, sun_radiance
 from lunarviz.methods.tracer import ray_kernels
+from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
+from lunarviz.methods.tracer.lunar_sampling import LunarSampling
 from lunarviz.methods.tracer.ray_kernels import sphere_cap_beams
 from lunarviz.methods.tracer.settings import (
     ECLIPSE_ORDER,
@@ -18,11 +20,19 @@ from lunarviz.methods.tracer.settings import (
     NORMAL_OFFSET,
     PENUMBRA_ORDER,
 )
+from lunarviz.methods.tracer.traced_bodies import TracedBodies
 
 
 class SourceRules:
-    """Source rules and visibility: methods of
-    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`."""
+    """Source rules and visibility: a job of
+    :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`, with its collaborators passed in."""
+
+    def __init__(self, bodies: TracedBodies, surfaces: FacetSurfaces, sampling: LunarSampling):
+        self.bodies = bodies
+        self.surfaces = surfaces
+        self.sampling = sampling
+        self._sun_vis_earth = None
+
 
     # ---- source beams ------------------------------------------------------------------------
     def source_nodes(self, x, n, body: str, order: int, eclipse: bool = True):
@@ -32,9 +42,9 @@ class SourceRules:
         A source shaded on its facets (a user mesh, or ``flat`` shading) gets a Gauss rule over
         its bounding sphere's cone (order ≥ MESH_SOURCE_ORDER); Embree then decides which
         beams meet the mesh and which facet each meets."""
-        sc = self.scene
-        c, R, B = self._source(body)
-        if B.mode(self.settings.shading) != "exact":
+        sc = self.bodies.scene
+        c, R, B = self.bodies.source(body)
+        if B.mode(self.bodies.settings.shading) != "exact":
             xc = x - c
             dxc = np.linalg.norm(xc, axis=1)
             o = max(order, MESH_SOURCE_ORDER)
@@ -49,7 +59,7 @@ class SourceRules:
                 xc = x[rows] - c
                 dxc = np.linalg.norm(xc, axis=1)
                 # (points on the Earth itself: its own limb is their horizon, no eclipse rule)
-                ecl = self._earth_crosses_sun(x[rows], dxc) if eclipse else np.zeros(len(rows), dtype=bool)
+                ecl = self.earth_crosses_sun(x[rows], dxc) if eclipse else np.zeros(len(rows), dtype=bool)
                 for sub, o_s in ((~ecl, order), (ecl, max(order, ECLIPSE_ORDER))):
                     if sub.any():
                         om, w = ray_kernels.cone_rule(-xc[sub] / dxc[sub, None], R / dxc[sub], o_s, 2 * o_s)
@@ -82,18 +92,18 @@ class SourceRules:
             w[rows, :wp.shape[1]] = wp
         return om, w
 
-    def _earth_crosses_sun(self, x, d_sun) -> np.ndarray:
+    def earth_crosses_sun(self, x, d_sun) -> np.ndarray:
         """Points from which the Earth's disc overlaps the Sun's (a lunar eclipse's penumbra and
         umbra), when occlusion is on. There the Earth's limb cuts the solar cone and its
         default rule (a few beams) would round the partial Sun to all or nothing: those
         points get the ECLIPSE_ORDER rule (the penumbra within 1.5e-4 of the exact overlap of the
         two discs: docs, the real sky)."""
-        if not self.settings.occlusion:
+        if not self.bodies.settings.occlusion:
             return np.zeros(len(x), dtype=bool)
-        sc = self.scene
+        sc = self.bodies.scene
         ve = sc.earth - x
         de = np.linalg.norm(ve, axis=1)
-        rho_e = np.arcsin(np.clip(self.earth.bound / de, 0, 1))
+        rho_e = np.arcsin(np.clip(self.bodies.earth.bound / de, 0, 1))
         rho_s = np.arcsin(np.clip(sc.radii["sun"] / d_sun, 0, 1))
         gamma = angle_between(sc.sun - x, ve)
         return gamma < (rho_s + rho_e) * (1 + 1e-6)
@@ -104,21 +114,21 @@ class SourceRules:
         itself (a non-convex Earth mesh, with self-shadowing); 1 otherwise."""
         if self._sun_vis_earth is not None:
             return self._sun_vis_earth
-        E = self.earth
+        E = self.bodies.earth
         vis = np.ones(E.n_faces)
-        earth_self = self.settings.self_shadow and not E.convex
-        moon_shadow = self.settings.occlusion and self.moon_shadow_on_earth_possible()
+        earth_self = self.bodies.settings.self_shadow and not E.convex
+        moon_shadow = self.bodies.settings.occlusion and self.sampling.moon_shadow_on_earth_possible()
         if moon_shadow or earth_self:
-            n = E.normals_for(self.settings.shading)
+            n = E.normals_for(self.bodies.settings.shading)
             x = E.centroids
-            c, R, _ = self._source("sun")
+            c, R, _ = self.bodies.source("sun")
             idx = np.flatnonzero(np.einsum("ij,ij->i", n, c - x) > -R)
             xo = x[idx] + n[idx] * (NORMAL_OFFSET * E.radius)
             if earth_self:  # the Earth's own relief (the Moon is traced below, where it can matter)
                 dirs, w = self.source_nodes(xo, n[idx], "sun", 2, eclipse=False)
                 B, K = w.shape
                 occ = E.occluded(np.repeat(xo, K, 0), dirs.reshape(-1, 3)).reshape(B, K)
-                self._count(B * K)
+                self.bodies.count(B * K)
                 tot = w.sum(1)
                 vis[idx] = np.where(tot > 0, (w * ~occ).sum(1) / np.where(tot > 0, tot, 1), 1.0)
             if moon_shadow:
@@ -128,20 +138,20 @@ class SourceRules:
                 # Elsewhere no beam toward the Sun can meet the Moon (its bounding sphere's disc
                 # is off the Sun's, with a margin): nothing to trace (most dates, every phase
                 # but new Moon)
-                sc = self.scene
+                sc = self.bodies.scene
                 vs, vm = sc.sun - xo, sc.moon - xo
                 ds, dm = np.linalg.norm(vs, axis=1), np.linalg.norm(vm, axis=1)
-                rho = np.arcsin(np.clip(R / ds, 0, 1)) + np.arcsin(np.clip(self.moon.bound / dm, 0, 1))
+                rho = np.arcsin(np.clip(R / ds, 0, 1)) + np.arcsin(np.clip(self.bodies.moon.bound / dm, 0, 1))
                 pen = np.flatnonzero(angle_between(vs, vm) < rho * (1 + 1e-6))
                 if pen.size:
                     d2, w2 = self.source_nodes(xo[pen], n[idx[pen]], "sun", ECLIPSE_ORDER, eclipse=False)
                     K2 = w2.shape[1]
                     o2 = np.repeat(xo[pen], K2, 0)
-                    occ2 = self.moon.occluded(o2, d2.reshape(-1, 3)).reshape(-1, K2)
-                    self._count(o2.shape[0])
+                    occ2 = self.bodies.moon.occluded(o2, d2.reshape(-1, 3)).reshape(-1, K2)
+                    self.bodies.count(o2.shape[0])
                     if earth_self:
                         occ2 |= E.occluded(o2, d2.reshape(-1, 3)).reshape(-1, K2)
-                        self._count(o2.shape[0])
+                        self.bodies.count(o2.shape[0])
                     t2 = w2.sum(1)
                     vis[idx[pen]] = np.where(t2 > 0, (w2 * ~occ2).sum(1) / np.where(t2 > 0, t2, 1), 1.0)
         self._sun_vis_earth = vis
@@ -151,10 +161,10 @@ class SourceRules:
         """Radiance of the Sun's surface [W m⁻² sr⁻¹]: a Lambertian emitter of total power Φ
         over its surface A, L = Φ/(πA); Φ/(4π²R²) on the exact sphere. A Sun mesh of another
         size or shape therefore still emits Φ (the Earth is lit by a point Sun of power Φ)."""
-        S = self.sun
-        if S.mode(self.settings.shading) == "exact":
-            return sun_radiance(self.scene)
-        return self.scene.phi / (np.pi * float(S.areas.sum()))
+        S = self.bodies.sun
+        if S.mode(self.bodies.settings.shading) == "exact":
+            return sun_radiance(self.bodies.scene)
+        return self.bodies.scene.phi / (np.pi * float(S.areas.sum()))
 
     def source_radiance(self, x, n, dirs, body: str):
         """Radiance [W m⁻² sr⁻¹] reaching x (n,3) along dirs (n,3) from ``body``'s mesh:
@@ -162,40 +172,40 @@ class SourceRules:
         another body (``occlusion``) or the Moon itself (``self_shadow``) blocks it, ``L_free`` is
         not. ``L_unit`` (Earth only, else ``None``) is ``L`` for an Earth of albedo 1: the Earth's
         albedo at a hit is its facet's (a map) or the scalar."""
-        sc = self.scene
-        s = self.settings
-        xo = x + n * (NORMAL_OFFSET * self.moon.radius)
-        target = self.sun if body == "sun" else self.earth
+        sc = self.bodies.scene
+        s = self.bodies.settings
+        xo = x + n * (NORMAL_OFFSET * self.bodies.moon.radius)
+        target = self.bodies.sun if body == "sun" else self.bodies.earth
         if target.mode(s.shading) == "exact":
             hits = target.sphere_hits(xo, dirs)
         else:
             hits = target.intersect(xo, dirs)
-        self._count(len(xo))
+        self.bodies.count(len(xo))
         per_facet = np.bincount(hits.prim[hits.hit], minlength=target.n_faces)
-        with self._lock:
-            self.source_hits[body] += per_facet
+        with self.bodies.lock:
+            self.bodies.source_hits[body] += per_facet
         if body == "sun":
             L = np.where(hits.hit, self.sun_surface_radiance(), 0.0)
             L_free = L.copy()
             if s.occlusion:
                 live = np.flatnonzero(L > 0)
-                blocked = self.earth.occluded(xo[live], dirs[live], hits.t[live])
-                self._count(live.size)
+                blocked = self.bodies.earth.occluded(xo[live], dirs[live], hits.t[live])
+                self.bodies.count(live.size)
                 L[live[blocked]] = 0.0
         else:
             L, L_unit = np.zeros(len(xo)), np.zeros(len(xo))
-            h, y, nrm = self.earth.shade_hits(hits, s.shading)
+            h, y, nrm = self.bodies.earth.shade_hits(hits, s.shading)
             vis = self.sun_visibility_of_earth()
             prim = np.maximum(hits.prim[h], 0)
             shade = np.where(hits.prim[h] >= 0, vis[prim], 1.0)
-            fa = self.earth_facet_albedo()
+            fa = self.surfaces.earth_facet_albedo()
             L_unit[h] = earth_radiance(sc, y, nrm, 1.0) * shade
-            L[h] = L_unit[h] * (self.earth_albedo_value() if fa is None else fa[prim])
+            L[h] = L_unit[h] * (self.surfaces.earth_albedo_value() if fa is None else fa[prim])
             L_free = L.copy()
-        if self._self_shadows():
+        if self.bodies.self_shadows():
             live = np.flatnonzero((L > 0) | (L_unit > 0)) if body == "earth" else np.flatnonzero(L > 0)
-            blocked = self.moon.occluded(xo[live], dirs[live], hits.t[live])
-            self._count(live.size)
+            blocked = self.bodies.moon.occluded(xo[live], dirs[live], hits.t[live])
+            self.bodies.count(live.size)
             L[live[blocked]] = 0.0
             if body == "earth":
                 L_unit[live[blocked]] = 0.0

@@ -1,0 +1,109 @@
+"""The surfaces on the traced bodies' facets: the lunar albedo map's values per Moon facet, the
+Earth's albedo (or a physical Earth's reflectance toward the Moon) per Earth facet, and a spectral
+run's Earth components, each computed once per trace (the lunar map's once per process)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.caches import BoundedCache, file_key, mesh_digest
+from lunarviz.methods.tracer.traced_bodies import TracedBodies
+from lunarviz.methods.transport import Transport
+from lunarviz.surfaces.earth_spectra import facet_weights
+from lunarviz.surfaces.maps import map_frame
+from lunarviz.surfaces.moon_map import moon_facet_values
+from lunarviz.surfaces.physical_earth import facet_reflectance
+
+#: per-facet lunar map values per (map, mesh, frame) (:meth:`FacetSurfaces.moon_map_values`)
+MOON_MAP_VALUES = BoundedCache(8)
+
+
+class FacetSurfaces:
+    """Per-facet surface values of :class:`TracedBodies` ``bodies``."""
+
+    def __init__(self, bodies: TracedBodies):
+        self.bodies = bodies
+        self._moon_albedo = self._earth_albedo = None
+        #: a spectral run's Earth components (:func:`lunarviz.surfaces.earth_spectra.components`): the
+        #: mapped Earth's transports then carry one beam array each (``e_beam_parts``)
+        self.earth_parts: tuple | None = None
+        #: a physical Earth's spectral run: the node wavelengths [nm] its components are
+        self.earth_part_wavelengths = None
+        self._earth_parts_w = None
+
+    def moon_facet_albedo(self, spread: bool = False):
+        """Per-facet values of the lunar albedo map (area averages, :mod:`lunarviz.surfaces.maps`),
+        or ``None`` without a map; ``spread``: ``(mean, std)`` over each facet."""
+        amap = self.bodies.settings.moon_map()
+        if amap is None:
+            return None
+        if self._moon_albedo is None:
+            self._moon_albedo = self.moon_map_values()
+        return self._moon_albedo if spread else self._moon_albedo[0]
+
+    def moon_map_values(self):
+        """(mean, std) of the lunar map over each facet (:func:`lunarviz.surfaces.moon_map.moon_facet_values`
+        over the whole mesh). On dates the Moon's mesh turns with the Moon, so a facet covers the
+        same part of the map at every date: the values are kept per map, mesh and frame for the
+        process (:data:`MOON_MAP_VALUES`), and a time series computes them once."""
+        M, amap = self.bodies.moon, self.bodies.settings.moon_map()
+        frame = map_frame(self.bodies.scene, "moon")
+        turned = M.rotation is not None and np.array_equal(frame, M.rotation)  # body frame: date-independent
+        mesh = M.geometry["mesh"]
+        key = (file_key(amap.source()), amap.mean, mesh_digest(mesh), float(M.radius),
+               "body" if turned else frame.tobytes())
+        got = MOON_MAP_VALUES.get(key)
+        if got is None:
+            got = moon_facet_values(amap, M, frame)
+            MOON_MAP_VALUES[key] = got
+        return got
+
+    def earth_facet_albedo(self):
+        """Per-facet Lambert albedo of the Earth (area averages of its surface and clouds), or
+        ``None`` for a uniform Earth (then :meth:`earth_albedo_value`; a map whose facets all
+        have one value is that uniform Earth, bit for bit)."""
+        surf = self.bodies.settings.surface()
+        if surf.uniform:
+            return None
+        if self._earth_albedo is None:
+            frame = map_frame(self.bodies.scene, "earth", self.bodies.settings.earth_rotation_deg)
+            if surf.physical:  # each facet's reflectance toward the Moon as its albedo (earth_optics.planet)
+                sc = self.bodies.scene
+                self._earth_albedo = facet_reflectance(surf, self.bodies.earth, frame, sc.sun, sc.moon,
+                                                       [surf.wavelength_nm])[:, 0]
+                return self._earth_albedo
+            fa = surf.facet_albedo(self.bodies.earth, frame)
+            self._earth_albedo = float(fa[0]) if np.all(fa == fa[0]) else fa
+        return None if isinstance(self._earth_albedo, float) else self._earth_albedo
+
+    def earth_facet_parts(self):
+        """(F, C) per-facet weights of :attr:`earth_parts` for a mapped Earth, or ``None`` (a grey
+        run, or a uniform Earth: its one component is the unit-albedo beams)."""
+        if self.earth_parts is None or self.earth_facet_albedo() is None:
+            return None
+        if self._earth_parts_w is None:
+            frame = map_frame(self.bodies.scene, "earth", self.bodies.settings.earth_rotation_deg)
+            surf = self.bodies.settings.surface()
+            if surf.physical:  # one component per node wavelength: the facets' reflectance there
+                sc = self.bodies.scene
+                self._earth_parts_w = facet_reflectance(surf, self.bodies.earth, frame, sc.sun, sc.moon,
+                                                        self.earth_part_wavelengths)
+            else:
+                self._earth_parts_w = facet_weights(surf, self.bodies.earth, frame)
+        return self._earth_parts_w
+
+    def earth_albedo_value(self) -> float:
+        """The uniform Earth's albedo: ``earth_albedo``, or a uniform map's one value."""
+        return self._earth_albedo if self.earth_facet_albedo() is None and isinstance(self._earth_albedo, float) \
+            else float(self.bodies.settings.earth_albedo)
+
+    def with_moon_albedo(self, tr: Transport, owner=None, values=None) -> Transport:
+        """``tr`` with the lunar map's (mean, spread) per sample: ``values`` as given, or the
+        facet values at the samples' owning facets ``owner``; unchanged without a map."""
+        if values is None and owner is not None:
+            v = self.moon_facet_albedo(spread=True)
+            values = None if v is None else (v[0][owner], v[1][owner])
+        if values is not None:
+            tr.albedo, tr.albedo_std = values
+            tr.albedo_absolute = self.bodies.settings.moon_map().absolute
+        return tr
