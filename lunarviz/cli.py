@@ -142,6 +142,11 @@ def _add_time_options(p):
                    help="UTC times (ISO 8601, e.g. 2025-03-14T06:58Z): the real sky from DE421, replacing θ")
     p.add_argument("--time-range", default=None, metavar="START,STOP,STEP",
                    help="UTC times from START to STOP by STEP (30s, 10min, 1h, 1d)")
+    p.add_argument("--nights", default=None, metavar="START,STOP[,HH:MM]",
+                   help="one time a night from date START to STOP, the nights with the Moon up; HH:MM is the "
+                   "site's local mean solar time (HH:MMZ: UTC; default 00:00)")
+    p.add_argument("--lunation", default=None, metavar="DATE[,HH:MM]",
+                   help="as --nights, from the new Moon at or before DATE to the next")
 
 
 def _add_scene_command(sub, name, helptext, groups=SCENE_GROUPS, brdfs=None):
@@ -152,12 +157,31 @@ def _add_scene_command(sub, name, helptext, groups=SCENE_GROUPS, brdfs=None):
     return p
 
 
+#: the options that give dates (one of them at most)
+DATE_OPTIONS = ("time", "time_range", "nights", "lunation")
+
+
 def _times(a):
-    """UTC labels from --time/--time-range, or None for the θ scene."""
-    if getattr(a, "time", None) is None and getattr(a, "time_range", None) is None:
+    """UTC labels from --time, --time-range, --nights or --lunation, or None for the θ scene."""
+    given = [n for n in DATE_OPTIONS if getattr(a, n, None) is not None]
+    if not given:
         return None
-    from lunarviz.sky.ephemeris import time_list
-    return time_list(a.time, a.time_range)
+    if len(given) > 1:
+        raise UsageError(f"give one of --{', --'.join(n.replace('_', '-') for n in DATE_OPTIONS)}, not "
+                         f"{' and '.join('--' + n.replace('_', '-') for n in given)}")
+    if given[0] in ("time", "time_range"):
+        from lunarviz.sky.ephemeris import time_list
+        return time_list(a.time, a.time_range)
+    from lunarviz.sky import nights
+    from lunarviz.sky.observers import parse_observer
+    observer = parse_observer(getattr(a, "observer", None))
+    times = nights.nights_option(a.nights, observer) if a.nights is not None else \
+        nights.lunation_option(a.lunation, observer)
+    if not times:
+        flag = "--nights" if a.nights is not None else "--lunation"
+        raise UsageError(f"{flag} {getattr(a, given[0])!r}: the Moon is down at that time every night for "
+                         f"observer {observer.spec!r}")
+    return times
 
 
 def _add_executor_options(p, workers_help="local worker processes"):
@@ -178,7 +202,11 @@ def _parser_sweep(sub):
                    "quadrature, Embree ray tracing of the meshes, or the exact extended-source reference")
     _add_executor_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary on the terminal")
-    p.add_argument("--out", required=True, help=".json, .csv or .nc (NetCDF-4 through xarray)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the tasks, those that will be skipped and an estimate of time and memory (one task "
+                   "computed to time it), and write nothing")
+    p.add_argument("--out", default=None, help=".json, .csv or .nc (NetCDF-4 through xarray); required unless "
+                   "--dry-run")
 
 
 def _parser_brdf(sub):
@@ -422,11 +450,17 @@ def cmd_sweep(a):
     if times is not None and a.phases is not None:
         raise UsageError("give --phases (the θ scene) or --time/--time-range (the real sky), not both")
     phases = parse_float_list(a.phases or "0:180:5", "phase", 0.0, 360.0)
-    out = _check_out(a.out, (".json", ".csv", ".nc"))
+    if a.out is None and not a.dry_run:
+        raise UsageError("sweep needs --out FILE (.json, .csv or .nc), or --dry-run")
+    out = None if a.dry_run else _check_out(a.out, (".json", ".csv", ".nc"))
     scene = _scene(a, phases, times)
-    scene.settings(a.method)  # method-specific checks before any work
+    settings = scene.settings(a.method)  # method-specific checks before any work
     if a.scheduler is not None and a.executor != "dask":
         raise UsageError("--scheduler goes with --executor dask")
+    if a.dry_run:
+        from lunarviz.workflows.dry_run import describe, dry_run
+        print("\n".join(describe(dry_run(settings, a.workers))))
+        return
     res = api.run(scene, a.method, workers=a.workers, progress=not a.quiet, executor=a.executor,
                   scheduler=a.scheduler)
     if out.suffix.lower() == ".nc":

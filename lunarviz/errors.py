@@ -10,3 +10,7 @@ class LunarvizError(ValueError):
 
 class LunarvizWarning(UserWarning):
     """A result that is computed but may not mean what the user expects (e.g. a stale TLE)."""
+
+
+class UnboundedRowsWarning(LunarvizWarning):
+    """Rows of a run carry no error bound (their ``rtol`` is NaN; ``no_bound_reason`` says why)."""

@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     from lunarviz.methods import accuracy
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     from lunarviz.scene import ResolvedScene
-    from lunarviz.workflows.sweeps import hidden_moon
+    from lunarviz.workflows.skips import skip_reason
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dates", type=int, default=40, help="dates to check (default 40)")
     ap.add_argument("--start", type=int, default=7, help="hours after 2026-01-01T00:00 of the first (default 7)")
@@ -51,10 +51,10 @@ def main(argv=None) -> int:
     brdfs = s.brdf_models()
     rows, start = [], time.perf_counter()
     for key in stamps:
-        sc = s.scene(key)
+        sc = s.geometry(key)
         plan = s.trace_plan(sc.theta_deg)
         ts_set = s.trace_settings(1, plan)
-        if hidden_moon(s, ts_set, sc) or not accuracy.in_model_range(sc):
+        if skip_reason(s, sc) or not accuracy.in_model_range(sc):
             continue
         ts = TraceScene(sc, ts_set)
         got = {p: trace_path(ts, p, brdfs).mean for p in M.PATHS}

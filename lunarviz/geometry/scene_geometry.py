@@ -234,6 +234,24 @@ class SceneGeometry:
         rho_e = float(np.arcsin(min(1.0, self.radii["earth"] * (1 - 10 * margin) / de)))
         return bool(de < d and angle_between(v, w) < rho_e - rho_m)
 
+    def moon_wholly_in_umbra(self, margin: float = 1e-3) -> bool:
+        """True when every point of the Moon (its sphere grown by ``margin``) sees the whole Sun's
+        disc behind the Earth's (the Earth shrunk by ten times ``margin``, as in
+        :meth:`moon_wholly_hidden`): a total eclipse, in which no lunar point is sunlit or sees a
+        sunlit point of the Earth (the Earth's lit points seen from inside its umbra lie beyond
+        its limb). Conservative: from the Moon's centre, the discs' separation plus the most a
+        lunar point's offset can move each direction and grow the Sun's disc, against the
+        Earth's disc shrunk by the same offset. No atmosphere (no refracted umbral light)."""
+        r_m = self.radii["moon"] * (1 + margin)
+        vs, ve = self.sun - self.moon, self.earth - self.moon
+        ds, de = float(np.linalg.norm(vs)), float(np.linalg.norm(ve))
+        if de <= r_m or ds <= de:
+            return False
+        rho_s = float(np.arcsin(min(1.0, self.radii["sun"] / (ds - r_m))))
+        rho_e = float(np.arcsin(min(1.0, self.radii["earth"] * (1 - 10 * margin) / (de + r_m))))
+        reach = angle_between(vs, ve) + r_m / (de - r_m) + r_m / (ds - r_m)
+        return bool(reach + rho_s < rho_e)
+
     def detector_inside(self, body: str) -> bool:
         """True when the detector sits in or on ``body`` (that body then does not block it)."""
         centre = {"sun": self.sun, "earth": self.earth, "moon": self.moon}[body]

@@ -249,15 +249,28 @@ def earth_source_modelled(scene, brdf) -> bool:
     return math.acos(min(1.0, max(-1.0, c))) <= EARTH_CENTRE_TOLERANCE
 
 
-def row_bound(bound: float, scene, method: str, estimator: str | None, brdf) -> float:
-    """The bound a row reports: ``bound`` (its settings' in the models) where the models hold for
-    the row's scene and BRDF: θ within the phases measured (:func:`in_model_range`) and, for an
-    extended Earth's beam rules (the tracer's deterministic estimator, the reference),
-    :func:`earth_source_modelled`; 0 for exact zeros (a Moon wholly hidden); NaN elsewhere."""
+def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why: str = "") -> tuple[float, str]:
+    """The bound a row reports, and why it has none: ``bound`` (its settings' in the models; ``why``
+    it is NaN, where it is) where the models hold for the row's scene and BRDF: θ within the
+    phases measured (:func:`in_model_range`) and, for an extended Earth's beam rules (the
+    tracer's deterministic estimator, the reference), :func:`earth_source_modelled`; 0 for exact
+    zeros (a Moon wholly hidden); NaN elsewhere, with the reason (``""`` where bounded)."""
     if bound == 0.0:
-        return 0.0
-    held = in_model_range(scene) and (not extended_earth(method, estimator) or earth_source_modelled(scene, brdf))
-    return bound if held else math.nan
+        return 0.0, ""
+    if math.isnan(bound):
+        return math.nan, why or "no error model holds for this row's settings"
+    if not in_model_range(scene):
+        lo, hi = min(error_models()["phases_deg"]), max(error_models()["phases_deg"])
+        return math.nan, f"theta {scene.theta_deg:.1f} deg is outside the phases the error models were " \
+                         f"measured at ({lo:g}-{hi:g} deg)"
+    if extended_earth(method, estimator) and not earth_source_modelled(scene, brdf):
+        return math.nan, OFF_CENTRE_REASON
+    return bound, ""
+
+
+#: why a Hapke row's earthshine seen off the Earth's centre has no bound (:func:`earth_source_modelled`)
+OFF_CENTRE_REASON = ("earthshine of a BRDF with an opposition surge or roughness seen off the Earth's centre: "
+                     "the Earth's beam rules are not measured there")
 
 
 def analytic_choice(rtol: float) -> tuple[int, float]:
@@ -292,25 +305,30 @@ def reference_choice(rtol: float) -> tuple[int, int, float]:
     return outer, inner, SAFETY * max(rows[-1]["moonshine"], rows[-1]["earthshine"])
 
 
-def traced_bound(bounds: dict, ts, ms, es) -> float:
-    """The relative error bound a traced row meets: from ``bounds`` (:func:`trace_choice`'s, by
-    sample kind and path) for the kind each path took (lune rule or facets: ``ts``, the
+def traced_bound(bounds: dict, ts, ms, es, why: str = "") -> tuple[float, str]:
+    """The relative error bound a traced row meets, and why it has none (``""`` where it has one):
+    from ``bounds`` (:func:`trace_choice`'s, by sample kind and path; empty: ``why``) for the
+    kind each path took (lune rule or facets: ``ts``, the
     :class:`~lunarviz.methods.tracer.trace_scene.TraceScene`); Monte Carlo: two standard errors of
     the mean (``ms``, ``es``: the paths' results); NaN without a model."""
     if ts.settings.estimator == "montecarlo":
         rel = [r.sem[k] / r.mean[k] for r in (ms, es) for k in r.mean if r.mean[k] > 0]
-        return SAFETY * max(rel) if rel else math.nan
+        return (SAFETY * max(rel), "") if rel else (math.nan, "Monte Carlo: no positive mean to scale its error by")
     if ts.sampling.eclipse_possible() or ts.sampling.moon_shadow_on_earth_possible():  # measured without occlusion
-        return math.nan
+        return math.nan, "an eclipse's penumbra or the Moon's shadow on the Earth: not in the error models"
+    if not bounds:
+        return math.nan, why or "no error model holds for this row's settings"
     got = []
     for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
         if ts.sampling.lune_rule_applies(body):
             got.append(bounds.get(("lune", path), math.nan))
         elif ts.sampling.edges_found(body):  # a horizon, an Earth limb or a cast shadow across the Moon: not measured
-            got.append(math.nan)
+            return math.nan, "a horizon, the Earth's limb or a cast shadow across the Moon: not in the error models"
         else:
             got.append(bounds.get(("facets", path), math.nan))
-    return max(got) if not any(math.isnan(b) for b in got) else math.nan
+    if any(math.isnan(b) for b in got):
+        return math.nan, "no error model row for these orders"
+    return max(got), ""
 
 
 def calibration_settings(ts_set, moon_level_asked, mapped_moon: bool):

@@ -77,6 +77,8 @@ class ResolvedScene:
     reference_orders = tolerance.reference_orders
     trace_plan = tolerance.trace_plan
     modelled = tolerance.modelled
+    unmodelled_reason = tolerance.unmodelled_reason
+    analytic_row_bound = tolerance.analytic_row_bound
     warn_unmet_tolerance = tolerance.warn_unmet_tolerance
 
     @property

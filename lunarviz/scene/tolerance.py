@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import warnings
 
-from lunarviz.errors import LunarvizError, LunarvizWarning
+from lunarviz.errors import LunarvizError, LunarvizWarning, UnboundedRowsWarning
 from lunarviz.methods import accuracy
 from lunarviz.options import DEFAULT_LEVELS, DEFAULT_ORDERS
 from lunarviz.photometry.presets import moon_model_map
@@ -77,23 +77,52 @@ def trace_plan(scene, theta: float | None = None) -> dict:
 def modelled(scene) -> bool:
     """Whether the error models hold for this run's bodies and photometry: they were measured
     with the paper's BRDF presets (rolo-fit-map's on its own map, for the mapped Moon), no
-    parameter overrides, the uniform Lambert Earth and the packaged spheres shaded exactly."""
-    lunar_params = any(v for b, v in scene.params.items() if b != "earth")
-    if scene.mapped_moon():  # the mapped model is rolo-fit-map's, on its own map
-        moon = scene.moon_model == "rolo-fit-map" and scene.moon_albedo_map == moon_model_map("rolo-fit-map")
-    else:
-        moon = scene.moon_model == "paper"
-    return moon and not lunar_params and scene.earth_uniform and scene.earth_brdf == "lambert" \
-        and scene.earth_mesh is None and scene.sun_mesh is None and scene.moon_mesh is None and scene.shading == "auto"
+    parameter overrides, the uniform Lambert Earth and the packaged spheres shaded exactly
+    (:func:`unmodelled_reason` says which does not)."""
+    return not unmodelled_reason(scene)
 
+
+def unmodelled_reason(scene) -> str:
+    """Why the error models do not hold for this run's bodies and photometry (``""`` where they
+    do): the first of the conditions of :func:`modelled` that the run breaks."""
+    if scene.mapped_moon():  # the mapped model is rolo-fit-map's, on its own map
+        if scene.moon_model != "rolo-fit-map" or scene.moon_albedo_map != moon_model_map("rolo-fit-map"):
+            return "no error model for this lunar map and preset (measured: rolo-fit-map on its own map)"
+    elif scene.moon_model != "paper":
+        return f"no error model for the {scene.moon_model} Moon (measured: the paper's presets, rolo-fit-map's map)"
+    checks = ((any(v for b, v in scene.params.items() if b != "earth"), "lunar BRDF parameters overridden"),
+              (scene.earth_brdf != "lambert", "a physical Earth"),
+              (not scene.earth_uniform, "a mapped Earth (surface classes or clouds)"),
+              (scene.earth_mesh is not None, "a user's Earth mesh"),
+              (scene.sun_mesh is not None, "a user's Sun mesh"),
+              (scene.moon_mesh is not None, "a user's Moon mesh"),
+              (scene.shading != "auto", f"--shading {scene.shading}"))
+    for broken, what in checks:
+        if broken:
+            return f"no error model for {what} (measured: the paper's bodies, a uniform Lambert Earth)"
+    return ""
+
+
+def analytic_row_bound(scene) -> tuple[float, str]:
+    """The analytic method's bound (its Gauss order's, in the models) and why it has none
+    (``""`` where it has one)."""
+    if scene.mapped_moon():
+        return math.nan, "no error model for the analytic method on a lunar map"
+    why = unmodelled_reason(scene)
+    if why:
+        return math.nan, why
+    bound = accuracy.analytic_bound(scene.analytic_settings().order)
+    return bound, "" if math.isfinite(bound) else "no error model row for this Gauss order"
 
 
 def warn_unmet_tolerance(scene) -> None:
-    """Warn once, before a ray-traced run, when the tolerance asked for is beyond what the
-    error models hold (the most accurate setting runs; its rows report what it meets)."""
+    """Warn once, before a run, where the tolerance asked for (or the method's default) is beyond
+    what the error models hold (the most accurate setting runs; its rows report what it meets),
+    and where rows of a deterministic, extended-Earth method will carry no bound
+    (:func:`warn_earthshine_off_centre`)."""
+    warn_earthshine_off_centre(scene)
     if scene.rtol is None:
         return
-    warn_earthshine_off_centre(scene)
     if scene.method in ("analytic", "reference"):
         met = accuracy.analytic_choice(scene.rtol)[1] if scene.method == "analytic" else scene.reference_orders()[2]
         if not met <= scene.rtol:
@@ -110,15 +139,33 @@ def warn_unmet_tolerance(scene) -> None:
                       f"hold meets {max(met):.1e} (rows report it)", LunarvizWarning, stacklevel=3)
 
 
-
 def warn_earthshine_off_centre(scene) -> None:
-    """Warn where the tolerance cannot be met: the earthshine of a BRDF with an opposition
-    surge or roughness seen off the Earth's centre by an extended Earth's beam rules (the
-    deterministic tracer's, the reference's; :func:`accuracy.earth_source_modelled`)."""
+    """Warn where the tolerance (asked for, or the default) cannot be met: the earthshine of a
+    BRDF with an opposition surge or roughness seen off the Earth's centre by an extended Earth's
+    beam rules (the deterministic tracer's, the reference's; :func:`accuracy.earth_source_modelled`)."""
     off_centre = scene.detector is not None or (scene.times is not None and scene.observer_model().kind != "geocentre")
     surged = [k for k, b in scene.brdf_models().items() if accuracy.peaks_at_zero_phase(b)]
     if accuracy.extended_earth(scene.method, scene.estimator) and off_centre and surged:
-        warnings.warn(f"--rtol {scene.rtol:g} is not met by the earthshine of {', '.join(surged)} seen off the "
+        asked = f"--rtol {scene.rtol:g}" if scene.rtol is not None else \
+            f"the default tolerance {scene.rtol_or_default:g}"
+        warnings.warn(f"{asked} is not met by the earthshine of {', '.join(surged)} seen off the "
                       "Earth's centre (the opposition surge's cusp and the roughness's kink lie off the pole "
                       "of the Earth's beam rules: up to ~5e-3 measured from orbit); those rows carry no bound",
-                      LunarvizWarning, stacklevel=4)
+                      UnboundedRowsWarning, stacklevel=4)
+
+
+def warn_unbounded_rows(rows: list[dict]) -> None:
+    """Warn once, after a run, when some of its rows carry no bound (NaN ``rtol``), with their
+    reasons (each row's ``no_bound_reason``) and how many rows each concerns."""
+    reasons: dict = {}
+    for r in rows:
+        rtol = r.get("rtol")
+        if rtol is None or (isinstance(rtol, float) and math.isnan(rtol)):
+            why = r.get("no_bound_reason") or "no error model"
+            reasons[why] = reasons.get(why, 0) + 1
+    if reasons:
+        n = sum(reasons.values())
+        said = "; ".join(f"{why} ({k} row{'' if k == 1 else 's'})"
+                         for why, k in sorted(reasons.items(), key=lambda t: -t[1]))
+        warnings.warn(f"{n} of {len(rows)} rows carry no error bound (rtol NaN, the rows' no_bound_reason): {said}",
+                      UnboundedRowsWarning, stacklevel=3)

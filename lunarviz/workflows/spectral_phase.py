@@ -73,8 +73,7 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_es = shader.earthshine(earthshine_transport(sc, cal_st))
         uniform_albedo = a0
         method_fields = {"method": "analytic"}
-        extra["rtol"] = float("nan") if settings.mapped_moon() or not settings.modelled() \
-            else accuracy.analytic_bound(st.order)
+        extra["rtol"], extra["no_bound_reason"] = settings.analytic_row_bound()
     else:
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
         plan = settings.trace_plan(sc.theta_deg)  # once per task: the settings and the bounds both come from it
@@ -99,24 +98,31 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
             cal_es = {k: cal_e.get(k, zeros[None]) for k in brdfs}  # (1, L): the uniform Earth's unit sums
         method_fields = {"method": "raytrace", "estimator": ts_set.estimator}
         extra["rays"] = ms_r.rays + es_r.rays
-        extra["rtol"] = accuracy.traced_bound(plan["bounds"], ts, ms_r, es_r)
+        extra["rtol"], extra["no_bound_reason"] = accuracy.traced_bound(plan["bounds"], ts, ms_r, es_r,
+                                                                        settings.unmodelled_reason())
         if ts_set.estimator == "montecarlo":
             extra.update(runs=ts_set.runs, rays_per_run=ts_set.rays)
     return _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields,
                  extra)
 
 
-def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields, extra):
-    a0 = settings.earth_albedo
+def solar_at_moon(req, sc) -> np.ndarray:
+    """Each output's solar irradiance at the Moon's distance from the Sun (``req.solar_1au`` scaled
+    as the grey Sun's irradiance, :attr:`SceneGeometry.phi` over 4π d², is) [W m⁻² nm⁻¹ or W m⁻²]."""
     e_sun_moon = sc.phi / (4.0 * np.pi * sc.d_sm**2)  # the grey Sun at the Moon [W m-2]
     e_sun_1au = sc.phi_sun / (4.0 * np.pi * 1.495978707e11**2)
-    solar_moon = req.solar_1au * (e_sun_moon / e_sun_1au)
+    return req.solar_1au * (e_sun_moon / e_sun_1au)
+
+
+def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields, extra):
+    a0 = settings.earth_albedo
+    solar_moon = solar_at_moon(req, sc)
     suffix = req.value_suffix
     label_field = "wavelength_nm" if req.kind == "wavelength" else "band"
     rows = []
     for k in brdfs:
-        bound = accuracy.row_bound(extra["rtol"], sc, method_fields["method"], method_fields.get("estimator"),
-                                   brdfs[k])
+        bound, why = accuracy.row_bound(extra["rtol"], sc, method_fields["method"], method_fields.get("estimator"),
+                                        brdfs[k], extra["no_bound_reason"])
         es_T, esu_T = _earthshine_nodes(es[k], albedo, uniform_albedo)
         ms_o, es_o = req.outputs(ms[k], sc.phi_sun), req.outputs(es_T, sc.phi_sun)
         ms_a, es_a, esu_a = req.averages(ms[k]), req.averages(es_T), req.averages(esu_T)
@@ -131,5 +137,5 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
                          "ratio_earthshine_moonshine": float(es_o[o] / ms_o[o]) if measurable else float("nan"),
                          "earth_visible_lit_albedo": float(es_a[o] / esu_a[o]) if esu_a[o] > 0 else float("nan"),
                          "geometric_albedo_term": pe, "apparent_albedo": alb.apparent_albedo(sc.beta_deg, pe),
-                         **extra, "rtol": bound})
+                         **extra, "rtol": bound, "no_bound_reason": why, "skip_reason": ""})
     return rows

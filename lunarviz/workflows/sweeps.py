@@ -17,23 +17,30 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods import accuracy
-from lunarviz.methods.analytic import DetectorIrradiance, analytic_irradiance
+from lunarviz.methods.analytic import analytic_irradiance
 from lunarviz.methods.reference import reference_irradiance
 from lunarviz.options import EXECUTORS
 from lunarviz.parsing import wavelength_label
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.scene import ResolvedScene
+from lunarviz.scene.tolerance import warn_unbounded_rows
+from lunarviz.workflows.skips import skip_reason, skipped_rows
 from lunarviz.workflows.spectral_phase import spectral_rows
 
 
 def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[dict]:
     """All rows (one per BRDF) for one task: a phase θ [deg], or a UTC time with ``times``.
     Pure function of its arguments (``threads``, the trace's threads, changes no number)."""
+    t0 = time.perf_counter()
     sc, fields = settings.task(key)
     base = {**fields, "alpha_deg": sc.alpha_deg, "beta_deg": sc.beta_deg}
-    t0 = time.perf_counter()
+    reason = skip_reason(settings, sc)
+    if reason:  # nothing of the Moon reaches the detector, or nothing of it is lit: nothing to compute
+        rows = skipped_rows(settings, sc, base, reason)
+        for r in rows:
+            r["seconds"] = (time.perf_counter() - t0) / len(rows)
+        return rows
     if settings.spectral_request() is not None:
         return spectral_rows(settings, sc, base, threads)
     brdfs = settings.brdf_models()
@@ -53,8 +60,7 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
     if settings.method == "analytic":
         res = point if settings.analytic_settings() == cal_settings else \
             analytic_irradiance(sc, brdfs, settings.analytic_settings())
-        bound = math.nan if settings.mapped_moon() or not settings.modelled() else \
-            accuracy.analytic_bound(settings.analytic_settings().order)
+        bound, why = settings.analytic_row_bound()
         for k, v in res.items():
             cal = point[k]
             rows.append({**base, "brdf": k, "method": "analytic",
@@ -63,7 +69,9 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
                          "_terms": alb.lunar_terms(sc, model_es(cal.earthshine_W_m2, cal.earthshine_unit_W_m2),
                                                    cal.moonshine_W_m2, a0)})
     elif settings.method == "reference":
-        bound = settings.reference_orders()[2] if settings.modelled() else math.nan
+        why = settings.unmodelled_reason()
+        bound = math.nan if why else settings.reference_orders()[2]
+        why = why or ("" if math.isfinite(bound) else "no error model row for these reference orders")
         res = reference_irradiance(sc, brdfs, settings.reference_settings())
         for k, v in res.items():
             pt = point[k]
@@ -76,7 +84,7 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
                          "_terms_point": alb.lunar_terms(sc, model_es(pt.earthshine_W_m2, pt.earthshine_unit_W_m2),
                                                          pt.moonshine_W_m2, a0)})
     else:
-        rows, bound = _traced_rows(settings, sc, base, brdfs, cal_settings, model_es, threads)
+        rows, (bound, why) = _traced_rows(settings, sc, base, brdfs, cal_settings, model_es, threads)
     dt = time.perf_counter() - t0
     for r in rows:
         es_, ms_ = r["earthshine_W_m2"], r["moonshine_W_m2"]
@@ -94,7 +102,9 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
             r["extended_over_point_earthshine"] = es_ / pt_es \
                 if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
-        r["rtol"] = accuracy.row_bound(bound, sc, settings.method, settings.estimator, brdfs[r["brdf"]])
+        r["rtol"], r["no_bound_reason"] = accuracy.row_bound(bound, sc, settings.method, settings.estimator,
+                                                             brdfs[r["brdf"]], why)
+        r["skip_reason"] = ""
     return rows
 
 
@@ -103,23 +113,17 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
     point-source calibration (``cal_settings``) runs on the mapped lune rule the trace used where it
     used one (:meth:`~lunarviz.methods.tracer.lunar_sampling.LunarSampling.mapped_rule_used`: the
     map's cells exact in its weights), else on the analytic grid."""
-    from lunarviz.methods.tracer.estimators import PathResult, TraceScene, trace_path
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     a0 = settings.earth_albedo
     rows = []
     plan = settings.trace_plan(sc.theta_deg)  # once per task: the settings and the bounds both come from it
     ts_set = settings.trace_settings(threads, plan)
-    if hidden_moon(settings, ts_set, sc):  # nothing of the Moon reaches the detector: nothing to trace
-        ts, ms, es, bound = None, PathResult.zero(brdfs), PathResult.zero(brdfs), 0.0
-    else:
-        ts = TraceScene(sc, ts_set)
-        ms = trace_path(ts, "moonshine", brdfs)
-        es = trace_path(ts, "earthshine", brdfs)
-        bound = accuracy.traced_bound(plan["bounds"], ts, ms, es)
-    if ts is None:  # (the Moon wholly hidden: the point sources' sight lines are blocked too)
-        point = {k: DetectorIrradiance(0.0, 0.0, 0.0) for k in brdfs}
-    else:
-        rules = {b: r for b in ("sun", "earth") if (r := ts.sampling.mapped_rule_used(b)) is not None}
-        point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
+    ts = TraceScene(sc, ts_set)
+    ms = trace_path(ts, "moonshine", brdfs)
+    es = trace_path(ts, "earthshine", brdfs)
+    bound = accuracy.traced_bound(plan["bounds"], ts, ms, es, settings.unmodelled_reason())
+    rules = {b: r for b in ("sun", "earth") if (r := ts.sampling.mapped_rule_used(b)) is not None}
+    point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
     if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
         cal_ms = ms.mean
         cal_es = {k: model_es(es.mean[k], es.mean_unit[k]) for k in brdfs}
@@ -150,14 +154,6 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
             row["rays_per_run"] = ts_set.rays
         rows.append(row)
     return rows, bound
-
-
-def hidden_moon(settings: ResolvedScene, ts_set, sc: SceneGeometry) -> bool:
-    """A date whose whole Moon the observer's Earth (the packaged sphere, level ≥ 3) or horizon
-    hides (:meth:`SceneGeometry.moon_wholly_hidden`): its rows are zeros without a trace (a third
-    of the dates from a low orbit)."""
-    return settings.times is not None and ts_set.earth_mesh is None and ts_set.earth_level >= 3 \
-        and sc.moon_wholly_hidden()
 
 
 def _run_phase_star(args):
@@ -250,7 +246,8 @@ def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: boo
         raise LunarvizError(f"unknown executor {executor!r}: choose from {', '.join(EXECUTORS)}")
     if scheduler is not None and executor != "dask":
         raise LunarvizError("--scheduler goes with --executor dask")
-    phases = settings.tasks()
+    keys = settings.tasks()
+    phases = list(dict.fromkeys(keys))  # a repeated phase or date is computed once
     settings.warn_unmet_tolerance()
     t0 = time.perf_counter()
     if executor == "dask":
@@ -262,7 +259,7 @@ def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: boo
             client.close()
             if cluster is not None:
                 cluster.close()
-        return _assemble(settings, results, t0)
+        return _assemble(settings, _repeat(keys, phases, results), t0)
     workers = worker_count(workers, len(phases), settings.method)
     bar = None
     if progress:
@@ -301,7 +298,14 @@ def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: boo
         ex.shutdown(wait=True)
     if bar:
         bar.close()
-    return _assemble(settings, results, t0)
+    return _assemble(settings, _repeat(keys, phases, results), t0)
+
+
+def _repeat(keys: list, unique: list, results: list) -> list:
+    """Each key's rows, in the order of ``keys``, from the rows of each of the ``unique`` keys (a
+    repeated key's rows copied)."""
+    by_key = dict(zip(unique, results))
+    return [[dict(r) for r in by_key[k]] for k in keys]
 
 
 def _quiet_pool_teardown() -> None:
@@ -344,6 +348,7 @@ def _warm_before_fork(settings: ResolvedScene) -> None:
 
 def _assemble(settings: ResolvedScene, results: list, t0: float) -> dict:
     rows = [r for res in results for r in res]
+    warn_unbounded_rows(rows)
     out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
            "wall_seconds": time.perf_counter() - t0}
     if any("apparent_albedo_point_source_inversion" in r for r in rows):
