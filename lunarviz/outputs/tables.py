@@ -21,7 +21,9 @@ from lunarviz.parsing import wavelength_label
 PER_TASK = ("theta_deg", "alpha_deg", "beta_deg", "phase_angle_deg", "observer_moon_distance_m",
             "sun_moon_distance_m", "sub_observer_lat_deg", "sub_observer_lon_deg", "sub_solar_lat_deg",
             "sub_solar_lon_deg", "moon_altitude_deg", "moon_occulted", "observer_in_shadow",
-            "observer_x_m", "observer_y_m", "observer_z_m", "tle_epoch_age_days")
+            "observer_x_m", "observer_y_m", "observer_z_m", "tle_epoch_age_days", "skip_reason")
+#: text fields (NetCDF variable-length strings, no units): empty where there is nothing to say
+TEXT = ("skip_reason", "no_bound_reason")
 #: row field → (variable name, units, long name)
 DESCRIPTIONS = {
     "moonshine_W_m2": ("moonshine", "W m-2", "irradiance at the detector from sunlight reflected by the Moon"),
@@ -62,6 +64,8 @@ DESCRIPTIONS = {
     "observer_x_m": ("observer_x", "m", "observer position, geocentric ICRF x"),
     "observer_y_m": ("observer_y", "m", "observer position, geocentric ICRF y"),
     "observer_z_m": ("observer_z", "m", "observer position, geocentric ICRF z"),
+    "skip_reason": ("skip_reason", "", "why the task was not computed (its rows exact zeros); empty: computed"),
+    "no_bound_reason": ("no_bound_reason", "", "why the row carries no error bound (rtol NaN); empty: bounded"),
 }
 #: spectral rows: fields that depend on the task and the wavelength or band, not on the BRDF
 PER_TASK_SPECTRAL = ("solar_irradiance_W_m2_nm", "solar_irradiance_W_m2")
@@ -118,6 +122,11 @@ def to_dataset(result: dict):
     data = {}
     for f in fields:
         name, units, long_name = DESCRIPTIONS.get(f) or _describe(f)
+        if f in TEXT:
+            values = np.array([[str(index[(b, k)].get(f) or "") for k in keys] for b in brdfs], dtype=object)
+            data[name] = ((dim,), values[0], {"long_name": long_name}) if f in PER_TASK else \
+                (("brdf", dim), values, {"long_name": long_name})
+            continue
         values = np.array([[_num(index[(b, k)].get(f)) for k in keys] for b in brdfs])
         is_bool = values.dtype == bool or all(isinstance(index[(b, k)].get(f), bool) for b in brdfs for k in keys)
         if f in PER_TASK:
@@ -180,6 +189,11 @@ def _spectral_dataset(result, rows, brdfs, keys, timed, dim, spec):
     for f in fields:
         name, units, long_name = SPECTRAL_DESCRIPTIONS.get(f) or DESCRIPTIONS.get(f) or _describe(f)
         raw = [[[index[(b, k, lab)].get(f) for lab in labels] for k in keys] for b in brdfs]
+        if f in TEXT:
+            text = np.array([[[str(v or "") for v in bb] for bb in a] for a in raw], dtype=object)
+            data[name] = ((dim,), text[0, :, 0], {"long_name": long_name}) if f in PER_TASK else \
+                (("brdf", dim, spec), text, {"long_name": long_name})
+            continue
         flag = all(isinstance(v, bool) for a in raw for bb in a for v in bb)
         values = np.array([[[_num(v) for v in bb] for bb in a] for a in raw], dtype=float)
         if f in PER_TASK:

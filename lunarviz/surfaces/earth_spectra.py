@@ -105,18 +105,24 @@ def albedo_spectra(surface, names, wavelength_nm, mode: str = "surface") -> np.n
     return out
 
 
-def facet_weights(surface, body, frame: np.ndarray) -> np.ndarray:
+def facet_weights(surface, body, frame: np.ndarray, only=None) -> np.ndarray:
     """(F, C) area-averaged component weights of an Embree body's facets (the same jittered
-    points as :meth:`EarthSurface.facet_albedo`, so their grey sum is its albedo)."""
+    points as :meth:`EarthSurface.facet_albedo`, so their grey sum is its albedo); ``only``:
+    those facets' alone (sorted indices), as the whole mesh's give them, not kept."""
     memo = body.geometry.setdefault("surface_components", {})
     key = (surface, np.asarray(frame, dtype=float).tobytes())
-    if key not in memo:
-        if len(memo) > 8:
-            memo.clear()
+    if only is not None and key in memo:
+        return memo[key][only]
+    if only is not None or key not in memo:
         shape = (1800, 3600) if surface.earth_surface == "landocean" else \
             (surface.clear_map().shape if surface.earth_surface != "uniform" else (180, 360))
         k = facet_sub_count(body.vertices, body.faces, shape)
-        memo[key] = facet_average(lambda d: weights_at(surface, d @ frame), body.vertices, body.faces, k)
+        w = facet_average(lambda d: weights_at(surface, d @ frame), body.vertices, body.faces, k, only=only)
+        if only is not None:
+            return w
+        if len(memo) > 8:
+            memo.clear()
+        memo[key] = w
     return memo[key]
 
 

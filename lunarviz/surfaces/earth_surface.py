@@ -157,24 +157,49 @@ class EarthSurface:
             return np.interp(lat, la, cf)
         return sample_map(self.cloud_map(), dirs)
 
-    def facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
-        """Per-facet (area-averaged) albedo of an Embree body for map frame ``frame``; kept with
-        the body's cached geometry (a θ sweep's Earth keeps one frame: computed once)."""
+    def albedo_constant(self) -> bool:
+        """Whether the albedo is one value over the whole sphere, from the maps themselves: a
+        constant clear-sky map (or none) under no clouds, a constant cloud fraction, or clouds of
+        the clear sky's own albedo (the Lambert Earth; the physical Earth never is)."""
         if self.uniform:
-            return np.full(body.n_faces, float(self.earth_albedo))
+            return True
+        if self.physical:
+            return False
+        clear = self.clear_map()
+        a = None if clear is None else (float(clear.flat[0]) if np.all(clear == clear.flat[0]) else None)
+        if clear is None:
+            a = float(self.earth_albedo)
+        if a is None:
+            return False
+        if self.clouds == "none":
+            return True
+        if self.clouds == "zonal":
+            c = zonal_cloud_table()[1]
+        else:
+            c = self.cloud_map()
+        return bool(np.all(c == c.flat[0])) or a == float(self.cloud_albedo)
+
+    def facet_albedo(self, body, frame: np.ndarray, only=None) -> np.ndarray:
+        """Per-facet (area-averaged) albedo of an Embree body for map frame ``frame``; kept with
+        the body's cached geometry (a θ sweep's Earth keeps one frame: computed once). ``only``:
+        those facets' alone (sorted indices), as the whole mesh's give them, not kept."""
+        if self.uniform:
+            return np.full(body.n_faces if only is None else len(only), float(self.earth_albedo))
         memo = body.geometry.setdefault("surface_albedo", {})
         key = (self, np.asarray(frame, dtype=float).tobytes())
+        if only is not None:
+            return memo[key][only] if key in memo else self._facet_albedo(body, frame, only)
         if key not in memo:
             if len(memo) > 8:
                 memo.clear()
             memo[key] = self._facet_albedo(body, frame)
         return memo[key]
 
-    def _facet_albedo(self, body, frame: np.ndarray) -> np.ndarray:
+    def _facet_albedo(self, body, frame: np.ndarray, only=None) -> np.ndarray:
         shape = (1800, 3600) if self.earth_surface == "landocean" else \
             (self.clear_map().shape if self.earth_surface != "uniform" else (180, 360))
         k = facet_sub_count(body.vertices, body.faces, shape)
-        return facet_average(lambda d: self.albedo_at(d @ frame), body.vertices, body.faces, k)
+        return facet_average(lambda d: self.albedo_at(d @ frame), body.vertices, body.faces, k, only=only)
 
 
 @memoize(maxsize=8)

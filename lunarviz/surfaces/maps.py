@@ -187,16 +187,19 @@ def facet_sub_count(vertices, faces, m_shape, max_samples: int = MAX_SAMPLES) ->
     return int(max(min(8, cap), min(k, 16, max(cap, 1))))
 
 
-def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None) -> np.ndarray:
+def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None, rows=None) -> np.ndarray:
     """(F, k², 3) points, one uniform in each of the k² equal sub-triangles of each facet
     (body-centred): stratified and jittered, so a map's pattern cannot line up with the mesh's
     (the sub-triangles' centroids of an icosphere sit on its symmetry circles and bias a banded
-    map by up to 1e-3). ``rng`` ``None``: the centroids."""
+    map by up to 1e-3). ``rng`` ``None``: the centroids. ``rows``: only those of ``faces`` (indices
+    into it), with the points they take among all of ``faces`` (the same draws)."""
     cen, corners = sub_barycentric(k)
     if rng is None:
-        return np.einsum("sk,fkj->fsj", cen, vertices[faces])
+        return np.einsum("sk,fkj->fsj", cen, vertices[faces if rows is None else faces[rows]])
     F, S = len(faces), len(cen)
     r1, r2 = rng.random((F, S)), rng.random((F, S))
+    if rows is not None:
+        r1, r2, faces = r1[rows], r2[rows], faces[rows]
     s1 = np.sqrt(r1)
     # uniform in a triangle: (1 - √r1) A + √r1 (1 - r2) B + √r1 r2 C, in barycentric coordinates
     bary = ((1 - s1)[..., None] * corners[None, :, 0] + (s1 * (1 - r2))[..., None] * corners[None, :, 1]
@@ -208,25 +211,35 @@ def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None
 SAMPLE_SEED = 20261124
 
 
-def facet_average(values_at, vertices, faces, k: int, chunk: int = 65536, spread: bool = False):
+def facet_average(values_at, vertices, faces, k: int, chunk: int = 65536, spread: bool = False, only=None):
     """Area average over each facet of ``values_at(dirs)`` (dirs (n, 3) in the mesh frame; values
     (n,) or (n, C): then (F, C) averages), from k² stratified, jittered points per facet
     (deterministic: a fixed seed); with ``spread`` also the values' standard deviation over the
-    facet (``(mean, std)``)."""
+    facet (``(mean, std)``). ``only``: the averages of those facets alone (sorted indices into
+    ``faces``), bit for bit those of the whole mesh's (each facet its own points)."""
     out = None
-    sd = np.zeros(len(faces))
+    n_out = len(faces) if only is None else len(only)
+    sd = np.zeros(n_out)
     rng = np.random.default_rng(SAMPLE_SEED)
+    only = None if only is None else np.asarray(only, dtype=np.int64)
     for a in range(0, len(faces), chunk):
-        p = facet_points(vertices, faces[a:a + chunk], k, rng)
+        if only is None:
+            rows, dest = None, slice(a, a + chunk)
+        else:
+            lo, hi = np.searchsorted(only, [a, a + chunk])
+            rows, dest = only[lo:hi] - a, slice(lo, hi)
+        p = facet_points(vertices, faces[a:a + chunk], k, rng, rows)
+        if p.shape[0] == 0:
+            continue
         v = values_at(p.reshape(-1, 3))
         v = v.reshape(p.shape[:2] + v.shape[1:])
         if out is None:
-            out = np.empty((len(faces),) + v.shape[2:])
-        out[a:a + chunk] = v.mean(axis=1)
+            out = np.empty((n_out,) + v.shape[2:])
+        out[dest] = v.mean(axis=1)
         if spread:
-            sd[a:a + chunk] = v.std(axis=1)
+            sd[dest] = v.std(axis=1)
     if out is None:
-        out = np.empty(len(faces))
+        out = np.empty(n_out)
     return (out, sd) if spread else out
 
 

@@ -94,11 +94,12 @@ def _lambert_map(wavelength, albedo, ms, mt, phi, params):
     return lambert_toa(float(rayleigh.optical_depth(wavelength, params["surface_hpa"])), albedo, ms, mt, phi)
 
 
-def facet_reflectance(surface, body, frame, sun, target, wavelengths) -> np.ndarray:
+def facet_reflectance(surface, body, frame, sun, target, wavelengths, only=None) -> np.ndarray:
     """(F, L) reflectance factor of a traced Earth's facets toward ``target`` (scene points [m]),
-    each at its centre with its classes' area-averaged weights."""
-    w = facet_weights(surface, body, frame)
-    tri = body.vertices[body.faces]
+    each at its centre with its classes' area-averaged weights; ``only``: those facets' alone
+    (sorted indices), as the whole mesh's give them."""
+    w = facet_weights(surface, body, frame, only)
+    tri = body.vertices[body.faces if only is None else body.faces[only]]
     centre = tri.mean(axis=1)
     n = centre / np.linalg.norm(centre, axis=1, keepdims=True)  # mesh frame = scene frame about the centre
     y = body.centre + n * body.radius

@@ -86,10 +86,11 @@ class DeterministicTransport:
     def warm_shared(self, body: str) -> None:
         """Fill the scene's lazy caches before chunks are traced on several threads."""
         if body == "earth":
-            self.surfaces.earth_facet_albedo()
             self.sources.sun_visibility_of_earth()
-            if self.surfaces.earth_facet_albedo() is not None and self.bodies.settings.mapped_earth == "facets":
-                self.mapped_earth.earth_elements()
+            if self.surfaces.earth_mapped() and self.bodies.settings.mapped_earth == "facets":
+                self.mapped_earth.earth_elements()  # (the values of the facets it needs, alone)
+            else:
+                self.surfaces.earth_facet_albedo()
         self.surfaces.moon_facet_albedo()
         for b in (self.bodies.sun, self.bodies.earth):
             if b.mode(self.bodies.settings.shading) == "exact":
@@ -106,7 +107,7 @@ class DeterministicTransport:
         order of the sums (rounding)."""
         c, R, B = self.bodies.source(body)
         s = self.bodies.settings
-        if B.mode(s.shading) != "exact" or body == "earth" and self.surfaces.earth_facet_albedo() is not None \
+        if B.mode(s.shading) != "exact" or body == "earth" and self.surfaces.earth_mapped() \
                 and s.mapped_earth == "facets":
             return [slice(None)]
         cut = horizon_cuts_source(self.bodies.scene, x, n, body)
@@ -123,7 +124,7 @@ class DeterministicTransport:
         each traced to the source (:meth:`source_radiance`). Shared by the detector transport
         and the synthetic camera (lunarviz.methods.camera). An Earth with an albedo map takes
         :meth:`~lunarviz.methods.tracer.mapped_earth.MappedEarthTransport.transport` instead."""
-        if body == "earth" and self.surfaces.earth_facet_albedo() is not None \
+        if body == "earth" and self.surfaces.earth_mapped() \
                 and self.bodies.settings.mapped_earth == "facets":
             return self.mapped_earth.transport(x, n, o, mu, geom)
         if ray_kernels.available() and self.bodies.source(body)[2].mode(self.bodies.settings.shading) == "exact":

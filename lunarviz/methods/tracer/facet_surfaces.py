@@ -30,6 +30,7 @@ class FacetSurfaces:
         #: a physical Earth's spectral run: the node wavelengths [nm] its components are
         self.earth_part_wavelengths = None
         self._earth_parts_w = None
+        self._mapped = None
 
     def moon_facet_albedo(self, spread: bool = False):
         """Per-facet values of the lunar albedo map (area averages, :mod:`lunarviz.surfaces.maps`),
@@ -58,44 +59,83 @@ class FacetSurfaces:
             MOON_MAP_VALUES[key] = got
         return got
 
+    def earth_mapped(self) -> bool:
+        """Whether the Earth's albedo varies over its facets: a map that is not one value
+        (:meth:`~lunarviz.surfaces.earth_surface.EarthSurface.albedo_constant`), or the physical
+        Earth. Then :meth:`earth_facet_albedo` is an array; decided from the maps, without
+        computing the facets' values."""
+        if self._mapped is None:
+            surf = self.bodies.settings.surface()
+            self._mapped = not surf.uniform and not surf.albedo_constant()
+        return self._mapped
+
     def earth_facet_albedo(self):
         """Per-facet Lambert albedo of the Earth (area averages of its surface and clouds), or
-        ``None`` for a uniform Earth (then :meth:`earth_albedo_value`; a map whose facets all
-        have one value is that uniform Earth, bit for bit)."""
+        ``None`` for a uniform Earth (then :meth:`earth_albedo_value`; a map of one value is that
+        uniform Earth, bit for bit)."""
         surf = self.bodies.settings.surface()
         if surf.uniform:
             return None
         if self._earth_albedo is None:
-            frame = map_frame(self.bodies.scene, "earth", self.bodies.settings.earth_rotation_deg)
+            frame = self._earth_frame()
             if surf.physical:  # each facet's reflectance toward the Moon as its albedo (earth_optics.planet)
                 sc = self.bodies.scene
                 self._earth_albedo = facet_reflectance(surf, self.bodies.earth, frame, sc.sun, sc.moon,
                                                        [surf.wavelength_nm])[:, 0]
                 return self._earth_albedo
-            fa = surf.facet_albedo(self.bodies.earth, frame)
-            self._earth_albedo = float(fa[0]) if np.all(fa == fa[0]) else fa
+            if not self.earth_mapped():  # one value: any facet's average is it
+                self._earth_albedo = float(surf.facet_albedo(self.bodies.earth, frame, only=np.zeros(1, int))[0])
+            else:
+                self._earth_albedo = surf.facet_albedo(self.bodies.earth, frame)
         return None if isinstance(self._earth_albedo, float) else self._earth_albedo
 
     def earth_facet_parts(self):
         """(F, C) per-facet weights of :attr:`earth_parts` for a mapped Earth, or ``None`` (a grey
         run, or a uniform Earth: its one component is the unit-albedo beams)."""
-        if self.earth_parts is None or self.earth_facet_albedo() is None:
+        if self.earth_parts is None or not self.earth_mapped():
             return None
         if self._earth_parts_w is None:
-            frame = map_frame(self.bodies.scene, "earth", self.bodies.settings.earth_rotation_deg)
-            surf = self.bodies.settings.surface()
-            if surf.physical:  # one component per node wavelength: the facets' reflectance there
-                sc = self.bodies.scene
-                self._earth_parts_w = facet_reflectance(surf, self.bodies.earth, frame, sc.sun, sc.moon,
-                                                        self.earth_part_wavelengths)
-            else:
-                self._earth_parts_w = facet_weights(surf, self.bodies.earth, frame)
+            self._earth_parts_w = self._earth_parts_of(None)
         return self._earth_parts_w
 
+    def earth_facet_values(self, faces: np.ndarray):
+        """(albedo (n,), component weights (n, C) or ``None``) of the mapped Earth's facets ``faces``
+        (sorted, distinct) alone: the values :meth:`earth_facet_albedo` and
+        :meth:`earth_facet_parts` give them, computed for those facets only (the lit face seen
+        from the Moon: what a date needs) unless the whole mesh's are at hand."""
+        surf = self.bodies.settings.surface()
+        if isinstance(self._earth_albedo, np.ndarray):
+            a = self._earth_albedo[faces]
+        elif surf.physical:
+            sc = self.bodies.scene
+            a = facet_reflectance(surf, self.bodies.earth, self._earth_frame(), sc.sun, sc.moon,
+                                  [surf.wavelength_nm], only=faces)[:, 0]
+        else:
+            a = surf.facet_albedo(self.bodies.earth, self._earth_frame(), only=faces)
+        if self.earth_parts is None:
+            return a, None
+        parts = self._earth_parts_w[faces] if self._earth_parts_w is not None else self._earth_parts_of(faces)
+        return a, parts
+
+    def _earth_parts_of(self, faces):
+        frame = self._earth_frame()
+        surf = self.bodies.settings.surface()
+        if surf.physical:  # one component per node wavelength: the facets' reflectance there
+            sc = self.bodies.scene
+            return facet_reflectance(surf, self.bodies.earth, frame, sc.sun, sc.moon, self.earth_part_wavelengths,
+                                     only=faces)
+        return facet_weights(surf, self.bodies.earth, frame, faces)
+
+    def _earth_frame(self) -> np.ndarray:
+        return map_frame(self.bodies.scene, "earth", self.bodies.settings.earth_rotation_deg)
+
     def earth_albedo_value(self) -> float:
-        """The uniform Earth's albedo: ``earth_albedo``, or a uniform map's one value."""
-        return self._earth_albedo if self.earth_facet_albedo() is None and isinstance(self._earth_albedo, float) \
-            else float(self.bodies.settings.earth_albedo)
+        """The uniform Earth's albedo: ``earth_albedo``, or a uniform map's one value (a mapped
+        Earth's: ``earth_albedo``)."""
+        if self.earth_mapped():
+            return float(self.bodies.settings.earth_albedo)
+        self.earth_facet_albedo()
+        return self._earth_albedo if isinstance(self._earth_albedo, float) else float(self.bodies.settings.earth_albedo)
 
     def with_moon_albedo(self, tr: Transport, owner=None, values=None) -> Transport:
         """``tr`` with the lunar map's (mean, spread) per sample: ``values`` as given, or the

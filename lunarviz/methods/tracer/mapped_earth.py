@@ -57,9 +57,6 @@ class MappedEarthTransport:
                  E.surface_samples(np.flatnonzero(term), s.shading, sub=TERMINATOR_SUB)]
         y, m, area_f, owner = (np.concatenate([u, v]) for u, v in zip(*parts))
         L1 = earth_radiance(sc, y, m, 1.0) * self.sources.sun_visibility_of_earth()[owner]
-        a = self.surfaces.earth_facet_albedo()[owner]
-        parts = self.surfaces.earth_facet_parts()
-        comp = None if parts is None else parts[owner]  # (n, C) weights of a spectral run's components
         rm = sc.radii["moon"]
         keep = (L1 > 0) & (np.einsum("ij,ij->i", m, sc.moon - y) > -rm)
         if self.bodies.settings.self_shadow and not E.convex:
@@ -71,8 +68,13 @@ class MappedEarthTransport:
             self.bodies.count(idx.size)
             keep[idx[hid]] = False
         idx = np.flatnonzero(keep)
-        y, m, L1A, a = y[idx], m[idx], L1[idx] * area_f[idx], a[idx]
-        comp = None if comp is None else comp[idx]
+        y, m, L1A = y[idx], m[idx], L1[idx] * area_f[idx]
+        # the albedo (and a spectral run's component weights) of the facets kept, alone: a date needs
+        # the lit face the Moon sees, not the whole Earth's map averages
+        faces, at = np.unique(owner[idx], return_inverse=True)
+        fa, parts = self.surfaces.earth_facet_values(faces)
+        a = fa[at]
+        comp = None if parts is None else parts[at]  # (n, C) weights of a spectral run's components
         axis = unit(sc.moon - sc.earth)
         e1, e2 = orthonormal_basis(axis[None, :])
         bound = E.bound if E.mode(s.shading) != "exact" else E.radius
