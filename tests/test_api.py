@@ -66,9 +66,11 @@ def test_netcdf_opens_and_equals_json(tmp_path):
             want = row["apparent_albedo"]
             got = float(ds.apparent_albedo.sel(sel))
             assert (want is None and np.isnan(got)) or got == want
-        # every variable read back carries units and a long_name (time: CF units in its encoding)
+        # every variable read back carries units and a long_name (time: CF units in its encoding; the
+        # text columns, strings, a long_name only)
+        from lunarviz.outputs.tables import TEXT
         for name, var in list(ds.data_vars.items()) + list(ds.coords.items()):
-            units = var.attrs.get("units") or var.encoding.get("units")
+            units = var.attrs.get("units") or var.encoding.get("units") or (name in TEXT and "text")
             assert units and var.attrs.get("long_name"), (name, var.attrs)
 
 

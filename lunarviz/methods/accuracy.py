@@ -261,8 +261,7 @@ def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why
         return math.nan, why or "no error model holds for this row's settings"
     if not in_model_range(scene):
         lo, hi = min(error_models()["phases_deg"]), max(error_models()["phases_deg"])
-        return math.nan, f"theta {scene.theta_deg:.1f} deg is outside the phases the error models were " \
-                         f"measured at ({lo:g}-{hi:g} deg)"
+        return math.nan, f"theta outside the phases the error models were measured at ({lo:g}-{hi:g} deg)"
     if extended_earth(method, estimator) and not earth_source_modelled(scene, brdf):
         return math.nan, OFF_CENTRE_REASON
     return bound, ""
