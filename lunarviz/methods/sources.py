@@ -29,27 +29,65 @@ def horizon_cuts_source(scene: SceneGeometry, x, n, body: str) -> np.ndarray:
     return np.einsum("ij,ij->i", c - x, n) < R
 
 
-def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizon: bool = True):
+def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizon: bool = True, pole=None):
     """Nodes m (B, K, 3) on the unit sphere of ``body`` and their solid-angle weights (B, K)
     over the part seen from x (B, 3) — above x's horizon when ``horizon`` (pass False where
     the horizon does not cut the source: the rule is then smaller) and, for the Earth, lit by
-    the (point) Sun. Zero-weight nodes are dropped (rows padded to the longest)."""
+    the (point) Sun. Zero-weight nodes are dropped (rows padded to the longest).
+
+    The polar coordinates are about the sub-x point (the visible cap's centre), or, with
+    ``pole`` (B, 3) unit vectors from the source's centre, about those points: the visible cap
+    is then one more cap of the rule, and the rings are cut where two caps' edges cross
+    (:func:`zero_phase_points` puts the pole where a BRDF's opposition surge peaks)."""
     c, R = source_centre(scene, body)
     xc = x - c
     dxc = np.linalg.norm(xc, axis=1)
     caps_u, caps_c = [], []
+    if pole is not None:  # the part seen from x: the cap about the sub-x point
+        caps_u.append(xc / dxc[:, None])
+        caps_c.append(R / dxc)
     if horizon:
         caps_u.append(n)
         caps_c.append(np.einsum("ij,ij->i", xc, n) / R)
     if body == "earth":
         caps_u.append(np.broadcast_to(unit(scene.sun - c), n.shape))
         caps_c.append(np.full(len(n), R / np.linalg.norm(scene.sun - c)))
-    m, w = cap_rule(xc / dxc[:, None], R / dxc, np.stack(caps_u, 1) if caps_u else None,
-                    np.stack(caps_c, 1) if caps_c else None, n_t=order, n_phi=order)
+    if pole is None:
+        axis, cos_max, crossings = xc / dxc[:, None], R / dxc, False
+    else:
+        axis, cos_max, crossings = np.asarray(pole, dtype=float), np.full(len(x), -1.0), True
+    m, w = cap_rule(axis, cos_max, np.stack(caps_u, 1) if caps_u else None,
+                    np.stack(caps_c, 1) if caps_c else None, n_t=order, n_phi=order, crossings=crossings)
     nz = w > 0
     kmax = max(int(nz.sum(1).max(initial=0)), 1)
     sel = np.argsort(~nz, axis=1, kind="stable")[:, :kmax]
     return np.take_along_axis(m, sel[..., None], 1), np.take_along_axis(w, sel, 1)
+
+
+def zero_phase_points(scene: SceneGeometry, x, body: str = "earth") -> np.ndarray:
+    """(B, 3) unit vectors from ``body``'s centre to the points of its sphere where the light
+    from x (B, 3) toward the detector would come from (phase angle 0: a BRDF's opposition
+    surge and the i = e kink of its roughness): where the line from x through the detector
+    first meets the sphere, or, where it misses, the point of the limb seen from x nearest to
+    it. At the Earth's centre (the paper's detector), the sub-x point."""
+    c, R = source_centre(scene, body)
+    x = np.asarray(x, dtype=float)
+    o = unit(scene.det - x)
+    xc = x - c
+    b = -np.einsum("ij,ij->i", xc, o)
+    disc = R * R - (np.einsum("ij,ij->i", xc, xc) - b * b)
+    hit = x + (b - np.sqrt(np.clip(disc, 0.0, None)))[:, None] * o
+    # the limb point toward o: in the plane of (c - x, o), at the tangent angle from c - x
+    to_c = -xc / np.linalg.norm(xc, axis=1)[:, None]
+    side = o - np.einsum("ij,ij->i", o, to_c)[:, None] * to_c
+    side_n = np.linalg.norm(side, axis=1)
+    side = np.where(side_n[:, None] > 1e-300, side / np.maximum(side_n, 1e-300)[:, None], 0.0)
+    d = np.linalg.norm(xc, axis=1)
+    rho = np.arcsin(np.clip(R / d, 0.0, 1.0))
+    limb = x + np.sqrt(np.clip(d * d - R * R, 0.0, None))[:, None] * (np.cos(rho)[:, None] * to_c
+                                                                       + np.sin(rho)[:, None] * side)
+    y = np.where((disc > 0)[:, None], hit, limb)
+    return unit(y - c)
 
 
 def source_beams(scene: SceneGeometry, x, body: str, m, w):

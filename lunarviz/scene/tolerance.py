@@ -55,8 +55,11 @@ def trace_plan(scene, theta: float | None = None) -> dict:
     fixed = {k: getattr(scene, k) for k in ("moon_level", "sun_order", "earth_order")
              if getattr(scene, k) is not None}
     asked_level = "moon_level" in fixed
-    if scene.rtol is None:  # without a tolerance the facets take level 4 (8.7e-5 measured; the rows
-        fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])  # report 2x that)
+    # without a tolerance the facets take level 4 (8.7e-5 measured; the rows report 2x that) and
+    # the lune rule the default tolerance's orders; a lunar map's facets at level 4 err by 6e-4, so
+    # a mapped Moon takes the default tolerance's choice whole (its lune rule, or finer facets)
+    if scene.rtol is None and (asked_level or not scene.mapped_moon()):
+        fixed.setdefault("moon_level", DEFAULT_LEVELS["moon"])
         if asked_level:  # a mesh level asked for without a tolerance: the default source orders too
             fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
             fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])

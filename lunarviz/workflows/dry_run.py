@@ -22,21 +22,20 @@ from lunarviz.workflows.sweeps import run_phase, worker_count
 
 def dry_run(settings: ResolvedScene, workers: int | None = None, probe: bool = True) -> dict:
     """The plan of :func:`lunarviz.workflows.sweeps.run_sweep` for ``settings``: ``tasks``,
-    ``unique_tasks`` (a repeated key is computed once), ``skipped`` ({reason: count}),
+    ``skipped`` ({reason: count}),
     ``to_compute``, ``workers``, and with ``probe`` the one task's ``probe_seconds``, the
     ``estimate_seconds`` of the run and its ``estimate_memory_bytes``."""
     keys = settings.tasks()
-    unique = list(dict.fromkeys(keys))
     skipped: Counter = Counter()
     computed = []
-    for k in unique:
+    for k in keys:
         why = skip_reason(settings, settings.geometry(k))
         if why:
             skipped[why] += 1
         else:
             computed.append(k)
     n_workers = worker_count(workers, max(1, len(computed)), settings.method)
-    out = {"tasks": len(keys), "unique_tasks": len(unique), "skipped": dict(skipped),
+    out = {"tasks": len(keys), "skipped": dict(skipped),
            "to_compute": len(computed), "workers": n_workers}
     if probe and computed:
         t0 = time.perf_counter()
@@ -51,8 +50,7 @@ def dry_run(settings: ResolvedScene, workers: int | None = None, probe: bool = T
 
 def describe(plan: dict) -> list[str]:
     """The plan as lines for the terminal."""
-    lines = [f"tasks: {plan['tasks']}" + (f" ({plan['unique_tasks']} distinct)" if plan["unique_tasks"] !=
-                                          plan["tasks"] else "")]
+    lines = [f"tasks: {plan['tasks']}"]
     skipped = sum(plan["skipped"].values())
     said = ", ".join(f"{why}: {k}" for why, k in plan["skipped"].items())
     lines.append(f"skipped (no tracing): {skipped}" + (f" ({said})" if said else ""))

@@ -246,8 +246,7 @@ def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: boo
         raise LunarvizError(f"unknown executor {executor!r}: choose from {', '.join(EXECUTORS)}")
     if scheduler is not None and executor != "dask":
         raise LunarvizError("--scheduler goes with --executor dask")
-    keys = settings.tasks()
-    phases = list(dict.fromkeys(keys))  # a repeated phase or date is computed once
+    phases = settings.tasks()
     settings.warn_unmet_tolerance()
     t0 = time.perf_counter()
     if executor == "dask":
@@ -259,7 +258,7 @@ def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: boo
             client.close()
             if cluster is not None:
                 cluster.close()
-        return _assemble(settings, _repeat(keys, phases, results), t0)
+        return _assemble(settings, results, t0)
     workers = worker_count(workers, len(phases), settings.method)
     bar = None
     if progress:
@@ -298,14 +297,7 @@ def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: boo
         ex.shutdown(wait=True)
     if bar:
         bar.close()
-    return _assemble(settings, _repeat(keys, phases, results), t0)
-
-
-def _repeat(keys: list, unique: list, results: list) -> list:
-    """Each key's rows, in the order of ``keys``, from the rows of each of the ``unique`` keys (a
-    repeated key's rows copied)."""
-    by_key = dict(zip(unique, results))
-    return [[dict(r) for r in by_key[k]] for k in keys]
+    return _assemble(settings, results, t0)
 
 
 def _quiet_pool_teardown() -> None:

@@ -159,7 +159,7 @@ class DeterministicTransport:
         outer = src.outer_scene()  # (built once per body; sets its bounding radius)
         off, Rb = NORMAL_OFFSET * self.bodies.moon.radius, src.outer_bound * (1.0 + ENTRY_MARGIN)
         c, R, _ = self.bodies.source(body)
-        if body == "earth" and not horizon_cuts_source(sc, x, n, body).any():
+        if body == "earth" and s.earth_pole == "centre" and not horizon_cuts_source(sc, x, n, body).any():
             cs = sc.sun - c  # the rule's one cap: the Earth's sunlit hemisphere (as in source_nodes)
             rays = K.cap_beam_rays(x, n, o, c, R, unit(cs), R / np.linalg.norm(cs), order, off, Rb)
         else:

@@ -48,6 +48,8 @@ TERMINATOR_SUB = 8
 #: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
 #: from the Moon (its beams; ``mapped_earth_transport``).
 EARTH_CELLS = 24
+#: the poles the Earth's beam rules may take (:attr:`TraceSettings.earth_pole`)
+EARTH_POLES = ("centre", "detector")
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,11 @@ class TraceSettings:
     lune_source_orders: tuple | None = None
     #: the physical Earth's parameters (``--param earth.NAME=VALUE``) as sorted (name, value) pairs
     earth_params: tuple = ()
+    #: the pole of the Earth's beam rules: ``centre`` (the sub-point of each lunar sample: the
+    #: zero-phase point where the detector is at the Earth's centre) or ``detector`` (the zero-phase
+    #: point itself, :func:`~lunarviz.methods.sources.zero_phase_points`: where a BRDF's opposition
+    #: surge and roughness kink sit for a detector off the centre; docs: accuracy)
+    earth_pole: str = "centre"
 
     def moon_map(self):
         """The parsed lunar albedo map, or ``None``."""
@@ -118,6 +125,8 @@ class TraceSettings:
             raise LunarvizError(f"refine={self.refine!r} must be True or False")
         self.surface()
         self.moon_map()
+        if self.earth_pole not in EARTH_POLES:
+            raise LunarvizError(f"earth_pole {self.earth_pole!r} is not one of {', '.join(EARTH_POLES)}")
         if self.mapped_earth not in ("facets", "beams"):
             raise LunarvizError(f"mapped_earth {self.mapped_earth!r} is not one of facets, beams")
 

@@ -1,0 +1,153 @@
+"""The error model of the Earth's beam rules about the zero-phase point, measured with the detector
+off the Earth's centre (dates from a low orbit and from ground sites).
+
+    python scripts/off_centre_earth_model.py [--write] [--dates N] [--out DIR]
+
+For a detector off the Earth's centre, the deterministic tracer takes the Earth's beams in polar
+coordinates about each lunar sample's zero-phase point (``earth_pole="detector"``,
+:func:`lunarviz.methods.sources.zero_phase_points`), where a BRDF's opposition surge peaks and
+its roughness kinks. This script measures, for each Earth order of that rule, the largest
+relative error of the earthshine over dates, BRDFs (Lambert, SHG, DHG) and lunar models (the
+paper's, rolo-fit-map on its map) against the same trace at Earth order 32 (everything else the
+settings ``--rtol 1e-4`` choose: lune rule or facets). A larger order is never allowed more
+error than a smaller one (the table is made non-increasing: refinement never loosens a bound).
+
+Dates: every ``--dates``-th of 2026's hours from a 550 km sun-synchronous orbit
+(``orbit:550,97.6,0,0``), and nights from Big Bear (``site:34.26,-116.92,2067``) and Paranal
+(``site:-24.63,-70.40,2635``) at 03:00 and 08:00 UTC; dates whose Moon is hidden, eclipsed,
+or whose θ lies outside 5-175° are left out. ``--write`` stores the table in
+``lunarviz/data/error_models.json`` (key ``earth_rule_off_centre``); the report goes to
+``benchmarks/error_models/off_centre_earth.md`` and ``.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+ORDERS = (7, 10, 14, 20)
+REFERENCE_ORDER = 32
+BRDFS = ("lambert", "shg", "dhg")
+MOONS = ("paper", "rolo-fit-map")
+OBSERVERS = ("orbit:550,97.6,0,0", "site:34.26,-116.92,2067", "site:-24.63,-70.40,2635")
+
+
+def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
+    """(observer, UTC label) pairs: orbit dates every ``every_hours`` hours from 2026-01-03T05:00,
+    and ``nights`` nights a site (every 9 days from 2026-01-05) at 03:00 and 08:00 UTC."""
+    t0 = dt.datetime(2026, 1, 3, 5)
+    out = [(OBSERVERS[0], (t0 + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"))
+           for h in range(0, 8760, every_hours)]
+    for obs in OBSERVERS[1:]:
+        for k in range(nights):
+            day = dt.date(2026, 1, 5) + dt.timedelta(days=9 * k)
+            out += [(obs, f"{day.isoformat()}T{hh}:00:00Z") for hh in ("03", "08")]
+    return out
+
+
+def measure(args) -> dict | None:
+    """Errors of one (observer, date, lunar model) at each Earth order, or None (left out)."""
+    obs, label, moon = args
+    from lunarviz.methods import accuracy
+    from lunarviz.methods.tracer.estimators import TraceScene, trace_path
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.skips import skip_reason
+    s = ResolvedScene(method="raytrace", brdfs=BRDFS, moon_model=moon, observer=obs, times=(label,), rtol=1e-4)
+    sc = s.geometry(label)
+    if skip_reason(s, sc) or not accuracy.in_model_range(sc):
+        return None
+    base = s.trace_settings(1, s.trace_plan(sc.theta_deg))
+    brdfs = s.brdf_models()
+
+    def trace(order):
+        st = replace(base, earth_pole="detector", earth_order=order,
+                     lune_source_orders=None if base.lune_source_orders is None else (base.lune_source_orders[0], order))
+        ts = TraceScene(sc, st)
+        r = trace_path(ts, "earthshine", brdfs)
+        return r.mean, ts
+    t = time.perf_counter()
+    ref, ts = trace(REFERENCE_ORDER)
+    lune = ts.sampling.lune_rule_applies("earth")
+    unbounded = ts.sampling.eclipse_possible() or ts.sampling.moon_shadow_on_earth_possible() or \
+        (not lune and ts.sampling.edges_found("earth"))
+    if unbounded:  # rows without a bound whatever the Earth's rule (accuracy.traced_bound): not measured
+        return None
+    if not all(v > 0 for v in ref.values()):
+        return None
+    errs = {}
+    for o in ORDERS:
+        got, _ = trace(o)
+        errs[o] = {k: abs(got[k] / ref[k] - 1.0) for k in brdfs}
+    return {"observer": obs, "time_utc": label, "moon_model": moon, "theta_deg": sc.theta_deg, "lune_rule": bool(lune),
+            "errors": {str(o): e for o, e in errs.items()}, "seconds": time.perf_counter() - t}
+
+
+def table(results: list[dict]) -> dict:
+    """{moon model: {order: largest error}} over dates and BRDFs, non-increasing in the order."""
+    out = {}
+    for moon in MOONS:
+        rs = [r for r in results if r["moon_model"] == moon]
+        worst = [max(max(r["errors"][str(o)].values()) for r in rs) for o in ORDERS]
+        nested = [max(worst[i:]) for i in range(len(worst))]  # never less error allowed at a lower order
+        out[moon] = {str(o): float(e) for o, e in zip(ORDERS, nested)}
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--every-hours", type=int, default=547, help="orbit dates every this many hours (default 547)")
+    ap.add_argument("--nights", type=int, default=8, help="nights per site (default 8)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--write", action="store_true", help="store the table in lunarviz/data/error_models.json")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
+    a = ap.parse_args(argv)
+    jobs = [(obs, t, moon) for obs, t in dates(a.every_hours, a.nights) for moon in MOONS]
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(a.workers) as ex:
+        results = [r for r in ex.map(measure, jobs) if r is not None]
+    tab = table(results)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"orders": ORDERS, "reference_order": REFERENCE_ORDER, "table": tab, "dates": results,
+              "wall_seconds": time.perf_counter() - t0,
+              "command": "python scripts/off_centre_earth_model.py " + " ".join(argv or sys.argv[1:])}
+    (out / "off_centre_earth.json").write_text(json.dumps(report, indent=1) + "\n")
+    lines = ["# The Earth's beam rules about the zero-phase point, off the Earth's centre", "",
+             f"`{report['command']}`: {len(results)} (date, lunar model) cases, earthshine of "
+             f"{', '.join(BRDFS)} at each Earth order against order {REFERENCE_ORDER} of the same rule "
+             f"({report['wall_seconds']:.0f} s).", "",
+             "| lunar model | " + " | ".join(f"order {o}" for o in ORDERS) + " |",
+             "|---|" + "---|" * len(ORDERS)]
+    for moon, row in tab.items():
+        lines.append(f"| {moon} | " + " | ".join(f"{row[str(o)]:.1e}" for o in ORDERS) + " |")
+    lines += ["", "Largest error per observer (all orders' columns as above):", ""]
+    for obs in OBSERVERS:
+        for moon in MOONS:
+            rs = [r for r in results if r["observer"] == obs and r["moon_model"] == moon]
+            if rs:
+                cells = " | ".join(f"{max(max(r['errors'][str(o)].values()) for r in rs):.1e}" for o in ORDERS)
+                lines.append(f"- `{obs}`, {moon} ({len(rs)} dates): {cells}")
+    (out / "off_centre_earth.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    if a.write:
+        path = ROOT / "lunarviz" / "data" / "error_models.json"
+        m = json.loads(path.read_text())
+        m["earth_rule_off_centre"] = {"orders": list(ORDERS), "reference_order": REFERENCE_ORDER,
+                                      "max_rel_error": tab,
+                                      "source": "scripts/off_centre_earth_model.py (benchmarks/error_models/"
+                                                "off_centre_earth.md)"}
+        path.write_text(json.dumps(m, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,193 @@
+"""Dates as observers have them: nights and lunations, the dates that need no computing, the run's
+plan, and the reasons a row carries no bound."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from datetime import datetime, timezone
+
+import numpy as np
+import pytest
+
+from lunarviz.scene import ResolvedScene
+from lunarviz.sky import nights
+from lunarviz.sky.observers import parse_observer
+from lunarviz.workflows import skips, sweeps
+
+BBSO = "site:34.26,-116.92,2067"  # Big Bear Solar Observatory (lat, east lon, height)
+
+
+def _untraced(monkeypatch):
+    """Run a skipped date's full computation instead (the skip turned off)."""
+    monkeypatch.setattr(sweeps, "skip_reason", lambda *a: "")
+
+
+@pytest.mark.parametrize("method", ["raytrace", "analytic", "reference"])
+def test_a_moon_below_the_horizon_is_skipped_marked_and_exact(monkeypatch, method):
+    """2026-02-17T03:00Z from Big Bear: the Moon's centre is 24° below the horizon (its row's
+    moon_altitude_deg). The skipped rows are marked and are what the full computation gives
+    (zeros: every method hides the points below a site's horizon plane), in every method, grey
+    and in a band (a mapped Earth's spectral rows too)."""
+    for extra in ({}, {"bands": "V", "earth_surface": "landocean", "clouds": "zonal"}):
+        if method == "reference" and extra:
+            continue  # (the reference has no spectral path)
+        s = ResolvedScene(method=method, brdfs=("lambert", "dhg"), observer=BBSO, times=("2026-02-17T03:00:00Z",),
+                          **extra)
+        rows = sweeps.run_phase(s, s.times[0], threads=1)
+        assert rows[0]["moon_altitude_deg"] < -20
+        assert all(r["skip_reason"] == skips.BELOW_HORIZON and r["rtol"] == 0.0 for r in rows)
+        assert all(r["seconds"] < 0.1 for r in rows)  # (a loose ceiling: milliseconds measured)
+        with monkeypatch.context() as m:
+            _untraced(m)
+            full = sweeps.run_phase(s, s.times[0], threads=1)
+        key = "moonshine_W_m2"
+        for a, b in zip(rows, full):
+            assert a[key] == b[key] == 0.0 and a["earthshine_W_m2"] == b["earthshine_W_m2"] == 0.0
+            assert math.isnan(a["ratio_earthshine_moonshine"]) and math.isnan(b["ratio_earthshine_moonshine"])
+            if extra:
+                assert a["solar_irradiance_W_m2"] == b["solar_irradiance_W_m2"]
+
+
+def test_a_totally_eclipsed_moon_is_skipped_only_where_shadows_are_cast(monkeypatch):
+    """2025-03-14T06:58Z is mid-totality of that total lunar eclipse (greatest eclipse 06:58:43 UT,
+    NASA's eclipse catalogue): the tracer with occlusion gives exact zeros there (no lunar point
+    sunlit, none seeing a sunlit Earth: no atmosphere), and so does its skip. The analytic
+    method casts no shadows: its eclipsed Moon is lit, and is computed."""
+    s = ResolvedScene(method="raytrace", brdfs=("lambert", "dhg"), times=("2025-03-14T06:58:00Z",))
+    rows = sweeps.run_phase(s, s.times[0], threads=1)
+    assert all(r["skip_reason"] == skips.ECLIPSED for r in rows)
+    with monkeypatch.context() as m:
+        _untraced(m)
+        full = sweeps.run_phase(s, s.times[0], threads=1)
+    assert all(r["moonshine_W_m2"] == 0.0 and r["earthshine_W_m2"] == 0.0 for r in full + rows)
+    analytic = sweeps.run_phase(s.replace(method="analytic"), s.times[0], threads=1)
+    assert all(r["skip_reason"] == "" and r["moonshine_W_m2"] > 0 for r in analytic)
+    # an hour before totality (06:26 UT) the Moon is partly outside the umbra: computed
+    assert not s.geometry("2025-03-14T05:58:00Z").moon_wholly_in_umbra()
+    assert not skips.skip_reason(s.replace(occlusion=False), s.geometry(s.times[0]))
+
+
+def test_the_umbra_test_is_conservative():
+    """Every point of the lunar sphere (a Fibonacci lattice of 2,000) sees the Sun's whole disc
+    behind the Earth's where moon_wholly_in_umbra holds: at mid-eclipse, and not 40 min after its
+    end (07:31 UT), where points must be lit."""
+    from lunarviz.geometry.scene_geometry import angle_between
+    ok = ResolvedScene(times=("2025-03-14T06:58:00Z",)).geometry("2025-03-14T06:58:00Z")
+    late = ResolvedScene(times=("2025-03-14T08:10:00Z",)).geometry("2025-03-14T08:10:00Z")
+    k = np.arange(2000) + 0.5
+    z = 1 - 2 * k / 2000
+    phi = np.pi * (1 + 5 ** 0.5) * k
+    pts = np.stack([np.sqrt(1 - z**2) * np.cos(phi), np.sqrt(1 - z**2) * np.sin(phi), z], axis=1)
+    for sc, inside in ((ok, True), (late, False)):
+        p = sc.moon + pts * sc.radii["moon"]
+        hidden = []
+        for x in p:
+            vs, ve = sc.sun - x, sc.earth - x
+            rs = np.arcsin(sc.radii["sun"] / np.linalg.norm(vs))
+            re = np.arcsin(sc.radii["earth"] / np.linalg.norm(ve))
+            hidden.append(angle_between(vs, ve) + rs < re)
+        assert sc.moon_wholly_in_umbra() == inside
+        if inside:
+            assert all(hidden)
+        else:
+            assert not all(hidden)
+
+
+def test_the_lunation_runs_new_moon_to_new_moon():
+    """New Moons of 2026 Feb 17 12:01 UT and Mar 19 01:23 UT (USNO, Phases of the Moon 2026):
+    DE421 through skyfield's almanac within 1 minute."""
+    a, b = nights.lunation("2026-02-25")
+    assert abs((a - datetime(2026, 2, 17, 12, 1, tzinfo=timezone.utc)).total_seconds()) < 60
+    assert abs((b - datetime(2026, 3, 19, 1, 23, tzinfo=timezone.utc)).total_seconds()) < 60
+    just_after = nights.lunation("2026-02-17T12:30Z")[0]  # just after the new Moon: its own lunation
+    assert abs((just_after - a).total_seconds()) < 1
+
+
+def test_nights_keep_the_moon_up_at_local_or_utc_time():
+    """One time a night at the site's local mean solar time (UTC - 116.92°/15 h: 22:00 local on the
+    20th is 05:47:41 UTC on the 21st), or at a UTC time; the nights whose Moon is wholly below the horizon are
+    dropped (each kept one has the Moon's centre above -0.5°: its disc is 0.26° in radius)."""
+    obs = parse_observer(BBSO)
+    every = nights.night_times("2026-02-17", "2026-03-18", "03:00Z", obs, keep_all=True)
+    kept = nights.night_times("2026-02-17", "2026-03-18", "03:00Z", obs)
+    assert len(every) == 30 and every[0] == "2026-02-17T03:00:00Z" and set(kept) < set(every)
+    s = ResolvedScene(observer=BBSO, times=every)
+    for t in every:
+        alt = sweeps.run_phase(s.replace(method="analytic", brdfs=("lambert",)), t)[0]["moon_altitude_deg"]
+        assert (t in kept) == (alt > -0.5), (t, alt)
+    local = nights.night_times("2026-02-20", "2026-02-20", "22:00", obs, keep_all=True)
+    assert local == ("2026-02-21T05:47:40.8Z",)
+    assert nights.night_times("2026-02-20", "2026-02-20", "22:00-08:00", obs, keep_all=True) == \
+        ("2026-02-21T06:00:00Z",)
+    with pytest.raises(ValueError, match="25:00"):
+        nights.night_times("2026-02-20", "2026-02-21", "25:00", obs)
+    with pytest.raises(ValueError, match="STOP is before START"):
+        nights.night_times("2026-02-20", "2026-02-19", None, obs)
+
+
+def test_cli_nights_lunation_and_dry_run(tmp_path):
+    """--lunation and --nights give the same Moon-up nights; --dry-run counts the tasks the run
+    will skip (the nights with the Moon down, listed by --time-range) and writes nothing."""
+    base = [sys.executable, "-m", "lunarviz", "sweep", "--observer", BBSO, "--quiet", "--brdf", "lambert"]
+    out = tmp_path / "l.json"
+    r = subprocess.run(base + ["--lunation", "2026-02-25,03:00Z", "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    lun = [x["time_utc"] for x in json.loads(out.read_text())["rows"]]
+    want = nights.night_times("2026-02-17", "2026-03-19", "03:00Z", parse_observer(BBSO))
+    assert tuple(lun) == want
+    r = subprocess.run(base + ["--method", "raytrace", "--time-range", "2026-02-17T03:00Z,2026-03-18T03:00Z,1d",
+                               "--dry-run"], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "tasks: 30" in r.stdout and "skipped (no tracing): 16 (the Moon is below the horizon: 16)" in r.stdout
+    assert "estimate:" in r.stdout and list(tmp_path.iterdir()) == [out]
+    r = subprocess.run(base + ["--lunation", "2026-02-25", "--time", "2026-02-20T03:00Z", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--lunation" in r.stderr
+
+
+def test_every_unbounded_row_says_why_and_the_run_warns():
+    """A row with a NaN bound names its reason (a mapped Earth: no error model; DHG earthshine
+    seen from a site: off the Earth's centre), a bounded one says nothing; the run warns with or
+    without --rtol."""
+    from lunarviz.errors import UnboundedRowsWarning
+    t = ("2026-02-22T03:00:00Z",)
+    mapped = ResolvedScene(method="raytrace", brdfs=("lambert",), times=t, earth_surface="landocean")
+    with pytest.warns(UnboundedRowsWarning, match="mapped Earth"):
+        rows = sweeps.run_sweep(mapped, workers=1)["rows"]
+    assert math.isnan(rows[0]["rtol"]) and "mapped Earth" in rows[0]["no_bound_reason"]
+    site = ResolvedScene(method="raytrace", brdfs=("lambert", "dhg"), moon_model="rolo-fit-map", times=t,
+                         observer=BBSO)
+    with pytest.warns(UnboundedRowsWarning, match="the default tolerance 0.0001 is not met by the earthshine of dhg"):
+        site.warn_unmet_tolerance()
+    by = {r["brdf"]: r for r in sweeps.run_phase(site, t[0], threads=1)}
+    assert math.isnan(by["dhg"]["rtol"]) and by["dhg"]["no_bound_reason"]
+    assert (0 < by["lambert"]["rtol"] <= 1e-4 and by["lambert"]["no_bound_reason"] == "") or \
+        "horizon" in by["lambert"]["no_bound_reason"]
+
+
+def test_a_dates_mapped_earth_averages_only_the_facets_it_needs(monkeypatch):
+    """The mapped Earth's per-facet values of the facets a date needs (its lit face seen from the
+    Moon) are bit for bit the whole mesh's (the same jittered points per facet): rows equal to
+    those from the whole-mesh averages, grey and spectral."""
+    from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
+    whole = FacetSurfaces.earth_facet_values
+
+    def from_whole_mesh(self, faces):
+        a = self.earth_facet_albedo()[faces]
+        parts = self.earth_facet_parts()
+        return a, None if parts is None else parts[faces]
+    for extra in ({}, {"bands": "V"}):
+        s = ResolvedScene(method="raytrace", brdfs=("lambert",), times=("2026-02-22T03:00:00Z",),
+                          earth_surface="landocean", clouds="zonal", **extra)
+        from lunarviz.caches import release_caches
+        release_caches()
+        got = sweeps.run_phase(s, s.times[0], threads=1)
+        monkeypatch.setattr(FacetSurfaces, "earth_facet_values", from_whole_mesh)
+        release_caches()
+        ref = sweeps.run_phase(s, s.times[0], threads=1)
+        monkeypatch.setattr(FacetSurfaces, "earth_facet_values", whole)
+        for a, b in zip(got, ref):
+            assert a["earthshine_W_m2"] == b["earthshine_W_m2"] and a["moonshine_W_m2"] == b["moonshine_W_m2"]
