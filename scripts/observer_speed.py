@@ -86,7 +86,8 @@ def main(argv=None) -> int:
     lines += ["", "`--dry-run` of the nightly run printed (in "
               f"{res['dry_run']['wall_s']:.1f} s):", "", "```", *res["dry_run"]["printed"], "```", "",
               "Rows without a bound, and why: " + "; ".join(
-                  f"{k}: {', '.join(res[k]['no_bound_reasons']) or 'none'}" for k in ("bbso_nights", "paper_rtol_1e-5")),
+                  f"{k}: {', '.join(res[k]['no_bound_reasons']) or 'none'}"
+                  for k in ("bbso_nights", "paper_rtol_1e-5")),
               ""]
     (out / "report.md").write_text("\n".join(lines))
     print("\n".join(lines))

@@ -31,8 +31,6 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 ORDERS = (7, 10, 14, 20)
 REFERENCE_ORDER = 32
@@ -69,8 +67,8 @@ def measure(args) -> dict | None:
     brdfs = s.brdf_models()
 
     def trace(order):
-        st = replace(base, earth_pole="detector", earth_order=order,
-                     lune_source_orders=None if base.lune_source_orders is None else (base.lune_source_orders[0], order))
+        pair = None if base.lune_source_orders is None else (base.lune_source_orders[0], order)
+        st = replace(base, earth_pole="detector", earth_order=order, lune_source_orders=pair)
         ts = TraceScene(sc, st)
         r = trace_path(ts, "earthshine", brdfs)
         return r.mean, ts

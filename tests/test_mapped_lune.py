@@ -191,8 +191,9 @@ def test_a_tolerance_on_the_mapped_moon_takes_the_mapped_lune_rule():
     plan = ResolvedScene(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-3).trace_plan()
     assert plan["settings"]["lune_order"] is not None
     assert all(plan["bounds"][("lune", p)] <= 1e-3 for p in ("moonshine", "earthshine"))
-    default = ResolvedScene(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",)).trace_plan()
-    assert default == ResolvedScene(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",), rtol=1e-4).trace_plan()
+    kw = dict(method="raytrace", moon_model="rolo-fit-map", brdfs=("dhg",))
+    default = ResolvedScene(**kw).trace_plan()
+    assert default == ResolvedScene(**kw, rtol=1e-4).trace_plan()
     assert default["settings"]["lune_order"] is not None
     assert all(default["bounds"][("lune", p)] <= 1e-4 for p in ("moonshine", "earthshine"))
 
