@@ -89,6 +89,21 @@ def measure(args) -> dict | None:
             "errors": {str(o): e for o, e in errs.items()}, "seconds": time.perf_counter() - t}
 
 
+def by_phase(results: list[dict]) -> dict:
+    """{moon model: [[θ, [error at each order]], ...]}: each case's largest error over the BRDFs,
+    non-increasing in the order, sorted by θ (the error grows as the Earth's lit crescent thins,
+    toward full Moon: :func:`lunarviz.methods.accuracy.off_centre_earth_error` takes the cases
+    within its phase window)."""
+    out = {}
+    for moon in MOONS:
+        cases = []
+        for r in sorted((r for r in results if r["moon_model"] == moon), key=lambda r: r["theta_deg"]):
+            worst = [max(r["errors"][str(o)].values()) for o in ORDERS]
+            cases.append([round(float(r["theta_deg"]), 3), [float(max(worst[i:])) for i in range(len(worst))]])
+        out[moon] = cases
+    return out
+
+
 def table(results: list[dict]) -> dict:
     """{moon model: {order: largest error}} over dates and BRDFs, non-increasing in the order."""
     out = {}
@@ -107,17 +122,24 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--write", action="store_true", help="store the table in lunarviz/data/error_models.json")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
+    ap.add_argument("--from-json", default=None, help="the cases of an earlier run's off_centre_earth.json, not "
+                    "measured again")
     a = ap.parse_args(argv)
     jobs = [(obs, t, moon) for obs, t in dates(a.every_hours, a.nights) for moon in MOONS]
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(a.workers) as ex:
-        results = [r for r in ex.map(measure, jobs) if r is not None]
+    if a.from_json:
+        results = json.loads(Path(a.from_json).read_text())["dates"]
+    else:
+        with ProcessPoolExecutor(a.workers) as ex:
+            results = [r for r in ex.map(measure, jobs) if r is not None]
     tab = table(results)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    old = json.loads((Path(a.out) / "off_centre_earth.json").read_text()) if a.from_json else {}
     report = {"orders": ORDERS, "reference_order": REFERENCE_ORDER, "table": tab, "dates": results,
-              "wall_seconds": time.perf_counter() - t0,
-              "command": "python scripts/off_centre_earth_model.py " + " ".join(argv or sys.argv[1:])}
+              "wall_seconds": old.get("wall_seconds", time.perf_counter() - t0),
+              "command": old.get("command", "python scripts/off_centre_earth_model.py "
+                                 + " ".join(argv or sys.argv[1:]))}
     (out / "off_centre_earth.json").write_text(json.dumps(report, indent=1) + "\n")
     lines = ["# The Earth's beam rules about the zero-phase point, off the Earth's centre", "",
              f"`{report['command']}`: {len(results)} (date, lunar model) cases, earthshine of "
@@ -140,7 +162,7 @@ def main(argv=None) -> int:
         path = ROOT / "lunarviz" / "data" / "error_models.json"
         m = json.loads(path.read_text())
         m["earth_rule_off_centre"] = {"orders": list(ORDERS), "reference_order": REFERENCE_ORDER,
-                                      "max_rel_error": tab,
+                                      "max_rel_error": tab, "by_phase": by_phase(results),
                                       "source": "scripts/off_centre_earth_model.py (benchmarks/error_models/"
                                                 "off_centre_earth.md)"}
         path.write_text(json.dumps(m, indent=1) + "\n")

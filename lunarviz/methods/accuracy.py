@@ -249,11 +249,54 @@ def earth_source_modelled(scene, brdf) -> bool:
     return math.acos(min(1.0, max(-1.0, c))) <= EARTH_CENTRE_TOLERANCE
 
 
-def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why: str = "") -> tuple[float, str]:
+def off_centre_earth_error(order: int, mapped_moon: bool, theta: float | None = None) -> float:
+    """The largest relative error of the earthshine from the Earth's beam rules about the
+    zero-phase point at Earth ``order`` (``earth_rule_off_centre`` in the models: at the largest
+    order measured at or below ``order``; NaN below the smallest), measured with the detector
+    off the Earth's centre on orbit and site dates against order 32 of the same rule
+    (docs: accuracy, "Observers off the Earth's centre"). At a scene's θ [deg], the largest of
+    the cases measured within :data:`PHASE_WINDOW_DEG` of it (the error grows as the Earth's lit
+    crescent thins toward full Moon: ~1e-5 below θ = 12°, ~1e-8 at order 20 above 20° for the
+    paper's Moon); the largest of all outside the phases measured or without a case near."""
+    table = error_models().get("earth_rule_off_centre")
+    if table is None:
+        return math.nan
+    moon = "rolo-fit-map" if mapped_moon else "paper"
+    measured = [i for i, o in enumerate(table["orders"]) if o <= order]
+    if not measured:
+        return math.nan
+    i = max(measured)
+    cases = table.get("by_phase", {}).get(moon, [])
+    if theta is not None and cases:
+        th = float(theta) % 360.0
+        th = min(th, 360.0 - th)
+        near = [e[i] for t, e in cases if abs(t - th) <= PHASE_WINDOW_DEG]
+        if near and min(t for t, _ in cases) <= th <= max(t for t, _ in cases):
+            return float(max(near))
+    return float(table["max_rel_error"][moon][str(table["orders"][i])])
+
+
+def off_centre_earth_order(limit: float, mapped_moon: bool, theta: float | None = None) -> int:
+    """The smallest Earth order of the zero-phase rule whose measured error (at θ) is at most
+    ``limit``, else the largest measured (the most accurate)."""
+    table = error_models().get("earth_rule_off_centre")
+    if table is None:
+        return max(DEFAULT_EARTH_ORDERS)
+    ok = [o for o in table["orders"] if off_centre_earth_error(o, mapped_moon, theta) <= limit]
+    return min(ok) if ok else max(table["orders"])
+
+
+#: the Earth orders the zero-phase rule falls back to without a measured table
+DEFAULT_EARTH_ORDERS = (7, 10, 14, 20)
+
+
+def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why: str = "",
+              pole_at_zero_phase: bool = False) -> tuple[float, str]:
     """The bound a row reports, and why it has none: ``bound`` (its settings' in the models; ``why``
     it is NaN, where it is) where the models hold for the row's scene and BRDF: θ within the
     phases measured (:func:`in_model_range`) and, for an extended Earth's beam rules (the
-    tracer's deterministic estimator, the reference), :func:`earth_source_modelled`; 0 for exact
+    tracer's deterministic estimator, the reference), :func:`earth_source_modelled` unless their
+    pole is the zero-phase point (``pole_at_zero_phase``: its own bound is in ``bound``); 0 for exact
     zeros (a Moon wholly hidden); NaN elsewhere, with the reason (``""`` where bounded)."""
     if bound == 0.0:
         return 0.0, ""
@@ -262,7 +305,7 @@ def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why
     if not in_model_range(scene):
         lo, hi = min(error_models()["phases_deg"]), max(error_models()["phases_deg"])
         return math.nan, f"theta outside the phases the error models were measured at ({lo:g}-{hi:g} deg)"
-    if extended_earth(method, estimator) and not earth_source_modelled(scene, brdf):
+    if extended_earth(method, estimator) and not pole_at_zero_phase and not earth_source_modelled(scene, brdf):
         return math.nan, OFF_CENTRE_REASON
     return bound, ""
 

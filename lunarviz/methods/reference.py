@@ -8,7 +8,8 @@ Same physics as the ray tracer on perfect spheres, integrated by nested product 
 * inner: for every lunar node x, the source sphere's surface seen from x and above x's horizon
   (and, for the Earth, lit by the Sun), in polar coordinates about the sub-x point — where the
   opposition-surge cusp sits when the detector is at the Earth's centre, so the integrand is
-  smooth in those coordinates.
+  smooth in those coordinates — or, for a detector off the centre (``earth_pole="detector"``),
+  about the zero-phase point itself.
 
 The Sun is a Lambertian emitting sphere of radiance ``L = Φ/(4π² R_S²)``; the Earth a Lambertian
 reflector of albedo A lit by a point Sun (the Sun's 0.27° extent moves the Earth's terminator by a
@@ -24,7 +25,13 @@ import numpy as np
 
 from lunarviz.geometry.scene_geometry import SceneGeometry, half_angle_sin_cos
 from lunarviz.methods.analytic import DetectorIrradiance, lunar_surface_rule
-from lunarviz.methods.sources import earth_radiance, source_beams, source_sphere_rule, sun_radiance  # noqa: F401 (re-export)
+from lunarviz.methods.sources import (  # noqa: F401 (re-export)
+    earth_radiance,
+    source_beams,
+    source_sphere_rule,
+    sun_radiance,
+    zero_phase_points,
+)
 from lunarviz.methods.transport import Transport, detector_geometry
 from lunarviz.options import BY_NAME, validate
 
@@ -41,6 +48,9 @@ class ReferenceSettings:
     chunk: int = 256
     #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.point_values.Surfaces`), read at the nodes
     surfaces: object = None
+    #: the pole of the Earth's rule: ``centre`` (the sub-x point) or ``detector`` (the zero-phase
+    #: point, :func:`~lunarviz.methods.sources.zero_phase_points`: a detector off the Earth's centre)
+    earth_pole: str = "centre"
 
     def __post_init__(self):
         validate(self, (BY_NAME["earth_albedo"],))
@@ -53,10 +63,14 @@ def reference_transports(scene: SceneGeometry, path: str, settings: ReferenceSet
     x, n, dA = lunar_surface_rule(scene, src, scene.radii[body], settings.outer_order)
     mu, geom, o = detector_geometry(x, n, dA, scene.det, scene.det_normal)
     geom = np.where(scene.sight_lines_clear(x), geom, 0.0)  # the Earth occulting the Moon (real sky)
-    for a in range(0, len(x), settings.chunk):
-        sl = slice(a, a + settings.chunk)
+    pole_rule = body == "earth" and settings.earth_pole == "detector"
+    # (the zero-phase rule holds up to ~18·order² nodes a row: batches that bound its memory)
+    chunk = max(4, min(settings.chunk, (1 << 15) // settings.inner_order**2)) if pole_rule else settings.chunk
+    for a in range(0, len(x), chunk):
+        sl = slice(a, a + chunk)
         xs, ns = x[sl], n[sl]
-        m, w = source_sphere_rule(scene, xs, ns, body, settings.inner_order)
+        pole = zero_phase_points(scene, xs) if pole_rule else None
+        m, w = source_sphere_rule(scene, xs, ns, body, settings.inner_order, pole=pole)
         y, om, omega = source_beams(scene, xs, body, m, w)
         sf = settings.surfaces
         L_unit = None

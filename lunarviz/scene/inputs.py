@@ -97,7 +97,8 @@ def reference_settings(scene) -> ReferenceSettings:
     """The exact reference's settings at the orders :func:`~lunarviz.scene.tolerance.reference_orders`
     chooses."""
     outer, inner, _ = scene.reference_orders()
-    return ReferenceSettings(outer, inner, scene.earth_albedo, surfaces=scene.surfaces())
+    return ReferenceSettings(outer, inner, scene.earth_albedo, surfaces=scene.surfaces(),
+                             earth_pole="detector" if scene.earth_pole_at_zero_phase() else "centre")
 
 
 def trace_settings(scene, threads: int | None = None, plan: dict | None = None):

@@ -79,6 +79,7 @@ class ResolvedScene:
     modelled = tolerance.modelled
     unmodelled_reason = tolerance.unmodelled_reason
     analytic_row_bound = tolerance.analytic_row_bound
+    earth_pole_at_zero_phase = tolerance.earth_pole_at_zero_phase
     warn_unmet_tolerance = tolerance.warn_unmet_tolerance
 
     @property

@@ -63,7 +63,10 @@ def trace_plan(scene, theta: float | None = None) -> dict:
         if asked_level:  # a mesh level asked for without a tolerance: the default source orders too
             fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
             fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
-    choice = accuracy.trace_choice(scene.rtol_or_default, fixed, scene.mapped_moon(), theta)
+    # the Earth's rule about the zero-phase point takes half the tolerance, the lunar side the other half
+    pole = earth_pole_at_zero_phase(scene)
+    lunar_rtol = scene.rtol_or_default / 2 if pole else scene.rtol_or_default
+    choice = accuracy.trace_choice(lunar_rtol, fixed, scene.mapped_moon(), theta)
     settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
                 if k not in fixed and choice.get(k) is not None}
     # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
@@ -73,8 +76,45 @@ def trace_plan(scene, theta: float | None = None) -> dict:
     settings["lune_order"] = None if asked_level or rough and not scene.mapped_moon() else choice.get("lune_order")
     if settings["lune_order"] is not None and choice.get("lune_source_orders") is not None:
         settings["lune_source_orders"] = choice["lune_source_orders"]
-    return {"settings": settings, "bounds": choice.get("bounds", {}) if scene.modelled() else {}}
+    bounds = choice.get("bounds", {}) if scene.modelled() else {}
+    if pole:  # the Earth's rule about the zero-phase point, its order and bound
+        _zero_phase_earth(scene, settings, fixed, bounds, theta)
+    return {"settings": settings, "bounds": bounds}
 
+
+def detector_off_centre(scene) -> bool:
+    """Whether the detector is off the Earth's centre: a detector position, or dates seen from a
+    site or an orbit."""
+    return scene.detector is not None or (scene.times is not None and scene.observer_model().kind != "geocentre")
+
+
+def earth_pole_at_zero_phase(scene) -> bool:
+    """Whether the Earth's beam rules (the tracer's deterministic ones, the reference's) take the
+    zero-phase point as their pole: a detector off the Earth's centre and a BRDF with an
+    opposition surge or roughness (:func:`lunarviz.methods.accuracy.peaks_at_zero_phase`), whose
+    peak and kink lie there. A Lambert-only run keeps the sub-point pole (smooth there)."""
+    return detector_off_centre(scene) and any(accuracy.peaks_at_zero_phase(b) for b in scene.brdf_models().values())
+
+
+def _zero_phase_earth(scene, settings: dict, fixed: dict, bounds: dict, theta: float | None) -> None:
+    """The tracer's Earth rule about the zero-phase point: its Earth order (for the facets' samples
+    and the lune rule's), the smallest whose measured off-centre error at θ
+    (:func:`lunarviz.methods.accuracy.off_centre_earth_error`) leaves the earthshine's lunar-side
+    bound (of the sample kind the plan takes: the lune rule where it has an order, else the
+    facets) within the tolerance; each kind's earthshine bound grows by that error (the two
+    added: the lunar side's model was measured with the sub-point rule at the Earth's centre)."""
+    mapped = scene.mapped_moon()
+    settings["earth_pole"] = "detector"
+    kind = "lune" if settings.get("lune_order") is not None else "facets"
+    lunar = bounds.get((kind, "earthshine"), 0.0)
+    limit = (scene.rtol_or_default - (lunar if math.isfinite(lunar) else 0.0)) / accuracy.SAFETY
+    order = fixed.get("earth_order") or accuracy.off_centre_earth_order(limit, mapped, theta)
+    settings["earth_order"] = order
+    if settings.get("lune_source_orders") is not None:
+        settings["lune_source_orders"] = (settings["lune_source_orders"][0], order)
+    extra = accuracy.SAFETY * accuracy.off_centre_earth_error(order, mapped, theta)
+    for key in [k for k in bounds if k[1] == "earthshine"]:
+        bounds[key] = bounds[key] + extra
 
 
 def modelled(scene) -> bool:
@@ -121,9 +161,7 @@ def analytic_row_bound(scene) -> tuple[float, str]:
 def warn_unmet_tolerance(scene) -> None:
     """Warn once, before a run, where the tolerance asked for (or the method's default) is beyond
     what the error models hold (the most accurate setting runs; its rows report what it meets),
-    and where rows of a deterministic, extended-Earth method will carry no bound
-    (:func:`warn_earthshine_off_centre`)."""
-    warn_earthshine_off_centre(scene)
+    (rows without a bound are told after the run: :func:`warn_unbounded_rows`)."""
     if scene.rtol is None:
         return
     if scene.method in ("analytic", "reference"):
@@ -140,21 +178,6 @@ def warn_unmet_tolerance(scene) -> None:
     if plan["bounds"] and not max(met) <= scene.rtol:
         warnings.warn(f"--rtol {scene.rtol:g} is beyond the error models here: the most accurate setting they "
                       f"hold meets {max(met):.1e} (rows report it)", LunarvizWarning, stacklevel=3)
-
-
-def warn_earthshine_off_centre(scene) -> None:
-    """Warn where the tolerance (asked for, or the default) cannot be met: the earthshine of a
-    BRDF with an opposition surge or roughness seen off the Earth's centre by an extended Earth's
-    beam rules (the deterministic tracer's, the reference's; :func:`accuracy.earth_source_modelled`)."""
-    off_centre = scene.detector is not None or (scene.times is not None and scene.observer_model().kind != "geocentre")
-    surged = [k for k, b in scene.brdf_models().items() if accuracy.peaks_at_zero_phase(b)]
-    if accuracy.extended_earth(scene.method, scene.estimator) and off_centre and surged:
-        asked = f"--rtol {scene.rtol:g}" if scene.rtol is not None else \
-            f"the default tolerance {scene.rtol_or_default:g}"
-        warnings.warn(f"{asked} is not met by the earthshine of {', '.join(surged)} seen off the "
-                      "Earth's centre (the opposition surge's cusp and the roughness's kink lie off the pole "
-                      "of the Earth's beam rules: up to ~5e-3 measured from orbit); those rows carry no bound",
-                      UnboundedRowsWarning, stacklevel=4)
 
 
 def warn_unbounded_rows(rows: list[dict]) -> None:

@@ -71,6 +71,9 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
     elif settings.method == "reference":
         why = settings.unmodelled_reason()
         bound = math.nan if why else settings.reference_orders()[2]
+        if settings.earth_pole_at_zero_phase():  # the Earth's rule about the zero-phase point: its error too
+            bound += accuracy.SAFETY * accuracy.off_centre_earth_error(settings.reference_orders()[1],
+                                                                       settings.mapped_moon())
         why = why or ("" if math.isfinite(bound) else "no error model row for these reference orders")
         res = reference_irradiance(sc, brdfs, settings.reference_settings())
         for k, v in res.items():
@@ -103,7 +106,7 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
                 if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
         r["rtol"], r["no_bound_reason"] = accuracy.row_bound(bound, sc, settings.method, settings.estimator,
-                                                             brdfs[r["brdf"]], why)
+                                                             brdfs[r["brdf"]], why, settings.earth_pole_at_zero_phase())
         r["skip_reason"] = ""
     return rows
 

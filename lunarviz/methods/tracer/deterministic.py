@@ -116,7 +116,11 @@ class DeterministicTransport:
             groups = [~cut & ~ecl, cut, ecl]
         else:
             groups = [~cut, cut]
-        return [np.flatnonzero(g) for g in groups if g.any()]
+        rows = [np.flatnonzero(g) for g in groups if g.any()]
+        if body == "earth" and s.earth_pole == "detector":  # rules of up to ~18·order² beams: batches that bound memory
+            size = max(16, tuning.POLE_RULE_NODES // self.beam_order(body) ** 2)
+            rows = [r[a:a + size] for r in rows for a in range(0, len(r), size)]
+        return rows
 
     def beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
         """The :class:`Transport` of points x (B,3) with normals n, unit directions o to the

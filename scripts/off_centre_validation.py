@@ -1,0 +1,149 @@
+"""Rows seen from observers off the Earth's centre against high-order references: is every error
+below the bound its row reports, and every bound within the tolerance?
+
+    python scripts/off_centre_validation.py [--rtol 1e-4] [--dates N] [--out DIR]
+
+Dates that the error models were not built from (:mod:`scripts.off_centre_earth_model` takes
+2026 hours from 05:00 on Jan 3 in steps of 547 h, and site nights every 9 days from Jan 5): a
+550 km orbit every 613 hours from 2026-01-08T11:00 and Big Bear (``site:34.26,-116.92,2067``)
+and Mauna Kea (``site:19.82,-155.47,4205``) nights every 11 days from 2026-01-10 at 04:00
+and 09:00 UTC. Each row of ``lunarviz sweep --method raytrace --rtol R`` (Lambert, SHG, DHG;
+the paper's Moon and rolo-fit-map; grey and at 550 nm) is compared with
+
+* the paper's Moon: the exact reference (``--method reference``) at outer/inner orders 48/24
+  (its rule about the zero-phase point, as the rows');
+* rolo-fit-map: the tracer's own mapped lune rule at order 48 with Earth order 32 (a map's cells
+  are exact in its weights; the reference reads the map per node and would not converge).
+
+Writes ``off_centre_validation.md`` and ``.json`` to ``benchmarks/error_models`` (or ``--out``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import math
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BRDFS = ("lambert", "shg", "dhg")
+OBSERVERS = ("orbit:550,97.6,0,0", "site:34.26,-116.92,2067", "site:19.82,-155.47,4205")
+PATHS = {"moonshine_W_m2": "moonshine", "earthshine_W_m2": "earthshine"}
+
+
+def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
+    t0 = dt.datetime(2026, 1, 8, 11)
+    out = [(OBSERVERS[0], (t0 + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"))
+           for h in range(0, 8760, every_hours)]
+    for obs in OBSERVERS[1:]:
+        for k in range(nights):
+            day = dt.date(2026, 1, 10) + dt.timedelta(days=11 * k)
+            out += [(obs, f"{day.isoformat()}T{hh}:00:00Z") for hh in ("04", "09")]
+    return out
+
+
+def reference(s, label: str, moon: str, spectral: bool) -> dict:
+    """{(brdf, path): value} of the high-order reference for one date: the exact reference at
+    48/24 (the paper's Moon, grey), else the tracer at high orders (its plan replaced: lune rule
+    48, Sun order 16, Earth order 32, the Earth's rule about the zero-phase point)."""
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
+    if moon == "paper" and not spectral:
+        ref = s.replace(method="reference", rtol=None, reference_outer=48, reference_inner=24)
+        return {(r["brdf"], p): r[k] for r in run_phase(ref, label, threads=1) for k, p in PATHS.items()}
+    sc = s.geometry(label)
+    plan = s.trace_plan(sc.theta_deg)
+    hi = {"settings": {**plan["settings"], "lune_order": (48, 48), "sun_order": 16, "earth_order": 32,
+                       "lune_source_orders": (16, 32), "earth_pole": "detector"}, "bounds": {}}
+    real = ResolvedScene.trace_plan
+    ResolvedScene.trace_plan = lambda self, theta=None: hi
+    try:
+        rows = run_phase(s, label, threads=1)
+    finally:
+        ResolvedScene.trace_plan = real
+    suffix = "_W_m2_nm" if spectral else "_W_m2"
+    return {(r["brdf"], p): r[k.replace("_W_m2", suffix)] for r in rows for k, p in PATHS.items()}
+
+
+def check(args) -> list[dict]:
+    obs, label, moon, spectral, rtol = args
+    from lunarviz.methods import accuracy
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.skips import skip_reason
+    from lunarviz.workflows.sweeps import run_phase
+    kw = {"wavelengths": "550"} if spectral else {}
+    s = ResolvedScene(method="raytrace", brdfs=BRDFS, moon_model=moon, observer=obs, times=(label,), rtol=rtol, **kw)
+    sc = s.geometry(label)
+    if skip_reason(s, sc) or not accuracy.in_model_range(sc):
+        return []
+    t = time.perf_counter()
+    rows = run_phase(s, label, threads=1)
+    if not all(r["rtol"] is not None and math.isfinite(r["rtol"]) for r in rows):
+        return [{"observer": obs, "time_utc": label, "moon_model": moon, "spectral": spectral, "brdf": r["brdf"],
+                 "bound": r["rtol"], "no_bound_reason": r["no_bound_reason"]} for r in rows]
+    ref = reference(s, label, moon, spectral)
+    out = []
+    for r in rows:
+        for key, path in PATHS.items():
+            k = key if not spectral else key.replace("_W_m2", "_W_m2_nm")
+            v, want = r[k], ref[(r["brdf"], path)]
+            err = abs(v / want - 1.0) if want > 0 else (0.0 if v == 0 else math.inf)
+            out.append({"observer": obs, "time_utc": label, "moon_model": moon, "spectral": spectral,
+                        "brdf": r["brdf"], "path": path, "theta_deg": sc.theta_deg, "error": err, "bound": r["rtol"],
+                        "ratio": err / r["rtol"] if r["rtol"] > 0 else (0.0 if err == 0 else math.inf),
+                        "seconds": time.perf_counter() - t})
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rtol", type=float, default=1e-4)
+    ap.add_argument("--every-hours", type=int, default=613)
+    ap.add_argument("--nights", type=int, default=6)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
+    a = ap.parse_args(argv)
+    jobs = [(obs, t, moon, spec, a.rtol) for obs, t in dates(a.every_hours, a.nights)
+            for moon in ("paper", "rolo-fit-map") for spec in (False, True)]
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(a.workers) as ex:
+        rows = [r for res in ex.map(check, jobs) for r in res]
+    checked = [r for r in rows if "error" in r]
+    unbounded = [r for r in rows if "error" not in r]
+    worst = max(checked, key=lambda r: r["ratio"]) if checked else None
+    tag = f"{a.rtol:g}"
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cmd = "python scripts/off_centre_validation.py " + " ".join(argv or sys.argv[1:])
+    (out / f"off_centre_validation_{tag}.json").write_text(json.dumps({"command": cmd, "rows": rows}, indent=1) + "\n")
+    lines = [f"# Rows off the Earth's centre against high-order references (rtol {tag})", "",
+             f"`{cmd}` ({time.perf_counter() - t0:.0f} s): {len(checked)} values checked, "
+             f"{len(unbounded)} rows without a bound.", ""]
+    if worst is not None:
+        lines += [f"- largest error / bound: {worst['ratio']:.2f} ({worst['observer']}, {worst['time_utc']}, "
+                  f"{worst['moon_model']}, {'550 nm' if worst['spectral'] else 'grey'}, {worst['brdf']} "
+                  f"{worst['path']}: error {worst['error']:.1e}, bound {worst['bound']:.1e})",
+                  f"- largest bound: {max(r['bound'] for r in checked):.1e} (the tolerance: {tag})",
+                  f"- errors above their bound: {sum(r['ratio'] > 1 for r in checked)}", ""]
+        lines += ["| observer | lunar model | light | BRDF | largest error | largest bound | largest ratio |",
+                  "|---|---|---|---|---|---|---|"]
+        groups: dict = {}
+        for r in checked:
+            groups.setdefault((r["observer"], r["moon_model"], r["spectral"], r["brdf"]), []).append(r)
+        for (obs, moon, spec, b), rs in sorted(groups.items()):
+            lines.append(f"| `{obs}` | {moon} | {'550 nm' if spec else 'grey'} | {b} | "
+                         f"{max(r['error'] for r in rs):.1e} | {max(r['bound'] for r in rs):.1e} | "
+                         f"{max(r['ratio'] for r in rs):.2f} |")
+    if unbounded:
+        lines += ["", "Rows without a bound: " + "; ".join(sorted({r["no_bound_reason"] for r in unbounded}))]
+    (out / f"off_centre_validation_{tag}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
