@@ -1,19 +1,20 @@
 """Rows seen from observers off the Earth's centre against high-order references: is every error
 below the bound its row reports, and every bound within the tolerance?
 
-    python scripts/off_centre_validation.py [--rtol 1e-4] [--dates N] [--out DIR]
+    python scripts/off_centre_validation.py [--rtol 1e-4] [--every-hours H] [--nights N] [--out DIR]
 
 Dates that the error models were not built from (:mod:`scripts.off_centre_earth_model` takes
 2026 hours from 05:00 on Jan 3 in steps of 547 h, and site nights every 9 days from Jan 5): a
-550 km orbit every 613 hours from 2026-01-08T11:00 and Big Bear (``site:34.26,-116.92,2067``)
+550 km orbit every 700 hours from 2026-01-08T11:00 and Big Bear (``site:34.26,-116.92,2067``)
 and Mauna Kea (``site:19.82,-155.47,4205``) nights every 11 days from 2026-01-10 at 04:00
 and 09:00 UTC. Each row of ``lunarviz sweep --method raytrace --rtol R`` (Lambert, SHG, DHG;
 the paper's Moon and rolo-fit-map; grey and at 550 nm) is compared with
 
 * the paper's Moon: the exact reference (``--method reference``) at outer/inner orders 48/24
   (its rule about the zero-phase point, as the rows');
-* rolo-fit-map: the tracer's own mapped lune rule at order 48 with Earth order 32 (a map's cells
-  are exact in its weights; the reference reads the map per node and would not converge).
+* rolo-fit-map, and every spectral row: the tracer's own lune rule at order 32 with Sun order 12
+  and Earth order 32 (a map's cells are exact in the mapped rule's weights; the reference reads
+  the map per node and would not converge).
 
 Writes ``off_centre_validation.md`` and ``.json`` to ``benchmarks/error_models`` (or ``--out``).
 """
@@ -49,7 +50,7 @@ def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
 def reference(s, label: str, moon: str, spectral: bool) -> dict:
     """{(brdf, path): value} of the high-order reference for one date: the exact reference at
     48/24 (the paper's Moon, grey), else the tracer at high orders (its plan replaced: lune rule
-    48, Sun order 16, Earth order 32, the Earth's rule about the zero-phase point)."""
+    32, Sun order 12, Earth order 32, the Earth's rule about the zero-phase point)."""
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.sweeps import run_phase
     if moon == "paper" and not spectral:
@@ -57,8 +58,8 @@ def reference(s, label: str, moon: str, spectral: bool) -> dict:
         return {(r["brdf"], p): r[k] for r in run_phase(ref, label, threads=1) for k, p in PATHS.items()}
     sc = s.geometry(label)
     plan = s.trace_plan(sc.theta_deg)
-    hi = {"settings": {**plan["settings"], "lune_order": (48, 48), "sun_order": 16, "earth_order": 32,
-                       "lune_source_orders": (16, 32), "earth_pole": "detector"}, "bounds": {}}
+    hi = {"settings": {**plan["settings"], "lune_order": (32, 32), "sun_order": 12, "earth_order": 32,
+                       "lune_source_orders": (12, 32), "earth_pole": "detector"}, "bounds": {}}
     real = ResolvedScene.trace_plan
     ResolvedScene.trace_plan = lambda self, theta=None: hi
     try:
@@ -102,8 +103,8 @@ def check(args) -> list[dict]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rtol", type=float, default=1e-4)
-    ap.add_argument("--every-hours", type=int, default=613)
-    ap.add_argument("--nights", type=int, default=6)
+    ap.add_argument("--every-hours", type=int, default=700)
+    ap.add_argument("--nights", type=int, default=5)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
     a = ap.parse_args(argv)

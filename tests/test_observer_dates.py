@@ -247,3 +247,27 @@ def test_the_earth_rule_about_the_zero_phase_point_converges_where_the_sub_point
     assert worst_new < 2e-5
     if observer.startswith("orbit"):
         assert worst_old > 10 * worst_new  # (the sub-point rule's slow convergence: ~8e-4)
+
+
+def test_a_band_gap_is_not_shaded_and_changes_nothing(tmp_path):
+    """A response with two windows (450-500 nm and 600-650 nm, zero between: a dual-band filter)
+    weighs no node inside its gap: those nodes are not shaded, and the band's values equal the
+    sum of the same windows shaded as two bands with every node (the weights of a node are its
+    hat function against E_sun·S: zero over a gap, exactly)."""
+    from lunarviz.spectral.request import spectral_request
+    lam = np.array([440.0, 450, 500, 510, 590, 600, 650, 660])
+    resp = np.array([0.0, 1, 1, 0, 0, 1, 1, 0])
+    f = tmp_path / "dual.csv"
+    f.write_text("wavelength_nm,response\n" + "\n".join(f"{a},{b}" for a, b in zip(lam, resp)) + "\n")
+    req = spectral_request(None, str(f), "tsis1-hsrs")
+    assert not np.any((req.nodes > 515) & (req.nodes < 585))  # nothing shaded in the gap
+    assert np.all(req.weights > 0)
+    s = ResolvedScene(method="analytic", brdfs=("lambert",), bands=str(f))
+    row = sweeps.run_phase(s, 90.0)[0]
+    for name, lo, hi in (("a", 440, 510), ("b", 590, 660)):
+        part = tmp_path / f"{name}.csv"
+        keep = (lam >= lo) & (lam <= hi)
+        part.write_text("wavelength_nm,response\n" + "\n".join(f"{a},{b}" for a, b in zip(lam[keep], resp[keep])) + "\n")
+    two = sweeps.run_phase(s.replace(bands=f"{tmp_path / 'a.csv'},{tmp_path / 'b.csv'}"), 90.0)
+    total = sum(r["moonshine_W_m2"] for r in two)
+    assert row["moonshine_W_m2"] == pytest.approx(total, rel=1e-12)

@@ -89,5 +89,9 @@ def band_request(bs, sun: SolarSpectrum) -> SpectralRequest:
     """The request of bands ``bs`` (:class:`~lunarviz.spectral.bands.Band`, distinct names) lit by ``sun``."""
     nodes = np.unique(np.concatenate([band_nodes(b) for b in bs]))
     W = np.stack([band_weights(b, nodes, sun) for b in bs])
+    # a node no band weighs (a gap in a response wider than the node step) is not shaded: the
+    # outputs W @ T do not change, exactly
+    used = np.any(W > 0, axis=0)
+    nodes, W = nodes[used], W[:, used]
     return SpectralRequest("band", tuple(b.name for b in bs), nodes, W, W.sum(axis=1), sun,
                            tuple(b.centre_nm for b in bs))
