@@ -267,7 +267,8 @@ def test_a_band_gap_is_not_shaded_and_changes_nothing(tmp_path):
     for name, lo, hi in (("a", 440, 510), ("b", 590, 660)):
         part = tmp_path / f"{name}.csv"
         keep = (lam >= lo) & (lam <= hi)
-        part.write_text("wavelength_nm,response\n" + "\n".join(f"{a},{b}" for a, b in zip(lam[keep], resp[keep])) + "\n")
+        rows = "\n".join(f"{a},{b}" for a, b in zip(lam[keep], resp[keep]))
+        part.write_text("wavelength_nm,response\n" + rows + "\n")
     two = sweeps.run_phase(s.replace(bands=f"{tmp_path / 'a.csv'},{tmp_path / 'b.csv'}"), 90.0)
     total = sum(r["moonshine_W_m2"] for r in two)
     assert row["moonshine_W_m2"] == pytest.approx(total, rel=1e-12)
