@@ -89,21 +89,6 @@ def measure(args) -> dict | None:
             "errors": {str(o): e for o, e in errs.items()}, "seconds": time.perf_counter() - t}
 
 
-def by_phase(results: list[dict]) -> dict:
-    """{moon model: [[θ, [error at each order]], ...]}: each case's largest error over the BRDFs,
-    non-increasing in the order, sorted by θ (the error grows as the Earth's lit crescent thins,
-    toward full Moon: :func:`lunarviz.methods.accuracy.off_centre_earth_error` takes the cases
-    within its phase window)."""
-    out = {}
-    for moon in MOONS:
-        cases = []
-        for r in sorted((r for r in results if r["moon_model"] == moon), key=lambda r: r["theta_deg"]):
-            worst = [max(r["errors"][str(o)].values()) for o in ORDERS]
-            cases.append([round(float(r["theta_deg"]), 3), [float(max(worst[i:])) for i in range(len(worst))]])
-        out[moon] = cases
-    return out
-
-
 def table(results: list[dict]) -> dict:
     """{moon model: {order: largest error}} over dates and BRDFs, non-increasing in the order."""
     out = {}
@@ -162,7 +147,7 @@ def main(argv=None) -> int:
         path = ROOT / "lunarviz" / "data" / "error_models.json"
         m = json.loads(path.read_text())
         m["earth_rule_off_centre"] = {"orders": list(ORDERS), "reference_order": REFERENCE_ORDER,
-                                      "max_rel_error": tab, "by_phase": by_phase(results),
+                                      "max_rel_error": tab,
                                       "source": "scripts/off_centre_earth_model.py (benchmarks/error_models/"
                                                 "off_centre_earth.md)"}
         path.write_text(json.dumps(m, indent=1) + "\n")

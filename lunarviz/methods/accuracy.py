@@ -249,40 +249,30 @@ def earth_source_modelled(scene, brdf) -> bool:
     return math.acos(min(1.0, max(-1.0, c))) <= EARTH_CENTRE_TOLERANCE
 
 
-def off_centre_earth_error(order: int, mapped_moon: bool, theta: float | None = None) -> float:
+def off_centre_earth_error(order: int, mapped_moon: bool) -> float:
     """The largest relative error of the earthshine from the Earth's beam rules about the
     zero-phase point at Earth ``order`` (``earth_rule_off_centre`` in the models: at the largest
     order measured at or below ``order``; NaN below the smallest), measured with the detector
     off the Earth's centre on orbit and site dates against order 32 of the same rule
-    (docs: accuracy, "Observers off the Earth's centre"). At a scene's θ [deg], the largest of
-    the cases measured within :data:`PHASE_WINDOW_DEG` of it (the error grows as the Earth's lit
-    crescent thins toward full Moon: ~1e-5 below θ = 12°, ~1e-8 at order 20 above 20° for the
-    paper's Moon); the largest of all outside the phases measured or without a case near."""
+    (docs: accuracy, "Observers off the Earth's centre"). The largest over every date and phase:
+    the error at a low order swings by 100x from one date to the next (order 7: 4e-8 to 1.3e-4),
+    so no phase window of a few dates bounds it."""
     table = error_models().get("earth_rule_off_centre")
     if table is None:
         return math.nan
-    moon = "rolo-fit-map" if mapped_moon else "paper"
-    measured = [i for i, o in enumerate(table["orders"]) if o <= order]
+    measured = [o for o in table["orders"] if o <= order]
     if not measured:
         return math.nan
-    i = max(measured)
-    cases = table.get("by_phase", {}).get(moon, [])
-    if theta is not None and cases:
-        th = float(theta) % 360.0
-        th = min(th, 360.0 - th)
-        near = [e[i] for t, e in cases if abs(t - th) <= PHASE_WINDOW_DEG]
-        if near and min(t for t, _ in cases) <= th <= max(t for t, _ in cases):
-            return float(max(near))
-    return float(table["max_rel_error"][moon][str(table["orders"][i])])
+    return float(table["max_rel_error"]["rolo-fit-map" if mapped_moon else "paper"][str(max(measured))])
 
 
-def off_centre_earth_order(limit: float, mapped_moon: bool, theta: float | None = None) -> int:
-    """The smallest Earth order of the zero-phase rule whose measured error (at θ) is at most
-    ``limit``, else the largest measured (the most accurate)."""
+def off_centre_earth_order(limit: float, mapped_moon: bool) -> int:
+    """The smallest Earth order of the zero-phase rule whose measured error is at most ``limit``,
+    else the largest measured (the most accurate)."""
     table = error_models().get("earth_rule_off_centre")
     if table is None:
         return max(DEFAULT_EARTH_ORDERS)
-    ok = [o for o in table["orders"] if off_centre_earth_error(o, mapped_moon, theta) <= limit]
+    ok = [o for o in table["orders"] if off_centre_earth_error(o, mapped_moon) <= limit]
     return min(ok) if ok else max(table["orders"])
 
 

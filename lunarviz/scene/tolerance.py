@@ -78,7 +78,7 @@ def trace_plan(scene, theta: float | None = None) -> dict:
         settings["lune_source_orders"] = choice["lune_source_orders"]
     bounds = choice.get("bounds", {}) if scene.modelled() else {}
     if pole:  # the Earth's rule about the zero-phase point, its order and bound
-        _zero_phase_earth(scene, settings, fixed, bounds, theta)
+        _zero_phase_earth(scene, settings, fixed, bounds)
     return {"settings": settings, "bounds": bounds}
 
 
@@ -96,9 +96,9 @@ def earth_pole_at_zero_phase(scene) -> bool:
     return detector_off_centre(scene) and any(accuracy.peaks_at_zero_phase(b) for b in scene.brdf_models().values())
 
 
-def _zero_phase_earth(scene, settings: dict, fixed: dict, bounds: dict, theta: float | None) -> None:
+def _zero_phase_earth(scene, settings: dict, fixed: dict, bounds: dict) -> None:
     """The tracer's Earth rule about the zero-phase point: its Earth order (for the facets' samples
-    and the lune rule's), the smallest whose measured off-centre error at θ
+    and the lune rule's), the smallest whose measured off-centre error
     (:func:`lunarviz.methods.accuracy.off_centre_earth_error`) leaves the earthshine's lunar-side
     bound (of the sample kind the plan takes: the lune rule where it has an order, else the
     facets) within the tolerance; each kind's earthshine bound grows by that error (the two
@@ -108,11 +108,11 @@ def _zero_phase_earth(scene, settings: dict, fixed: dict, bounds: dict, theta: f
     kind = "lune" if settings.get("lune_order") is not None else "facets"
     lunar = bounds.get((kind, "earthshine"), 0.0)
     limit = (scene.rtol_or_default - (lunar if math.isfinite(lunar) else 0.0)) / accuracy.SAFETY
-    order = fixed.get("earth_order") or accuracy.off_centre_earth_order(limit, mapped, theta)
+    order = fixed.get("earth_order") or accuracy.off_centre_earth_order(limit, mapped)
     settings["earth_order"] = order
     if settings.get("lune_source_orders") is not None:
         settings["lune_source_orders"] = (settings["lune_source_orders"][0], order)
-    extra = accuracy.SAFETY * accuracy.off_centre_earth_error(order, mapped, theta)
+    extra = accuracy.SAFETY * accuracy.off_centre_earth_error(order, mapped)
     for key in [k for k in bounds if k[1] == "earthshine"]:
         bounds[key] = bounds[key] + extra
 
