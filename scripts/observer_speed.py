@@ -9,7 +9,8 @@ fresh process, imports included; this machine, nothing else running).
    horizon are skipped in the run), and the same lunation by ``--lunation 2026-02-25,03:00Z``
    (those nights dropped before it). Best and median of ``--repeats`` runs; each skipped row's own
    time (``seconds``); ``--dry-run``'s estimate beside the measured time.
-2. The paper sweep at ``--rtol 1e-5`` (37 phases, three BRDFs, the deterministic tracer).
+2. The paper sweep at ``--rtol 1e-5`` (37 phases, three BRDFs, the deterministic tracer, no occlusion:
+   the paper's assumption, as the speed targets measure it).
 
 Writes ``results.json`` and ``report.md`` to ``benchmarks/observers`` (or ``--out``).
 """
@@ -32,7 +33,7 @@ SCENE = ["--method", "raytrace", "--observer", SITE, "--band", "V", "--moon-mode
          "--earth-surface", "landocean", "--clouds", "zonal"]
 NIGHTS = ["--time-range", "2026-02-17T03:00Z,2026-03-18T03:00Z,1d"]
 LUNATION = ["--lunation", "2026-02-25,03:00Z"]
-PAPER = ["--method", "raytrace", "--phases", "0:180:5", "--brdf", "lambert,shg,dhg", "--rtol", "1e-5"]
+PAPER = ["--method", "raytrace", "--no-occlusion", "--phases", "0:180:5", "--brdf", "lambert,shg,dhg", "--rtol", "1e-5"]
 
 
 def lunarviz(*args) -> tuple[float, str]:

@@ -334,7 +334,12 @@ def _warm_before_fork(settings: ResolvedScene) -> None:
     """Import the tracer and load the compiled kernels in this process before the worker
     pool starts: forked workers inherit both instead of each paying ~1.5 s for them (a third
     of a 2-worker paper sweep's start-up; no Embree object is made here, so nothing
-    thread-bound crosses the fork). Harmless where workers are spawned instead."""
+    thread-bound crosses the fork). Harmless where workers are spawned instead. Dates: the
+    ephemeris kernels and the observer too (the first date's geometry), so a worker's first
+    skipped date costs milliseconds like the others (~0.06-0.1 s cold)."""
+    if settings.times is not None:
+        settings.task(settings.times[0])
+        settings.spectral_request()
     if settings.method != "raytrace":
         return
     from lunarviz.methods.tracer import estimators, ray_kernels  # noqa: F401 (the import is the warm-up)
