@@ -72,8 +72,8 @@ def test_a_totally_eclipsed_moon_is_skipped_only_where_shadows_are_cast(monkeypa
 
 def test_the_umbra_test_is_conservative():
     """Every point of the lunar sphere (a Fibonacci lattice of 2,000) sees the Sun's whole disc
-    behind the Earth's where moon_wholly_in_umbra holds: at mid-eclipse, and not 40 min after its
-    end (07:31 UT), where points must be lit."""
+    behind the Earth's where moon_wholly_in_umbra holds: at mid-eclipse, and not at 08:10 UT, 40 min
+    after the umbral phase ended (07:31 UT), where points must be lit."""
     from lunarviz.geometry.scene_geometry import angle_between
     ok = ResolvedScene(times=("2025-03-14T06:58:00Z",)).geometry("2025-03-14T06:58:00Z")
     late = ResolvedScene(times=("2025-03-14T08:10:00Z",)).geometry("2025-03-14T08:10:00Z")
@@ -162,7 +162,24 @@ def test_every_unbounded_row_says_why_and_the_run_warns():
                          observer=BBSO)
     by = {r["brdf"]: r for r in sweeps.run_phase(site, t[0], threads=1)}
     for r in by.values():
-        assert (0 < r["rtol"] <= 1e-4 and r["no_bound_reason"] == "") or "horizon" in r["no_bound_reason"]
+        assert 0 < r["rtol"] <= 1e-4 and r["no_bound_reason"] == ""
+    # the exact reference from the site: an inner order whose zero-phase rule meets the tolerance
+    ref = ResolvedScene(method="reference", brdfs=("dhg",), times=t, observer=BBSO, rtol=1e-4)
+    outer, inner, bound = ref.reference_orders()
+    assert inner >= 10 and 0 < bound <= 1e-4 and ref.reference_settings().earth_pole == "detector"
+
+
+def test_equal_grey_albedos_keep_a_spectral_earths_components():
+    """Land and ocean of one grey albedo are still different spectra: a spectral run's traced
+    earthshine keeps its components (the Earth stays mapped), as the analytic method does,
+    and so does a hair's change of the albedo (it used to jump by 2.3x between the two)."""
+    rows = {}
+    for land in (0.25, 0.2500001):
+        s = ResolvedScene(method="raytrace", brdfs=("lambert",), bands="V", earth_surface="landocean",
+                          land_albedo=land, ocean_albedo=0.25, phases_deg=(90.0,))
+        rows[land] = sweeps.run_phase(s, 90.0, threads=1)[0]
+    a, b = rows[0.25]["earthshine_W_m2"], rows[0.2500001]["earthshine_W_m2"]
+    assert abs(a / b - 1) < 1e-5
 
 
 def test_a_dates_mapped_earth_averages_only_the_facets_it_needs(monkeypatch):

@@ -23,13 +23,22 @@ def rtol_or_default(scene) -> float:
 
 def reference_orders(scene) -> tuple[int, int, float]:
     """The exact reference's (outer, inner) orders and the bound they meet: from the
-    tolerance when one is given, else ``reference_outer``, ``reference_inner``."""
+    tolerance when one is given, else ``reference_outer``, ``reference_inner``. Off the Earth's
+    centre with a Hapke BRDF (:func:`earth_pole_at_zero_phase`) the inner order is at least the
+    one whose zero-phase rule error (:func:`lunarviz.methods.accuracy.off_centre_earth_error`)
+    fits half the tolerance (the most accurate measured where none does), and the bound adds it."""
     if scene.rtol is not None:
-        return accuracy.reference_choice(scene.rtol)
-    row = next((r for r in accuracy.error_models()["reference"]
-                if (r["outer"], r["inner"]) == (scene.reference_outer, scene.reference_inner)), None)
-    bound = math.nan if row is None else accuracy.SAFETY * max(row["moonshine"], row["earthshine"])
-    return scene.reference_outer, scene.reference_inner, bound
+        outer, inner, bound = accuracy.reference_choice(scene.rtol)
+    else:
+        outer, inner = scene.reference_outer, scene.reference_inner
+        row = next((r for r in accuracy.error_models()["reference"]
+                    if (r["outer"], r["inner"]) == (outer, inner)), None)
+        bound = math.nan if row is None else accuracy.SAFETY * max(row["moonshine"], row["earthshine"])
+    if earth_pole_at_zero_phase(scene):
+        mapped = scene.mapped_moon()
+        inner = max(inner, accuracy.off_centre_earth_order(scene.rtol_or_default / 2 / accuracy.SAFETY, mapped))
+        bound = bound + accuracy.SAFETY * accuracy.off_centre_earth_error(inner, mapped)
+    return outer, inner, bound
 
 
 

@@ -6,7 +6,8 @@ only where the Moon is up.
   mean solar time (UTC plus its east longitude / 15 h); ``HH:MMZ`` is UTC and ``HH:MM+05:30`` a
   time zone's offset. Observers other than a site have no local time: UTC.
 * ``--lunation DATE[,HH:MM]``: the same over the lunation that contains DATE, from the new Moon at
-  or before it to the next (DE421 through skyfield's almanac; the geocentric new Moon).
+  or before it to the next (DE421 through skyfield's almanac; the geocentric new Moon), the
+  times of its first and last days kept only inside it.
 
 A time is kept when the Moon is up: some of its disc above a site's horizon plane, or not wholly
 behind the Earth from a detector outside it (geometric: no refraction). The times of the
@@ -39,6 +40,8 @@ def parse_clock(text: str, observer: Observer) -> timedelta:
     if m.group(3):
         return clock
     if m.group(4):
+        if int(m.group(5)) > 14 or int(m.group(6)) > 59:
+            raise LunarvizError(f"night time {text!r}: a zone offset is at most ±14:00")
         zone = timedelta(hours=int(m.group(5)), minutes=int(m.group(6)))
         return clock - zone if m.group(4) == "+" else clock + zone
     if observer.kind == "site":  # local mean solar time: the Sun's mean hour angle at the site's meridian
@@ -47,12 +50,23 @@ def parse_clock(text: str, observer: Observer) -> timedelta:
 
 
 def _calendar_date(text: str, what: str) -> date:
+    """A date (``2026-02-17``, or the date of an ISO time), inside the ephemeris; one-line errors
+    name ``what`` and the value as given."""
     s = str(text).strip()
     try:
-        return date.fromisoformat(s)
+        d = date.fromisoformat(s)
     except ValueError:
-        pass
-    return parse_time(s).date() if "T" in s else _bad_date(text, what)
+        if "T" not in s:
+            _bad_date(text, what)
+        try:
+            return parse_time(s).date()
+        except LunarvizError:
+            _bad_date(text, what)
+    try:
+        parse_time(d.isoformat())
+    except LunarvizError:
+        _bad_date(text, what)
+    return d
 
 
 def _bad_date(text: str, what: str):
@@ -64,7 +78,7 @@ def moon_up(label: str, observer: Observer) -> bool:
     horizon, nor wholly behind the Earth from outside it."""
     from lunarviz.sky.dated_scene import sky_scene
     sc, _ = sky_scene(label, observer)
-    return not sc.moon_wholly_hidden(margin=0.0)
+    return not sc.moon_wholly_hidden()  # (its margins keep a night whose Moon may show a sliver)
 
 
 def night_times(start: str, stop: str, clock: str | None, observer: Observer, keep_all: bool = False) -> tuple:
@@ -80,7 +94,11 @@ def night_times(start: str, stop: str, clock: str | None, observer: Observer, ke
     labels = []
     for k in range(n):
         midnight = datetime.combine(a + timedelta(days=k), time(0), tzinfo=timezone.utc)
-        labels.append(format_time(parse_time(format_time(midnight + offset))))
+        try:
+            labels.append(format_time(parse_time(format_time(midnight + offset))))
+        except LunarvizError:
+            raise LunarvizError(f"night {a + timedelta(days=k)} at {clock or DEFAULT_CLOCK} is outside the "
+                                f"ephemeris (valid {VALID_RANGE})") from None
     if keep_all:
         return tuple(labels)
     obs = observer.with_epoch(labels[0])
@@ -104,7 +122,11 @@ def lunation(day: str) -> tuple[datetime, datetime]:
                                                         tzinfo=timezone.utc)
     ts, eph, _ = kernels()
     t0, t1 = ts.from_datetime(t - timedelta(days=31)), ts.from_datetime(t + timedelta(days=31))
-    times, phases = almanac.find_discrete(t0, t1, almanac.moon_phases(eph))
+    try:
+        times, phases = almanac.find_discrete(t0, t1, almanac.moon_phases(eph))
+    except Exception:  # noqa: BLE001 (skyfield's EphemerisRangeError near the ephemeris' ends)
+        raise LunarvizError(f"--lunation {day!r}: its new Moons are outside the ephemeris (valid {VALID_RANGE})") \
+            from None
     new = sorted(x.utc_datetime() for x, p in zip(times, phases) if p == 0)
     before = [x for x in new if x <= t]
     after = [x for x in new if x > t]
@@ -119,5 +141,6 @@ def lunation_option(text: str, observer: Observer) -> tuple:
     if len(parts) not in (1, 2) or not all(parts):
         raise LunarvizError(f"--lunation {text!r} must be DATE[,HH:MM] (e.g. 2026-02-25,03:00Z)")
     new, nxt = lunation(parts[0])
-    return night_times(new.date().isoformat(), nxt.date().isoformat(), parts[1] if len(parts) == 2 else None,
-                       observer)
+    times = night_times(new.date().isoformat(), nxt.date().isoformat(), parts[1] if len(parts) == 2 else None,
+                        observer)
+    return tuple(t for t in times if new <= parse_time(t) < nxt)  # (the end days' times inside the lunation)

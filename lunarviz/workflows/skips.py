@@ -13,7 +13,8 @@ A date is skipped, in every method, when no lunar point can reach the detector o
 
 Such a task's rows are exact zeros (bound 0): moonshine and earthshine 0, the ratio and the
 albedos undefined (NaN), and ``skip_reason`` says why. A user's Earth mesh is not the sphere the
-tests assume: its dates are computed (a site's horizon still skips them).
+tests assume: its dates are computed (a site's horizon still skips them); so are a user's Moon
+mesh's (it may reach beyond the nominal sphere), and a user's Sun mesh's eclipses.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ def skip_reason(scene, sc: SceneGeometry) -> str:
     """Why task ``sc`` of ``scene`` (a :class:`~lunarviz.scene.resolved.ResolvedScene`) needs no
     computing, or ``""``: only dates (the θ scene's rows are the paper's, computed whatever they
     are)."""
-    if scene.times is None:
+    if scene.times is None or scene.moon_mesh is not None:  # (a user's Moon may reach beyond the sphere)
         return ""
     if sc.horizon_normal is not None and sc.moon_wholly_hidden():
         return BELOW_HORIZON
@@ -42,7 +43,7 @@ def skip_reason(scene, sc: SceneGeometry) -> str:
         return ""
     if sc.horizon_normal is None and sc.moon_wholly_hidden():
         return BEHIND_EARTH
-    if scene.method == "raytrace" and scene.occlusion and sc.moon_wholly_in_umbra():
+    if scene.method == "raytrace" and scene.occlusion and scene.sun_mesh is None and sc.moon_wholly_in_umbra():
         return ECLIPSED
     return ""
 

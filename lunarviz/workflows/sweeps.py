@@ -71,9 +71,6 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
     elif settings.method == "reference":
         why = settings.unmodelled_reason()
         bound = math.nan if why else settings.reference_orders()[2]
-        if settings.earth_pole_at_zero_phase():  # the Earth's rule about the zero-phase point: its error too
-            bound += accuracy.SAFETY * accuracy.off_centre_earth_error(settings.reference_orders()[1],
-                                                                       settings.mapped_moon())
         why = why or ("" if math.isfinite(bound) else "no error model row for these reference orders")
         res = reference_irradiance(sc, brdfs, settings.reference_settings())
         for k, v in res.items():

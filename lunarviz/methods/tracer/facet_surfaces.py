@@ -62,11 +62,13 @@ class FacetSurfaces:
     def earth_mapped(self) -> bool:
         """Whether the Earth's albedo varies over its facets: a map that is not one value
         (:meth:`~lunarviz.surfaces.earth_surface.EarthSurface.albedo_constant`), or the physical
-        Earth. Then :meth:`earth_facet_albedo` is an array; decided from the maps, without
-        computing the facets' values."""
+        Earth, or any map of a spectral run with components (:attr:`earth_parts`: their spectra
+        differ). Then :meth:`earth_facet_albedo` is an array; decided from the maps, without
+        computing the facets' values (call it once :attr:`earth_parts` is set)."""
         if self._mapped is None:
             surf = self.bodies.settings.surface()
-            self._mapped = not surf.uniform and not surf.albedo_constant()
+            # a spectral run's components differ in their spectra even where their grey albedos agree
+            self._mapped = not surf.uniform and (self.earth_parts is not None or not surf.albedo_constant())
         return self._mapped
 
     def earth_facet_albedo(self):
