@@ -39,16 +39,17 @@ MOONS = ("paper", "rolo-fit-map")
 OBSERVERS = ("orbit:550,97.6,0,0", "site:34.26,-116.92,2067", "site:-24.63,-70.40,2635")
 
 
-def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
-    """(observer, UTC label) pairs: orbit dates every ``every_hours`` hours from 2026-01-03T05:00,
-    and ``nights`` nights a site (every 9 days from 2026-01-05) at 03:00 and 08:00 UTC."""
-    t0 = dt.datetime(2026, 1, 3, 5)
-    out = [(OBSERVERS[0], (t0 + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"))
+def dates(every_hours: int, nights: int, start=dt.datetime(2026, 1, 3, 5), first_night=dt.date(2026, 1, 5),
+          night_step: int = 9, hours=("03", "08"), observers=OBSERVERS) -> list[tuple[str, str]]:
+    """(observer, UTC label) pairs: orbit dates (``observers[0]``) every ``every_hours`` hours of a
+    year from ``start``, and for each site ``nights`` nights every ``night_step`` days from
+    ``first_night`` at ``hours`` UTC (defaults: this model's dates)."""
+    out = [(observers[0], (start + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"))
            for h in range(0, 8760, every_hours)]
-    for obs in OBSERVERS[1:]:
+    for obs in observers[1:]:
         for k in range(nights):
-            day = dt.date(2026, 1, 5) + dt.timedelta(days=9 * k)
-            out += [(obs, f"{day.isoformat()}T{hh}:00:00Z") for hh in ("03", "08")]
+            day = first_night + dt.timedelta(days=night_step * k)
+            out += [(obs, f"{day.isoformat()}T{hh}:00:00Z") for hh in hours]
     return out
 
 

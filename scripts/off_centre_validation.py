@@ -32,20 +32,20 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))
+import off_centre_earth_model  # noqa: E402 (a script beside this one)
+
 BRDFS = ("lambert", "shg", "dhg")
 OBSERVERS = ("orbit:550,97.6,0,0", "site:34.26,-116.92,2067", "site:19.82,-155.47,4205")
 PATHS = {"moonshine_W_m2": "moonshine", "earthshine_W_m2": "earthshine"}
 
 
 def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
-    t0 = dt.datetime(2026, 1, 8, 11)
-    out = [(OBSERVERS[0], (t0 + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"))
-           for h in range(0, 8760, every_hours)]
-    for obs in OBSERVERS[1:]:
-        for k in range(nights):
-            day = dt.date(2026, 1, 10) + dt.timedelta(days=11 * k)
-            out += [(obs, f"{day.isoformat()}T{hh}:00:00Z") for hh in ("04", "09")]
-    return out
+    """The held-out dates (the module docstring's): the error model's date list with other starts,
+    steps, hours and a second site."""
+    return off_centre_earth_model.dates(every_hours, nights, start=dt.datetime(2026, 1, 8, 11),
+                                        first_night=dt.date(2026, 1, 10), night_step=11, hours=("04", "09"),
+                                        observers=OBSERVERS)
 
 
 def reference(s, label: str, moon: str, spectral: bool) -> dict:

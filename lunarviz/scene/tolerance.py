@@ -168,9 +168,9 @@ def analytic_row_bound(scene) -> tuple[float, str]:
 
 
 def warn_unmet_tolerance(scene) -> None:
-    """Warn once, before a run, where the tolerance asked for (or the method's default) is beyond
-    what the error models hold (the most accurate setting runs; its rows report what it meets),
-    (rows without a bound are told after the run: :func:`warn_unbounded_rows`)."""
+    """Warn once, before a run, where the tolerance asked for is beyond what the error models hold
+    (the most accurate setting runs; its rows report what it meets). Rows without a bound are
+    told after the run (:func:`warn_unbounded_rows`)."""
     if scene.rtol is None:
         return
     if scene.method in ("analytic", "reference"):

@@ -119,10 +119,11 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
     solar_moon = solar_at_moon(req, sc)
     suffix = req.value_suffix
     label_field = "wavelength_nm" if req.kind == "wavelength" else "band"
+    pole = settings.earth_pole_at_zero_phase()
     rows = []
     for k in brdfs:
         bound, why = accuracy.row_bound(extra["rtol"], sc, method_fields["method"], method_fields.get("estimator"),
-                                        brdfs[k], extra["no_bound_reason"], settings.earth_pole_at_zero_phase())
+                                        brdfs[k], extra["no_bound_reason"], pole)
         es_T, esu_T = _earthshine_nodes(es[k], albedo, uniform_albedo)
         ms_o, es_o = req.outputs(ms[k], sc.phi_sun), req.outputs(es_T, sc.phi_sun)
         ms_a, es_a, esu_a = req.averages(ms[k]), req.averages(es_T), req.averages(esu_T)

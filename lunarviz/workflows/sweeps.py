@@ -86,6 +86,7 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
     else:
         rows, (bound, why) = _traced_rows(settings, sc, base, brdfs, cal_settings, model_es, threads)
     dt = time.perf_counter() - t0
+    pole = settings.earth_pole_at_zero_phase()
     for r in rows:
         es_, ms_ = r["earthshine_W_m2"], r["moonshine_W_m2"]
         # a ratio of round-off (no measurable sunlit Moon: new Moon, eclipse, occultation) is no ratio
@@ -103,7 +104,7 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
                 if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
         r["rtol"], r["no_bound_reason"] = accuracy.row_bound(bound, sc, settings.method, settings.estimator,
-                                                             brdfs[r["brdf"]], why, settings.earth_pole_at_zero_phase())
+                                                             brdfs[r["brdf"]], why, pole)
         r["skip_reason"] = ""
     return rows
 

@@ -58,11 +58,16 @@ class SourceRules:
             om, w = ray_kernels.cone_rule(-xc / dxc[:, None], np.clip(R / dxc, 0, 1 - 1e-12), o, 2 * o)
             return om, w
         cut = horizon_cuts_source(sc, x, n, body)
-        if body == "earth" and self.bodies.settings.earth_pole == "detector":
-            return self._pole_nodes(x, n, cut, order)
+        # the Earth's rule about each row's zero-phase point (numpy's product rule: the visible cap,
+        # the lit cap and, where it cuts the Earth, x's horizon as its caps)
+        pole = zero_phase_points(sc, x) if body == "earth" and self.bodies.settings.earth_pole == "detector" else None
         parts = []
         for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
             if rows.size == 0:
+                continue
+            if pole is not None:
+                m, w = source_sphere_rule(sc, x[rows], n[rows], body, order, horizon=with_horizon, pole=pole[rows])
+                parts.append((rows, *source_beams(sc, x[rows], body, m, w)[1:]))
                 continue
             if body == "sun" and not with_horizon:
                 xc = x[rows] - c
@@ -92,30 +97,7 @@ class SourceRules:
             m, w = source_sphere_rule(sc, x[rows], n[rows], body, o_s, horizon=with_horizon)
             _, om, omega = source_beams(sc, x[rows], body, m, w)
             parts.append((rows, om, omega))
-        K = max(p[2].shape[1] for p in parts)
-        om = np.zeros((len(x), K, 3))
-        om[..., 2] = 1.0
-        w = np.zeros((len(x), K))
-        for rows, op, wp in parts:
-            om[rows, :op.shape[1]] = op
-            w[rows, :wp.shape[1]] = wp
-        return om, w
-
-    def _pole_nodes(self, x, n, cut, order: int):
-        """The Earth's beams from x about each row's zero-phase point
-        (:func:`~lunarviz.methods.sources.zero_phase_points`): the visible cap, the lit cap and,
-        where it cuts the Earth, x's horizon are caps of the rule (numpy's product rule)."""
-        sc = self.bodies.scene
-        pole = zero_phase_points(sc, x)
-        om = np.zeros((len(x), 1, 3))
-        w = np.zeros((len(x), 1))
-        parts = []
-        for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
-            if rows.size:
-                m, wr = source_sphere_rule(sc, x[rows], n[rows], "earth", order, horizon=with_horizon,
-                                           pole=pole[rows])
-                parts.append((rows, *source_beams(sc, x[rows], "earth", m, wr)[1:]))
-        K = max([p[2].shape[1] for p in parts], default=1)
+        K = max((p[2].shape[1] for p in parts), default=1)
         om = np.zeros((len(x), K, 3))
         om[..., 2] = 1.0
         w = np.zeros((len(x), K))
