@@ -1,23 +1,27 @@
 """The error model of the Earth's beam rules about the zero-phase point, measured with the detector
 off the Earth's centre (dates from a low orbit and from ground sites).
 
-    python scripts/off_centre_earth_model.py [--write] [--dates N] [--out DIR]
+    python scripts/off_centre_earth_model.py [--write] [--every-hours H] [--nights N] [--out DIR]
 
 For a detector off the Earth's centre, the deterministic tracer takes the Earth's beams in polar
-coordinates about each lunar sample's zero-phase point (``earth_pole="detector"``,
-:func:`lunarviz.methods.sources.zero_phase_points`), where a BRDF's opposition surge peaks and
-its roughness kinks. This script measures, for each Earth order of that rule, the largest
-relative error of the earthshine over dates, BRDFs (Lambert, SHG, DHG) and lunar models (the
-paper's, rolo-fit-map on its map) against the same trace at Earth order 32 (everything else the
-settings ``--rtol 1e-4`` choose: lune rule or facets). A larger order is never allowed more
-error than a smaller one (the table is made non-increasing: refinement never loosens a bound).
+coordinates about each lunar sample's zero-phase point (:func:`lunarviz.methods.sources.zero_phase_points`),
+where a BRDF's opposition surge peaks and its roughness kinks: the ``plain`` rule
+(``earth_pole="detector"``: the visible disc, the lit cap and the horizon as its caps) and the rule
+``cut`` along the roughness's kinks too (``earth_pole="detector-cut"``,
+:func:`lunarviz.methods.sources.roughness_kink_cuts`). This script measures, for each Earth order
+of each, the largest relative error of the earthshine over dates, BRDFs (Lambert, SHG, DHG) and
+lunar models (the paper's, rolo-fit-map on its map) against the cut rule at Earth order 24
+(everything else the settings ``--rtol 1e-4`` choose: lune rule or facets), and the mean time of a
+date's earthshine trace (what a tolerance weighs to choose between them). A larger order is never
+allowed more error than a smaller one (the table is made non-increasing: refinement never loosens
+a bound).
 
 Dates: every ``--dates``-th of 2026's hours from a 550 km sun-synchronous orbit
 (``orbit:550,97.6,0,0``), and nights from Big Bear (``site:34.26,-116.92,2067``) and Paranal
 (``site:-24.63,-70.40,2635``) at 03:00 and 08:00 UTC; dates whose Moon is hidden, eclipsed,
 or whose θ lies outside 5-175° are left out. ``--write`` stores the table in
-``lunarviz/data/error_models.json`` (key ``earth_rule_off_centre``); the report goes to
-``benchmarks/error_models/off_centre_earth.md`` and ``.json``.
+``lunarviz/data/error_models.json`` (keys ``earth_rule_off_centre`` and ``earth_rule_off_centre_cut``);
+the report goes to ``benchmarks/error_models/off_centre_earth.md`` and ``.json``.
 """
 
 from __future__ import annotations
@@ -28,12 +32,16 @@ import json
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
 from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-ORDERS = (7, 10, 14, 20)
-REFERENCE_ORDER = 32
+#: the two rules about the zero-phase point (their ``earth_pole``) and the Earth orders measured
+VARIANTS = {"plain": ("detector", (5, 6, 7, 8, 10, 14, 20)), "cut": ("detector-cut", (4, 5, 6, 7, 8, 10))}
+#: the reference: the rule cut along the kinks, at this order
+REFERENCE_ORDER = 24
 BRDFS = ("lambert", "shg", "dhg")
 MOONS = ("paper", "rolo-fit-map")
 OBSERVERS = ("orbit:550,97.6,0,0", "site:34.26,-116.92,2067", "site:-24.63,-70.40,2635")
@@ -54,7 +62,8 @@ def dates(every_hours: int, nights: int, start=dt.datetime(2026, 1, 3, 5), first
 
 
 def measure(args) -> dict | None:
-    """Errors of one (observer, date, lunar model) at each Earth order, or None (left out)."""
+    """Errors (and seconds) of one (observer, date, lunar model) at each Earth order of each
+    variant of the rule, or None (left out)."""
     obs, label, moon = args
     from lunarviz.methods import accuracy
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
@@ -67,14 +76,15 @@ def measure(args) -> dict | None:
     base = s.trace_settings(1, s.trace_plan(sc.theta_deg))
     brdfs = s.brdf_models()
 
-    def trace(order):
+    def trace(order, pole):
         pair = None if base.lune_source_orders is None else (base.lune_source_orders[0], order)
-        st = replace(base, earth_pole="detector", earth_order=order, lune_source_orders=pair)
+        st = replace(base, earth_pole=pole, earth_order=order, lune_source_orders=pair)
         ts = TraceScene(sc, st)
+        t = time.perf_counter()
         r = trace_path(ts, "earthshine", brdfs)
-        return r.mean, ts
+        return r.mean, ts, time.perf_counter() - t
     t = time.perf_counter()
-    ref, ts = trace(REFERENCE_ORDER)
+    ref, ts, _ = trace(REFERENCE_ORDER, "detector-cut")
     lune = ts.sampling.lune_rule_applies("earth")
     unbounded = ts.sampling.eclipse_possible() or ts.sampling.moon_shadow_on_earth_possible() or \
         (not lune and ts.sampling.edges_found("earth"))
@@ -82,23 +92,30 @@ def measure(args) -> dict | None:
         return None
     if not all(v > 0 for v in ref.values()):
         return None
-    errs = {}
-    for o in ORDERS:
-        got, _ = trace(o)
-        errs[o] = {k: abs(got[k] / ref[k] - 1.0) for k in brdfs}
-    return {"observer": obs, "time_utc": label, "moon_model": moon, "theta_deg": sc.theta_deg, "lune_rule": bool(lune),
-            "errors": {str(o): e for o, e in errs.items()}, "seconds": time.perf_counter() - t}
-
-
-def table(results: list[dict]) -> dict:
-    """{moon model: {order: largest error}} over dates and BRDFs, non-increasing in the order."""
-    out = {}
-    for moon in MOONS:
-        rs = [r for r in results if r["moon_model"] == moon]
-        worst = [max(max(r["errors"][str(o)].values()) for r in rs) for o in ORDERS]
-        nested = [max(worst[i:]) for i in range(len(worst))]  # never less error allowed at a lower order
-        out[moon] = {str(o): float(e) for o, e in zip(ORDERS, nested)}
+    out = {"observer": obs, "time_utc": label, "moon_model": moon, "theta_deg": sc.theta_deg, "lune_rule": bool(lune)}
+    for variant, (pole, orders) in VARIANTS.items():
+        errs, secs = {}, {}
+        for o in orders:
+            got, _, dt_ = trace(o, pole)
+            errs[str(o)] = {k: abs(got[k] / ref[k] - 1.0) for k in brdfs}
+            secs[str(o)] = dt_
+        out[variant] = {"errors": errs, "seconds": secs}
+    out["seconds"] = time.perf_counter() - t
     return out
+
+
+def table(results: list[dict], variant: str) -> tuple[dict, dict]:
+    """({moon model: {order: largest error}}, {moon model: {order: mean seconds}}) of one variant
+    over dates and BRDFs; the errors non-increasing in the order."""
+    orders = VARIANTS[variant][1]
+    err, sec = {}, {}
+    for moon in MOONS:
+        rs = [r[variant] for r in results if r["moon_model"] == moon]
+        worst = [max(max(r["errors"][str(o)].values()) for r in rs) for o in orders]
+        nested = [max(worst[i:]) for i in range(len(worst))]  # never less error allowed at a lower order
+        err[moon] = {str(o): float(e) for o, e in zip(orders, nested)}
+        sec[moon] = {str(o): float(np.mean([r["seconds"][str(o)] for r in rs])) for o in orders}
+    return err, sec
 
 
 def main(argv=None) -> int:
@@ -118,39 +135,50 @@ def main(argv=None) -> int:
     else:
         with ProcessPoolExecutor(a.workers) as ex:
             results = [r for r in ex.map(measure, jobs) if r is not None]
-    tab = table(results)
+    tabs = {v: table(results, v) for v in VARIANTS}
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     old = json.loads((Path(a.out) / "off_centre_earth.json").read_text()) if a.from_json else {}
-    report = {"orders": ORDERS, "reference_order": REFERENCE_ORDER, "table": tab, "dates": results,
-              "wall_seconds": old.get("wall_seconds", time.perf_counter() - t0),
+    report = {"variants": {v: {"earth_pole": p, "orders": list(o)} for v, (p, o) in VARIANTS.items()},
+              "reference": {"earth_pole": "detector-cut", "order": REFERENCE_ORDER},
+              "table": {v: t[0] for v, t in tabs.items()}, "seconds": {v: t[1] for v, t in tabs.items()},
+              "dates": results, "wall_seconds": old.get("wall_seconds", time.perf_counter() - t0),
               "command": old.get("command", "python scripts/off_centre_earth_model.py "
                                  + " ".join(argv or sys.argv[1:]))}
     (out / "off_centre_earth.json").write_text(json.dumps(report, indent=1) + "\n")
     lines = ["# The Earth's beam rules about the zero-phase point, off the Earth's centre", "",
              f"`{report['command']}`: {len(results)} (date, lunar model) cases, earthshine of "
-             f"{', '.join(BRDFS)} at each Earth order against order {REFERENCE_ORDER} of the same rule "
-             f"({report['wall_seconds']:.0f} s).", "",
-             "| lunar model | " + " | ".join(f"order {o}" for o in ORDERS) + " |",
-             "|---|" + "---|" * len(ORDERS)]
-    for moon, row in tab.items():
-        lines.append(f"| {moon} | " + " | ".join(f"{row[str(o)]:.1e}" for o in ORDERS) + " |")
-    lines += ["", "Largest error per observer (all orders' columns as above):", ""]
-    for obs in OBSERVERS:
+             f"{', '.join(BRDFS)} at each Earth order of each rule against order {REFERENCE_ORDER} of the rule "
+             f"cut along the roughness's kinks ({report['wall_seconds']:.0f} s).", "",
+             "Rules: `plain` (`earth_pole=\"detector\"`: the visible disc, the lit cap and the horizon as caps), "
+             "`cut` (`earth_pole=\"detector-cut\"`: also cut along the plane of the normal and the detector, "
+             "ψ = 0, and the circle tangent to i = e at the pole). Largest error over dates and BRDFs "
+             "(non-increasing in the order), then the mean seconds of a date's earthshine trace.", ""]
+    for v, (pole, orders) in VARIANTS.items():
+        err, sec = tabs[v]
+        lines += [f"## {v}", "", "| lunar model | " + " | ".join(f"order {o}" for o in orders) + " |",
+                  "|---|" + "---|" * len(orders)]
         for moon in MOONS:
-            rs = [r for r in results if r["observer"] == obs and r["moon_model"] == moon]
-            if rs:
-                cells = " | ".join(f"{max(max(r['errors'][str(o)].values()) for r in rs):.1e}" for o in ORDERS)
-                lines.append(f"- `{obs}`, {moon} ({len(rs)} dates): {cells}")
+            lines.append(f"| {moon} | " + " | ".join(f"{err[moon][str(o)]:.1e}" for o in orders) + " |")
+        for moon in MOONS:
+            lines.append(f"| {moon}, seconds | " + " | ".join(f"{sec[moon][str(o)]:.2f}" for o in orders) + " |")
+        lines += ["", "Largest error per observer:", ""]
+        for obs in OBSERVERS:
+            for moon in MOONS:
+                rs = [r[v] for r in results if r["observer"] == obs and r["moon_model"] == moon]
+                if rs:
+                    cells = " | ".join(f"{max(max(r['errors'][str(o)].values()) for r in rs):.1e}" for o in orders)
+                    lines.append(f"- `{obs}`, {moon} ({len(rs)} dates): {cells}")
+        lines.append("")
     (out / "off_centre_earth.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     if a.write:
         path = ROOT / "lunarviz" / "data" / "error_models.json"
         m = json.loads(path.read_text())
-        m["earth_rule_off_centre"] = {"orders": list(ORDERS), "reference_order": REFERENCE_ORDER,
-                                      "max_rel_error": tab,
-                                      "source": "scripts/off_centre_earth_model.py (benchmarks/error_models/"
-                                                "off_centre_earth.md)"}
+        for v, key in (("plain", "earth_rule_off_centre"), ("cut", "earth_rule_off_centre_cut")):
+            m[key] = {"earth_pole": VARIANTS[v][0], "orders": list(VARIANTS[v][1]),
+                      "reference": report["reference"], "max_rel_error": tabs[v][0], "seconds": tabs[v][1],
+                      "source": "scripts/off_centre_earth_model.py (benchmarks/error_models/off_centre_earth.md)"}
         path.write_text(json.dumps(m, indent=1) + "\n")
     return 0
 

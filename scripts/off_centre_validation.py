@@ -11,10 +11,10 @@ and 09:00 UTC. Each row of ``lunarviz sweep --method raytrace --rtol R`` (Lamber
 the paper's Moon and rolo-fit-map; grey and at 550 nm) is compared with
 
 * the paper's Moon: the exact reference (``--method reference``) at outer/inner orders 48/24
-  (its rule about the zero-phase point, as the rows');
+  (its rule about the zero-phase point cut along the roughness's kinks);
 * rolo-fit-map, and every spectral row: the tracer's own lune rule at order 32 with Sun order 12
-  and Earth order 32 (a map's cells are exact in the mapped rule's weights; the reference reads
-  the map per node and would not converge). The 550 nm rows on one computed date in
+  and Earth order 24 of the rule cut along the kinks (a map's cells are exact in the mapped
+  rule's weights; the reference reads the map per node and would not converge). The 550 nm rows on one computed date in
   ``--spectral-every``.
 
 Writes ``off_centre_validation.md`` and ``.json`` to ``benchmarks/error_models`` (or ``--out``).
@@ -51,7 +51,8 @@ def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
 def reference(s, label: str, moon: str, spectral: bool) -> dict:
     """{(brdf, path): value} of the high-order reference for one date: the exact reference at
     48/24 (the paper's Moon, grey), else the tracer at high orders (its plan replaced: lune rule
-    32, Sun order 12, Earth order 32, the Earth's rule about the zero-phase point)."""
+    32, Sun order 12, Earth order 24 of the Earth's rule about the zero-phase point cut along the
+    roughness's kinks)."""
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.sweeps import run_phase
     if moon == "paper" and not spectral:
@@ -59,8 +60,8 @@ def reference(s, label: str, moon: str, spectral: bool) -> dict:
         return {(r["brdf"], p): r[k] for r in run_phase(ref, label, threads=1) for k, p in PATHS.items()}
     sc = s.geometry(label)
     plan = s.trace_plan(sc.theta_deg)
-    hi = {"settings": {**plan["settings"], "lune_order": (32, 32), "sun_order": 12, "earth_order": 32,
-                       "lune_source_orders": (12, 32), "earth_pole": "detector"}, "bounds": {}}
+    hi = {"settings": {**plan["settings"], "lune_order": (32, 32), "sun_order": 12, "earth_order": 24,
+                       "lune_source_orders": (12, 24), "earth_pole": "detector-cut"}, "bounds": {}}
     real = ResolvedScene.trace_plan
     ResolvedScene.trace_plan = lambda self, theta=None: hi
     try:

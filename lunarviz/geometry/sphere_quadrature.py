@@ -60,7 +60,7 @@ def _gauss_legendre(n: int):
 
 def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int = 16,
              n_phi: int = 16, phi_zero=None, crossings: bool = False,
-             structured: bool = False, kink=None, thin=None):
+             structured: bool = False, kink=None, thin=None, graded: bool = False):
     """Nodes and solid-angle weights over ``{n·axis ≥ cos_max} ∩ caps``, for a batch.
 
     Parameters
@@ -88,6 +88,11 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
         penumbra band's blocks across φ, that hold under ``share`` of the region's solid angle
         (:func:`_thin_orders`), take ``order`` Gauss points that way instead of ``n_t``/``n_phi``;
         their unused slots have zero weight.
+
+    graded : also grade the t-segments toward a tangent ring just outside them
+        (:func:`_cap_rings`): where a crossing ring lies next to a tangent one (a thin crescent's
+        horns seen about a pole off its centre). Without it, the rule is the one
+        :func:`rule_coordinates` inverts.
 
     Returns
     -------
@@ -118,12 +123,12 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
                                                            crossings, kink)
     t_orders = None
     if thin is not None:  # the blocks at full order first: their widths and shares of the region
-        t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent)
+        t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent, graded=graded)
         p_lo, p_hi, inside = _ring_intervals(np.sin(t), np.cos(t), t_u, phi_u, _ring_thresholds(caps_c, kink, t),
                                              split_only)
         t_orders, phi_orders = _thin_orders(t_u, caps_c, t_max, extra, tangent, t, wt, phi_u, split_only, kink,
                                             p_lo, p_hi, inside, n_t, n_phi, thin)
-    t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent, t_orders)
+    t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent, t_orders, graded=graded)
     st, ct = np.sin(t), np.cos(t)
     p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t), split_only)
     fx, fw = gauss_legendre(n_phi)
@@ -310,12 +315,56 @@ def t_segments(t_u, caps_c, t_max, extra=None, tangent=None):
     return t_lo, t_hi, np.take_along_axis(s_lo, sel, 1), np.take_along_axis(s_hi, sel, 1)
 
 
-def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None, orders=None):
+def _tangent_radii(t_u, caps_c, t_max) -> np.ndarray:
+    """The polar radii (B, 3k) where a ring is tangent to a cap boundary, inside (0, t_max)
+    (NaN elsewhere): :func:`t_segments`' candidates."""
+    a = np.arccos(np.clip(caps_c, -1.0, 1.0))
+    cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
+    real = np.tile((caps_c > -1.0) & (caps_c < 1.0), 3)
+    return np.where(real & (cand > 0.0) & (cand < t_max[:, None]), cand, np.nan)
+
+
+def _near_tangents(radii, t_lo, t_hi, s_lo, s_hi):
+    """For each t-segment (B, S), the tangent radius just below its start and just above its
+    end, where one lies outside the segment closer than the segment is long (NaN: none, or that
+    end is itself tangent)."""
+    L = (t_hi - t_lo)[:, :, None]
+    r = radii[:, None, :]
+    with np.errstate(invalid="ignore"):
+        below = np.where((r < t_lo[:, :, None]) & (t_lo[:, :, None] - r < L), r, -np.inf).max(axis=2)
+        above = np.where((r > t_hi[:, :, None]) & (r - t_hi[:, :, None] < L), r, np.inf).min(axis=2)
+    below = np.where(np.isfinite(below) & ~s_lo & (t_hi > t_lo), below, np.nan)
+    above = np.where(np.isfinite(above) & ~s_hi & (t_hi > t_lo), above, np.nan)
+    return below, above
+
+
+def _graded_segments(t_u, caps_c, t_max, extra, tangent):
+    """:func:`t_segments` for :func:`cap_rule`'s ``graded`` rule, with each segment's anchors
+    (:func:`_near_tangents`); a segment singular or nearly so at both ends, not both tangent, is
+    cut at its middle (each half then has one such end)."""
+    radii = _tangent_radii(t_u, caps_c, t_max)
+    t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
+    below, above = _near_tangents(radii, t_lo, t_hi, s_lo, s_hi)
+    both = (s_lo | np.isfinite(below)) & (s_hi | np.isfinite(above)) & ~(s_lo & s_hi)
+    if both.any():
+        mid = np.where(both, 0.5 * (t_lo + t_hi), np.nan)
+        extra = mid if extra is None else np.concatenate([extra, mid], axis=1)
+        tangent = None if tangent is None else np.concatenate([tangent, np.zeros(mid.shape, bool)], axis=1)
+        t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
+        below, above = _near_tangents(radii, t_lo, t_hi, s_lo, s_hi)
+        above = np.where(np.isfinite(below) | s_lo, np.nan, above)
+    return t_lo, t_hi, s_lo, s_hi, below, above
+
+
+def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None, orders=None, graded: bool = False):
     """Polar rings t (B, R) of :func:`cap_rule` and their weights ``dt·sin t`` (B, R): Gauss
     segments between the polar radii where a ring becomes tangent to a cap boundary (``orders``
     (B, S) ≤ n_t points in a segment, the rest of its n_t rings weightless; default n_t)."""
     B = t_u.shape[0]
-    t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
+    if graded:
+        t_lo, t_hi, s_lo, s_hi, below, above = _graded_segments(t_u, caps_c, t_max, extra, tangent)
+    else:
+        t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
     s_lo, s_hi = s_lo[:, :, None], s_hi[:, :, None]
     # Next to a tangent ring t* the φ-half-width of a ring behaves like √|t - t*|, so the ring
     # integral has a square-root singularity there; the substitution t - t* ∝ u² at such ends
@@ -328,7 +377,23 @@ def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None, orders=No
     f = np.where(s_lo & s_hi, f_both, np.where(s_lo, f_lo, np.where(s_hi, f_hi, u)))
     jac = np.where(s_lo & s_hi, j_both, np.where(s_lo, j_lo, np.where(s_hi, j_hi, 1.0)))
     t = t_lo[:, :, None] + (t_hi - t_lo)[:, :, None] * f  # (B, S, n_t)
-    wt = (t_hi - t_lo)[:, :, None] * gw * jac * np.sin(t)
+    dt = (t_hi - t_lo)[:, :, None] * jac
+    if graded:
+        # A tangent radius t* just outside a segment (closer than its length: a crossing ring
+        # next to a tangent one, as at a thin crescent's horns) leaves √|t - t*| nearly singular
+        # inside it, and Gauss-Legendre converges only algebraically. The substitution
+        # t = t* ± s², s linear in u, makes it analytic (at t* itself, the u² map above).
+        for anchor, sign in ((below, 1.0), (above, -1.0)):
+            on = np.isfinite(anchor)[:, :, None]
+            if not on.any():
+                continue
+            a = np.where(on[..., 0], anchor, t_lo)[:, :, None]
+            s0 = np.sqrt(np.abs(t_lo[:, :, None] - a))
+            s1 = np.sqrt(np.abs(t_hi[:, :, None] - a))
+            sv = s0 + (s1 - s0) * u
+            t = np.where(on, a + sign * sv * sv, t)
+            dt = np.where(on, 2.0 * sv * np.abs(s1 - s0) * np.ones_like(u), dt)
+    wt = dt * gw * np.sin(t)
     return t.reshape(B, -1), wt.reshape(B, -1)  # (B, R) rings
 
 

@@ -249,15 +249,19 @@ def earth_source_modelled(scene, brdf) -> bool:
     return math.acos(min(1.0, max(-1.0, c))) <= EARTH_CENTRE_TOLERANCE
 
 
-def off_centre_earth_error(order: int, mapped_moon: bool) -> float:
+def _off_centre_table(cut: bool):
+    return error_models().get("earth_rule_off_centre_cut" if cut else "earth_rule_off_centre")
+
+
+def off_centre_earth_error(order: int, mapped_moon: bool, cut: bool = False) -> float:
     """The largest relative error of the earthshine from the Earth's beam rules about the
-    zero-phase point at Earth ``order`` (``earth_rule_off_centre`` in the models: at the largest
-    order measured at or below ``order``; NaN below the smallest), measured with the detector
-    off the Earth's centre on orbit and site dates against order 32 of the same rule
-    (docs: accuracy, "Observers off the Earth's centre"). The largest over every date and phase:
-    the error at a low order swings by 100x from one date to the next (order 7: 4e-8 to 1.3e-4),
-    so no phase window of a few dates bounds it."""
-    table = error_models().get("earth_rule_off_centre")
+    zero-phase point at Earth ``order`` (``earth_rule_off_centre`` in the models, or with ``cut``
+    the rule cut along the roughness's kinks, ``earth_rule_off_centre_cut``: at the largest order
+    measured at or below ``order``; NaN below the smallest), measured with the detector off the
+    Earth's centre on orbit and site dates against a higher order of the cut rule (docs: accuracy,
+    "Observers off the Earth's centre"). The largest over every date and phase: the error at a
+    low order swings by 100x from one date to the next, so no phase window of a few dates bounds it."""
+    table = _off_centre_table(cut)
     if table is None:
         return math.nan
     measured = [o for o in table["orders"] if o <= order]
@@ -266,18 +270,38 @@ def off_centre_earth_error(order: int, mapped_moon: bool) -> float:
     return float(table["max_rel_error"]["rolo-fit-map" if mapped_moon else "paper"][str(max(measured))])
 
 
-def off_centre_earth_order(limit: float, mapped_moon: bool) -> int:
-    """The smallest Earth order of the zero-phase rule whose measured error is at most ``limit``,
-    else the largest measured (the most accurate)."""
-    table = error_models().get("earth_rule_off_centre")
+def off_centre_earth_order(limit: float, mapped_moon: bool, cut: bool = False) -> int:
+    """The smallest Earth order of the zero-phase rule (``cut``: cut along the kinks) whose
+    measured error is at most ``limit``, else the largest measured (the most accurate)."""
+    table = _off_centre_table(cut)
     if table is None:
         return max(DEFAULT_EARTH_ORDERS)
-    ok = [o for o in table["orders"] if off_centre_earth_error(o, mapped_moon) <= limit]
+    ok = [o for o in table["orders"] if off_centre_earth_error(o, mapped_moon, cut) <= limit]
     return min(ok) if ok else max(table["orders"])
 
 
+def off_centre_earth_rule(limit: float, mapped_moon: bool) -> tuple[int, bool]:
+    """``(order, cut)``: of the two zero-phase rules, plain and cut along the kinks, the one
+    whose smallest order meeting ``limit`` took less time in the measurement (its ``seconds``:
+    a date's earthshine, mean over the dates); the more accurate where neither meets it."""
+    options = []
+    for cut in (False, True):
+        table = _off_centre_table(cut)
+        if table is None:
+            continue
+        order = off_centre_earth_order(limit, mapped_moon, cut)
+        err = off_centre_earth_error(order, mapped_moon, cut)
+        cost = float(table.get("seconds", {}).get("rolo-fit-map" if mapped_moon else "paper", {})
+                     .get(str(order), math.inf))
+        options.append((not err <= limit, cost if err <= limit else err, cut, order))
+    if not options:
+        return max(DEFAULT_EARTH_ORDERS), False
+    _, _, cut, order = min(options)
+    return order, cut
+
+
 #: the Earth orders the zero-phase rule falls back to without a measured table
-DEFAULT_EARTH_ORDERS = (7, 10, 14, 20)
+DEFAULT_EARTH_ORDERS = (5, 6, 7, 8, 10, 14, 20)
 
 
 def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why: str = "",

@@ -48,8 +48,9 @@ class ReferenceSettings:
     chunk: int = 256
     #: lunar albedo map and Earth surface (:class:`lunarviz.surfaces.point_values.Surfaces`), read at the nodes
     surfaces: object = None
-    #: the pole of the Earth's rule: ``centre`` (the sub-x point) or ``detector`` (the zero-phase
+    #: the pole of the Earth's rule: ``centre`` (the sub-x point), ``detector`` (the zero-phase
     #: point, :func:`~lunarviz.methods.sources.zero_phase_points`: a detector off the Earth's centre)
+    #: or ``detector-cut`` (that pole, the rule cut along the roughness's kinks too)
     earth_pole: str = "centre"
 
     def __post_init__(self):
@@ -63,14 +64,15 @@ def reference_transports(scene: SceneGeometry, path: str, settings: ReferenceSet
     x, n, dA = lunar_surface_rule(scene, src, scene.radii[body], settings.outer_order)
     mu, geom, o = detector_geometry(x, n, dA, scene.det, scene.det_normal)
     geom = np.where(scene.sight_lines_clear(x), geom, 0.0)  # the Earth occulting the Moon (real sky)
-    pole_rule = body == "earth" and settings.earth_pole == "detector"
+    pole_rule = body == "earth" and settings.earth_pole != "centre"
     # (the zero-phase rule holds up to ~18·order² nodes a row: batches that bound its memory)
     chunk = max(4, min(settings.chunk, (1 << 15) // settings.inner_order**2)) if pole_rule else settings.chunk
     for a in range(0, len(x), chunk):
         sl = slice(a, a + chunk)
         xs, ns = x[sl], n[sl]
         pole = zero_phase_points(scene, xs) if pole_rule else None
-        m, w = source_sphere_rule(scene, xs, ns, body, settings.inner_order, pole=pole)
+        m, w = source_sphere_rule(scene, xs, ns, body, settings.inner_order, pole=pole,
+                                  roughness_cuts=pole_rule and settings.earth_pole == "detector-cut")
         y, om, omega = source_beams(scene, xs, body, m, w)
         sf = settings.surfaces
         L_unit = None

@@ -29,7 +29,8 @@ def horizon_cuts_source(scene: SceneGeometry, x, n, body: str) -> np.ndarray:
     return np.einsum("ij,ij->i", c - x, n) < R
 
 
-def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizon: bool = True, pole=None):
+def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizon: bool = True, pole=None,
+                       roughness_cuts: bool = False):
     """Nodes m (B, K, 3) on the unit sphere of ``body`` and their solid-angle weights (B, K)
     over the part seen from x (B, 3) — above x's horizon when ``horizon`` (pass False where
     the horizon does not cut the source: the rule is then smaller) and, for the Earth, lit by
@@ -52,16 +53,41 @@ def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizo
     if body == "earth":
         caps_u.append(np.broadcast_to(unit(scene.sun - c), n.shape))
         caps_c.append(np.full(len(n), R / np.linalg.norm(scene.sun - c)))
+    split = [False] * len(caps_u)
     if pole is None:
         axis, cos_max, crossings = xc / dxc[:, None], R / dxc, False
     else:
         axis, cos_max, crossings = np.asarray(pole, dtype=float), np.full(len(x), -1.0), True
+        if roughness_cuts:
+            for u, cut in roughness_kink_cuts(scene, x, n, axis, body):
+                caps_u.append(u)
+                caps_c.append(cut)
+                split.append(True)
     m, w = cap_rule(axis, cos_max, np.stack(caps_u, 1) if caps_u else None,
-                    np.stack(caps_c, 1) if caps_c else None, n_t=order, n_phi=order, crossings=crossings)
+                    np.stack(caps_c, 1) if caps_c else None, n_t=order, n_phi=order, crossings=crossings,
+                    graded=pole is not None,
+                    split_only=np.broadcast_to(np.array(split), (len(x), len(split))) if caps_u else None)
     nz = w > 0
     kmax = max(int(nz.sum(1).max(initial=0)), 1)
     sel = np.argsort(~nz, axis=1, kind="stable")[:, :kmax]
     return np.take_along_axis(m, sel[..., None], 1), np.take_along_axis(w, sel, 1)
+
+
+def roughness_kink_cuts(scene, x, n, pole, body="earth"):
+    """Two split-only caps ``(u, c)`` (B, 3), (B,) on ``body``'s unit sphere where a rough BRDF
+    at x (B, 3) with normal n kinks, both through the zero-phase points ``pole``: the plane of n
+    and the detector's direction o (relative azimuth ψ = 0 or π; exact, a plane through x cuts
+    the sphere in a circle), and the circle through the pole tangent there to the curve i = e
+    (the cone n·ω = n·o about x: its normal at the pole is the part of n across o)."""
+    c, R = source_centre(scene, body)
+    o = unit(scene.det - x)
+    p = np.cross(n, o)
+    pn = np.linalg.norm(p, axis=1)
+    ok = pn > 1e-12
+    p = np.where(ok[:, None], p / np.where(ok, pn, 1.0)[:, None], unit(np.cross(pole, n)))
+    q = n - np.einsum("ij,ij->i", n, o)[:, None] * o
+    q = q / np.maximum(np.linalg.norm(q, axis=1), 1e-300)[:, None]
+    return [(p, np.einsum("ij,ij->i", x - c, p) / R), (q, np.einsum("ij,ij->i", pole, q))]
 
 
 def zero_phase_points(scene: SceneGeometry, x, body: str = "earth") -> np.ndarray:

@@ -98,7 +98,7 @@ def reference_settings(scene) -> ReferenceSettings:
     chooses."""
     outer, inner, _ = scene.reference_orders()
     return ReferenceSettings(outer, inner, scene.earth_albedo, surfaces=scene.surfaces(),
-                             earth_pole="detector" if scene.earth_pole_at_zero_phase() else "centre")
+                             earth_pole=scene.reference_earth_pole())
 
 
 def trace_settings(scene, threads: int | None = None, plan: dict | None = None):

@@ -80,6 +80,7 @@ class ResolvedScene:
     unmodelled_reason = tolerance.unmodelled_reason
     analytic_row_bound = tolerance.analytic_row_bound
     earth_pole_at_zero_phase = tolerance.earth_pole_at_zero_phase
+    reference_earth_pole = tolerance.reference_earth_pole
     warn_unmet_tolerance = tolerance.warn_unmet_tolerance
 
     @property

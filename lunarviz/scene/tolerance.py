@@ -25,8 +25,9 @@ def reference_orders(scene) -> tuple[int, int, float]:
     """The exact reference's (outer, inner) orders and the bound they meet: from the
     tolerance when one is given, else ``reference_outer``, ``reference_inner``. Off the Earth's
     centre with a Hapke BRDF (:func:`earth_pole_at_zero_phase`) the inner order is at least the
-    one whose zero-phase rule error (:func:`lunarviz.methods.accuracy.off_centre_earth_error`)
-    fits half the tolerance (the most accurate measured where none does), and the bound adds it."""
+    one whose zero-phase rule error, cut along the kinks (:func:`reference_earth_pole`,
+    :func:`lunarviz.methods.accuracy.off_centre_earth_error`), fits half the tolerance (the most
+    accurate measured where none does), and the bound adds it."""
     if scene.rtol is not None:
         outer, inner, bound = accuracy.reference_choice(scene.rtol)
     else:
@@ -36,9 +37,17 @@ def reference_orders(scene) -> tuple[int, int, float]:
         bound = math.nan if row is None else accuracy.SAFETY * max(row["moonshine"], row["earthshine"])
     if earth_pole_at_zero_phase(scene):
         mapped = scene.mapped_moon()
-        inner = max(inner, accuracy.off_centre_earth_order(scene.rtol_or_default / 2 / accuracy.SAFETY, mapped))
-        bound = bound + accuracy.SAFETY * accuracy.off_centre_earth_error(inner, mapped)
+        inner = max(inner, accuracy.off_centre_earth_order(scene.rtol_or_default / 2 / accuracy.SAFETY, mapped,
+                                                           cut=True))
+        bound = bound + accuracy.SAFETY * accuracy.off_centre_earth_error(inner, mapped, cut=True)
     return outer, inner, bound
+
+
+def reference_earth_pole(scene) -> str:
+    """The exact reference's Earth pole (:attr:`lunarviz.methods.reference.ReferenceSettings.earth_pole`):
+    the sub-point, or (:func:`earth_pole_at_zero_phase`) the zero-phase point with the rule cut
+    along the roughness's kinks, the more accurate of the two rules about it at any order."""
+    return "detector-cut" if earth_pole_at_zero_phase(scene) else "centre"
 
 
 
@@ -113,15 +122,17 @@ def _zero_phase_earth(scene, settings: dict, fixed: dict, bounds: dict) -> None:
     facets) within the tolerance; each kind's earthshine bound grows by that error (the two
     added: the lunar side's model was measured with the sub-point rule at the Earth's centre)."""
     mapped = scene.mapped_moon()
-    settings["earth_pole"] = "detector"
     kind = "lune" if settings.get("lune_order") is not None else "facets"
     lunar = bounds.get((kind, "earthshine"), 0.0)
     limit = (scene.rtol_or_default - (lunar if math.isfinite(lunar) else 0.0)) / accuracy.SAFETY
-    order = fixed.get("earth_order") or accuracy.off_centre_earth_order(limit, mapped)
+    order, cut = accuracy.off_centre_earth_rule(limit, mapped)
+    if fixed.get("earth_order"):  # an order asked for: the plain rule at it
+        order, cut = fixed["earth_order"], False
+    settings["earth_pole"] = "detector-cut" if cut else "detector"
     settings["earth_order"] = order
     if settings.get("lune_source_orders") is not None:
         settings["lune_source_orders"] = (settings["lune_source_orders"][0], order)
-    extra = accuracy.SAFETY * accuracy.off_centre_earth_error(order, mapped)
+    extra = accuracy.SAFETY * accuracy.off_centre_earth_error(order, mapped, cut)
     for key in [k for k in bounds if k[1] == "earthshine"]:
         bounds[key] = bounds[key] + extra
 

@@ -117,8 +117,9 @@ class DeterministicTransport:
         else:
             groups = [~cut, cut]
         rows = [np.flatnonzero(g) for g in groups if g.any()]
-        if body == "earth" and s.earth_pole == "detector":  # rules of up to ~18·order² beams: batches that bound memory
-            size = max(16, tuning.POLE_RULE_NODES // self.beam_order(body) ** 2)
+        if body == "earth" and s.earth_pole != "centre":  # rules of up to ~18·order² beams: batches that bound memory
+            cuts = 3 if s.earth_pole == "detector-cut" else 1  # (the kinks' cuts: ~3x the beams a row)
+            size = max(16, tuning.POLE_RULE_NODES // (cuts * self.beam_order(body) ** 2))
             rows = [r[a:a + size] for r in rows for a in range(0, len(r), size)]
         return rows
 

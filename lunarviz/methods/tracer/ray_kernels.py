@@ -448,9 +448,9 @@ def _source_hits(x, n, off, bi, ds, idx, prim_in, radius, centre, sun, phi, vis,
             continue
         q = idx[j]
         i = bi[q]
-        o0 = x[i, 0] + n[i, 0] * off - centre[0]
-        o1 = x[i, 1] + n[i, 1] * off - centre[1]
-        o2 = x[i, 2] + n[i, 2] * off - centre[2]
+        o0 = x[i, 0] - centre[0]  # (from x itself: see EmbreeBody.sphere_hits)
+        o1 = x[i, 1] - centre[1]
+        o2 = x[i, 2] - centre[2]
         d0, d1, d2 = ds[q, 0], ds[q, 1], ds[q, 2]
         disc, b, sq = _sphere_crossing(o0, o1, o2, d0, d1, d2, radius)
         t = b - sq

@@ -52,7 +52,7 @@ EARTH_CELLS = 24
 #: hold up to ~18·order² beams: two φ-intervals on each of up to nine t-segments): ~0.5 GB a batch
 POLE_RULE_NODES = 1 << 17
 #: the poles the Earth's beam rules may take (:attr:`TraceSettings.earth_pole`)
-EARTH_POLES = ("centre", "detector")
+EARTH_POLES = ("centre", "detector", "detector-cut")
 
 
 @dataclass(frozen=True)
@@ -90,7 +90,9 @@ class TraceSettings:
     #: the pole of the Earth's beam rules: ``centre`` (the sub-point of each lunar sample: the
     #: zero-phase point where the detector is at the Earth's centre) or ``detector`` (the zero-phase
     #: point itself, :func:`~lunarviz.methods.sources.zero_phase_points`: where a BRDF's opposition
-    #: surge and roughness kink sit for a detector off the centre; docs: accuracy)
+    #: surge and roughness kink sit for a detector off the centre; docs: accuracy), or
+    #: ``detector-cut`` (that pole, and the rule also cut along the roughness's kinks through it:
+    #: :func:`~lunarviz.methods.sources.roughness_kink_cuts`)
     earth_pole: str = "centre"
 
     def moon_map(self):

@@ -60,13 +60,15 @@ class SourceRules:
         cut = horizon_cuts_source(sc, x, n, body)
         # the Earth's rule about each row's zero-phase point (numpy's product rule: the visible cap,
         # the lit cap and, where it cuts the Earth, x's horizon as its caps)
-        pole = zero_phase_points(sc, x) if body == "earth" and self.bodies.settings.earth_pole == "detector" else None
+        pole_kind = self.bodies.settings.earth_pole if body == "earth" else "centre"
+        pole = zero_phase_points(sc, x) if pole_kind != "centre" else None
         parts = []
         for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
             if rows.size == 0:
                 continue
             if pole is not None:
-                m, w = source_sphere_rule(sc, x[rows], n[rows], body, order, horizon=with_horizon, pole=pole[rows])
+                m, w = source_sphere_rule(sc, x[rows], n[rows], body, order, horizon=with_horizon, pole=pole[rows],
+                                          roughness_cuts=pole_kind == "detector-cut")
                 parts.append((rows, *source_beams(sc, x[rows], body, m, w)[1:]))
                 continue
             if body == "sun" and not with_horizon:
@@ -191,7 +193,7 @@ class SourceRules:
         xo = x + n * (NORMAL_OFFSET * self.bodies.moon.radius)
         target = self.bodies.sun if body == "sun" else self.bodies.earth
         if target.mode(s.shading) == "exact":
-            hits = target.sphere_hits(xo, dirs)
+            hits = target.sphere_hits(xo, dirs, refine_from=x)
         else:
             hits = target.intersect(xo, dirs)
         self.bodies.count(len(xo))
