@@ -10,10 +10,10 @@ and Mauna Kea (``site:19.82,-155.47,4205``) nights every 11 days from 2026-01-10
 and 09:00 UTC. Each row of ``lunarviz sweep --method raytrace --rtol R`` (Lambert, SHG, DHG;
 the paper's Moon and rolo-fit-map; grey and at 550 nm) is compared with
 
-* the paper's Moon: the exact reference (``--method reference``) at outer/inner orders 48/24
+* the paper's Moon: the exact reference (``--method reference``) at outer/inner orders 48/12
   (its rule about the zero-phase point cut along the roughness's kinks);
 * rolo-fit-map, and every spectral row: the tracer's own lune rule at order 32 with Sun order 12
-  and Earth order 24 of the rule cut along the kinks (a map's cells are exact in the mapped
+  and Earth order 12 of the rule cut along the kinks (a map's cells are exact in the mapped
   rule's weights; the reference reads the map per node and would not converge). The 550 nm rows on one computed date in
   ``--spectral-every``.
 
@@ -50,18 +50,18 @@ def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
 
 def reference(s, label: str, moon: str, spectral: bool) -> dict:
     """{(brdf, path): value} of the high-order reference for one date: the exact reference at
-    48/24 (the paper's Moon, grey), else the tracer at high orders (its plan replaced: lune rule
-    32, Sun order 12, Earth order 24 of the Earth's rule about the zero-phase point cut along the
+    48/12 (the paper's Moon, grey), else the tracer at high orders (its plan replaced: lune rule
+    32, Sun order 12, Earth order 12 of the Earth's rule about the zero-phase point cut along the
     roughness's kinks)."""
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.sweeps import run_phase
     if moon == "paper" and not spectral:
-        ref = s.replace(method="reference", rtol=None, reference_outer=48, reference_inner=24)
+        ref = s.replace(method="reference", rtol=None, reference_outer=48, reference_inner=12)
         return {(r["brdf"], p): r[k] for r in run_phase(ref, label, threads=1) for k, p in PATHS.items()}
     sc = s.geometry(label)
     plan = s.trace_plan(sc.theta_deg)
-    hi = {"settings": {**plan["settings"], "lune_order": (32, 32), "sun_order": 12, "earth_order": 24,
-                       "lune_source_orders": (12, 24), "earth_pole": "detector-cut"}, "bounds": {}}
+    hi = {"settings": {**plan["settings"], "lune_order": (32, 32), "sun_order": 12, "earth_order": 12,
+                       "lune_source_orders": (12, 12), "earth_pole": "detector-cut"}, "bounds": {}}
     real = ResolvedScene.trace_plan
     ResolvedScene.trace_plan = lambda self, theta=None: hi
     try:

@@ -109,3 +109,38 @@ def test_traced_earth_beams_bring_the_light_of_the_rule_nodes_on_a_thin_crescent
                         np.full(len(o32), -1, dtype=np.int64))
     dark = ts.deterministic.beam_transport(x, n, o, ones, ones, "earth", 10)
     assert not np.any(dark.e_beam)
+
+
+def test_kink_cuts_lie_on_the_kinks_and_leave_the_region_whole():
+    """The two split-only caps of the cut rule (:func:`sources.roughness_kink_cuts`): the first's
+    boundary lies in the plane of the lunar normal and the detector's direction through the lunar
+    point (ψ = 0 or π), the second's passes through the zero-phase point where i = e (both to
+    rounding, 1e-12); cutting along them leaves the region itself whole: the cut and plain rules
+    integrate the Earth's Lambertian light alike (both converged: 1e-12 measured, 1e-9 allowed)."""
+    s = ResolvedScene(observer=ORBIT, times=("2026-11-18T07:00:00Z",))
+    sc = s.geometry(s.times[0])
+    x, n = _lunar_points(sc)
+    pole = sources.zero_phase_points(sc, x)
+    (p, cp), (q, cq) = sources.roughness_kink_cuts(sc, x, n, pole)
+    c, R = sc.earth, sc.radii["earth"]
+    o = unit(sc.det - x)
+    # points of the first boundary: the circle m·p = cp on the unit sphere
+    e1 = unit(np.cross(p, pole))
+    e2 = np.cross(p, e1)
+    r = np.sqrt(1 - cp**2)
+    for ang in (0.3, 1.7, 4.0):
+        m = cp[:, None] * p + r[:, None] * (np.cos(ang) * e1 + np.sin(ang) * e2)
+        v = c + R * m - x
+        assert np.allclose(np.einsum("ij,ij->i", v, np.cross(n, o)) / np.linalg.norm(v, axis=1), 0, atol=1e-12)
+    assert np.allclose(np.einsum("ij,ij->i", pole, q), cq, atol=1e-12)
+    y = c + R * pole
+    cos_i = np.einsum("ij,ij->i", unit(y - x), n)
+    hit = np.linalg.norm(np.cross(unit(y - x), o), axis=1) < 1e-9  # (the line through the detector meets the Earth)
+    assert hit.any() and np.allclose(cos_i[hit], np.einsum("ij,ij->i", o, n)[hit], atol=1e-9)
+
+    def light(cuts):
+        m, w = sources.source_sphere_rule(sc, x, n, "earth", 14, horizon=False, pole=pole, roughness_cuts=cuts)
+        yy, om, omega = sources.source_beams(sc, x, "earth", m, w)
+        L = sources.earth_radiance(sc, yy, m, 0.3)
+        return (L * omega * np.clip(np.einsum("bkj,bj->bk", om, n), 0.0, None)).sum(axis=1)
+    np.testing.assert_allclose(light(True), light(False), rtol=1e-9)
