@@ -12,6 +12,11 @@ from lunarviz.workflows.sweeps import run_sweep
 
 pytest.importorskip("distributed")
 
+# One xdist worker for the clusters: each local cluster's scheduler serves HTTP on port 8787 even
+# without its dashboard, and a second cluster started meanwhile on another worker finds it taken
+# (a warning, an error under the suite's filterwarnings).
+pytestmark = pytest.mark.xdist_group("dask")
+
 
 def test_dask_local_cluster_gives_identical_rows():
     # the same run_phase tasks, the same numbers bit for bit (each worker builds and caches its

@@ -144,3 +144,21 @@ def test_kink_cuts_lie_on_the_kinks_and_leave_the_region_whole():
         L = sources.earth_radiance(sc, yy, m, 0.3)
         return (L * omega * np.clip(np.einsum("bkj,bj->bk", om, n), 0.0, None)).sum(axis=1)
     np.testing.assert_allclose(light(True), light(False), rtol=1e-9)
+
+
+def test_graded_rule_after_a_split_grades_toward_the_closer_tangent_ring():
+    """Three caps and a pole where a segment tangent at its start and nearly so past its end is
+    cut in two: the upper half has the far tangent ring (the old start) about its own length
+    below and a close one 8e-4 rad above. Graded toward the far one it erred by 9.2e-6 at order
+    16; toward the closer, the rule meets the region's solid angle to rounding (1e-14 measured,
+    1e-11 allowed). The reference: the plain rule about the first cap's centre (another pole,
+    whose orders 100 and 140 agree to 1e-12)."""
+    u = np.array([[0.240807156230047, -0.01448386961572132, 0.9704649045840621],
+                  [0.7219883526728091, -0.20868310048018357, -0.6596849112862756],
+                  [-0.7953930199891183, -0.5965437414429579, -0.10717046373804508]])
+    c = np.array([-0.4896992336773893, -0.2511594409845841, -0.25448019567804514])
+    pole = np.array([[-0.05530757374573775, 0.10824663421489285, -0.9925843734753771]])
+    _, w_ref = cap_rule(u[:1], c[:1], u[None, 1:], c[None, 1:], n_t=140, n_phi=140, crossings=True)
+    for order in (16, 24):
+        _, w = cap_rule(pole, np.full(1, -1.0), u[None], c[None], n_t=order, n_phi=order, crossings=True, graded=True)
+        assert abs(w.sum() / w_ref.sum() - 1) < 1e-11

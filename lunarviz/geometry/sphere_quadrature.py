@@ -352,8 +352,10 @@ def _graded_segments(t_u, caps_c, t_max, extra, tangent):
         tangent = None if tangent is None else np.concatenate([tangent, np.zeros(mid.shape, bool)], axis=1)
         t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
         below, above = _near_tangents(radii, t_lo, t_hi, s_lo, s_hi)
-        above = np.where(np.isfinite(below) | s_lo, np.nan, above)
-    return t_lo, t_hi, s_lo, s_hi, below, above
+    # one anchor a segment: the closer (a half's far one, the old segment's end, lies about its
+    # own length away and may count by rounding), none across a tangent end
+    use_above = np.isfinite(above) & ~s_lo & (~np.isfinite(below) | (above - t_hi < t_lo - below))
+    return t_lo, t_hi, s_lo, s_hi, np.where(use_above | s_hi, np.nan, below), np.where(use_above, above, np.nan)
 
 
 def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None, orders=None, graded: bool = False):

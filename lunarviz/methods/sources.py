@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.geometry.scene_geometry import SceneGeometry, unit
-from lunarviz.geometry.sphere_quadrature import cap_rule
+from lunarviz.geometry.sphere_quadrature import cap_rule, orthonormal_basis
 
 
 def sun_radiance(scene: SceneGeometry) -> float:
@@ -84,9 +84,11 @@ def roughness_kink_cuts(scene, x, n, pole, body="earth"):
     p = np.cross(n, o)
     pn = np.linalg.norm(p, axis=1)
     ok = pn > 1e-12
-    p = np.where(ok[:, None], p / np.where(ok, pn, 1.0)[:, None], unit(np.cross(pole, n)))
+    # (n along o: no plane of the two, and no kink through the pole; any plane through n will do)
+    p = np.where(ok[:, None], p / np.where(ok, pn, 1.0)[:, None], orthonormal_basis(n)[0])
     q = n - np.einsum("ij,ij->i", n, o)[:, None] * o
-    q = q / np.maximum(np.linalg.norm(q, axis=1), 1e-300)[:, None]
+    qn = np.linalg.norm(q, axis=1)
+    q = np.where((qn > 1e-12)[:, None], q / np.maximum(qn, 1e-300)[:, None], np.cross(p, o))
     return [(p, np.einsum("ij,ij->i", x - c, p) / R), (q, np.einsum("ij,ij->i", pole, q))]
 
 
