@@ -162,3 +162,23 @@ def test_graded_rule_after_a_split_grades_toward_the_closer_tangent_ring():
     for order in (16, 24):
         _, w = cap_rule(pole, np.full(1, -1.0), u[None], c[None], n_t=order, n_phi=order, crossings=True, graded=True)
         assert abs(w.sum() / w_ref.sum() - 1) < 1e-11
+
+
+def test_a_tolerance_takes_the_cheaper_rule_that_meets_it(monkeypatch):
+    """``off_centre_earth_rule``: of the plain and cut rules, the smallest order of each whose
+    measured error meets the limit, the one that took less time; the more accurate where neither
+    meets it; the plain rule's fallback orders without tables. Tables made up here (not the
+    measured ones), so each branch is decided by construction."""
+    from lunarviz.methods import accuracy
+    plain = {"orders": [7, 10], "max_rel_error": {"paper": {"7": 1e-4, "10": 1e-5}},
+             "seconds": {"paper": {"7": 0.1, "10": 0.2}}}
+    cut = {"orders": [5, 7], "max_rel_error": {"paper": {"5": 5e-5, "7": 1e-6}},
+           "seconds": {"paper": {"5": 0.3, "7": 0.5}}}
+    monkeypatch.setattr(accuracy, "error_models",
+                        lambda: {"earth_rule_off_centre": plain, "earth_rule_off_centre_cut": cut})
+    assert accuracy.off_centre_earth_rule(2e-4, False) == (7, False)   # both meet it: plain 7 is cheaper
+    assert accuracy.off_centre_earth_rule(6e-5, False) == (10, False)  # plain 10 (0.2 s) before cut 5 (0.3 s)
+    assert accuracy.off_centre_earth_rule(5e-6, False) == (7, True)    # only the cut rule meets it
+    assert accuracy.off_centre_earth_rule(1e-9, False) == (7, True)    # none: the more accurate
+    monkeypatch.setattr(accuracy, "error_models", lambda: {})
+    assert accuracy.off_centre_earth_rule(1e-4, False) == (max(accuracy.DEFAULT_EARTH_ORDERS), False)
