@@ -281,16 +281,23 @@ def _boundary_crossings(axis, caps_u, caps_c) -> np.ndarray:
     return np.stack(out, axis=1) if out else np.zeros((B, 0))
 
 
+def _tangent_candidates(t_u, caps_c):
+    """The polar radii (B, 3k) where a ring about the pole may be tangent to a cap boundary
+    (nearest, farthest and through the antipode), and where the cap has a boundary at all
+    (``real``: a cap with |c| >= 1 has none)."""
+    a = np.arccos(np.clip(caps_c, -1.0, 1.0))
+    cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
+    return cand, np.tile((caps_c > -1.0) & (caps_c < 1.0), 3)
+
+
 def t_segments(t_u, caps_c, t_max, extra=None, tangent=None):
     """The t-segments of :func:`cap_rule`: ``(t_lo, t_hi, tangent_lo, tangent_hi)`` (B, S), split
     where a ring becomes tangent to a cap boundary (``tangent_*``: that end is tangent) and at
     the polar angles ``extra`` (B, m; NaN: none; tangent where ``tangent`` (B, m) says so),
     empty segments dropped."""
     B = t_u.shape[0]
-    a = np.arccos(np.clip(caps_c, -1.0, 1.0))
     # t segments: split where a ring becomes tangent to a cap boundary
-    cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
-    real = np.tile((caps_c > -1.0) & (caps_c < 1.0), 3)  # a cap with |c| >= 1 has no boundary
+    cand, real = _tangent_candidates(t_u, caps_c)
     cand = np.where(real, np.clip(cand, 0.0, t_max[:, None]), 0.0)
     if extra is not None and extra.shape[1]:  # crossings are cuts, not tangencies (plain Gauss ends)
         cross = np.where(np.isfinite(extra), np.clip(extra, 0.0, t_max[:, None]), 0.0)
@@ -317,10 +324,8 @@ def t_segments(t_u, caps_c, t_max, extra=None, tangent=None):
 
 def _tangent_radii(t_u, caps_c, t_max) -> np.ndarray:
     """The polar radii (B, 3k) where a ring is tangent to a cap boundary, inside (0, t_max)
-    (NaN elsewhere): :func:`t_segments`' candidates."""
-    a = np.arccos(np.clip(caps_c, -1.0, 1.0))
-    cand = np.concatenate([np.abs(t_u - a), t_u + a, 2 * np.pi - t_u - a], axis=1)
-    real = np.tile((caps_c > -1.0) & (caps_c < 1.0), 3)
+    (NaN elsewhere): :func:`t_segments`' tangent ends."""
+    cand, real = _tangent_candidates(t_u, caps_c)
     return np.where(real & (cand > 0.0) & (cand < t_max[:, None]), cand, np.nan)
 
 
@@ -394,7 +399,7 @@ def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None, orders=No
             s1 = np.sqrt(np.abs(t_hi[:, :, None] - a))
             sv = s0 + (s1 - s0) * u
             t = np.where(on, a + sign * sv * sv, t)
-            dt = np.where(on, 2.0 * sv * np.abs(s1 - s0) * np.ones_like(u), dt)
+            dt = np.where(on, 2.0 * sv * np.abs(s1 - s0), dt)
     wt = dt * gw * np.sin(t)
     return t.reshape(B, -1), wt.reshape(B, -1)  # (B, R) rings
 

@@ -125,9 +125,10 @@ def _zero_phase_earth(scene, settings: dict, fixed: dict, bounds: dict) -> None:
     kind = "lune" if settings.get("lune_order") is not None else "facets"
     lunar = bounds.get((kind, "earthshine"), 0.0)
     limit = (scene.rtol_or_default - (lunar if math.isfinite(lunar) else 0.0)) / accuracy.SAFETY
-    order, cut = accuracy.off_centre_earth_rule(limit, mapped)
     if fixed.get("earth_order"):  # an order asked for: the plain rule at it
         order, cut = fixed["earth_order"], False
+    else:
+        order, cut = accuracy.off_centre_earth_rule(limit, mapped)
     settings["earth_pole"] = "detector-cut" if cut else "detector"
     settings["earth_order"] = order
     if settings.get("lune_source_orders") is not None:
