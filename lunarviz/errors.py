@@ -14,3 +14,8 @@ class LunarvizWarning(UserWarning):
 
 class UnboundedRowsWarning(LunarvizWarning):
     """Rows of a run carry no error bound (their ``rtol`` is NaN; ``no_bound_reason`` says why)."""
+
+
+class LooseRowsWarning(UnboundedRowsWarning):
+    """Rows of a run carry a bound above the tolerance (their ``rtol`` column): the tolerance is
+    not met there, as if they had none."""

@@ -234,9 +234,12 @@ def test_rows_report_the_bound_of_every_method():
     want = 2 * max(r["moonshine_std_W_m2"] / r["moonshine_W_m2"], r["earthshine_std_W_m2"] / r["earthshine_W_m2"]) \
         / math.sqrt(2)
     assert r["rtol"] == pytest.approx(want, rel=1e-9)
-    # no model for a mapped Earth: NaN, never a number that was not measured
+    # a mapped Earth: its model's bound at the measured levels (tests/test_mapped_earth_model.py);
+    # NaN, never a number that was not measured, at a level outside the model
     mapped = ResolvedScene(method="raytrace", brdfs=("dhg",), phases_deg=(60.0,), earth_surface="landocean")
-    assert math.isnan(run_phase(mapped, 60.0)[0]["rtol"])
+    assert 0 < run_phase(mapped, 60.0)[0]["rtol"] < 1e-3
+    row = run_phase(mapped.replace(earth_level=3), 60.0)[0]
+    assert math.isnan(row["rtol"]) and "mapped Earth at this Earth level" in row["no_bound_reason"]
 
 
 def test_montecarlo_rays_from_the_tolerance():

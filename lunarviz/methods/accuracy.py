@@ -304,6 +304,55 @@ def off_centre_earth_rule(limit: float, mapped_moon: bool) -> tuple[int, bool]:
 DEFAULT_EARTH_ORDERS = (5, 6, 7, 8, 10, 14, 20)
 
 
+def mapped_earth_epsilon(level: int, surface, hapke: bool) -> dict | None:
+    """``{component: ε_c}`` of the ray tracer's mapped Earth (its facets at icosphere ``level``,
+    gathered into the disc's cells: :mod:`lunarviz.methods.tracer.mapped_earth`) on ``surface``'s
+    packaged map (an :class:`~lunarviz.surfaces.earth_surface.EarthSurface`): the largest error of
+    the earthshine each component carries, as a share of the earthshine of an Earth of albedo 1,
+    over dates, observers and the lunar BRDFs of a group (Lambert; ``hapke``: those with an
+    opposition surge), measured against the map's own cells
+    (:mod:`lunarviz.methods.map_cell_reference`; ``mapped_earth`` in the models, docs: accuracy,
+    "A mapped Earth"). ``None`` where not measured (another level, a user's map, the physical Earth)."""
+    table = error_models().get("mapped_earth")
+    if table is None or surface.physical or level not in table["levels"]:
+        return None
+    maps = table["epsilon"]["hapke" if hapke else "lambert"]
+    key = f"{surface.earth_surface}+{surface.clouds}"
+    if key not in maps:
+        return None
+    i = table["levels"].index(level)
+    return {c: float(e[i]) for c, e in maps[key].items()}
+
+
+#: why a mapped Earth's row has no bound where the rest of its row has one
+MAPPED_EARTH_UNMEASURED = ("no error model for a mapped Earth at this Earth level (measured: levels 4-7 of the "
+                           "packaged maps, the Lambert Earth)")
+
+
+def mapped_earth_error(epsilon: dict, albedos: dict, unit, earthshine: float, average=None) -> float:
+    """The bound on a mapped Earth's part of a row's relative earthshine error.
+
+    The row's earthshine is ``E = Σ_c α_c I_c`` over the map's components (``albedos``: their
+    albedos α_c, per node wavelength or one value), each of whose errors is at most ``ε_c I₁``
+    (``epsilon``: :func:`mapped_earth_epsilon`; ``unit``: I₁, the earthshine of an Earth of albedo
+    1, per node), and ``Σ_c I_c = I₁`` (the components' weights sum to 1), so for any ``ᾱ``
+    ``|δE| ≤ ᾱ ε₁ I₁ + Σ_c |α_c - ᾱ| ε_c I₁`` (ε₁: the albedo-1 Earth's own error, ``"albedo 1"``).
+    The components' errors are large where a map's edge crosses a cell of the Earth's disc and
+    cancel in their sum: the bound takes the best ᾱ among the components' albedos (or 0), then
+    ``SAFETY · |δE| / E``. ``average`` maps per-node values to the row's (a band's average; none
+    for one node). NaN without a positive earthshine."""
+    if not earthshine > 0:
+        return math.nan
+    avg = average or (lambda v: float(np.sum(v)))
+    unit = np.asarray(unit, dtype=float)
+    alb = {c: np.broadcast_to(np.asarray(v, dtype=float), unit.shape) for c, v in albedos.items()}
+    best = math.inf
+    for ref in [np.zeros(unit.shape)] + list(alb.values()):
+        spread = sum(epsilon[c] * np.abs(a - ref) for c, a in alb.items())
+        best = min(best, float(avg((epsilon["albedo 1"] * ref + spread) * unit)))
+    return SAFETY * best / earthshine
+
+
 def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why: str = "",
               pole_at_zero_phase: bool = False) -> tuple[float, str]:
     """The bound a row reports, and why it has none: ``bound`` (its settings' in the models; ``why``
@@ -372,19 +421,27 @@ def traced_bound(bounds: dict, ts, ms, es, why: str = "") -> tuple[float, str]:
         return (SAFETY * max(rel), "") if rel else (math.nan, "Monte Carlo: no positive mean to scale its error by")
     if ts.sampling.eclipse_possible() or ts.sampling.moon_shadow_on_earth_possible():  # measured without occlusion
         return math.nan, "an eclipse's penumbra or the Moon's shadow on the Earth: not in the error models"
+    got, why = traced_path_bounds(bounds, ts, why)
+    return (max(got.values()), "") if got else (math.nan, why)
+
+
+def traced_path_bounds(bounds: dict, ts, why: str = "") -> tuple[dict, str]:
+    """``({"moonshine": bound, "earthshine": bound}, "")`` of a deterministic trace, from
+    ``bounds`` for the kind of samples each path took (:func:`traced_bound`), or ``({}, why)``
+    where either path has none."""
     if not bounds:
-        return math.nan, why or "no error model holds for this row's settings"
-    got = []
+        return {}, why or "no error model holds for this row's settings"
+    got = {}
     for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
         if ts.sampling.lune_rule_applies(body):
-            got.append(bounds.get(("lune", path), math.nan))
+            got[path] = bounds.get(("lune", path), math.nan)
         elif ts.sampling.edges_found(body):  # a horizon, an Earth limb or a cast shadow across the Moon: not measured
-            return math.nan, "a horizon, the Earth's limb or a cast shadow across the Moon: not in the error models"
+            return {}, "a horizon, the Earth's limb or a cast shadow across the Moon: not in the error models"
         else:
-            got.append(bounds.get(("facets", path), math.nan))
-    if any(math.isnan(b) for b in got):
-        return math.nan, "no error model row for these orders"
-    return max(got), ""
+            got[path] = bounds.get(("facets", path), math.nan)
+    if any(math.isnan(b) for b in got.values()):
+        return {}, "no error model row for these orders"
+    return got, ""
 
 
 def calibration_settings(ts_set, moon_level_asked, mapped_moon: bool):

@@ -82,6 +82,8 @@ class ResolvedScene:
     earth_pole_at_zero_phase = tolerance.earth_pole_at_zero_phase
     reference_earth_pole = tolerance.reference_earth_pole
     warn_unmet_tolerance = tolerance.warn_unmet_tolerance
+    traced_earth_mapped = tolerance.traced_earth_mapped
+    mapped_earth_row_bound = tolerance.mapped_earth_row_bound
 
     @property
     def earth_uniform(self) -> bool:

@@ -10,10 +10,11 @@ from __future__ import annotations
 import math
 import warnings
 
-from lunarviz.errors import LunarvizError, LunarvizWarning, UnboundedRowsWarning
+from lunarviz.errors import LooseRowsWarning, LunarvizError, LunarvizWarning, UnboundedRowsWarning
 from lunarviz.methods import accuracy
 from lunarviz.options import DEFAULT_LEVELS, DEFAULT_ORDERS
 from lunarviz.photometry.presets import moon_model_map
+from lunarviz.surfaces.earth_surface import CLOUDS, EARTH_SURFACES
 
 
 def rtol_or_default(scene) -> float:
@@ -81,9 +82,11 @@ def trace_plan(scene, theta: float | None = None) -> dict:
         if asked_level:  # a mesh level asked for without a tolerance: the default source orders too
             fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
             fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
-    # the Earth's rule about the zero-phase point takes half the tolerance, the lunar side the other half
-    pole = earth_pole_at_zero_phase(scene)
-    lunar_rtol = scene.rtol_or_default / 2 if pole else scene.rtol_or_default
+    # the Earth's rule about the zero-phase point (or a mapped Earth's facets) takes half the
+    # tolerance, the lunar side the other half
+    mapped_earth = traced_earth_mapped(scene)
+    pole = earth_pole_at_zero_phase(scene) and not mapped_earth
+    lunar_rtol = scene.rtol_or_default / 2 if pole or mapped_earth else scene.rtol_or_default
     choice = accuracy.trace_choice(lunar_rtol, fixed, scene.mapped_moon(), theta)
     settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
                 if k not in fixed and choice.get(k) is not None}
@@ -97,7 +100,42 @@ def trace_plan(scene, theta: float | None = None) -> dict:
     bounds = choice.get("bounds", {}) if scene.modelled() else {}
     if pole:  # the Earth's rule about the zero-phase point, its order and bound
         _zero_phase_earth(scene, settings, fixed, bounds)
+    elif mapped_earth and bounds:  # the mapped Earth's facets: their level and bound
+        _mapped_earth(scene, settings, bounds)
     return {"settings": settings, "bounds": bounds}
+
+
+def traced_earth_mapped(scene) -> bool:
+    """Whether the ray tracer sums this run's Earth per facet of a map
+    (:mod:`lunarviz.methods.tracer.mapped_earth`, as its ``FacetSurfaces.earth_mapped`` decides):
+    a Lambert or physical Earth whose albedo is not one value, or whose parts differ in colour (a
+    spectral run)."""
+    if scene.earth_uniform or scene.mapped_earth != "facets":
+        return False
+    surf = scene.earth_model()
+    return surf.physical or scene.spectral_request() is not None or not surf.albedo_constant()
+
+
+def _mapped_earth(scene, settings: dict, bounds: dict) -> None:
+    """A mapped Earth's facets: the level asked for, else the default, which the plan states
+    (``settings["earth_level"]``). Its error depends on each row's own albedos and light
+    (:func:`mapped_earth_row_bound`), so the plan's earthshine bounds stay the lunar side's."""
+    settings["earth_level"] = scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
+
+
+def mapped_earth_row_bound(scene, plan: dict, brdf, albedos: dict, unit, earthshine: float, average=None) -> float:
+    """The mapped Earth's part of a traced row's earthshine bound (0 for an Earth the tracer does
+    not sum per facet of a map; NaN where its model does not hold):
+    :func:`lunarviz.methods.accuracy.mapped_earth_error` at the plan's level for the row's BRDF,
+    with the components' ``albedos``, the albedo-1 earthshine ``unit``, the row's ``earthshine``
+    and ``average`` (a band's)."""
+    if not traced_earth_mapped(scene):
+        return 0.0
+    eps = accuracy.mapped_earth_epsilon(plan["settings"].get("earth_level", DEFAULT_LEVELS["earth"]),
+                                        scene.earth_model(), accuracy.peaks_at_zero_phase(brdf))
+    if eps is None or set(albedos) - set(eps):
+        return math.nan
+    return accuracy.mapped_earth_error(eps, albedos, unit, earthshine, average)
 
 
 def detector_off_centre(scene) -> bool:
@@ -156,7 +194,10 @@ def unmodelled_reason(scene) -> str:
         return f"no error model for the {scene.moon_model} Moon (measured: the paper's presets, rolo-fit-map's map)"
     checks = ((any(v for b, v in scene.params.items() if b != "earth"), "lunar BRDF parameters overridden"),
               (scene.earth_brdf != "lambert", "a physical Earth"),
-              (not scene.earth_uniform, "a mapped Earth (surface classes or clouds)"),
+              (not scene.earth_uniform and not _mapped_earth_modelled(scene),
+               "a mapped Earth (surface classes or clouds) outside the ray tracer's facets"),
+              (not scene.earth_uniform and (scene.earth_surface not in EARTH_SURFACES or scene.clouds not in CLOUDS),
+               "a user's Earth map"),
               (scene.earth_mesh is not None, "a user's Earth mesh"),
               (scene.sun_mesh is not None, "a user's Sun mesh"),
               (scene.moon_mesh is not None, "a user's Moon mesh"),
@@ -165,6 +206,14 @@ def unmodelled_reason(scene) -> str:
         if broken:
             return f"no error model for {what} (measured: the paper's bodies, a uniform Lambert Earth)"
     return ""
+
+
+def _mapped_earth_modelled(scene) -> bool:
+    """Whether a mapped Earth is in the error models: the deterministic ray tracer's per-facet sums
+    (``mapped_earth="facets"``), measured on the packaged maps (:func:`traced_earth_mapped`,
+    :func:`lunarviz.methods.accuracy.mapped_earth_error`); the analytic method and the exact
+    reference read a map at their nodes, whose error at its edges is not measured."""
+    return scene.method == "raytrace" and scene.estimator == "deterministic" and scene.mapped_earth == "facets"
 
 
 def analytic_row_bound(scene) -> tuple[float, str]:
@@ -216,3 +265,16 @@ def warn_unbounded_rows(rows: list[dict]) -> None:
                          for why, k in sorted(reasons.items(), key=lambda t: -t[1]))
         warnings.warn(f"{n} of {len(rows)} rows carry no error bound (rtol NaN, the rows' no_bound_reason): {said}",
                       UnboundedRowsWarning, stacklevel=3)
+
+
+def warn_loose_rows(rows: list[dict], rtol: float) -> None:
+    """Warn once, after a run, when some rows' bounds exceed the tolerance (asked for, or the
+    method's default): rows whose error depends on their own values (a mapped Earth's, by its
+    albedos and light: :func:`mapped_earth_row_bound`) may, where the settings cannot be chosen
+    ahead for them."""
+    loose = [r["rtol"] for r in rows if isinstance(r.get("rtol"), float) and r["rtol"] > rtol]
+    if loose:
+        warnings.warn(f"{len(loose)} of {len(rows)} rows carry a bound above the tolerance {rtol:g} (largest "
+                      f"{max(loose):.1e}; rtol column): a mapped Earth's facets at their level (a finer "
+                      "--earth-level, docs: accuracy, 'A mapped Earth'), or the most accurate setting the error "
+                      "models hold", LooseRowsWarning, stacklevel=3)

@@ -12,6 +12,7 @@ over runs, without the per-wavelength standard deviations of the grey rows.
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -44,6 +45,7 @@ def spectral_rows(settings, sc, base: dict, threads=None) -> list[dict]:
 
 
 def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
+    mapped_bound = None
     req = settings.spectral_request()
     brdfs = settings.brdf_models()
     shader = SpectralShader(spectral_brdfs(settings.spectral_inputs(req), brdfs))
@@ -100,10 +102,12 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         extra["rays"] = ms_r.rays + es_r.rays
         extra["rtol"], extra["no_bound_reason"] = accuracy.traced_bound(plan["bounds"], ts, ms_r, es_r,
                                                                         settings.unmodelled_reason())
+        if mapped and settings.traced_earth_mapped() and math.isfinite(extra["rtol"]):
+            mapped_bound = (plan, accuracy.traced_path_bounds(plan["bounds"], ts)[0], names)
         if ts_set.estimator == "montecarlo":
             extra.update(runs=ts_set.runs, rays_per_run=ts_set.rays)
     return _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields,
-                 extra)
+                 extra, mapped_bound)
 
 
 def solar_at_moon(req, sc) -> np.ndarray:
@@ -114,7 +118,12 @@ def solar_at_moon(req, sc) -> np.ndarray:
     return req.solar_1au * (e_sun_moon / e_sun_1au)
 
 
-def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields, extra):
+def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields, extra,
+          mapped_bound=None):
+    """The rows of one task. ``mapped_bound``: ``(plan, path bounds, component names)`` where a traced
+    row's earthshine bound takes its mapped Earth's part, output by output
+    (:meth:`~lunarviz.scene.resolved.ResolvedScene.mapped_earth_row_bound`: each component's
+    albedo-1 earthshine times its albedo, averaged over the output as the earthshine is)."""
     a0 = settings.earth_albedo
     solar_moon = solar_at_moon(req, sc)
     suffix = req.value_suffix
@@ -128,7 +137,18 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
         ms_o, es_o = req.outputs(ms[k], sc.phi_sun), req.outputs(es_T, sc.phi_sun)
         ms_a, es_a, esu_a = req.averages(ms[k]), req.averages(es_T), req.averages(esu_T)
         cms_a, cesu_a = req.averages(cal_ms[k]), req.averages(cal_es[k][-1])
+        row_bounds = [(bound, why)] * len(req.labels)
+        if mapped_bound is not None and math.isfinite(bound):
+            plan, paths, names = mapped_bound
+            albedos = dict(zip(names, albedo))
+            row_bounds = []
+            for o in range(len(req.labels)):
+                part = settings.mapped_earth_row_bound(plan, brdfs[k], albedos, es[k][-1], es_a[o],
+                                                       average=lambda v, o=o: req.averages(v)[o])
+                row_bounds.append((max(paths["moonshine"], paths["earthshine"] + part), "") if math.isfinite(part)
+                                  else (math.nan, accuracy.MAPPED_EARTH_UNMEASURED))
         for o, label in enumerate(req.labels):
+            bound, why = row_bounds[o]
             terms = alb.lunar_terms(sc, a0 * cesu_a[o], cms_a[o], a0)
             pe = alb.geometric_albedo_term(sc, es_a[o], ms_a[o], terms)
             measurable = ms_o[o] > 0 and alb.lunar_terms(sc, 0.0, ms_a[o], a0).pb_fb > alb.MIN_LUNAR_TERM

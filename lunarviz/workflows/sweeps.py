@@ -24,7 +24,8 @@ from lunarviz.options import EXECUTORS
 from lunarviz.parsing import wavelength_label
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.scene import ResolvedScene
-from lunarviz.scene.tolerance import warn_unbounded_rows
+from lunarviz.scene.tolerance import warn_loose_rows, warn_unbounded_rows
+from lunarviz.surfaces.earth_spectra import components, grey_albedos
 from lunarviz.workflows.skips import skip_reason, skipped_rows
 from lunarviz.workflows.spectral_phase import spectral_rows
 
@@ -103,8 +104,9 @@ def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[
             r["extended_over_point_earthshine"] = es_ / pt_es \
                 if pt_es > 0 and pt_terms.pa_fa > alb.MIN_LUNAR_TERM else float("nan")
         r["seconds"] = dt / len(rows)
-        r["rtol"], r["no_bound_reason"] = accuracy.row_bound(bound, sc, settings.method, settings.estimator,
-                                                             brdfs[r["brdf"]], why, pole)
+        r["rtol"], r["no_bound_reason"] = accuracy.row_bound(r.pop("_bound", bound), sc, settings.method,
+                                                             settings.estimator, brdfs[r["brdf"]],
+                                                             r.pop("_why", why), pole)
         r["skip_reason"] = ""
     return rows
 
@@ -123,6 +125,10 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
     ms = trace_path(ts, "moonshine", brdfs)
     es = trace_path(ts, "earthshine", brdfs)
     bound = accuracy.traced_bound(plan["bounds"], ts, ms, es, settings.unmodelled_reason())
+    mapped = settings.traced_earth_mapped() and math.isfinite(bound[0])
+    if mapped:  # the mapped Earth's part of the earthshine's bound, row by row (its own albedos and light)
+        paths = accuracy.traced_path_bounds(plan["bounds"], ts)[0]
+        grey = grey_albedos(settings.earth_model())
     rules = {b: r for b in ("sun", "earth") if (r := ts.sampling.mapped_rule_used(b)) is not None}
     point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
     if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
@@ -146,6 +152,13 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
                                                             point[k].earthshine_unit_W_m2),
                                                point[k].moonshine_W_m2, a0),
                "rays": ms.rays + es.rays}
+        if mapped:
+            part = settings.mapped_earth_row_bound(plan, brdfs[k], {c: grey[c] for c in components(settings.earth_model())},
+                                                   es.mean_unit[k], es.mean[k])
+            if math.isnan(part):
+                row["_bound"], row["_why"] = math.nan, accuracy.MAPPED_EARTH_UNMEASURED
+            else:
+                row["_bound"] = max(paths["moonshine"], paths["earthshine"] + part)
         if ts_set.estimator == "montecarlo":
             row["moonshine_std_W_m2"] = ms.std[k]
             row["earthshine_std_W_m2"] = es.std[k]
@@ -347,6 +360,7 @@ def _warm_before_fork(settings: ResolvedScene) -> None:
 def _assemble(settings: ResolvedScene, results: list, t0: float) -> dict:
     rows = [r for res in results for r in res]
     warn_unbounded_rows(rows)
+    warn_loose_rows(rows, settings.rtol_or_default)
     out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
            "wall_seconds": time.perf_counter() - t0}
     if any("apparent_albedo_point_source_inversion" in r for r in rows):

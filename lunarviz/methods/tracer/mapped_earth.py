@@ -14,6 +14,7 @@ from lunarviz.methods.sources import earth_radiance
 from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
 from lunarviz.methods.tracer.settings import (
     EARTH_CELLS,
+    LIMB_SUB,
     NORMAL_OFFSET,
     TERMINATOR_SUB,
 )
@@ -53,9 +54,17 @@ class MappedEarthTransport:
         cn = self.bodies.corner_normals(E)
         mu_c = np.einsum("fkj,fkj->fk", cn, sc.sun - corners)
         term = (mu_c > 0).any(1) & (mu_c <= 0).any(1)
-        parts = [E.surface_samples(np.flatnonzero(~term), s.shading),
-                 E.surface_samples(np.flatnonzero(term), s.shading, sub=TERMINATOR_SUB)]
-        y, m, area_f, owner = (np.concatenate([u, v]) for u, v in zip(*parts))
+        # ... and so are the lit facets that the Earth's limb seen from some lunar point crosses
+        # (m·(x - y) = 0 for some x: within R_M of 0 at x0), where cos_y kinks: a thin crescent's
+        # light lies along the limb (level 6 erred by 4.5e-5 at θ = 20° without: docs, accuracy)
+        rb = max(sc.radii["moon"], self.bodies.moon.bound)
+        facing = np.einsum("fkj,fkj->fk", cn, sc.moon - corners)
+        limb = (mu_c > 0).any(1) & (facing.min(1) < rb) & (facing.max(1) > -rb)
+        split = term | limb
+        parts = [E.surface_samples(np.flatnonzero(~split), s.shading),
+                 E.surface_samples(np.flatnonzero(term), s.shading, sub=TERMINATOR_SUB),
+                 E.surface_samples(np.flatnonzero(limb & ~term), s.shading, sub=LIMB_SUB)]
+        y, m, area_f, owner = (np.concatenate(p) for p in zip(*parts))
         L1 = earth_radiance(sc, y, m, 1.0) * self.sources.sun_visibility_of_earth()[owner]
         rm = sc.radii["moon"]
         keep = (L1 > 0) & (np.einsum("ij,ij->i", m, sc.moon - y) > -rm)
@@ -92,23 +101,63 @@ class MappedEarthTransport:
         wt = L1A * np.clip(np.einsum("ij,ij->i", m, v) / r, 1e-12, None) / r**2
         wsum = np.add.reduceat(wt, starts) if len(starts) else np.zeros(0)
         centre = (np.add.reduceat(y * wt[:, None], starts, axis=0) / wsum[:, None]) if len(starts) else np.zeros((0, 3))
-        # first-order expansion about the Moon's centre x0 of each cell's sum of
-        # g_f(x) = m_f·(x - y_f)/|x - y_f|³ over the elements x0 sees: g(x0) and ∇g(x0) =
-        # m/r³ - 3 (m·v) v/r⁵; the neglected terms are O((R_M/r)²) ≈ 2e-5 relative, and the
-        # elements within 0.26° of the Earth's limb that a lunar point sees but x0 does not
+        # second-order expansion about the Moon's centre x0 of each cell's sum of
+        # g_f(x) = m_f·(x - y_f)/|x - y_f|³ over the elements every lunar point sees
+        # (m·(x0 - y) > R_M: m·(x - x0) is at most R_M): g(x0), ∇g(x0) = m/r³ - 3 (m·v) v/r⁵ and
+        # the Hessian -3 (m vᵀ + v mᵀ + (m·v) I)/r⁵ + 15 (m·v) v vᵀ/r⁷. The numerator m·(x - y) is
+        # linear in x, so the neglected terms are those of 1/r³ alone, O((R_M/r)³) ≈ 1e-7 relative
+        # (the first order left (R_M/r)² ≈ 3e-5: docs, accuracy). The elements within R_M of the
+        # Earth's limb seen from x0 (a band of 0.26°, seen by some lunar points and not by others:
+        # 1e-4 of a thin crescent's light) are summed exactly per lunar point (``band``)
         mv = np.einsum("ij,ij->i", m, v)
-        vis0 = mv > 0
-        g0 = np.where(vis0, mv / r**3, 0.0)
-        grad = np.where(vis0[:, None], m / r[:, None] ** 3 - 3 * (mv / r**5)[:, None] * v, 0.0)
-        lin = {}
+        band = mv <= max(rm, self.bodies.moon.bound) * (1.0 + 1e-9)
+        inner = ~band
+        g0 = np.where(inner, mv / r**3, 0.0)
+        grad = np.where(inner[:, None], m / r[:, None] ** 3 - 3 * (mv / r**5)[:, None] * v, 0.0)
+        mvT = m[:, :, None] * v[:, None, :]
+        hess = (-3.0 * (mvT + mvT.transpose(0, 2, 1) + mv[:, None, None] * np.eye(3)) / r[:, None, None] ** 5
+                + 15.0 * (mv / r**7)[:, None, None] * v[:, :, None] * v[:, None, :])
+        hess = np.where(inner[:, None, None], hess, 0.0)
+        # the band's elements, and (Nb, C) the cell each is in (its sums go to that cell's beam)
+        band_el = np.flatnonzero(band)
+        cell_of = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(y)])) if len(starts) else \
+            np.zeros(0, int)
+        band_cells = np.zeros((band_el.size, len(starts)))
+        band_cells[np.arange(band_el.size), cell_of[band_el]] = 1.0
+        taylor = {}
         weights = [("unit", L1A), ("map", L1A * a)]
         if comp is not None:
             weights += [(("part", c), L1A * comp[:, c]) for c in range(comp.shape[1])]
         for name, wgt in weights:
-            lin[name] = (np.add.reduceat(wgt * g0, starts) if len(starts) else np.zeros(0),
-                         np.add.reduceat(wgt[:, None] * grad, starts, axis=0) if len(starts) else np.zeros((0, 3)))
-        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, lin=lin, comp=comp)
+            taylor[name] = tuple(np.add.reduceat(wgt.reshape((-1,) + (1,) * (t.ndim - 1)) * t, starts, axis=0)
+                                 if len(starts) else np.zeros((0,) + t.shape[1:]) for t in (g0, grad, hess))
+        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, taylor=taylor, comp=comp,
+                              band=band_el, band_cells=band_cells)
         return self._earth_el
+
+    def _band_sums(self, x, el, n_parts: int, chunk: int = 256) -> dict:
+        """``{name: (B, C)}``: the light of the elements of the limb's band (:meth:`earth_elements`)
+        at lunar points x whose horizon does not cut the Earth, summed exactly per point and cell
+        (zero where an element is behind the limb seen from x)."""
+        idx, cells = el["band"], el["band_cells"]
+        y, m, L1A = el["y"][idx], el["m"][idx], el["L1A"][idx]
+        wts = [("unit", L1A), ("map", L1A * el["a"][idx])]
+        wts += [(("part", c), L1A * el["comp"][idx, c]) for c in range(n_parts)]
+        out = {name: np.zeros((len(x), cells.shape[1])) for name, _ in wts}
+        if idx.size == 0:
+            return out
+        # m·(x - y) and |x - y|² as products (x relative to the Moon's centre: no cancellation)
+        x0 = self.bodies.scene.moon
+        yr = y - x0
+        my, yy = np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)
+        for c0 in range(0, len(x), chunk):
+            xr = x[c0:c0 + chunk] - x0
+            num = np.clip(xr @ m.T - my[None, :], 0.0, None)
+            r2 = np.einsum("ij,ij->i", xr, xr)[:, None] - 2.0 * (xr @ yr.T) + yy[None, :]
+            f = num / (r2 * np.sqrt(r2))
+            for name, w in wts:
+                out[name][c0:c0 + chunk] = (f * w) @ cells
+        return out
 
     def transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
         """Earthshine :class:`Transport` at lunar points x from an Earth with an albedo map.
@@ -121,8 +170,10 @@ class MappedEarthTransport:
         (second order), not by a few Gauss beams across the disc, which leave ~1 % errors
         (docs: surfaces). The BRDF sees each cell's light from one direction: the
         error is second order in the cell's angular size. Lunar points whose horizon does not
-        cut the Earth (nearly all) take each cell's sum from its first-order expansion about the
-        Moon's centre (error ~(R_M/D)² ≈ 2e-5); the others sum the elements one by one.
+        cut the Earth (nearly all) take each cell's sum from its second-order expansion about the
+        Moon's centre (error ~(R_M/D)³ ≈ 1e-7) but for the elements near the Earth's limb, which
+        some of them see and others not (summed one by one); the others sum every element one by
+        one.
         Traced with Embree: the Moon's
         shadow on each facet, a non-convex Earth hiding facets, a non-convex Moon shadowing
         each beam. Neglected: the Sun's extent lighting the Earth (as for the uniform Earth).
@@ -137,15 +188,17 @@ class MappedEarthTransport:
         if C:
             y, m, L1A, a, st = el["y"], el["m"], el["L1A"], el["a"], el["starts"]
             # points whose horizon does not cut the Earth see every element: the cell sums are
-            # smooth in x there and their first-order expansion about the Moon's centre serves
+            # smooth in x there and their second-order expansion about the Moon's centre serves
             cut = np.einsum("ij,ij->i", n, self.bodies.scene.earth - x) < self.bodies.earth.bound * (1 + 1e-6)
             far = np.flatnonzero(~cut)
             dx = x[far] - self.bodies.scene.moon
+            dxx = 0.5 * (dx[:, :, None] * dx[:, None, :]).reshape(-1, 9)  # (the Hessian's term as one product)
             unit_far = None
+            band = self._band_sums(x[far], el, n_parts)
             for name, out in outs:
-                s0, s1 = el["lin"][name]
-                v = s0[None, :] + dx @ s1.T
-                # the unit and the map are lights: clipped at 0 where the first-order value dips
+                s0, s1, s2 = el["taylor"][name]
+                v = s0[None, :] + dx @ s1.T + dxx @ s2.reshape(-1, 9).T + band[name]
+                # the unit and the map are lights: clipped at 0 where the expansion dips
                 # below it. A spectral run's components are not clipped one by one (a component's
                 # value may dip where their albedo-weighted sum, the map, does not: clipping each
                 # would break the sum), only where the unit's light is gone

@@ -48,6 +48,9 @@ TERMINATOR_SUB = 8
 #: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
 #: from the Moon (its beams; ``mapped_earth_transport``).
 EARTH_CELLS = 24
+#: a mapped Earth's lit facets that the Earth's limb seen from some lunar point crosses (where
+#: cos_y kinks) are split LIMB_SUB² ways (:mod:`lunarviz.methods.tracer.mapped_earth`)
+LIMB_SUB = 4
 #: lunar samples × Earth order² per batch of the Earth's rule about the zero-phase point (its rows
 #: hold up to ~18·order² beams: two φ-intervals on each of up to nine t-segments): ~0.5 GB a batch
 POLE_RULE_NODES = 1 << 17

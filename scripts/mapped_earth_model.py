@@ -1,0 +1,207 @@
+"""The error model of the ray tracer's mapped Earth (land, ocean, clouds), measured against the
+map's own cells.
+
+    python scripts/mapped_earth_model.py [--write] [--quick] [--workers N] [--out DIR]
+
+The tracer sums a mapped Lambert Earth per facet of its mesh and gathers the facets into cells of
+the Earth's disc seen from the Moon (:mod:`lunarviz.methods.tracer.mapped_earth`). This script
+measures, for each Earth mesh level and each of the packaged maps (``--earth-surface landocean``
+with ``--clouds zonal`` or ``none``, ``--earth-surface uniform --clouds zonal``), the error of the
+earthshine carried by each of the map's components (:func:`lunarviz.surfaces.earth_spectra.weights_at`:
+ocean, vegetation, desert, snow, cloud, or the clear sky), as a share of the earthshine of an Earth
+of albedo 1: ``ε_c = |δI_c| / I₁``, the largest over dates, observers and lunar BRDFs (the paper's
+Lambert, SHG and DHG, rolo-fit-map's DHG). Any Earth on that map is a non-negative combination of
+its components (``α_c`` ≥ 0: the grey albedos, or a spectral run's albedos at each wavelength), so
+its earthshine errs by at most ``Σ_c α_c ε_c / A``, with ``A = E / I₁`` the row's
+``earth_visible_lit_albedo`` (:func:`lunarviz.methods.accuracy.mapped_earth_bound`).
+
+The reference is :mod:`lunarviz.methods.map_cell_reference` (the map's own 0.1° cells, two by two, split
+near the terminator and the limb: within 1e-6 of the exact Lambert-sphere rule for an Earth of
+albedo 1; no mesh, no facet averages, no disc cells). Both sides take the same lunar points (the
+reference's outer rule at order 6 over the lunar sphere the Earth lights, seen from the date's
+detector): the error is the Earth's part alone (the lunar side has its own models). Dates: θ =
+20-160° of the paper's scene (the Earth turned 0° and 180°), four nights from Big Bear and four from
+Paranal, every 37th hour of 15 days from a 550 km orbit; dates whose Moon is hidden, whose Earth the
+Moon's shadow may touch, or outside θ = 5-175° are left out. A finer level is never allowed more
+error than a coarser one (the table is made non-increasing). ``--write`` stores the table in
+``lunarviz/data/error_models.json`` (key ``mapped_earth``); the report goes to
+``benchmarks/error_models/mapped_earth.md`` and ``.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+LEVELS = (4, 5, 6, 7)
+#: the packaged maps: (earth_surface, clouds)
+MAPS = (("landocean", "zonal"), ("landocean", "none"), ("uniform", "zonal"))
+OUTER_ORDER = 6
+GROUP = 2  # map cells a reference cell, each way
+
+
+def cases(quick: bool) -> list[tuple[str, str | float, float]]:
+    """(observer, task key, Earth rotation [deg]) of the model: θ of the paper's scene, site nights,
+    orbit hours."""
+    out = [("geocentre", th, rot) for th in ((30.0, 120.0) if quick else (20.0, 60.0, 100.0, 140.0, 160.0))
+           for rot in ((0.0,) if quick else (0.0, 180.0))]
+    nights = 2 if quick else 4
+    for obs in ("site:34.26,-116.92,2067", "site:-24.63,-70.40,2635"):
+        for k in range(nights):
+            day = dt.date(2026, 1, 5) + dt.timedelta(days=7 * k + (3 if "-24" in obs else 0))
+            out.append((obs, f"{day.isoformat()}T03:00:00Z", 0.0))
+    start = dt.datetime(2026, 2, 1, 1)
+    for h in range(0, 24 * (2 if quick else 15), 37):
+        out.append(("orbit:550,97.6,0,0", (start + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"), 0.0))
+    return out
+
+
+def _scene(obs, key, rot, surface="landocean", clouds="zonal", level=None):
+    from lunarviz.scene import ResolvedScene
+    kw = dict(brdfs=("lambert", "shg", "dhg"), earth_surface=surface, clouds=clouds, earth_level=level,
+              method="raytrace")
+    if obs == "geocentre":
+        return ResolvedScene(phases_deg=(float(key),), earth_rotation_deg=rot, **kw)
+    return ResolvedScene(times=[key], observer=obs, **kw)
+
+
+def one_case(case) -> dict | None:
+    from lunarviz.methods.analytic import lunar_surface_rule
+    from lunarviz.methods.map_cell_reference import cell_radiances, earth_cells
+    from lunarviz.methods.tracer.estimators import TraceScene
+    from lunarviz.methods.transport import Transport, detector_geometry
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.surfaces.earth_spectra import components, weights_at
+    from lunarviz.surfaces.maps import map_frame
+    from lunarviz.workflows.skips import skip_reason
+    obs, key, rot = case
+    s = _scene(obs, key, rot)
+    sc, _ = s.task(key)
+    if skip_reason(s, sc) or not 5.0 <= sc.theta_deg <= 175.0 \
+            or TraceScene(sc, s.trace_settings(threads=1)).sampling.moon_shadow_on_earth_possible():
+        return None
+    brdfs = dict(s.brdf_models())
+    brdfs["rolo dhg"] = ResolvedScene(moon_model="rolo-fit-map", brdfs=("dhg",)).brdf_models()["dhg"]
+    x, n, dA = lunar_surface_rule(sc, sc.earth, sc.radii["earth"], OUTER_ORDER)
+    mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
+    geom = np.where(sc.sight_lines_clear(x), geom, 0.0)
+    k = geom > 0
+    x, n, mu, geom, o = x[k], n[k], mu[k], geom[k], o[k]
+    t0 = time.perf_counter()
+    surfaces = {m: _scene(obs, key, rot, *m).earth_model() for m in MAPS}
+    names = {m: components(surf) for m, surf in surfaces.items()}
+
+    def values(d):  # albedo 1, then every map's components
+        return np.concatenate([np.ones((len(d), 1))] + [weights_at(surf, d) for surf in surfaces.values()], 1)
+    cen, wts = earth_cells(sc, values, (1800, 3600), map_frame(sc, "earth", rot), group=GROUP)
+    ref = cell_radiances(sc, x, n, o, mu, cen, wts, brdfs)
+    ref_s = time.perf_counter() - t0
+    ref_e = {b: geom @ L for b, L in ref.items()}  # (P,) per BRDF
+    out = {"observer": obs, "key": key, "earth_rotation_deg": rot, "theta_deg": sc.theta_deg, "nodes": int(len(x)),
+           "reference_cells": int(len(cen)), "reference_s": ref_s, "levels": {}}
+    for level in LEVELS:
+        got, secs = {}, 0.0
+        col = 1
+        for m in MAPS:
+            ls = _scene(obs, key, rot, *m, level=level)
+            ts = TraceScene(sc, ls.trace_settings(threads=1))
+            ts.surfaces.earth_parts = names[m]
+            t1 = time.perf_counter()
+            tr = ts.mapped_earth.transport(x, n, o, mu, geom)
+            secs += time.perf_counter() - t1
+            eps = {}
+            for c, name in enumerate(names[m]):
+                part = Transport(mu0=tr.mu0, sin_hg=tr.sin_hg, cos_hg=tr.cos_hg, e_beam=tr.e_beam_parts[name],
+                                 mu=tr.mu, geom=tr.geom)
+                eps[name] = {b: abs(float(part.radiances(brdf)[0] @ geom) - ref_e[b][col + c]) / ref_e[b][0]
+                             for b, brdf in brdfs.items()}
+            eps["albedo 1"] = {b: abs(float(tr.radiances(brdf)[1] @ geom) / ref_e[b][0] - 1.0)
+                               for b, brdf in brdfs.items()}
+            col += len(names[m])
+            got["+".join(m)] = eps
+        out["levels"][level] = {"errors_vs_albedo_1": got, "transport_s": secs / len(MAPS),
+                                "max": max(v for e in got.values() for c in e.values() for v in c.values())}
+    print(f"{obs} {key} rot {rot:g}: theta {sc.theta_deg:.1f}, " + ", ".join(
+        f"L{lv} {r['max']:.1e}" for lv, r in out["levels"].items()) + f" (reference {ref_s:.0f} s)", flush=True)
+    return out
+
+
+def model_table(got: list) -> dict:
+    """{"lambert" | "hapke": {map: {component: [ε at each level]}}}: the largest over dates and the
+    group's BRDFs (Lambert; the Hapke BRDFs, whose opposition surge the disc's cells resolve
+    least), non-increasing with the level (refinement never loosens a bound)."""
+    table = {}
+    for group in ("lambert", "hapke"):
+        for m in MAPS:
+            key = "+".join(m)
+            for name in got[0]["levels"][LEVELS[0]]["errors_vs_albedo_1"][key]:
+                eps = [max(v for r in got for b, v in r["levels"][lv]["errors_vs_albedo_1"][key][name].items()
+                           if (b == "lambert") == (group == "lambert")) for lv in LEVELS]
+                for i in range(len(eps) - 2, -1, -1):
+                    eps[i] = max(eps[i], eps[i + 1])
+                table.setdefault(group, {}).setdefault(key, {})[name] = eps
+    return table
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--write", action="store_true", help="store the table in lunarviz/data/error_models.json")
+    ap.add_argument("--quick", action="store_true", help="a few dates (a smoke run)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(a.workers) as ex:
+        got = [r for r in ex.map(one_case, cases(a.quick)) if r is not None]
+    table = model_table(got)
+    seconds = [float(np.mean([r["levels"][lv]["transport_s"] for r in got])) for lv in LEVELS]
+    res = {"cases": got, "table": table, "seconds": seconds, "wall_s": time.perf_counter() - t0,
+           "command": "python scripts/mapped_earth_model.py" + (" --quick" if a.quick else "")}
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = "mapped_earth_quick" if a.quick else "mapped_earth"
+    (out / f"{stem}.json").write_text(json.dumps(res, indent=1) + "\n")
+    lines = ["# The mapped Earth's error model", "", f"`{res['command']}` ({len(got)} dates, "
+             f"{res['wall_s']:.0f} s): the earthshine each component of a map carries, the tracer's mapped Earth "
+             "(its facets at each level, the disc's cells) against the map's own cells "
+             "(`lunarviz.methods.map_cell_reference`) on the same lunar points, as a share of the earthshine of an "
+             "Earth of albedo 1 (ε_c); the largest over dates and lunar BRDFs (paper Lambert, SHG, DHG; "
+             "rolo-fit-map's DHG), made non-increasing with the level. A row's Earth part errs by at most "
+             "Σ_c α_c ε_c / A (its components' albedos α_c, its `earth_visible_lit_albedo` A).", "",
+             "| BRDFs | map | component | " + " | ".join(f"level {lv}" for lv in LEVELS) + " |",
+             "|---|---|---|" + "---|" * len(LEVELS)]
+    for group, maps in table.items():
+        for m, comps in maps.items():
+            lines += [f"| {group} | {m} | {c} | " + " | ".join(f"{e:.1e}" for e in eps) + " |"
+                      for c, eps in comps.items()]
+    lines += ["", "Transport time a date (180 lunar points, mean) [s]: "
+              + ", ".join(f"level {lv} {t:.2f}" for lv, t in zip(LEVELS, seconds)), "",
+              "| observer | date or θ | θ [deg] | " + " | ".join(f"level {lv}" for lv in LEVELS) + " |",
+              "|---|---|---|" + "---|" * len(LEVELS)]
+    for r in got:
+        where = r["key"] if r["observer"] != "geocentre" else f"θ {r['key']:g}, Earth {r['earth_rotation_deg']:g}°"
+        lines.append(f"| {r['observer']} | {where} | {r['theta_deg']:.1f} | "
+                     + " | ".join(f"{r['levels'][lv]['max']:.1e}" for lv in LEVELS) + " |")
+    (out / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    if a.write:
+        f = ROOT / "lunarviz" / "data" / "error_models.json"
+        models = json.loads(f.read_text())
+        models["mapped_earth"] = {"levels": list(LEVELS), "epsilon": table, "seconds": seconds,
+                                  "about": "per map and component: the largest |dI_c| / I_1 over dates and lunar "
+                                           "BRDFs, at each Earth level",
+                                  "source": res["command"]}
+        f.write_text(json.dumps(models, indent=1) + "\n")
+    print("\n".join(lines[:6 + sum(len(c) for g in table.values() for c in g.values())]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

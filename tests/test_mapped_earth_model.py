@@ -1,0 +1,147 @@
+"""A mapped Earth (land, ocean, clouds): the map-cell reference against the exact Lambert-sphere
+rule, the tracer's per-facet sums against both, and the bound its rows report."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lunarviz.geometry.scene_geometry import half_angle_sin_cos
+from lunarviz.methods import accuracy
+from lunarviz.methods.analytic import lunar_surface_rule
+from lunarviz.methods.map_cell_reference import cell_radiances, earth_cells
+from lunarviz.methods.sources import earth_radiance, source_beams, source_sphere_rule, zero_phase_points
+from lunarviz.methods.tracer.estimators import TraceScene
+from lunarviz.methods.transport import Transport, detector_geometry
+from lunarviz.scene import ResolvedScene
+from lunarviz.surfaces.maps import map_frame
+from lunarviz.workflows.sweeps import run_phase
+
+SITE = "site:34.26,-116.92,2067"
+
+
+def _lunar_points(sc, order=5):
+    """The exact reference's outer rule over the lunar sphere the Earth lights, seen by the detector."""
+    x, n, dA = lunar_surface_rule(sc, sc.earth, sc.radii["earth"], order)
+    mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
+    geom = np.where(sc.sight_lines_clear(x), geom, 0.0)
+    k = geom > 0
+    return x[k], n[k], mu[k], geom[k], o[k]
+
+
+def _exact_unit_earthshine(sc, pts, brdfs, order=24):
+    """The earthshine of an Earth of albedo 1 at the points: the exact reference's product rule
+    about the zero-phase point, cut along the kinks (lunarviz.methods.sources; its own tests: the
+    closed-form area of two caps, tests/test_zero_phase_rule.py)."""
+    x, n, mu, geom, o = pts
+    pole = zero_phase_points(sc, x)
+    out = dict.fromkeys(brdfs, 0.0)
+    for a in range(0, len(x), 8):
+        sl = slice(a, a + 8)
+        m, w = source_sphere_rule(sc, x[sl], n[sl], "earth", order, pole=pole[sl], roughness_cuts=True)
+        y, om, omega = source_beams(sc, x[sl], "earth", m, w)
+        sh, ch = half_angle_sin_cos(om, o[sl][:, None, :])
+        tr = Transport(mu0=np.clip(np.einsum("bmj,bj->bm", om, n[sl]), 0, 1), sin_hg=sh, cos_hg=ch,
+                       e_beam=earth_radiance(sc, y, m, 1.0) * omega, mu=mu[sl], geom=geom[sl])
+        for k, b in brdfs.items():
+            out[k] += float(tr.radiances(b)[0] @ geom[sl])
+    return out
+
+
+@pytest.fixture(scope="module")
+def thin_crescent():
+    """θ = 20° of the paper's scene: the Earth a thin crescent seen from the Moon, its light along
+    the limb and the terminator (where the tracer's per-facet sums erred most)."""
+    s = ResolvedScene(method="raytrace", phases_deg=(20.0,), brdfs=("lambert", "dhg"), earth_surface="landocean",
+                      clouds="zonal")
+    sc = s.geometry(20.0)
+    pts = _lunar_points(sc)
+    return s, sc, pts, _exact_unit_earthshine(sc, pts, s.brdf_models())
+
+
+def test_map_cell_reference_of_a_white_earth_is_the_exact_sphere_rule(thin_crescent):
+    # an Earth of albedo 1 on 0.5° cells (split near the terminator and the limb): the centre rule
+    # errs as the cells' second moments, ~(0.5°)² times the integrand's curvature (measured 2e-6
+    # here, 5e-7 at the land mask's 0.1° cells two by two); tolerance 1e-5
+    s, sc, pts, exact = thin_crescent
+    x, n, mu, geom, o = pts
+    cen, wts = earth_cells(sc, lambda d: np.ones(len(d)), (360, 720), np.eye(3))
+    got = cell_radiances(sc, x, n, o, mu, cen, wts, s.brdf_models())
+    for k in exact:
+        assert float(got[k][:, 0] @ geom) == pytest.approx(exact[k], rel=1e-5)
+
+
+def test_map_cell_weights_are_the_map_integrated_over_the_lit_earth():
+    # a map of value 1 north of the equator and 0 south (cells aligned with the grid): the cells'
+    # weights of the two halves add up to those of the white Earth, and each is its own share
+    s = ResolvedScene(method="raytrace", phases_deg=(90.0,))
+    sc = s.geometry(90.0)
+    frame = map_frame(sc, "earth")  # (the θ scene's: the Sun on the Earth's equator)
+    _, w1 = earth_cells(sc, lambda d: np.ones(len(d)), (180, 360), frame)
+    _, wh = earth_cells(sc, lambda d: np.stack([d[:, 2] > 0, d[:, 2] <= 0], 1).astype(float), (180, 360), frame)
+    assert wh.sum() == pytest.approx(w1.sum(), rel=1e-12)
+    # (the Sun on the equator lights the two halves alike: they differ by the cells' rounding)
+    assert wh[:, 0].sum() == pytest.approx(wh[:, 1].sum(), rel=1e-3)
+
+
+def test_traced_mapped_earth_of_a_thin_crescent_meets_the_exact_sphere_rule(thin_crescent):
+    # the tracer's per-facet sums (level 6), their albedo-1 part, against the exact rule: Lambert
+    # within 5e-6 (measured 9e-7; 4.5e-5 before the facets along the limb were split and the
+    # elements near it summed per lunar point, 1.1e-4 with the first-order expansion about the
+    # Moon's centre); DHG carries the disc cells' one direction each (2.8e-5 measured, within the
+    # model's ε at level 6)
+    s, sc, pts, exact = thin_crescent
+    x, n, mu, geom, o = pts
+    ts = TraceScene(sc, s.trace_settings(threads=1))
+    tr = ts.mapped_earth.transport(x, n, o, mu, geom)
+    brdfs = s.brdf_models()
+    got = {k: float(tr.radiances(b)[1] @ geom) for k, b in brdfs.items()}
+    assert got["lambert"] == pytest.approx(exact["lambert"], rel=5e-6)
+    eps = accuracy.mapped_earth_epsilon(6, s.earth_model(), hapke=True)
+    assert abs(got["dhg"] / exact["dhg"] - 1) <= eps["albedo 1"]
+
+
+def test_traced_mapped_earth_takes_embree_for_the_moons_shadow_on_the_earth():
+    # the mapped Earth's light at the solar eclipse of 2026-08-12 (the Moon's shadow on the
+    # Earth): which facets see the Sun past the Moon is traced with Embree. Told that the Moon
+    # blocks nothing, the shadowed facets light up and the earthshine rises
+    s = ResolvedScene(method="raytrace", times=("2026-08-12T17:46:00Z",), observer="geocentre",
+                      earth_surface="landocean", brdfs=("lambert",))
+    sc = s.geometry(s.times[0])
+    x, n, mu, geom, o = _lunar_points(sc, 3)
+    lam = s.brdf_models()["lambert"]
+    ts = TraceScene(sc, s.trace_settings(threads=1))
+    assert ts.sampling.moon_shadow_on_earth_possible()
+    traced = float(ts.mapped_earth.transport(x, n, o, mu, geom).radiances(lam)[0] @ geom)
+    stub = TraceScene(sc, s.trace_settings(threads=1))
+    stub.bodies.moon.occluded = lambda origins, dirs, *a, **k: np.zeros(len(origins), dtype=bool)
+    free = float(stub.mapped_earth.transport(x, n, o, mu, geom).radiances(lam)[0] @ geom)
+    assert ts.sources.sun_visibility_of_earth().min() < 0.5  # (the umbra on some facets)
+    assert 0 < traced < free * (1 - 1e-6)
+
+
+def test_the_bound_takes_the_components_errors_about_the_best_reference_albedo():
+    # made-up ε: albedo 1 errs by 1e-5, two components by 1e-4 each with opposite signs (they
+    # cancel in their sum); albedos 0.2 and 0.3; I₁ = 1, E = 0.25. About ᾱ = 0: 0.2e-4 + 0.3e-4 =
+    # 5e-5; about ᾱ = 0.2: 0.2e-5 + 0.1e-4 = 1.2e-5; about 0.3: 0.3e-5 + 0.1e-4 = 1.3e-5. The
+    # bound is SAFETY × 1.2e-5 / 0.25
+    eps = {"albedo 1": 1e-5, "a": 1e-4, "b": 1e-4}
+    got = accuracy.mapped_earth_error(eps, {"a": 0.2, "b": 0.3}, 1.0, 0.25)
+    assert got == pytest.approx(accuracy.SAFETY * 1.2e-5 / 0.25, rel=1e-12)
+    assert math.isnan(accuracy.mapped_earth_error(eps, {"a": 0.2, "b": 0.3}, 1.0, 0.0))
+
+
+def test_mapped_earth_rows_carry_their_models_bound_or_say_why():
+    s = ResolvedScene(method="raytrace", times=("2026-02-20T03:00:00Z",), observer=SITE, brdfs=("lambert", "dhg"),
+                      earth_surface="landocean", clouds="zonal")
+    rows = run_phase(s, s.times[0])
+    for r in rows:
+        assert 0 < r["rtol"] < 1e-3 and r["no_bound_reason"] == ""
+    # Lambert's ε are smaller than the Hapke BRDFs' (the disc cells' one direction each)
+    by = {r["brdf"]: r["rtol"] for r in rows}
+    assert by["lambert"] <= by["dhg"]
+    # a level the model did not measure: NaN and why
+    r = run_phase(s.replace(earth_level=8), s.times[0])[0]
+    assert math.isnan(r["rtol"]) and "mapped Earth at this Earth level" in r["no_bound_reason"]
