@@ -9,7 +9,7 @@ import numpy as np
 from lunarviz.caches import BoundedCache, file_key, mesh_digest
 from lunarviz.methods.tracer.traced_bodies import TracedBodies
 from lunarviz.methods.transport import Transport
-from lunarviz.surfaces.earth_spectra import facet_weights
+from lunarviz.surfaces.earth_spectra import components, facet_weights, grey_albedos
 from lunarviz.surfaces.maps import map_frame
 from lunarviz.surfaces.moon_map import moon_facet_values
 from lunarviz.surfaces.physical_earth import facet_reflectance
@@ -106,6 +106,13 @@ class FacetSurfaces:
         :meth:`earth_facet_parts` give them, computed for those facets only (the lit face seen
         from the Moon: what a date needs) unless the whole mesh's are at hand."""
         surf = self.bodies.settings.surface()
+        if self.earth_parts is not None and not surf.physical and not isinstance(self._earth_albedo, np.ndarray):
+            # a spectral run's components at the facets: their grey albedos' sum is the facets'
+            # albedo (the same jittered points, :func:`~lunarviz.surfaces.earth_spectra.facet_weights`),
+            # so the map is sampled once, not twice
+            parts = self._earth_parts_w[faces] if self._earth_parts_w is not None else self._earth_parts_of(faces)
+            grey = grey_albedos(surf)
+            return parts @ np.array([grey[c] for c in components(surf)]), parts
         if isinstance(self._earth_albedo, np.ndarray):
             a = self._earth_albedo[faces]
         elif surf.physical:
