@@ -149,12 +149,13 @@ def test_cli_nights_lunation_and_dry_run(tmp_path):
 
 
 def test_every_unbounded_row_says_why_and_the_run_warns():
-    """A row with a NaN bound names its reason (a mapped Earth: no error model), a bounded one
-    says nothing, and the run warns without --rtol; from a site, DHG's earthshine (the Earth's
-    rule about the zero-phase point) and Lambert's carry bounds within the default tolerance."""
+    """A row with a NaN bound names its reason (a mapped Earth at a level its model did not
+    measure), a bounded one says nothing, and the run warns without --rtol; from a site, DHG's
+    earthshine (the Earth's rule about the zero-phase point) and Lambert's carry bounds within the
+    default tolerance."""
     from lunarviz.errors import UnboundedRowsWarning
     t = ("2026-02-22T03:00:00Z",)
-    mapped = ResolvedScene(method="raytrace", brdfs=("lambert",), times=t, earth_surface="landocean")
+    mapped = ResolvedScene(method="raytrace", brdfs=("lambert",), times=t, earth_surface="landocean", earth_level=3)
     with pytest.warns(UnboundedRowsWarning, match="mapped Earth"):
         rows = sweeps.run_sweep(mapped, workers=1)["rows"]
     assert math.isnan(rows[0]["rtol"]) and "mapped Earth" in rows[0]["no_bound_reason"]
