@@ -131,6 +131,8 @@ def test_the_bound_takes_the_components_errors_about_the_best_reference_albedo()
     got = accuracy.mapped_earth_error(eps, {"a": 0.2, "b": 0.3}, 1.0, 0.25)
     assert got == pytest.approx(accuracy.SAFETY * 1.2e-5 / 0.25, rel=1e-12)
     assert math.isnan(accuracy.mapped_earth_error(eps, {"a": 0.2, "b": 0.3}, 1.0, 0.0))
+    # no Earthlight at all: nothing to err by
+    assert accuracy.mapped_earth_error(eps, {"a": 0.2, "b": 0.3}, 0.0, 0.0) == 0.0
 
 
 def test_mapped_earth_rows_carry_their_models_bound_or_say_why():

@@ -337,12 +337,11 @@ def mapped_earth_error(epsilon: dict, albedos: dict, unit, earthshine: float, av
     (``epsilon``: :func:`mapped_earth_epsilon`; ``unit``: I₁, the earthshine of an Earth of albedo
     1, per node), and ``Σ_c I_c = I₁`` (the components' weights sum to 1), so for any ``ᾱ``
     ``|δE| ≤ ᾱ ε₁ I₁ + Σ_c |α_c - ᾱ| ε_c I₁`` (ε₁: the albedo-1 Earth's own error, ``"albedo 1"``).
-    The components' errors are large where a map's edge crosses a cell of the Earth's disc and
-    cancel in their sum: the bound takes the best ᾱ among the components' albedos (or 0), then
-    ``SAFETY · |δE| / E``. ``average`` maps per-node values to the row's (a band's average; none
-    for one node). NaN without a positive earthshine."""
-    if not earthshine > 0:
-        return math.nan
+    The components' errors are large where a map's edge crosses a facet or a cell of the Earth's
+    disc and cancel in their sum: the bound takes the best ᾱ among the components' albedos (or 0;
+    per node, the same component at every node), then ``SAFETY · |δE| / E``. ``average`` maps
+    per-node values to the row's (a band's average, linear; none for one node). 0 where no
+    component carries light; NaN where they do but the earthshine is not positive."""
     avg = average or (lambda v: float(np.sum(v)))
     unit = np.asarray(unit, dtype=float)
     alb = {c: np.broadcast_to(np.asarray(v, dtype=float), unit.shape) for c, v in albedos.items()}
@@ -350,7 +349,9 @@ def mapped_earth_error(epsilon: dict, albedos: dict, unit, earthshine: float, av
     for ref in [np.zeros(unit.shape)] + list(alb.values()):
         spread = sum(epsilon[c] * np.abs(a - ref) for c, a in alb.items())
         best = min(best, float(avg((epsilon["albedo 1"] * ref + spread) * unit)))
-    return SAFETY * best / earthshine
+    if best == 0.0:  # no Earthlight (or an Earth of albedo 0): no error to bound
+        return 0.0
+    return SAFETY * best / earthshine if earthshine > 0 else math.nan
 
 
 def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why: str = "",
