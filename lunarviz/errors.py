@@ -16,6 +16,6 @@ class UnboundedRowsWarning(LunarvizWarning):
     """Rows of a run carry no error bound (their ``rtol`` is NaN; ``no_bound_reason`` says why)."""
 
 
-class LooseRowsWarning(UnboundedRowsWarning):
-    """Rows of a run carry a bound above the tolerance (their ``rtol`` column): the tolerance is
-    not met there, as if they had none."""
+class LooseRowsWarning(LunarvizWarning):
+    """Rows of a run carry a bound above the tolerance (their ``rtol`` column) that the run could
+    not foresee (a mapped Earth's, which depends on each row's own albedos and light)."""

@@ -194,7 +194,9 @@ def main(argv=None) -> int:
     if a.write:
         f = ROOT / "lunarviz" / "data" / "error_models.json"
         models = json.loads(f.read_text())
+        th = [r["theta_deg"] for r in got]  # (rows outside the dates' θ carry no bound: thinner crescents err more)
         models["mapped_earth"] = {"levels": list(LEVELS), "epsilon": table, "seconds": seconds,
+                                  "theta_range_deg": [round(min(th), 1), round(max(th), 1)],
                                   "about": "per map and component: the largest |dI_c| / I_1 over dates and lunar "
                                            "BRDFs, at each Earth level",
                                   "source": res["command"]}

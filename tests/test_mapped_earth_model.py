@@ -99,7 +99,7 @@ def test_traced_mapped_earth_of_a_thin_crescent_meets_the_exact_sphere_rule(thin
     brdfs = s.brdf_models()
     got = {k: float(tr.radiances(b)[1] @ geom) for k, b in brdfs.items()}
     assert got["lambert"] == pytest.approx(exact["lambert"], rel=5e-6)
-    eps = accuracy.mapped_earth_epsilon(6, s.earth_model(), hapke=True)
+    eps = accuracy.mapped_earth_epsilon(6, s.earth_model(), hapke=True, theta_deg=20.0)
     assert abs(got["dhg"] / exact["dhg"] - 1) <= eps["albedo 1"]
 
 
@@ -147,3 +147,26 @@ def test_mapped_earth_rows_carry_their_models_bound_or_say_why():
     # a level the model did not measure: NaN and why
     r = run_phase(s.replace(earth_level=8), s.times[0])[0]
     assert math.isnan(r["rtol"]) and "mapped Earth at this Earth level" in r["no_bound_reason"]
+
+
+def test_mapped_earth_rows_outside_the_models_phases_or_by_monte_carlo():
+    from lunarviz.errors import LooseRowsWarning
+    from lunarviz.workflows.sweeps import run_sweep
+    # θ = 10°: a thinner crescent than the model's dates (20-160°): NaN and why
+    s = ResolvedScene(method="raytrace", phases_deg=(10.0,), brdfs=("lambert",), earth_surface="landocean",
+                      clouds="zonal")
+    r = run_phase(s, 10.0)[0]
+    assert math.isnan(r["rtol"]) and "outside theta = 20-160" in r["no_bound_reason"]
+    # Monte Carlo over a mapped Earth: its own two standard errors (the model is the deterministic sums')
+    mc = s.replace(estimator="montecarlo", rays=2000, runs=2, phases_deg=(60.0,))
+    r = run_phase(mc, 60.0)[0]
+    assert 0 < r["rtol"] == pytest.approx(2 * max(r["moonshine_std_W_m2"] / r["moonshine_W_m2"],
+                                                  r["earthshine_std_W_m2"] / r["earthshine_W_m2"]) / math.sqrt(2))
+    # a mapped run whose rows' bounds exceed the tolerance says so once; a uniform Earth's coarse
+    # facets (their bound foreseen by the plan) do not raise it
+    with pytest.warns(LooseRowsWarning, match="mapped Earth"):
+        run_sweep(s.replace(phases_deg=(60.0,), brdfs=("dhg",)), workers=1)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", LooseRowsWarning)
+        run_sweep(ResolvedScene(method="raytrace", phases_deg=(60.0,), brdfs=("lambert",), moon_level=3), workers=1)

@@ -304,7 +304,7 @@ def off_centre_earth_rule(limit: float, mapped_moon: bool) -> tuple[int, bool]:
 DEFAULT_EARTH_ORDERS = (5, 6, 7, 8, 10, 14, 20)
 
 
-def mapped_earth_epsilon(level: int, surface, hapke: bool) -> dict | None:
+def mapped_earth_epsilon(level: int, surface, hapke: bool, theta_deg: float) -> dict | None:
     """``{component: ε_c}`` of the ray tracer's mapped Earth (its facets at icosphere ``level``,
     gathered into the disc's cells: :mod:`lunarviz.methods.tracer.mapped_earth`) on ``surface``'s
     packaged map (an :class:`~lunarviz.surfaces.earth_surface.EarthSurface`): the largest error of
@@ -312,9 +312,13 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool) -> dict | None:
     over dates, observers and the lunar BRDFs of a group (Lambert; ``hapke``: those with an
     opposition surge), measured against the map's own cells
     (:mod:`lunarviz.methods.map_cell_reference`; ``mapped_earth`` in the models, docs: accuracy,
-    "A mapped Earth"). ``None`` where not measured (another level, a user's map, the physical Earth)."""
+    "A mapped Earth"). ``None`` where not measured (another level, a user's map, the physical Earth,
+    θ [deg] outside the dates' range: a thinner crescent errs more)."""
     table = error_models().get("mapped_earth")
     if table is None or surface.physical or level not in table["levels"]:
+        return None
+    lo, hi = table["theta_range_deg"]
+    if not lo <= theta_deg <= hi:
         return None
     maps = table["epsilon"]["hapke" if hapke else "lambert"]
     key = f"{surface.earth_surface}+{surface.clouds}"
@@ -324,9 +328,13 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool) -> dict | None:
     return {c: float(e[i]) for c, e in maps[key].items()}
 
 
-#: why a mapped Earth's row has no bound where the rest of its row has one
-MAPPED_EARTH_UNMEASURED = ("no error model for a mapped Earth at this Earth level (measured: levels 4-7 of the "
-                           "packaged maps, the Lambert Earth)")
+def mapped_earth_unmeasured(theta_deg: float) -> str:
+    """Why a mapped Earth's row has no bound where the rest of its row has one."""
+    table = error_models().get("mapped_earth") or {}
+    lo, hi = table.get("theta_range_deg", (math.nan, math.nan))
+    if not lo <= theta_deg <= hi:
+        return f"a mapped Earth outside theta = {lo:g}-{hi:g} deg (its error model's range)"
+    return "no error model for a mapped Earth at this Earth level (measured: levels 4-7 of the packaged maps)"
 
 
 def mapped_earth_error(epsilon: dict, albedos: dict, unit, earthshine: float, average=None) -> float:

@@ -123,16 +123,17 @@ def _mapped_earth(scene, settings: dict, bounds: dict) -> None:
     settings["earth_level"] = scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
 
 
-def mapped_earth_row_bound(scene, plan: dict, brdf, albedos: dict, unit, earthshine: float, average=None) -> float:
+def mapped_earth_row_bound(scene, plan: dict, brdf, albedos: dict, unit, earthshine: float, theta_deg: float,
+                           average=None) -> float:
     """The mapped Earth's part of a traced row's earthshine bound (0 for an Earth the tracer does
     not sum per facet of a map; NaN where its model does not hold):
     :func:`lunarviz.methods.accuracy.mapped_earth_error` at the plan's level for the row's BRDF,
-    with the components' ``albedos``, the albedo-1 earthshine ``unit``, the row's ``earthshine``
-    and ``average`` (a band's)."""
+    with the components' ``albedos``, the albedo-1 earthshine ``unit``, the row's ``earthshine``,
+    its θ [deg] and ``average`` (a band's)."""
     if not traced_earth_mapped(scene):
         return 0.0
     eps = accuracy.mapped_earth_epsilon(plan["settings"].get("earth_level", DEFAULT_LEVELS["earth"]),
-                                        scene.earth_model(), accuracy.peaks_at_zero_phase(brdf))
+                                        scene.earth_model(), accuracy.peaks_at_zero_phase(brdf), theta_deg)
     if eps is None or set(albedos) - set(eps):
         return math.nan
     return accuracy.mapped_earth_error(eps, albedos, unit, earthshine, average)
@@ -267,14 +268,16 @@ def warn_unbounded_rows(rows: list[dict]) -> None:
                       UnboundedRowsWarning, stacklevel=3)
 
 
-def warn_loose_rows(rows: list[dict], rtol: float) -> None:
-    """Warn once, after a run, when some rows' bounds exceed the tolerance (asked for, or the
-    method's default): rows whose error depends on their own values (a mapped Earth's, by its
-    albedos and light: :func:`mapped_earth_row_bound`) may, where the settings cannot be chosen
-    ahead for them."""
+def warn_loose_rows(scene, rows: list[dict]) -> None:
+    """Warn once, after a run of a mapped Earth's rows (:func:`traced_earth_mapped`), when some of
+    their bounds exceed the tolerance (asked for, or the method's default): their bounds depend on
+    each row's own albedos and light (:func:`mapped_earth_row_bound`), so the settings could not
+    be chosen ahead for them (other rows' bounds are foreseen: :func:`warn_unmet_tolerance`)."""
+    if not traced_earth_mapped(scene):
+        return
+    rtol = scene.rtol_or_default
     loose = [r["rtol"] for r in rows if isinstance(r.get("rtol"), float) and r["rtol"] > rtol]
     if loose:
         warnings.warn(f"{len(loose)} of {len(rows)} rows carry a bound above the tolerance {rtol:g} (largest "
-                      f"{max(loose):.1e}; rtol column): a mapped Earth's facets at their level (a finer "
-                      "--earth-level, docs: accuracy, 'A mapped Earth'), or the most accurate setting the error "
-                      "models hold", LooseRowsWarning, stacklevel=3)
+                      f"{max(loose):.1e}; rtol column): a mapped Earth's error at its level (docs: accuracy, "
+                      "'A mapped Earth')", LooseRowsWarning, stacklevel=3)

@@ -102,8 +102,10 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         extra["rays"] = ms_r.rays + es_r.rays
         extra["rtol"], extra["no_bound_reason"] = accuracy.traced_bound(plan["bounds"], ts, ms_r, es_r,
                                                                         settings.unmodelled_reason())
-        if mapped and settings.traced_earth_mapped() and math.isfinite(extra["rtol"]):
-            mapped_bound = (plan, accuracy.traced_path_bounds(plan["bounds"], ts)[0], names)
+        paths = accuracy.traced_path_bounds(plan["bounds"], ts)[0] if mapped and settings.traced_earth_mapped() \
+            and ts_set.estimator == "deterministic" and math.isfinite(extra["rtol"]) else {}
+        if paths:
+            mapped_bound = (plan, paths, names)
         if ts_set.estimator == "montecarlo":
             extra.update(runs=ts_set.runs, rays_per_run=ts_set.rays)
     return _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, uniform_albedo, method_fields,
@@ -143,10 +145,10 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
             albedos = dict(zip(names, albedo))
             row_bounds = []
             for o in range(len(req.labels)):
-                part = settings.mapped_earth_row_bound(plan, brdfs[k], albedos, es[k][-1], es_a[o],
+                part = settings.mapped_earth_row_bound(plan, brdfs[k], albedos, es[k][-1], es_a[o], sc.theta_deg,
                                                        average=lambda v, o=o: req.averages(v)[o])
                 row_bounds.append((max(paths["moonshine"], paths["earthshine"] + part), "") if math.isfinite(part)
-                                  else (math.nan, accuracy.MAPPED_EARTH_UNMEASURED))
+                                  else (math.nan, accuracy.mapped_earth_unmeasured(sc.theta_deg)))
         for o, label in enumerate(req.labels):
             bound, why = row_bounds[o]
             terms = alb.lunar_terms(sc, a0 * cesu_a[o], cms_a[o], a0)

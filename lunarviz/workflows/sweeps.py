@@ -125,9 +125,10 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
     ms = trace_path(ts, "moonshine", brdfs)
     es = trace_path(ts, "earthshine", brdfs)
     bound = accuracy.traced_bound(plan["bounds"], ts, ms, es, settings.unmodelled_reason())
-    mapped = settings.traced_earth_mapped() and math.isfinite(bound[0])
+    paths = accuracy.traced_path_bounds(plan["bounds"], ts)[0] \
+        if settings.traced_earth_mapped() and ts_set.estimator == "deterministic" and math.isfinite(bound[0]) else {}
+    mapped = bool(paths)
     if mapped:  # the mapped Earth's part of the earthshine's bound, row by row (its own albedos and light)
-        paths = accuracy.traced_path_bounds(plan["bounds"], ts)[0]
         grey = grey_albedos(settings.earth_model())
     rules = {b: r for b in ("sun", "earth") if (r := ts.sampling.mapped_rule_used(b)) is not None}
     point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
@@ -154,9 +155,9 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
                "rays": ms.rays + es.rays}
         if mapped:
             part = settings.mapped_earth_row_bound(plan, brdfs[k], {c: grey[c] for c in components(settings.earth_model())},
-                                                   es.mean_unit[k], es.mean[k])
+                                                   es.mean_unit[k], es.mean[k], sc.theta_deg)
             if math.isnan(part):
-                row["_bound"], row["_why"] = math.nan, accuracy.MAPPED_EARTH_UNMEASURED
+                row["_bound"], row["_why"] = math.nan, accuracy.mapped_earth_unmeasured(sc.theta_deg)
             else:
                 row["_bound"] = max(paths["moonshine"], paths["earthshine"] + part)
         if ts_set.estimator == "montecarlo":
@@ -360,7 +361,7 @@ def _warm_before_fork(settings: ResolvedScene) -> None:
 def _assemble(settings: ResolvedScene, results: list, t0: float) -> dict:
     rows = [r for res in results for r in res]
     warn_unbounded_rows(rows)
-    warn_loose_rows(rows, settings.rtol_or_default)
+    warn_loose_rows(settings, rows)
     out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
            "wall_seconds": time.perf_counter() - t0}
     if any("apparent_albedo_point_source_inversion" in r for r in rows):
