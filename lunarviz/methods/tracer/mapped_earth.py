@@ -102,23 +102,7 @@ class MappedEarthTransport:
         wt = L1A * np.clip(np.einsum("ij,ij->i", m, v) / r, 1e-12, None) / r**2
         wsum = np.add.reduceat(wt, starts) if len(starts) else np.zeros(0)
         centre = (np.add.reduceat(y * wt[:, None], starts, axis=0) / wsum[:, None]) if len(starts) else np.zeros((0, 3))
-        # second-order expansion about the Moon's centre x0 of each cell's sum of
-        # g_f(x) = m_f·(x - y_f)/|x - y_f|³ over the elements every lunar point sees
-        # (m·(x0 - y) > R_M: m·(x - x0) is at most R_M): g(x0), ∇g(x0) = m/r³ - 3 (m·v) v/r⁵ and
-        # the Hessian -3 (m vᵀ + v mᵀ + (m·v) I)/r⁵ + 15 (m·v) v vᵀ/r⁷. The numerator m·(x - y) is
-        # linear in x, so the neglected terms are those of 1/r³ alone, O((R_M/r)³) ≈ 1e-7 relative
-        # (the first order left (R_M/r)² ≈ 3e-5: docs, accuracy). The elements within R_M of the
-        # Earth's limb seen from x0 (a band of 0.26°, seen by some lunar points and not by others:
-        # 1e-4 of a thin crescent's light) are summed exactly per lunar point (``band``)
-        mv = np.einsum("ij,ij->i", m, v)
-        band = mv <= max(rm, self.bodies.moon.bound) * (1.0 + 1e-9)
-        inner = ~band
-        g0 = np.where(inner, mv / r**3, 0.0)
-        grad = np.where(inner[:, None], m / r[:, None] ** 3 - 3 * (mv / r**5)[:, None] * v, 0.0)
-        mvT = m[:, :, None] * v[:, None, :]
-        hess = (-3.0 * (mvT + mvT.transpose(0, 2, 1) + mv[:, None, None] * np.eye(3)) / r[:, None, None] ** 5
-                + 15.0 * (mv / r**7)[:, None, None] * v[:, :, None] * v[:, None, :])
-        hess = np.where(inner[:, None, None], hess, 0.0)
+        band, (g0, grad, hess) = _expansion_terms(m, v, r, max(rm, self.bodies.moon.bound))
         # the band's elements (sorted by cell, as all are), the cells they are in and where each
         # cell's run of them starts (their sums go to that cell's beam)
         band_el = np.flatnonzero(band)
@@ -241,3 +225,24 @@ class MappedEarthTransport:
         parts = None if comp is None else dict(zip(self.surfaces.earth_parts, e_parts))
         return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=e_map, mu=mu, geom=geom,
                          e_beam_free=e_free, e_beam_unit=e_unit, e_beam_parts=parts)
+
+
+def _expansion_terms(m, v, r, moon_radius: float):
+    """Second-order expansion about the Moon's centre x0 of each element's
+    g(x) = m·(x - y)/|x - y|³ (normals m, v = x0 - y, r = |v|), for the elements every lunar
+    point sees (m·(x0 - y) > R_M: m·(x - x0) is at most R_M): g(x0), ∇g(x0) = m/r³ - 3 (m·v) v/r⁵
+    and the Hessian -3 (m vᵀ + v mᵀ + (m·v) I)/r⁵ + 15 (m·v) v vᵀ/r⁷, zero for the others. The
+    numerator m·(x - y) is linear in x, so the neglected terms are those of 1/r³ alone,
+    O((R_M/r)³) ≈ 1e-7 relative (the first order left (R_M/r)² ≈ 3e-5: docs, accuracy). Returns
+    ``(band, (g0, grad, hess))``: ``band`` marks the elements within R_M of the Earth's limb seen
+    from x0 (a band of 0.26°, seen by some lunar points and not by others: 1e-4 of a thin
+    crescent's light), which are summed exactly per lunar point instead."""
+    mv = np.einsum("ij,ij->i", m, v)
+    band = mv <= moon_radius * (1.0 + 1e-9)
+    inner = ~band
+    g0 = np.where(inner, mv / r**3, 0.0)
+    grad = np.where(inner[:, None], m / r[:, None] ** 3 - 3 * (mv / r**5)[:, None] * v, 0.0)
+    mvT = m[:, :, None] * v[:, None, :]
+    hess = (-3.0 * (mvT + mvT.transpose(0, 2, 1) + mv[:, None, None] * np.eye(3)) / r[:, None, None] ** 5
+            + 15.0 * (mv / r**7)[:, None, None] * v[:, :, None] * v[:, None, :])
+    return band, (g0, grad, np.where(inner[:, None, None], hess, 0.0))
