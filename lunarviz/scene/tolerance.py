@@ -100,8 +100,8 @@ def trace_plan(scene, theta: float | None = None) -> dict:
     bounds = choice.get("bounds", {}) if scene.modelled() else {}
     if pole:  # the Earth's rule about the zero-phase point, its order and bound
         _zero_phase_earth(scene, settings, fixed, bounds)
-    elif mapped_earth and bounds:  # the mapped Earth's facets: their level and bound
-        _mapped_earth(scene, settings, bounds)
+    elif mapped_earth and bounds:  # the mapped Earth's facets: their level (their bound is each row's)
+        _mapped_earth(scene, settings)
     return {"settings": settings, "bounds": bounds}
 
 
@@ -110,33 +110,31 @@ def traced_earth_mapped(scene) -> bool:
     (:mod:`lunarviz.methods.tracer.mapped_earth`, as its ``FacetSurfaces.earth_mapped`` decides):
     a Lambert or physical Earth whose albedo is not one value, or whose parts differ in colour (a
     spectral run)."""
-    if scene.earth_uniform or scene.mapped_earth != "facets":
-        return False
-    surf = scene.earth_model()
-    return surf.physical or scene.spectral_request() is not None or not surf.albedo_constant()
+    return scene.mapped_earth == "facets" and scene.earth_model().varies(in_colour=scene.spectral_request() is not None)
 
 
-def _mapped_earth(scene, settings: dict, bounds: dict) -> None:
+def _mapped_earth(scene, settings: dict) -> None:
     """A mapped Earth's facets: the level asked for, else the default, which the plan states
     (``settings["earth_level"]``). Its error depends on each row's own albedos and light
     (:func:`mapped_earth_row_bound`), so the plan's earthshine bounds stay the lunar side's."""
     settings["earth_level"] = scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
 
 
-def mapped_earth_row_bound(scene, plan: dict, brdf, albedos: dict, unit, earthshine: float, theta_deg: float,
-                           average=None) -> float:
-    """The mapped Earth's part of a traced row's earthshine bound (0 for an Earth the tracer does
-    not sum per facet of a map; NaN where its model does not hold):
-    :func:`lunarviz.methods.accuracy.mapped_earth_error` at the plan's level for the row's BRDF,
-    with the components' ``albedos``, the albedo-1 earthshine ``unit``, the row's ``earthshine``,
-    its θ [deg] and ``average`` (a band's)."""
-    if not traced_earth_mapped(scene):
-        return 0.0
+def mapped_earth_row_bound(scene, plan: dict, paths: dict, brdf, albedos: dict, unit, earthshine: float,
+                           theta_deg: float, average=None) -> tuple[float, str]:
+    """A traced row of a mapped Earth (:func:`traced_earth_mapped`): its bound and why it has none.
+    The larger of the moonshine's bound and the earthshine's (``paths``:
+    :func:`lunarviz.methods.accuracy.traced_path_bounds`), the earthshine's with the mapped
+    Earth's part added, :func:`lunarviz.methods.accuracy.mapped_earth_error` at the plan's level for
+    the row's BRDF, its components' ``albedos``, the albedo-1 earthshine ``unit``, the row's
+    ``earthshine``, its θ [deg] and ``average`` (a band's); NaN where that model does not hold."""
     eps = accuracy.mapped_earth_epsilon(plan["settings"].get("earth_level", DEFAULT_LEVELS["earth"]),
                                         scene.earth_model(), accuracy.peaks_at_zero_phase(brdf), theta_deg)
-    if eps is None or set(albedos) - set(eps):
-        return math.nan
-    return accuracy.mapped_earth_error(eps, albedos, unit, earthshine, average)
+    part = math.nan if eps is None or set(albedos) - set(eps) else \
+        accuracy.mapped_earth_error(eps, albedos, unit, earthshine, average)
+    if math.isnan(part):
+        return math.nan, accuracy.mapped_earth_unmeasured(theta_deg)
+    return max(paths["moonshine"], paths["earthshine"] + part), ""
 
 
 def detector_off_centre(scene) -> bool:

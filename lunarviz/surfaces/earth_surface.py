@@ -157,6 +157,13 @@ class EarthSurface:
             return np.interp(lat, la, cf)
         return sample_map(self.cloud_map(), dirs)
 
+    def varies(self, in_colour: bool) -> bool:
+        """Whether the Earth's reflectance varies over its surface (so the ray tracer sums it per
+        facet): not uniform, and its albedo not one value (:meth:`albedo_constant`; the physical
+        Earth never is), or ``in_colour`` (a spectral run's components differ in their spectra even
+        where their grey albedos agree)."""
+        return not self.uniform and (in_colour or not self.albedo_constant())
+
     def albedo_constant(self) -> bool:
         """Whether the albedo is one value over the whole sphere, from the maps themselves: a
         constant clear-sky map (or none) under no clouds, a constant cloud fraction, or clouds of

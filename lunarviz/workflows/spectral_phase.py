@@ -143,12 +143,9 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
         if mapped_bound is not None and math.isfinite(bound):
             plan, paths, names = mapped_bound
             albedos = dict(zip(names, albedo))
-            row_bounds = []
-            for o in range(len(req.labels)):
-                part = settings.mapped_earth_row_bound(plan, brdfs[k], albedos, es[k][-1], es_a[o], sc.theta_deg,
-                                                       average=lambda v, o=o: req.averages(v)[o])
-                row_bounds.append((max(paths["moonshine"], paths["earthshine"] + part), "") if math.isfinite(part)
-                                  else (math.nan, accuracy.mapped_earth_unmeasured(sc.theta_deg)))
+            row_bounds = [settings.mapped_earth_row_bound(plan, paths, brdfs[k], albedos, es[k][-1], es_a[o],
+                                                          sc.theta_deg, average=lambda v, o=o: req.averages(v)[o])
+                          for o in range(len(req.labels))]
         for o, label in enumerate(req.labels):
             bound, why = row_bounds[o]
             terms = alb.lunar_terms(sc, a0 * cesu_a[o], cms_a[o], a0)

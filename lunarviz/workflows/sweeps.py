@@ -129,7 +129,8 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
         if settings.traced_earth_mapped() and ts_set.estimator == "deterministic" and math.isfinite(bound[0]) else {}
     mapped = bool(paths)
     if mapped:  # the mapped Earth's part of the earthshine's bound, row by row (its own albedos and light)
-        grey = grey_albedos(settings.earth_model())
+        earth = settings.earth_model()
+        grey = {c: grey_albedos(earth)[c] for c in components(earth)}
     rules = {b: r for b in ("sun", "earth") if (r := ts.sampling.mapped_rule_used(b)) is not None}
     point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
     if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
@@ -154,12 +155,8 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
                                                point[k].moonshine_W_m2, a0),
                "rays": ms.rays + es.rays}
         if mapped:
-            part = settings.mapped_earth_row_bound(plan, brdfs[k], {c: grey[c] for c in components(settings.earth_model())},
-                                                   es.mean_unit[k], es.mean[k], sc.theta_deg)
-            if math.isnan(part):
-                row["_bound"], row["_why"] = math.nan, accuracy.mapped_earth_unmeasured(sc.theta_deg)
-            else:
-                row["_bound"] = max(paths["moonshine"], paths["earthshine"] + part)
+            row["_bound"], row["_why"] = settings.mapped_earth_row_bound(
+                plan, paths, brdfs[k], grey, es.mean_unit[k], es.mean[k], sc.theta_deg)
         if ts_set.estimator == "montecarlo":
             row["moonshine_std_W_m2"] = ms.std[k]
             row["earthshine_std_W_m2"] = es.std[k]

@@ -68,7 +68,7 @@ class FacetSurfaces:
         if self._mapped is None:
             surf = self.bodies.settings.surface()
             # a spectral run's components differ in their spectra even where their grey albedos agree
-            self._mapped = not surf.uniform and (self.earth_parts is not None or not surf.albedo_constant())
+            self._mapped = surf.varies(in_colour=self.earth_parts is not None)
         return self._mapped
 
     def earth_facet_albedo(self):
@@ -106,24 +106,22 @@ class FacetSurfaces:
         :meth:`earth_facet_parts` give them, computed for those facets only (the lit face seen
         from the Moon: what a date needs) unless the whole mesh's are at hand."""
         surf = self.bodies.settings.surface()
-        if self.earth_parts is not None and not surf.physical and not isinstance(self._earth_albedo, np.ndarray):
+        parts = None if self.earth_parts is None else \
+            self._earth_parts_w[faces] if self._earth_parts_w is not None else self._earth_parts_of(faces)
+        if isinstance(self._earth_albedo, np.ndarray):
+            a = self._earth_albedo[faces]
+        elif parts is not None and not surf.physical:
             # a spectral run's components at the facets: their grey albedos' sum is the facets'
             # albedo (the same jittered points, :func:`~lunarviz.surfaces.earth_spectra.facet_weights`),
             # so the map is sampled once, not twice
-            parts = self._earth_parts_w[faces] if self._earth_parts_w is not None else self._earth_parts_of(faces)
             grey = grey_albedos(surf)
-            return parts @ np.array([grey[c] for c in components(surf)]), parts
-        if isinstance(self._earth_albedo, np.ndarray):
-            a = self._earth_albedo[faces]
+            a = parts @ np.array([grey[c] for c in components(surf)])
         elif surf.physical:
             sc = self.bodies.scene
             a = facet_reflectance(surf, self.bodies.earth, self._earth_frame(), sc.sun, sc.moon,
                                   [surf.wavelength_nm], only=faces)[:, 0]
         else:
             a = surf.facet_albedo(self.bodies.earth, self._earth_frame(), only=faces)
-        if self.earth_parts is None:
-            return a, None
-        parts = self._earth_parts_w[faces] if self._earth_parts_w is not None else self._earth_parts_of(faces)
         return a, parts
 
     def _earth_parts_of(self, faces):

@@ -103,13 +103,10 @@ class MappedEarthTransport:
         wsum = np.add.reduceat(wt, starts) if len(starts) else np.zeros(0)
         centre = (np.add.reduceat(y * wt[:, None], starts, axis=0) / wsum[:, None]) if len(starts) else np.zeros((0, 3))
         band, (g0, grad, hess) = _expansion_terms(m, v, r, max(rm, self.bodies.moon.bound))
-        # the band's elements (sorted by cell, as all are), the cells they are in and where each
-        # cell's run of them starts (their sums go to that cell's beam)
+        # the band's elements (sorted by cell, as all are) and the cell each is in (its sums go to
+        # that cell's beam)
         band_el = np.flatnonzero(band)
         cell_of = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(y)])) if len(starts) else \
-            np.zeros(0, int)
-        band_cell = cell_of[band_el]
-        band_starts = np.flatnonzero(np.r_[True, band_cell[1:] != band_cell[:-1]]) if band_el.size else \
             np.zeros(0, int)
         taylor = {}
         weights = [("unit", L1A), ("map", L1A * a)]
@@ -119,35 +116,36 @@ class MappedEarthTransport:
             taylor[name] = tuple(np.add.reduceat(wgt.reshape((-1,) + (1,) * (t.ndim - 1)) * t, starts, axis=0)
                                  if len(starts) else np.zeros((0,) + t.shape[1:]) for t in (g0, grad, hess))
         self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, taylor=taylor, comp=comp,
-                              band=band_el, band_cells=(band_cell[band_starts], band_starts))
+                              band=band_el, band_cell=cell_of[band_el])
         return self._earth_el
 
     def _band_sums(self, x, el, n_parts: int, chunk: int = 256) -> dict:
         """``{name: (B, C)}``: the light of the elements of the limb's band (:meth:`earth_elements`)
         at lunar points x whose horizon does not cut the Earth, summed exactly per point and cell
         (zero where an element is behind the limb seen from x)."""
-        idx, (cells, runs) = el["band"], el["band_cells"]
+        idx, cell = el["band"], el["band_cell"]
         y, m, L1A = el["y"][idx], el["m"][idx], el["L1A"][idx]
         wts = [("unit", L1A), ("map", L1A * el["a"][idx])]
         wts += [(("part", c), L1A * el["comp"][idx, c]) for c in range(n_parts)]
-        out = {name: np.zeros((len(x), len(el["starts"]))) for name, _ in wts}
+        C = len(el["starts"])
         if idx.size == 0:
-            return out
+            return {name: np.zeros((len(x), C)) for name, _ in wts}
         # m·(x - y) and |x - y|² as products (x relative to the Moon's centre: no cancellation)
         x0 = self.bodies.scene.moon
         yr = y - x0
         my, yy = np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)
         if earth_kernels.available():  # one compiled pass
-            sums = earth_kernels.band_sums(x - x0, m, yr, my, yy, np.stack([w for _, w in wts]),
-                                           np.repeat(cells, np.diff(np.r_[runs, idx.size])), len(el["starts"]))
+            sums = earth_kernels.band_sums(x - x0, m, yr, my, yy, np.stack([w for _, w in wts]), cell, C)
             return {name: sums[i] for i, (name, _) in enumerate(wts)}
+        runs = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])  # (each cell's run of elements)
+        out = {name: np.zeros((len(x), C)) for name, _ in wts}
         for c0 in range(0, len(x), chunk):
             xr = x[c0:c0 + chunk] - x0
             num = np.clip(xr @ m.T - my[None, :], 0.0, None)
             r2 = np.einsum("ij,ij->i", xr, xr)[:, None] - 2.0 * (xr @ yr.T) + yy[None, :]
             f = num / (r2 * np.sqrt(r2))
             for name, w in wts:
-                out[name][c0:c0 + chunk, cells] = np.add.reduceat(f * w, runs, axis=1)
+                out[name][c0:c0 + chunk, cell[runs]] = np.add.reduceat(f * w, runs, axis=1)
         return out
 
     def transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
