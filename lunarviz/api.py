@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 import lunarviz.constants as C
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.options import BY_NAME, OPTIONS, defaults, numpydoc_parameters
 
@@ -341,7 +341,7 @@ def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = 
     sc = _scene(scene, scene_options)
     _grey_only(sc, "render")
     if view not in views.VIEWS:
-        raise LunarvizError(f"unknown view {view!r}: choose from {', '.join(views.VIEWS)}")
+        raise unknown_choice("view", view, views.VIEWS)
     size = _check_size(size)
     if out is not None:
         from lunarviz.outputs.writers import check_output_path

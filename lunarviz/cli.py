@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from pathlib import Path
 
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, close_match, command_line_words, did_you_mean, unknown_choice
 from lunarviz.options import BODIES, EXECUTORS, MAX_LEVEL, add_arguments, scene_options
 from lunarviz.parsing import parse_float_list
 
@@ -20,7 +21,10 @@ EXIT_USAGE = 2
 
 
 class UsageError(LunarvizError):
-    """Bad input from the user on the command line: printed as one line."""
+    """Bad input from the user on the command line: printed as one line, naming flags."""
+
+    def __str__(self) -> str:
+        return ValueError.__str__(self)
 
 
 class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -39,8 +43,30 @@ class _Parser(argparse.ArgumentParser):
         kwargs.setdefault("formatter_class", _HelpFormatter)
         super().__init__(*args, **kwargs)
 
-    def error(self, message):  # one line, no usage dump
+    def error(self, message):  # one line, no usage dump; a misspelt choice gets its close match
+        m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if m:
+            message = message.replace(m.group(0), m.group(0)[:-1] + did_you_mean(m.group(1), re.findall(
+                r"'([^']*)'", m.group(2))).replace(" (", "; "))
         raise UsageError(message)
+
+    def parse_args(self, args=None, namespace=None):
+        """argparse's, with the options a misspelt one most likely meant (``--methd``: ``--method``)."""
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}{self._suggestions(ns, extras)}")
+        return ns
+
+    def _suggestions(self, ns, extras) -> str:
+        flags = list(self._option_string_actions)
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction) and getattr(ns, action.dest, None) in action.choices:
+                flags += list(action.choices[getattr(ns, action.dest)]._option_string_actions)
+        hits = {x.split("=")[0]: close_match(x.split("=")[0], flags) for x in extras if x.startswith("-")}
+        hits = {k: v for k, v in hits.items() if v}
+        if len(hits) == 1:
+            return f" (did you mean {next(iter(hits.values()))}?)"
+        return f" (did you mean {'; '.join(f'{v} for {k}' for k, v in hits.items())}?)" if hits else ""
 
 
 # ---- parsing helpers ---------------------------------------------------------------------
@@ -86,7 +112,7 @@ def _brdf_list(text) -> list[str]:
         raise UsageError("empty --brdf list")
     for n in names:
         if n not in BRDF_NAMES:
-            raise UsageError(f"unknown BRDF {n!r}: choose from {', '.join(BRDF_NAMES)}")
+            raise UsageError(str(unknown_choice("BRDF", n, BRDF_NAMES)))
     return list(dict.fromkeys(names))
 
 
@@ -100,6 +126,15 @@ def _int_at_least(name, lo):
             raise argparse.ArgumentTypeError(f"{name} {v} must be {'positive' if lo == 1 else 'non-negative'}")
         return v
     return conv
+
+
+def _seconds(text):
+    """An exposure: ``0.01``, ``8ms``, ``500us`` → seconds (argparse's type)."""
+    from lunarviz.parsing import TIME_S, parse_quantity
+    try:
+        return parse_quantity(text, "exposure", TIME_S, "s")[0]
+    except LunarvizError as exc:
+        raise argparse.ArgumentTypeError(ValueError.__str__(exc)) from None
 
 
 def _positive_int(name):
@@ -269,7 +304,8 @@ def _parser_image(sub):
                    help="scattered-light wing FRACTION,INDEX[,CORE_ARCSEC]: (1+(r/core)^2)^(-INDEX/2)")
     g = p.add_argument_group("instrument (frames in counts: FITS EXPECTED_COUNTS and COUNTS)")
     _add_instrument_option(g)
-    g.add_argument("--exposure", type=float, default=None, help="exposure time [s] (default: the instrument's)")
+    g.add_argument("--exposure", type=_seconds, default=None,
+                   help="exposure time [s], or with a unit: 8ms, 500us (default: the instrument's)")
     g.add_argument("--frames", type=int, default=1, help="noisy frames in the COUNTS cube (default 1); frame k "
                    "is drawn from numpy default_rng([SEED, k]) (--seed)")
     p.add_argument("--out", required=True, help=".fits, .npy or .png; several phases/times: FILE_000.ext …")
@@ -290,7 +326,8 @@ def _parser_measure(sub):
     p.add_argument("--simulate", type=int, default=None, metavar="N", help="simulate N measurements instead")
     _add_instrument_option(p)
     p.add_argument("--phase", default=None, help="with --simulate: θ [deg]")
-    p.add_argument("--exposure", type=float, default=None, help="with --simulate: exposure [s] (the instrument's)")
+    p.add_argument("--exposure", type=_seconds, default=None,
+                   help="with --simulate: exposure [s], or with a unit: 8ms (the instrument's)")
     p.add_argument("--frames-per-measurement", type=int, default=1,
                    help="with --simulate: frames averaged; measurement i, frame j from "
                         "default_rng([SEED, i, j]) (--seed)")
@@ -445,7 +482,7 @@ def cmd_sweep(a):
     from lunarviz.options import METHODS
     from lunarviz.outputs.writers import write_results
     if a.method not in METHODS:
-        raise UsageError(f"unknown method {a.method!r}: choose from {', '.join(METHODS)}")
+        raise UsageError(str(unknown_choice("method", a.method, METHODS)))
     times = _times(a)
     if times is not None and a.phases is not None:
         raise UsageError("give --phases (the θ scene) or --time/--time-range (the real sky), not both")
@@ -568,7 +605,7 @@ def cmd_render(a, interactive=False):
     except ValueError:
         raise UsageError(f"malformed --size {a.size!r}: use WxH, each 64..8192") from None
     if a.view not in views.VIEWS:
-        raise UsageError(f"unknown view {a.view!r}: choose from {', '.join(views.VIEWS)}")
+        raise UsageError(str(unknown_choice("view", a.view, views.VIEWS)))
     times = _times(a)
     if times is not None and a.phase is not None:
         raise UsageError("give --phase (the θ scene) or --time/--time-range (the real sky), not both")
@@ -895,6 +932,15 @@ def main(argv=None) -> int:
                                                   else shown(m, c, *a, **k))
     parser = build_parser()
     _terminate_as_interrupt()
+    try:
+        with command_line_words():
+            return _run(parser, argv)
+    finally:
+        warnings.showwarning = shown
+
+
+def _run(parser, argv) -> int:
+    """Parse ``argv`` and run its command: the exit status, each error in one line."""
     try:
         args = parser.parse_args(argv)
         COMMANDS[args.command](args)

@@ -1,15 +1,54 @@
 """lunarviz's own error type: bad input that the command line reports in one line (exit 2)."""
 
+import difflib
+import re
+
+
+#: how messages name options: ``--time-range`` on the command line (set by it while it runs), the
+#: Python keyword ``time_range`` for the API
+_WORDS = {"command_line": False}
+_FLAG = re.compile(r"(?<![\w-])--(no-)?([a-z][a-z0-9]*(?:-[a-z0-9]+)*)")
+
 
 class LunarvizError(ValueError):
-    """A user's input is invalid (a value, a file, a date). The message names the bad value.
+    """A user's input is invalid (a value, a file, a date). The message names the bad value, and
+    the option in the caller's words: the flag on the command line, the keyword in Python.
 
     It subclasses ValueError so that callers catching ValueError keep working.
     """
 
+    def __str__(self) -> str:
+        text = super().__str__()
+        return text if _WORDS["command_line"] else _FLAG.sub(_keyword, text)
+
+
+def _keyword(m: re.Match) -> str:
+    """A flag's API keyword: ``--band`` → ``bands``, ``--no-occlusion`` → ``occlusion=False``."""
+    from lunarviz.options import OPTIONS  # (options imports this module)
+    flag = f"--{m.group(1) or ''}{m.group(2)}"
+    name = next((o.name for o in OPTIONS if o.cli_flag == flag), None)
+    if name is not None:
+        return name if not m.group(1) else f"{name}=False"
+    return m.group(2).replace("-", "_") + ("=False" if m.group(1) else "")
+
+
+class command_line_words:
+    """While active (the command line's run), errors name options by their flags."""
+
+    def __enter__(self):
+        self._was = _WORDS["command_line"]
+        _WORDS["command_line"] = True
+
+    def __exit__(self, *exc):
+        _WORDS["command_line"] = self._was
+
 
 class LunarvizWarning(UserWarning):
     """A result that is computed but may not mean what the user expects (e.g. a stale TLE)."""
+
+
+class ZonelessTimeWarning(LunarvizWarning):
+    """A time was given without a zone (``2026-01-15T03:00``) and is taken as UTC."""
 
 
 class UnboundedRowsWarning(LunarvizWarning):
@@ -19,3 +58,24 @@ class UnboundedRowsWarning(LunarvizWarning):
 class LooseRowsWarning(LunarvizWarning):
     """Rows of a run carry a bound above the tolerance (their ``rtol`` column) that the run could
     not foresee (a mapped Earth's, which depends on each row's own albedos and light)."""
+
+
+def close_match(value, choices) -> str | None:
+    """The choice a misspelt ``value`` most likely meant (case ignored), or None."""
+    names = [str(c) for c in choices]
+    low = {n.lower(): n for n in names}
+    hit = difflib.get_close_matches(str(value).lower(), list(low), n=1, cutoff=0.6)
+    return low[hit[0]] if hit else None
+
+
+def did_you_mean(value, choices) -> str:
+    """`` (did you mean 'x'?)`` for a misspelt ``value``, or an empty string."""
+    hit = close_match(value, choices)
+    return f" (did you mean {hit!r}?)" if hit is not None and hit != value else ""
+
+
+def unknown_choice(what: str, value, choices) -> LunarvizError:
+    """The one-line error for a ``value`` of ``what`` that is not one of ``choices``: the choices,
+    and the close match a misspelling most likely meant."""
+    return LunarvizError(f"unknown {what} {value!r}{did_you_mean(value, choices)}: choose from "
+                         f"{', '.join(str(c) for c in choices)}")

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
 import lunarviz.constants as C
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 
 # ---- allowed values (each declared once, here; the modules that implement them import them) ----
 #: how a sweep computes: the paper's point-source quadrature, Embree ray tracing of the meshes, or the
@@ -115,6 +115,8 @@ class Option:
     label: str | None = None
     #: help of a ``--no-…`` flag (what switching the option off means), where the doc says what it is on
     flag_help: str | None = None
+    #: a list option given as text: a tuple or list of items is also taken (``("V", "B")``: ``"V,B"``)
+    joins: bool = False
 
     @property
     def cli_flag(self) -> str:
@@ -155,19 +157,21 @@ class Option:
                 raise LunarvizError(f"{self.what} {value!r} must be a finite number{self._range_text()}")
             return value
         if k in ("str", "path"):
+            if self.joins and isinstance(value, (list, tuple)) and value \
+                    and all(isinstance(x, (str, int, float)) and not isinstance(x, bool) for x in value):
+                value = ",".join(str(x) for x in value)
             if not isinstance(value, str):
                 raise LunarvizError(f"{self.what} {value!r} must be a string")
             if self.choices is not None and value not in self.choices:
-                raise LunarvizError(f"{self.what} {value!r} is not one of {', '.join(self.choices)}")
+                value = _choice_any_case(value, self.choices, self.what)
             return value
         if k == "names":
             if isinstance(value, str):
                 value = tuple(x.strip() for x in value.split(","))
             if not isinstance(value, (list, tuple)) or not value or not all(isinstance(x, str) for x in value):
                 raise LunarvizError(f"{self.name} {value!r} must be names such as ('lambert', 'dhg')")
-            for x in value:
-                if self.choices is not None and x not in self.choices:
-                    raise LunarvizError(f"unknown BRDF {x!r}: choose from {', '.join(self.choices)}")
+            if self.choices is not None:
+                value = [x if x in self.choices else _choice_any_case(x, self.choices, "BRDF") for x in value]
             return tuple(value)
         if k == "xyz":
             try:
@@ -213,6 +217,14 @@ class Option:
         return ""
 
 
+def _choice_any_case(value: str, choices, what: str) -> str:
+    """The choice ``value`` names in another case (``DHG``: ``dhg``), else the one-line error."""
+    same = [c for c in choices if isinstance(c, str) and c.lower() == value.lower()]
+    if len(same) == 1:
+        return same[0]
+    raise unknown_choice(what, value, choices)
+
+
 def _o(name, kind, default, doc, group, **kw) -> Option:
     return Option(name, kind, default, doc, group, **kw)
 
@@ -242,7 +254,7 @@ def earth_params(params: dict | None) -> dict:
     by_name = {o.name: o for o in EARTH_PARAMETERS}
     for k, v in (params or {}).items():
         if k not in by_name:
-            raise LunarvizError(f"earth parameter {k!r} is not one of {', '.join(by_name)}")
+            raise unknown_choice("earth parameter", k, by_name)
         try:
             x = float("nan") if isinstance(v, bool) else float(v)
         except (TypeError, ValueError):
@@ -345,10 +357,10 @@ OPTIONS: tuple[Option, ...] = (
     _o("wavelengths", "str", None, "a row per wavelength: LIST or START:STOP:STEP (sweep rows: wavelength_nm, "
        "moonshine_W_m2_nm, earthshine_W_m2_nm, solar_irradiance_W_m2_nm; brdf --body earth: the reflectance there)",
        "spectral", unit="nm",
-       metavar="LIST|START:STOP:STEP"),
+       metavar="LIST|START:STOP:STEP", joins=True),
     _o("bands", "str", None, "band-integrated rows (∫E S dλ): Johnson-Cousins U,B,V,R,I (Bessell 1990), packaged "
        "instrument bands (S2A-B1..B12, MODIS-TERRA-B1..B9), any speclite filter, LO-HI [nm] or a CSV FILE "
-       "(wavelength_nm,response)", "spectral", flag="--band", metavar="NAME|LO-HI|FILE.csv[,...]"),
+       "(wavelength_nm,response)", "spectral", flag="--band", metavar="NAME|LO-HI|FILE.csv[,...]", joins=True),
     _o("solar_spectrum", "str", "tsis1-hsrs", "the Sun's spectral irradiance at 1 au in spectral runs: tsis1-hsrs "
        "(TSIS-1 HSRS v2, Coddington et al. 2023), grey (the paper's Φ flat over 400-750 nm) or a CSV FILE "
        "(wavelength_nm,irradiance_W_m2_nm)", "spectral", metavar="tsis1-hsrs|grey|FILE.csv"),

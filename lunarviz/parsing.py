@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 import math
+import re
 
 from lunarviz.errors import LunarvizError
+
+#: units a user may write after a number, by quantity: each unit's size in the quantity's own unit
+LENGTH_M = {"m": 1.0, "km": 1e3}
+TIME_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "min": 60.0}
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zµ]*)\s*$", re.I)
 
 
 def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | None = None) -> list[float]:
@@ -40,6 +46,20 @@ def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | 
         if (lo is not None and v < lo) or (hi is not None and v > hi):
             raise LunarvizError(f"{name} {v:g} is out of range [{lo:g}, {hi:g}]")
     return out
+
+
+def parse_quantity(text, what: str, units: dict[str, float], unit: str) -> tuple[float, bool]:
+    """``8ms``, ``2.067km`` or a bare number (in ``unit``) → (the value in ``unit``, whether a unit
+    was written). The one-line error names the value and the units accepted."""
+    m = _QUANTITY.match(str(text))
+    suffix = m.group(2).lower() if m else ""
+    if m is None or suffix and suffix not in units:
+        raise LunarvizError(f"{what} {str(text)!r} must be a number in {unit}, or a number with one of the units "
+                            f"{', '.join(units)} (e.g. 8{list(units)[-1]})")
+    v = float(m.group(1)) * units[suffix or unit] / units[unit]
+    if not math.isfinite(v):
+        raise LunarvizError(f"{what} {str(text)!r} is not finite")
+    return v, bool(suffix)
 
 
 def wavelength_label(nm: float) -> str:

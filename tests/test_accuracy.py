@@ -190,7 +190,7 @@ def test_surge_earthshine_off_the_earths_centre_carries_a_bound_it_meets(spectra
 
 
 def test_montecarlo_beyond_its_ray_limit_says_what_to_do():
-    with pytest.raises(LunarvizError, match="--runs"):
+    with pytest.raises(LunarvizError, match="give runs 83"):
         ResolvedScene(method="raytrace", estimator="montecarlo", rtol=1e-5).trace_settings()
 
 

@@ -109,9 +109,9 @@ def test_scene_rejects_bad_options_in_one_line(tmp_path):
         lunarviz.Scene(moon_levle=3)
     with pytest.raises(LunarvizError, match="phase"):
         lunarviz.Scene(phases=400)
-    with pytest.raises(LunarvizError, match="--time"):
+    with pytest.raises(LunarvizError, match="give time or time_range"):
         lunarviz.Scene(observer="site:10,10")
-    with pytest.raises(LunarvizError, match="--moon-mesh cannot be used with --method analytic"):
+    with pytest.raises(LunarvizError, match="moon_mesh cannot be used with method analytic"):
         lunarviz.sweep(lunarviz.Scene(moon_mesh=str(mesh)), method="analytic")
 
 

@@ -274,7 +274,7 @@ def test_lambert_earth_brdf_is_the_default_and_physical_changes_the_earthshine()
 def test_earth_parameters_need_the_physical_earth():
     from lunarviz.errors import LunarvizError
     from lunarviz.scene import ResolvedScene
-    with pytest.raises(LunarvizError, match="need --earth-brdf physical"):
+    with pytest.raises(LunarvizError, match="need earth_brdf physical"):
         ResolvedScene(brdfs=("dhg",), params={"earth": {"wind_speed": 3.0}})
     with pytest.raises(LunarvizError, match="earth.wind_speed"):
         ResolvedScene(brdfs=("dhg",), earth_brdf="physical", params={"earth": {"wind_speed": -1.0}})

@@ -295,7 +295,7 @@ def test_units_and_implausible_sizes(tmp_path):
     m = shapes.ellipsoid(*AXES, level=2)
     km = trimesh.Trimesh(np.asarray(m.vertices) / 1e3, m.faces, process=False)
     p = _write(km, tmp_path / "moon_km.ply")
-    with pytest.raises(MeshError, match="kilometres: pass --mesh-units km"):
+    with pytest.raises(MeshError, match="kilometres: pass mesh_units km"):
         load_user_mesh(p, "moon")
     got = load_user_mesh(p, "moon", units="km")
     assert np.allclose(got.vertices, m.vertices, rtol=1e-12)  # taken as given, not rescaled

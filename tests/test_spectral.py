@@ -360,7 +360,7 @@ def test_labels_and_inputs_the_review_found():
     with pytest.raises(LunarvizError, match="band U"):
         ResolvedScene(moon_model="rolo-fit", bands="U")
     # spectral options without a spectral request are refused, not ignored
-    with pytest.raises(LunarvizError, match="needs --wavelengths or --band"):
+    with pytest.raises(LunarvizError, match="needs wavelengths or bands"):
         ResolvedScene(solar_spectrum="grey")
 
 

@@ -19,7 +19,7 @@ import trimesh
 
 import lunarviz.constants as C
 from lunarviz.bodies.sphere_mesh import packaged_file
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.options import BODIES, DEFAULT_LEVELS, MAX_LEVEL, MESH_UNITS
 from lunarviz.resources import MESH_DIR
 
@@ -60,7 +60,7 @@ def packaged_mesh_path(body: str, level: int) -> Path | None:
 def body_mesh(body: str, level: int | None = None) -> trimesh.Trimesh:
     """Unit-radius mesh of ``body`` (scaled and placed by the tracer)."""
     if body not in BODIES:
-        raise MeshError(f"unknown body {body!r}: choose from {', '.join(BODIES)}")
+        raise MeshError(str(unknown_choice("body", body, BODIES)))
     level = DEFAULT_LEVELS[body] if level is None else level
     p = packaged_mesh_path(body, level) if isinstance(level, (int, np.integer)) else None
     if p is not None:
@@ -265,7 +265,7 @@ CENTRE_TOLERANCE = 0.02
 def units_factor(units: str, nominal_radius: float) -> float:
     """Metres per mesh unit for ``--mesh-units`` (``radius``: the body's nominal radius)."""
     if units not in MESH_UNITS:
-        raise MeshError(f"unknown mesh units {units!r}: choose from {', '.join(MESH_UNITS)}")
+        raise MeshError(str(unknown_choice("mesh units", units, MESH_UNITS)))
     return {"m": 1.0, "km": 1e3, "radius": float(nominal_radius)}[units]
 
 

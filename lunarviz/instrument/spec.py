@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, did_you_mean
 from lunarviz.resources import DATA_DIR
 from lunarviz.spectral.bands import parse_band
 
@@ -294,15 +294,17 @@ def load_instrument(spec) -> Instrument:
         return spec
     text = str(spec).strip()
     presets = packaged_instruments()
-    path = presets.get(text, Path(text))
-    if text not in presets and path.suffix.lower() != ".toml":
-        raise LunarvizError(f"--instrument {text!r} is not {', '.join(presets)} or a .toml file")
+    preset = text.lower() if text.lower() in presets and not text.lower().endswith(".toml") else text
+    path = presets.get(preset, Path(text))
+    if preset not in presets and path.suffix.lower() != ".toml":
+        raise LunarvizError(f"instrument {text!r}{did_you_mean(text, presets)} is not {', '.join(presets)} or a "
+                            ".toml file")
     if not path.is_file():
-        raise LunarvizError(f"--instrument {text!r}: no such file")
+        raise LunarvizError(f"instrument {text!r}: no such file")
     if path.stat().st_size > MAX_FILE_BYTES:
-        raise LunarvizError(f"--instrument {text!r}: larger than {MAX_FILE_BYTES} bytes")
+        raise LunarvizError(f"instrument {text!r}: larger than {MAX_FILE_BYTES} bytes")
     try:
         d = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise LunarvizError(f"--instrument {text!r}: not readable TOML ({exc})") from None
-    return instrument_from_dict(d, f"--instrument {text!r}")
+        raise LunarvizError(f"instrument {text!r}: not readable TOML ({exc})") from None
+    return instrument_from_dict(d, f"instrument {text!r}")

@@ -30,7 +30,7 @@ import numpy as np
 
 import lunarviz.constants as C
 from lunarviz.caches import memoize
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.options import BRDF_NAMES, BY_NAME, DHG_CONVENTIONS, H_FUNCTIONS
 from lunarviz.photometry.presets import moon_model_params
 from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
@@ -134,7 +134,7 @@ class DoubleHG:
         _check("b", self.b, 0.0, 1.0, hi_open=True)
         _check("c", self.c, -1.0, 1.0)
         if self.convention not in DHG_CONVENTIONS:
-            raise LunarvizError(f"DHG convention {self.convention!r} is not one of {', '.join(DHG_CONVENTIONS)}")
+            raise unknown_choice("DHG convention", self.convention, DHG_CONVENTIONS)
 
     def __call__(self, sin_hg, cos_hg):
         fwd = _hg_lobe(self.b, sin_hg, cos_hg, backward=False)
@@ -299,7 +299,7 @@ class Hapke:
         _check("Bc0", self.Bc0, 0.0, np.inf, hi_open=True)
         _check("hc", self.hc, 0.0, np.inf, lo_open=True, hi_open=True)
         if self.h_function not in H_FUNCTIONS:
-            raise LunarvizError(f"H-function {self.h_function!r} is not one of {', '.join(H_FUNCTIONS)}")
+            raise unknown_choice("H-function", self.h_function, H_FUNCTIONS)
 
     @property
     def rough(self) -> bool:
@@ -413,7 +413,7 @@ def make_brdf(name: str, *, dhg_convention: str = BY_NAME["dhg_convention"].defa
         allowed = set(BRDF_PARAMETERS["dhg"])
         model = Hapke(phase=DoubleHG(0.308, 0.425, dhg_convention), h_function=h_function, name="dhg")
     else:
-        raise LunarvizError(f"unknown BRDF {name!r}: choose from {', '.join(BRDF_NAMES)}")
+        raise unknown_choice("BRDF", name, BRDF_NAMES)
     bad = sorted(set(params) - allowed)
     if bad:
         raise LunarvizError(f"unknown parameter {bad[0]!r} for BRDF {key!r}: allowed {', '.join(sorted(allowed))}")

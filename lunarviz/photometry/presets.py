@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 
 from lunarviz.caches import memoize
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.resources import DATA_DIR
 
 DATA = DATA_DIR / "moon_models.json"
@@ -46,7 +46,7 @@ def moon_model_params(model: str, brdf: str) -> dict:
         return {}
     models = _fitted().get("models", {})
     if model not in models:
-        raise LunarvizError(f"unknown --moon-model {model!r}: choose from {', '.join(moon_model_names())}")
+        raise unknown_choice("moon model", model, moon_model_names())
     if brdf not in models[model] or brdf == "moon_albedo_map":
         has = ", ".join(b for b in models[model] if b != "moon_albedo_map")
         raise LunarvizError(f"--moon-model {model!r} has no {brdf!r} parameters (it has {has})")

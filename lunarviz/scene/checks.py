@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import warnings
 
-from lunarviz.errors import LunarvizError, LunarvizWarning
+from lunarviz.errors import LunarvizError, LunarvizWarning, unknown_choice
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.tracer.settings import body_mesh_m
 from lunarviz.options import BY_NAME, METHODS, earth_params, validate
@@ -61,7 +61,7 @@ def resolve(scene) -> None:
 
 def _check_tasks(scene) -> None:
     if scene.method not in METHODS:
-        raise LunarvizError(f"unknown method {scene.method!r}: choose from {', '.join(METHODS)}")
+        raise unknown_choice("method", scene.method, METHODS)
     if not scene.phases_deg:
         raise LunarvizError("no phase given")
     if scene.times is None and len(set(scene.phases_deg)) != len(scene.phases_deg):

@@ -117,6 +117,12 @@ def parse_time(text: str) -> datetime:
         t = datetime.fromisoformat(s.replace("z", "Z").replace("Z", "+00:00"))
     except ValueError:
         raise LunarvizError(f"time {text!r} is not an ISO 8601 time such as 2025-03-14T06:58Z") from None
+    if t.tzinfo is None and len(s) > 10:  # (a date alone is a day, its midnight UTC)
+        import warnings
+
+        from lunarviz.errors import ZonelessTimeWarning
+        warnings.warn("times without a zone are taken as UTC (e.g. 2026-01-15T03:00 means 03:00Z; write -08:00 "
+                      "or +01:00 for a local time)", ZonelessTimeWarning, stacklevel=2)
     t = t.replace(tzinfo=timezone.utc) if t.tzinfo is None else t.astimezone(timezone.utc)
     if not (VALID_START <= t <= VALID_STOP):
         raise LunarvizError(f"time {text!r} is outside the ephemeris: valid {VALID_RANGE}")

@@ -132,6 +132,20 @@ def _floats(text: str, what: str, n_min: int, n_max: int) -> list[float]:
     return vals
 
 
+def _site_height(text: str) -> float:
+    """A site's height [m]: ``2067``, ``2067m`` or ``2.067km``. A bare number with a fraction below
+    10 (``2.067``) is warned about: a height in kilometres written without its unit."""
+    import warnings
+
+    from lunarviz.errors import LunarvizWarning
+    from lunarviz.parsing import LENGTH_M, parse_quantity
+    h, with_unit = parse_quantity(text.strip(), "--observer site height", LENGTH_M, "m")
+    if not with_unit and 0 < abs(h) < 10 and not h.is_integer():
+        warnings.warn(f"--observer site height {text.strip()} is taken in metres (a site {h:g} m high); write "
+                      f"{text.strip()}km for kilometres", LunarvizWarning, stacklevel=3)
+    return h
+
+
 def read_tle(path: str) -> tuple:
     """The (name,) line 1, line 2 of a TLE file, checked (format and checksums) by sgp4."""
     if not os.path.exists(path):
@@ -171,8 +185,11 @@ def parse_observer(text: str | None) -> Observer:
     s = str(text).strip()
     kind, _, rest = s.partition(":")
     if kind == "site":
-        v = _floats(rest, "site:LAT,LON[,HEIGHT_M]", 2, 3)
-        lat, lon, h = v[0], v[1], v[2] if len(v) == 3 else 0.0
+        parts = rest.split(",")
+        if len(parts) not in (2, 3):
+            _floats(rest, "site:LAT,LON[,HEIGHT_M]", 2, 3)  # (raises: the count named)
+        lat, lon = _floats(",".join(parts[:2]), "site:LAT,LON[,HEIGHT_M]", 2, 2)
+        h = _site_height(parts[2]) if len(parts) == 3 else 0.0
         if not -90 <= lat <= 90:
             raise LunarvizError(f"--observer site latitude {lat!r} deg must be in [-90, 90]")
         if not -360 <= lon <= 360:

@@ -27,7 +27,7 @@ import numpy as np
 
 from lunarviz.caches import file_key, memoize
 from lunarviz.constants import PHI_SUN_W
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.options import SOLAR_SPECTRA
 from lunarviz.resources import DATA_DIR, read_table
 
@@ -112,4 +112,4 @@ def solar_spectrum(name: str = DEFAULT) -> SolarSpectrum:
         return _load(file_key(DATA_DIR / "spectra" / PACKAGED[key]), key)
     if key.lower().endswith((".csv", ".txt")):
         return _load(file_key(key), key)
-    raise LunarvizError(f"unknown solar spectrum {name!r}: choose from {', '.join(SOLAR_SPECTRA)} or give a .csv file")
+    raise LunarvizError(f"{unknown_choice('solar spectrum', name, SOLAR_SPECTRA)} or give a .csv file")

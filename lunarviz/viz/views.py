@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, write_bytes_atomic
 from lunarviz.viz.meshio import facet_polydata
@@ -343,7 +343,7 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True) -> pv.Plotter:
     """A plotter showing ``view`` of ``data``; call ``show()`` or ``screenshot()``."""
     if view not in VIEWS:
-        raise LunarvizError(f"unknown view {view!r}: choose from {', '.join(VIEWS)}")
+        raise unknown_choice("view", view, VIEWS)
     choose_render_window()
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
     populate(pl, data, view)

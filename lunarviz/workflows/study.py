@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.options import BY_NAME
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
@@ -85,9 +85,9 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = BY_NAME["shading"
                scheduler: str | None = None, workers: int | None = None) -> dict:
     from lunarviz.methods.tracer.estimators import TraceSettings
     if body not in ("moon", "earth", "sun"):
-        raise LunarvizError(f"unknown body {body!r}: choose from moon, earth, sun")
+        raise unknown_choice("body", body, ("moon", "earth", "sun"))
     if shape not in STUDY_SHAPES:
-        raise LunarvizError(f"unknown study shape {shape!r}: choose from {', '.join(STUDY_SHAPES)}")
+        raise unknown_choice("study shape", shape, STUDY_SHAPES)
     if meshes:
         levels = list(range(len(meshes)))
     if body != "moon" and shape == "sphere" and not meshes and shading == "auto":
@@ -230,17 +230,17 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
         raise LunarvizError(f"phases {tuple(phases)!r} must be angles θ in [0, 180] deg")
     for b in brdfs:
         if b not in BRDF_NAMES:
-            raise LunarvizError(f"unknown BRDF {b!r}: choose from {', '.join(BRDF_NAMES)}")
+            raise unknown_choice("BRDF", b, BRDF_NAMES)
     if body not in ("moon", "earth", "sun"):
         raise LunarvizError(f"body {body!r} is not moon, earth or sun")
     if shape not in STUDY_SHAPES:
-        raise LunarvizError(f"shape {shape!r} is not one of {', '.join(STUDY_SHAPES)}")
+        raise unknown_choice("study shape", shape, STUDY_SHAPES)
     if out is not None:
         out = check_output_path(out)
     if plot is not None:
         plot = check_output_path(plot, (".png",))
     if executor not in ("local", "dask"):
-        raise LunarvizError(f"unknown executor {executor!r}: choose from local, dask")
+        raise unknown_choice("executor", executor, ("local", "dask"))
     res = mesh_study(list(levels), list(phases), list(brdfs), None, shading=shading, refine=refine,
                      progress=progress, body=body, shape=shape, axes=tuple(axes), meshes=meshes,
                      mesh_units=mesh_units, executor=executor, scheduler=scheduler, workers=workers)

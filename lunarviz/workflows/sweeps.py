@@ -16,7 +16,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, unknown_choice
 from lunarviz.methods import accuracy
 from lunarviz.methods.analytic import analytic_irradiance
 from lunarviz.methods.reference import reference_irradiance
@@ -255,7 +255,7 @@ def run_sweep(settings: ResolvedScene, workers: int | None = None, progress: boo
     rows are identical whichever executor runs them.
     """
     if executor not in EXECUTORS:
-        raise LunarvizError(f"unknown executor {executor!r}: choose from {', '.join(EXECUTORS)}")
+        raise unknown_choice("executor", executor, EXECUTORS)
     if scheduler is not None and executor != "dask":
         raise LunarvizError("--scheduler goes with --executor dask")
     phases = settings.tasks()
