@@ -53,6 +53,13 @@ def _phases(phases) -> tuple:
     return tuple(float(v) for v in vals)
 
 
+def _number(value, name: str) -> float:
+    """``value`` as a float, or a one-line error naming it (a string, a list, None)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise LunarvizError(f"{name} {value!r} must be a number")
+    return float(value)
+
+
 def _check_key(sc: "Scene", key):
     """A task key for ``sc``: a phase θ [deg] in [0, 360], or (a scene with times) a UTC time."""
     if key is None:
@@ -478,7 +485,8 @@ def measure(path=None, *, expected: bool = False, scene: Scene | None = None, si
                           lunar_fit, progress)
 
 
-def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, **scene_options) -> dict:
+def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, per: str = "patch",
+         **scene_options) -> dict:
     """The exposure that reaches a signal-to-noise ratio on the earthlit patch with nothing saturated.
 
     Parameters
@@ -488,7 +496,8 @@ def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, **scen
     instrument : str or Instrument
         ``salex``, ``bbso`` or a TOML file (:mod:`lunarviz.instrument.spec`).
     snr : float
-        The earthlit patch's signal-to-noise ratio in one frame.
+        The signal-to-noise ratio in one frame of the earthlit patch's mean charge (``per="patch"``,
+        what the measurement uses) or of one of its pixels (``per="pixel"``).
     key : float or str, optional
         Phase θ [deg] or a UTC time (default: the scene's first).
 
@@ -499,10 +508,12 @@ def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, **scen
         ``saturation_exposure_s``, ``frames_needed_at_saturation_exposure``, the patch's signal
         [e⁻ s⁻¹] and the definition of the SNR (:func:`lunarviz.workflows.measurement.plan`).
     """
-    from lunarviz.instrument.spec import load_instrument
+    from lunarviz.instrument.spec import instrument_spec_text, load_instrument
     from lunarviz.workflows.measurement import plan as plan_exposure
     sc = _scene(scene, scene_options)
-    return plan_exposure(sc.settings("raytrace"), _check_key(sc, key), load_instrument(instrument), float(snr))
+    res = plan_exposure(sc.settings("raytrace"), _check_key(sc, key), load_instrument(instrument), _number(snr, "snr"),
+                        per=per)
+    return {**res, "instrument_spec": instrument_spec_text(instrument)}
 
 
 def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_deg: float = 0.75, pixels=256,

@@ -306,6 +306,8 @@ def _parser_image(sub):
     _add_instrument_option(g)
     g.add_argument("--exposure", type=_seconds, default=None,
                    help="exposure time [s], or with a unit: 8ms, 500us (default: the instrument's)")
+    g.add_argument("--plan", default=None, metavar="PLAN.json",
+                   help="the instrument, exposure and θ or time of a lunarviz plan --out file")
     g.add_argument("--frames", type=int, default=1, help="noisy frames in the COUNTS cube (default 1); frame k "
                    "is drawn from numpy default_rng([SEED, k]) (--seed)")
     p.add_argument("--out", required=True, help=".fits, .npy or .png; several phases/times: FILE_000.ext …")
@@ -328,6 +330,8 @@ def _parser_measure(sub):
     p.add_argument("--phase", default=None, help="with --simulate: θ [deg]")
     p.add_argument("--exposure", type=_seconds, default=None,
                    help="with --simulate: exposure [s], or with a unit: 8ms (the instrument's)")
+    p.add_argument("--plan", default=None, metavar="PLAN.json",
+                   help="with --simulate: the instrument, exposure and θ or time of a lunarviz plan --out file")
     p.add_argument("--frames-per-measurement", type=int, default=1,
                    help="with --simulate: frames averaged; measurement i, frame j from "
                         "default_rng([SEED, i, j]) (--seed)")
@@ -342,9 +346,11 @@ def _parser_plan(sub):
     p = _add_scene_command(sub, "plan", "the exposure that reaches an SNR on the earthlit patch without "
                            "saturating", SCENE_GROUPS, brdfs="dhg")
     _add_instrument_option(p, required=True)
-    p.add_argument("--snr", type=float, required=True, help="signal-to-noise ratio of the earthlit patch in one frame")
+    p.add_argument("--snr", type=float, required=True, help="signal-to-noise ratio in one frame (--snr-of)")
+    p.add_argument("--snr-of", default="patch", choices=["patch", "pixel"],
+                   help="the SNR of the earthlit patch's mean charge (what measure uses) or of one of its pixels")
     p.add_argument("--phase", default=None, help="θ [deg] (or --time)")
-    p.add_argument("--out", default=None, help=".json")
+    p.add_argument("--out", default=None, help=".json: a plan file that image --plan and measure --plan take")
     p.add_argument("--quiet", action="store_true", help="no summary on the terminal")
 
 
@@ -653,9 +659,28 @@ def _phases_or_times(a, default: str = "90"):
     return parse_float_list(a.phase or default, "phase", 0.0, 360.0), times
 
 
+def _apply_plan(a) -> None:
+    """``--plan FILE``: its instrument, exposure and θ or time, where the command line gives none
+    (a different one given is an error)."""
+    if getattr(a, "plan", None) is None:
+        return
+    from lunarviz.workflows.measurement import read_plan
+    p = read_plan(a.plan)
+    for k, v in (("instrument", p["instrument_spec"]), ("exposure", p["exposure_s"])):
+        if getattr(a, k) is not None and getattr(a, k) != v:
+            raise UsageError(f"--{k} {getattr(a, k)!r} differs from the plan's {v!r}: drop one")
+        setattr(a, k, v)
+    if a.phase is None and _times(a) is None:
+        if p["key"].endswith("Z"):
+            a.time = p["key"]
+        else:
+            a.phase = p["key"]
+
+
 def cmd_image(a):
     import lunarviz.api as api
     from lunarviz.methods.camera import Camera, parse_pixels
+    _apply_plan(a)
     phases, times = _phases_or_times(a)
     given = [k for k in CAMERA_DEFAULTS if getattr(a, k) is not None]
     camera, out_suffixes = None, (".fits", ".npy", ".png")
@@ -688,6 +713,9 @@ def cmd_measure(a):
     import lunarviz.api as api
     from lunarviz.outputs.writers import write_results
     out = _check_out(a.out, (".json", ".csv")) if a.out is not None else None
+    if a.plan is not None and a.simulate is None:
+        raise UsageError("--plan goes with --simulate (a file of frames carries its own instrument and exposure)")
+    _apply_plan(a)
     if a.simulate is None:
         if a.frames is None:
             raise UsageError("give a FITS file of lunarviz image --instrument, or --simulate N")
@@ -735,18 +763,23 @@ def cmd_plan(a):
     phases, times = _phases_or_times(a)
     if len(times or phases) != 1:
         raise UsageError("plan takes one --phase or one --time")
-    res = api.plan(_scene(a, phases, times), instrument=a.instrument, snr=a.snr)
+    res = api.plan(_scene(a, phases, times), instrument=a.instrument, snr=a.snr, per=a.snr_of)
     if out is not None:
         write_results(out, res)
     if not a.quiet:
+        of = "the earthlit patch" if a.snr_of == "patch" else "an earthlit pixel"
         if res["feasible"]:
-            print(f"exposure {res['exposure_s']:.6g} s reaches SNR {res['snr_target']:g} on the earthlit patch "
-                  f"({res['earthlit_pixels']} pixels); the brightest pixel holds {res['brightest_pixel_e']:.0f} e- "
-                  f"(saturation {res['saturation_level_e']:.0f} e-)")
+            print(f"exposure {res['exposure_s']:.6g} s reaches SNR {res['snr_target']:g} on {of}")
         else:
-            print(f"no exposure reaches SNR {res['snr_target']:g} unsaturated: the longest safe exposure "
+            print(f"no exposure reaches SNR {res['snr_target']:g} on {of} unsaturated: the longest safe exposure "
                   f"{res['saturation_exposure_s']:.6g} s gives {res['snr_at_saturation_exposure']:.3g}; "
                   f"{res['frames_needed_at_saturation_exposure']} such frames would")
+        print(f"  SNR per frame: patch ({res['earthlit_pixels']} pixels) {res['snr_patch_at_exposure']:.3g}, pixel "
+              f"{res['snr_pixel_at_exposure']:.3g}; the brightest pixel holds {res['brightest_pixel_e']:.0f} e- "
+              f"({100 * res['brightest_pixel_fraction_of_full_well']:.0f} % of the {res['full_well_e']:.0f} e- full "
+              f"well)")
+        if out is not None and res["feasible"]:
+            print(f"wrote {out}: lunarviz image --plan {out} ... and measure --simulate N --plan {out} take it")
         if out is None:
             print(json.dumps(res, indent=1))
 

@@ -22,7 +22,7 @@ from lunarviz.instrument.disc import BrightSideMask, DiscGeometry, masked_pixels
 from lunarviz.instrument.optics import apply_optics, parse_halo, parse_psf
 from lunarviz.instrument.response import electron_rate, photon_band, photon_label
 from lunarviz.instrument.sky_background import SiteSky, site_sky
-from lunarviz.instrument.spec import Instrument
+from lunarviz.instrument.spec import MAX_EXPOSURE_S, MIN_EXPOSURE_S, Instrument
 from lunarviz.methods.camera import Camera, ImageResult
 
 
@@ -70,10 +70,14 @@ def optics_kernels(inst: Instrument, camera):
 
 
 def check_exposure(inst: Instrument, exposure_s: float | None) -> float:
-    """The exposure [s]: ``exposure_s``, or the instrument's own; a one-line error outside (0, 1e5]."""
-    t = inst.exposure_s if exposure_s is None else float(exposure_s)
-    if not (np.isfinite(t) and 0 < t <= 1e5):
-        raise LunarvizError(f"--exposure {exposure_s!r} must be in (0, 1e5] seconds")
+    """The exposure [s]: ``exposure_s``, or the instrument's own; a one-line error outside
+    [MIN_EXPOSURE_S, MAX_EXPOSURE_S] (the bounds of an instrument file's own exposure)."""
+    try:
+        t = inst.exposure_s if exposure_s is None else float(exposure_s)
+    except (TypeError, ValueError):
+        raise LunarvizError(f"--exposure {exposure_s!r} must be a number of seconds") from None
+    if not (np.isfinite(t) and MIN_EXPOSURE_S <= t <= MAX_EXPOSURE_S):
+        raise LunarvizError(f"--exposure {exposure_s!r} must be in [{MIN_EXPOSURE_S:g}, {MAX_EXPOSURE_S:g}] seconds")
     return t
 
 

@@ -196,6 +196,10 @@ _UPPER = {"aperture_m": 50.0, "central_obstruction_m": 50.0, "focal_length_m": 1
 _LOWER = {"aperture_m": 1e-3, "pixel_size_um": 0.1, "gain_e_per_adu": 1e-3, "full_well_e": 1.0, "exposure_s": 1e-6}
 
 
+#: the exposures [s] an instrument file, ``image`` and ``measure`` accept
+MIN_EXPOSURE_S, MAX_EXPOSURE_S = _LOWER["exposure_s"], _UPPER["exposure_s"]
+
+
 def _check_number(where: str, key: str, v, positive: bool) -> float:
     hi, lo = _UPPER.get(key, np.inf), _LOWER.get(key, 0.0)
     if (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0 or (positive and v == 0)
@@ -286,6 +290,15 @@ def _atmosphere(where: str, v) -> Atmosphere:
 def packaged_instruments() -> dict[str, Path]:
     """``{name: file}`` of the presets in ``lunarviz/data/instruments``."""
     return {p.stem: p for p in sorted(INSTRUMENT_DIR.glob("*.toml"))}
+
+
+def instrument_spec_text(spec) -> str | None:
+    """What :func:`load_instrument` takes again for ``spec``: a preset's name, a file's absolute
+    path (None for an :class:`Instrument` built in Python)."""
+    if isinstance(spec, Instrument):
+        return None
+    text = str(spec).strip()
+    return text.lower() if text.lower() in packaged_instruments() else str(Path(text).resolve())
 
 
 def load_instrument(spec) -> Instrument:

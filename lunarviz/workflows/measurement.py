@@ -14,7 +14,14 @@ from lunarviz.instrument import budget
 from lunarviz.instrument.budget import halo_shape_sigma, with_budget
 from lunarviz.instrument.detector import frames as draw_frames
 from lunarviz.instrument.frames import read_frames
-from lunarviz.instrument.observation import Observation, check_exposure, instrument_camera, observe
+from lunarviz.instrument.observation import (
+    MAX_EXPOSURE_S,
+    MIN_EXPOSURE_S,
+    Observation,
+    check_exposure,
+    instrument_camera,
+    observe,
+)
 from lunarviz.instrument.pipeline import Calibration, calibrate, measure
 from lunarviz.instrument.response import instrument_request, photon_band, write_band_csv
 from lunarviz.instrument.spec import Instrument, instrument_from_dict
@@ -209,14 +216,47 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
             "lunar_model_uncertainty": rel["lunar_model_source"], "rows": [row]}
 
 
-def plan(settings, key, inst: Instrument, snr: float, obs=None, cal=None) -> dict:
-    """The exposure [s] at which the earthlit patch reaches ``snr`` in one frame with the
+def read_plan(path) -> dict:
+    """A ``lunarviz plan --out`` file: its instrument, exposure [s] and key (θ or UTC time), checked."""
+    import json
+    from pathlib import Path
+    p = Path(path)
+    if not p.is_file():
+        raise LunarvizError(f"plan {str(path)!r}: no such file")
+    if p.stat().st_size > 1 << 20:
+        raise LunarvizError(f"plan {str(path)!r} is larger than 1 MiB: not a plan file")
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise LunarvizError(f"plan {str(path)!r} is not readable JSON ({type(exc).__name__})") from None
+    if not isinstance(d, dict) or not all(isinstance(d.get(k), str) for k in ("instrument_spec", "key")):
+        raise LunarvizError(f"plan {str(path)!r} is not a lunarviz plan file (no instrument_spec and key)")
+    t = d.get("exposure_s")
+    if not d.get("feasible") or isinstance(t, bool) or not isinstance(t, (int, float)):
+        raise LunarvizError(f"plan {str(path)!r} found no exposure that reaches its SNR unsaturated: plan again with a "
+                            "lower --snr, or several frames")
+    if not (np.isfinite(t) and MIN_EXPOSURE_S <= t <= MAX_EXPOSURE_S):
+        raise LunarvizError(f"plan {str(path)!r}: exposure_s {t!r} is outside [{MIN_EXPOSURE_S:g}, "
+                            f"{MAX_EXPOSURE_S:g}] s")
+    return {"instrument_spec": d["instrument_spec"], "exposure_s": float(t), "key": d["key"]}
+
+
+#: what a plan's SNR is of: the earthlit patch's mean charge, or one of its pixels
+SNR_OF = ("patch", "pixel")
+
+
+def plan(settings, key, inst: Instrument, snr: float, obs=None, cal=None, per: str = "patch") -> dict:
+    """The exposure [s] at which the earthlit patch (``per="patch"``: its mean charge, what the
+    pipeline measures) or its average pixel (``per="pixel"``) reaches ``snr`` in one frame with the
     brightest pixel unsaturated (its expected charge + 5σ below the saturation level), or the
-    statement that none does and how many frames of the longest safe exposure would.
+    statement that none does and how many frames of the longest safe exposure would. Both SNRs are
+    reported at the exposure chosen, with the brightest pixel's charge against the full well.
     ``obs``, ``cal``: the observation (any exposure: rates do not depend on it) and its
     calibration, when the caller has them."""
-    if not (np.isfinite(snr) and 0 < snr <= 1e6):
-        raise LunarvizError(f"--snr {snr!r} must be a positive number (at most 1e6)")
+    if not (np.isfinite(snr) and 1e-3 <= snr <= 1e6):
+        raise LunarvizError(f"--snr {snr!r} must be a number in [0.001, 1e6]")
+    if per not in SNR_OF:
+        raise LunarvizError(f"SNR of {per!r} must be one of {', '.join(SNR_OF)}")
     from lunarviz.instrument.observation import optics_kernels
     from lunarviz.instrument.optics import apply_optics
     obs = obs if obs is not None else observation(settings, key, inst, 1.0)
@@ -227,12 +267,15 @@ def plan(settings, key, inst: Instrument, snr: float, obs=None, cal=None) -> dic
     trans = obs.sky.transmission if obs.sky is not None else 1.0
     signal = float(np.mean(apply_optics(obs.raw_rates["earthshine"], psf, None)[E])) * trans  # [e⁻ s⁻¹]
     total = obs.rate_e_s + inst.dark_current_e_per_s
-    B = float(np.sum(total[E])) / n**2
-    C = (inst.read_noise_e**2 + inst.gain_e_per_adu**2 / 12.0) / n
+    read2 = inst.read_noise_e**2 + inst.gain_e_per_adu**2 / 12.0
+    # the variance of one pixel's charge (B t + C) and of the patch's mean (its sum over n²)
+    noise = {"pixel": (float(np.mean(total[E])), read2), "patch": (float(np.sum(total[E])) / n**2, read2 / n)}
 
-    def snr_at(t):
+    def snr_at(t, of=per):
+        B, C = noise[of]
         return signal * t / np.sqrt(B * t + C)
 
+    B, C = noise[per]
     a2, s2 = signal**2, snr**2
     t_snr = (s2 * B + np.sqrt((s2 * B) ** 2 + 4 * a2 * s2 * C)) / (2 * a2)
     level = min(inst.full_well_e, (inst.adc_max - inst.bias_adu) * inst.gain_e_per_adu)
@@ -241,21 +284,27 @@ def plan(settings, key, inst: Instrument, snr: float, obs=None, cal=None) -> dic
     k, r2 = SATURATION_SIGMAS, inst.read_noise_e**2
     y = (-k + np.sqrt(k * k + 4 * (level + r2))) / 2
     t_sat = float(max(y * y - r2, 0.0) / peak)
-    feasible = bool(t_snr <= t_sat)
+    feasible = bool(MIN_EXPOSURE_S <= t_snr <= t_sat)
     snr_sat = float(snr_at(t_sat)) if t_sat > 0 else 0.0
     # no frame count when even the read noise alone reaches the saturation margin
     frames_needed = int(np.ceil((snr / snr_sat) ** 2)) if snr_sat > 0 and (snr / snr_sat) ** 2 < 1e12 else None
-    out = {"key": str(key), "instrument": inst.name, "snr_target": float(snr), "feasible": feasible,
+    t = float(t_snr) if feasible else t_sat
+    out = {"key": str(key), "instrument": inst.name,
+           "snr_target": float(snr), "snr_of": per, "feasible": feasible,
            "exposure_s": float(t_snr) if feasible else None, "saturation_exposure_s": t_sat,
            "snr_at_saturation_exposure": snr_sat,
            "frames_needed_at_saturation_exposure": frames_needed,
            "earthlit_pixels": n, "earthlit_signal_e_s": signal,
-           "brightest_pixel_e_s": peak, "saturation_level_e": float(level),
-           "snr_definition": "mean earthshine charge of the earthlit patch (halo and sky excluded) over the "
-                             "standard deviation of the patch's mean charge in one frame (photon noise of all its "
-                             "light, dark and read noise); lunarviz measure reports the same from frames as "
-                             "earthlit_snr_per_frame"}
+           "brightest_pixel_e_s": peak, "saturation_level_e": float(level), "full_well_e": float(inst.full_well_e),
+           "snr_patch_at_exposure": float(snr_at(t, "patch")), "snr_pixel_at_exposure": float(snr_at(t, "pixel")),
+           "brightest_pixel_e": float(peak * t), "brightest_pixel_fraction_of_full_well": float(peak * t
+                                                                                               / inst.full_well_e),
+           "snr_definition": "patch: the mean earthshine charge of the earthlit patch (halo and sky excluded) over "
+                             "the standard deviation of the patch's mean charge in one frame (photon noise of all its "
+                             "light, dark and read noise; lunarviz measure reports the same from frames as "
+                             "earthlit_snr_per_frame); pixel: the same for one pixel of the patch (its mean light)",
+           "at_exposure": "the SNRs and the brightest pixel at exposure_s, or at saturation_exposure_s when no "
+                          "exposure reaches the target"}
     if feasible:
         out["snr_at_exposure"] = float(snr_at(t_snr))
-        out["brightest_pixel_e"] = float(peak * t_snr)
     return out
