@@ -192,6 +192,11 @@ def _add_scene_command(sub, name, helptext, groups=SCENE_GROUPS, brdfs=None):
     return p
 
 
+#: what --phase means: the paper's θ, not quite the phase angle (--theta is the same option)
+THETA_WORDS = "θ (the paper's orbital angle of the Moon from full Moon; the phase angle differs from it by the " \
+    "Sun's parallax, up to 0.15°: rows give it as alpha_deg)"
+
+
 #: the options that give dates (one of them at most)
 DATE_OPTIONS = ("time", "time_range", "nights", "lunation")
 
@@ -232,7 +237,8 @@ def _parser_sweep(sub):
     from lunarviz.options import METHODS
     p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases",
                            SCENE_GROUPS + ("analytic", "accuracy", "spectral"))
-    p.add_argument("--phases", default=None, help="θ list [deg]: a,b,c or start:stop:step (default 0:180:5)")
+    p.add_argument("--phases", "--thetas", dest="phases", default=None,
+                   help=f"{THETA_WORDS} list [deg]: a,b,c or start:stop:step (default 0:180:5)")
     p.add_argument("--method", default="analytic", help=" | ".join(METHODS) + ": the paper's point-source "
                    "quadrature, Embree ray tracing of the meshes, or the exact extended-source reference")
     _add_executor_options(p)
@@ -265,7 +271,8 @@ def _parser_brdf(sub):
 def _parser_trace(sub):
     p = _add_scene_command(sub, "trace", "ray trace one phase; write the lunar mesh with per-facet arrays",
                            brdfs="dhg")
-    p.add_argument("--phase", type=float, default=None, help="θ [deg] (or give --time)")
+    p.add_argument("--phase", "--theta", dest="phase", type=float, default=None,
+                   help=f"{THETA_WORDS} [deg] (or give --time)")
     p.add_argument("--out", required=True,
                    help="the Moon with per-facet arrays (.vtp, .vtk, .ply), or every body (.vtm multiblock: "
                         "moon, earth, sun in scene coordinates [m])")
@@ -275,9 +282,9 @@ def _parser_trace(sub):
 def _parser_pictures(sub):
     for name, helptext in (("render", "offscreen picture of a phase"), ("view", "interactive desktop viewer")):
         p = _add_scene_command(sub, name, helptext, brdfs="dhg")
-        p.add_argument("--phase", default=None,
-                       help="θ [deg] (default 90); a list writes numbered frames" if name == "render" else
-                       "θ [deg] to start at (default 90); the viewer's slider moves through the phases")
+        p.add_argument("--phase", "--theta", dest="phase", default=None,
+                       help=f"{THETA_WORDS} [deg] (default 90); a list writes numbered frames" if name == "render"
+                       else f"{THETA_WORDS} [deg] to start at (default 90); the viewer's slider moves through θ")
         p.add_argument("--view", default="composite", help="composite | moon | rays | maps | surfaces")
         p.add_argument("--size", default="1600x900", help="WxH pixels")
         if name == "render":
@@ -294,7 +301,8 @@ def _parser_pictures(sub):
 def _parser_image(sub):
     p = _add_scene_command(sub, "image", "synthetic camera image in radiance units (FITS, NPY or PNG)",
                            SCENE_GROUPS + ("spectral",), brdfs="dhg")
-    p.add_argument("--phase", default=None, help="θ [deg] (default 90); a list writes numbered frames")
+    p.add_argument("--phase", "--theta", dest="phase", default=None,
+                   help=f"{THETA_WORDS} [deg] (default 90); a list writes numbered frames")
     p.add_argument("--fov-deg", type=float, default=None, help="field of view across the width [deg] (default 0.75)")
     p.add_argument("--pixels", default=None, help="N or WxH (default 256)")
     p.add_argument("--supersample", type=int, default=None, help="K: K×K stratified rays per pixel (default 4)")
@@ -327,7 +335,7 @@ def _parser_measure(sub):
     p.add_argument("--expected", action="store_true", help="measure the file's noise-free EXPECTED_COUNTS")
     p.add_argument("--simulate", type=int, default=None, metavar="N", help="simulate N measurements instead")
     _add_instrument_option(p)
-    p.add_argument("--phase", default=None, help="with --simulate: θ [deg]")
+    p.add_argument("--phase", "--theta", dest="phase", default=None, help=f"with --simulate: {THETA_WORDS} [deg]")
     p.add_argument("--exposure", type=_seconds, default=None,
                    help="with --simulate: exposure [s], or with a unit: 8ms (the instrument's)")
     p.add_argument("--plan", default=None, metavar="PLAN.json",
@@ -349,7 +357,7 @@ def _parser_plan(sub):
     p.add_argument("--snr", type=float, required=True, help="signal-to-noise ratio in one frame (--snr-of)")
     p.add_argument("--snr-of", default="patch", choices=["patch", "pixel"],
                    help="the SNR of the earthlit patch's mean charge (what measure uses) or of one of its pixels")
-    p.add_argument("--phase", default=None, help="θ [deg] (or --time)")
+    p.add_argument("--phase", "--theta", dest="phase", default=None, help=f"{THETA_WORDS} [deg] (or --time)")
     p.add_argument("--out", default=None, help=".json: a plan file that image --plan and measure --plan take")
     p.add_argument("--quiet", action="store_true", help="no summary on the terminal")
 
@@ -358,7 +366,8 @@ def _parser_study(sub):
     p = sub.add_parser("study", help="mesh-resolution study")
     p.add_argument("kind", choices=["mesh"], help="what to study: mesh (the resolution of one body's mesh)")
     p.add_argument("--levels", default="2:6:1", help="icosphere levels (integers)")
-    p.add_argument("--phases", default="30,90,150", help="θ list [deg]: a,b,c or start:stop:step")
+    p.add_argument("--phases", "--thetas", dest="phases", default="30,90,150",
+                   help=f"{THETA_WORDS} list [deg]: a,b,c or start:stop:step")
     p.add_argument("--body", default="moon", choices=list(BODIES), help="the body whose mesh varies")
     p.add_argument("--shape", default="sphere", choices=["sphere", "ellipsoid", "craters"],
                    help="the shape refined level by level: the exact sphere, an ellipsoid (--axes) or a cratered Moon")

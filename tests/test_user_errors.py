@@ -93,3 +93,23 @@ def test_api_errors_name_keywords_and_the_command_line_names_flags(capsys):
     assert "give time or time_range" in str(exc.value) and "--" not in str(exc.value)
     err = _cli_error(capsys, "sweep", "--observer", "site:10,10", "--out", "x.json")
     assert "give --time or --time-range" in err
+
+
+def test_double_grazing_brdf_is_zero_not_cos_rounding():
+    # i = e = 90°: Eq. 12's 1/(μ0 + μ) is singular and carries no light (μ0 = 0); cos(π/2) = 6e-17
+    # used to give 1.5e15. Just off grazing the BRDF keeps its (large, finite) model value: at
+    # i = 89.9999°, e = 90° it is w/(4π)·[…]/μ0 with μ0 = 1.7e-6, i.e. ~3e4 (here only > 1e3).
+    import numpy as np
+
+    from lunarviz.photometry.brdf import brdf_from_angles, make_brdf
+    for name in ("shg", "dhg"):
+        model = make_brdf(name)
+        assert brdf_from_angles(model, np.pi / 2, np.pi / 2, 0.0) == 0.0
+        assert 1e3 < brdf_from_angles(model, np.radians(89.9999), np.pi / 2, 0.0) < 1e6
+
+
+def test_theta_is_the_same_option_as_phase(capsys):
+    from lunarviz.cli import build_parser
+    a = build_parser().parse_args(["sweep", "--thetas", "30,60", "--out", "x.json"])
+    assert a.phases == "30,60"
+    assert "orbital angle" in build_parser()._subparsers._group_actions[0].choices["image"].format_help()

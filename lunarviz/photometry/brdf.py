@@ -46,9 +46,10 @@ FIT_BOUNDS = {"w": (0.01, 0.99), "h": (0.001, 0.5), "B0": (0.0, 5.0), "b": (0.0,
               "xi": (-0.95, 0.95), "theta_bar": (0.0, 45.0), "Bc0": (0.0, 3.0), "hc": (0.0005, 0.3),
               "albedo": (0.001, 1.0), "map_contrast": (0.0, 3.0)}
 
-# Smallest μ0 + μ used in the 1/(μ0 + μ) factor of Eq. 12 so the bare BRDF stays finite at
-# exact double grazing (μ0 = μ = 0); radiance_factor needs no such floor.
-_MU_SUM_FLOOR = 1e-300
+# Below this μ0 + μ (light arriving and leaving within ~1e-12 rad of the horizon, where cos 90°
+# rounds to 6e-17) the bare BRDF's 1/(μ0 + μ) of Eq. 12 is singular and carries no light (its
+# radiance factor BRDF·μ0 vanishes with μ0): the BRDF is returned as 0 there, not ~1e15.
+_DOUBLE_GRAZING = 1e-12
 
 
 def _check(name: str, value: float, lo: float, hi: float, lo_open=False, hi_open=False) -> float:
@@ -359,7 +360,8 @@ class Hapke:
             m0 = np.clip(mu0, 0.0, 1.0)
             return np.where(m0 > 0.0, r / np.where(m0 > 0.0, m0, 1.0), 0.0)
         mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg, w)
-        return w / (4.0 * np.pi) * br / np.maximum(mu0 + mu, _MU_SUM_FLOOR)
+        s = mu0 + mu
+        return np.where(s > _DOUBLE_GRAZING, w / (4.0 * np.pi) * br / np.where(s > _DOUBLE_GRAZING, s, 1.0), 0.0)
 
     def radiance_factor(self, mu0, mu, sin_hg, cos_hg, albedo=None):
         """``BRDF · μ0`` [sr⁻¹], written ``w/(4π) · μ0/(μ0+μ) · {…}``: finite at grazing."""
@@ -386,7 +388,9 @@ def brdf_from_angles(model, i, e, azimuth):
     """BRDF [sr⁻¹] of ``model`` at incidence i, emission e, azimuth ψ [rad] (see
     :func:`half_angle_from_angles` for the azimuth convention)."""
     s, c = half_angle_from_angles(i, e, azimuth)
-    return model.brdf(np.cos(i), np.cos(e), s, c)
+    # (sin(π/2 − x): exactly 0 at 90°, where cos rounds to 6e-17)
+    return model.brdf(np.sin(np.pi / 2 - np.asarray(i, dtype=float)), np.sin(np.pi / 2 - np.asarray(e, dtype=float)),
+                      s, c)
 
 
 def make_brdf(name: str, *, dhg_convention: str = BY_NAME["dhg_convention"].default,
