@@ -15,6 +15,9 @@ DATA_DIR = Path(__file__).resolve().parent / "data"
 MESH_DIR = DATA_DIR / "meshes"
 #: a table may hold at most this many rows (a 1 nm table of 200-10,000 nm has 9,800)
 MAX_ROWS = 200_000
+#: a table's largest value must lie in [TINY_VALUE, 1/TINY_VALUE]: a response of 1e-315 (a
+#: subnormal float) loses digits in the band sums, then underflows to 0
+TINY_VALUE = 1e-30
 
 
 def read_table(path, what: str = "solar spectrum", max_rows: int = MAX_ROWS) -> tuple[np.ndarray, np.ndarray, str]:
@@ -60,4 +63,7 @@ def read_table(path, what: str = "solar spectrum", max_rows: int = MAX_ROWS) -> 
         raise LunarvizError(f"{what} {str(path)!r}: wavelengths must be positive and increasing")
     if np.any(val < 0):
         raise LunarvizError(f"{what} {str(path)!r} has a negative value ({val[val < 0][0]:g})")
+    if 0 < val.max() < TINY_VALUE or val.max() > 1 / TINY_VALUE:
+        raise LunarvizError(f"{what} {str(path)!r}: its largest value {val.max():g} is outside [{TINY_VALUE:g}, "
+                            f"{1 / TINY_VALUE:g}], where products and sums of it lose digits: scale the column")
     return lam, val, " ".join(notes)

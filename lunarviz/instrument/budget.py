@@ -60,6 +60,28 @@ BAND_STEP_NM = 10.0
 COVERAGE_K = 2.0
 
 
+def _check_covariance(path, free: list, sig: np.ndarray, corr: np.ndarray) -> None:
+    """A fit's σ finite, non-negative and within ten times its parameter's range (FIT_BOUNDS), and
+    its correlation a correlation matrix (finite, symmetric, unit diagonal, entries in [−1, 1],
+    no negative eigenvalue beyond rounding), else a one-line error naming the first bad value."""
+    for k, v in zip(free, sig):
+        span = np.subtract(*FIT_BOUNDS[k][::-1]) if k in FIT_BOUNDS else np.inf
+        if not (np.isfinite(v) and 0 <= v <= 10 * span):
+            raise LunarvizError(f"--lunar-fit {str(path)!r}: sigma of {k} = {float(v)!r} is not a standard uncertainty "
+                                f"(finite, in [0, {10 * span:g}])")
+    tol = 1e-6
+    if not np.all(np.isfinite(corr)) or np.any(np.abs(corr) > 1 + tol) or np.any(np.abs(np.diag(corr) - 1) > tol) \
+            or np.any(np.abs(corr - corr.T) > tol):
+        bad = np.argwhere(~np.isfinite(corr) | (np.abs(corr) > 1 + tol) | (np.abs(corr - corr.T) > tol)
+                          | (np.eye(len(free), dtype=bool) & (np.abs(corr - 1) > tol)))
+        a, b = bad[0] if len(bad) else (0, 0)
+        raise LunarvizError(f"--lunar-fit {str(path)!r}: correlation[{free[a]}][{free[b]}] = {float(corr[a, b])!r} is not "
+                            f"that of a correlation matrix (finite, symmetric, in [-1, 1], 1 on the diagonal)")
+    if len(free) and np.linalg.eigvalsh(0.5 * (corr + corr.T)).min() < -1e-6:
+        raise LunarvizError(f"--lunar-fit {str(path)!r}: the correlation matrix is not positive semi-definite "
+                            f"(a variance would be negative)")
+
+
 def read_fit(path) -> dict:
     """A ``lunarviz fit`` JSON: params, the free parameters, sigma and correlation."""
     try:
@@ -72,8 +94,9 @@ def read_fit(path) -> dict:
         conventions = {k: d.get("settings", {}).get(k) for k in ("h_function", "dhg_convention")}
         at_bound = {k: k in FIT_BOUNDS and min(params[k] - FIT_BOUNDS[k][0], FIT_BOUNDS[k][1] - params[k])
                     < 1e-6 * (FIT_BOUNDS[k][1] - FIT_BOUNDS[k][0]) for k in free}
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, RecursionError, OverflowError) as exc:
         raise LunarvizError(f"--lunar-fit {str(path)!r}: not a lunarviz fit result ({type(exc).__name__})") from None
+    _check_covariance(path, free, sig, corr)
     return {"brdf": brdf, "params": params, "free": free, "covariance": corr * np.outer(sig, sig), "path": str(path),
             "at_bound": at_bound, "conventions": conventions}
 

@@ -98,6 +98,24 @@ class Frames:
     key: str
 
 
+#: the largest image or cube of frames read [bytes]: a file beyond it holds more frames than a
+#: measurement averages (write fewer per file)
+MAX_FRAMES_BYTES = 2 << 30
+
+
+def _check_size(path, header) -> None:
+    """Refuse an extension whose data (from its header, before reading) exceed MAX_FRAMES_BYTES."""
+    try:
+        n = abs(int(header.get("BITPIX", 8))) // 8
+        for k in range(1, int(header.get("NAXIS", 0)) + 1):
+            n *= int(header.get(f"NAXIS{k}", 0))
+    except (TypeError, ValueError):
+        raise LunarvizError(f"{str(path)!r}: its NAXIS or BITPIX cards are damaged") from None
+    if n > MAX_FRAMES_BYTES:
+        raise LunarvizError(f"{str(path)!r}: {header.get('EXTNAME', 'an extension')} holds {n / 2**30:.1f} GiB "
+                            f"(at most {MAX_FRAMES_BYTES / 2**30:g} GiB are read): write fewer frames per file")
+
+
 def read_frames(path, use_expected: bool = False) -> Frames:
     """The counts of a ``lunarviz image --instrument`` FITS file (``use_expected``: the noise-free plane)."""
     from pathlib import Path
@@ -106,9 +124,14 @@ def read_frames(path, use_expected: bool = False) -> Frames:
     p = Path(path)
     if not p.is_file():
         raise LunarvizError(f"{str(path)!r} is not a file")
+    with open(p, "rb") as f:
+        magic = f.read(4)
+    if magic[:2] == b"\x1f\x8b" or magic[:3] == b"BZh" or magic[:4] == b"PK\x03\x04":
+        raise LunarvizError(f"{str(path)!r} is compressed: decompress it first (its size is then known before "
+                            f"it is read)")
     import warnings
     try:
-        with warnings.catch_warnings(), fits.open(p, memmap=False) as hdul:
+        with warnings.catch_warnings(), fits.open(p, memmap=False, lazy_load_hdus=True) as hdul:
             warnings.simplefilter("ignore")  # a damaged file's warnings: the one-line error below says it
             names = [h.name for h in hdul]
             if "EXPECTED_COUNTS" not in names:
@@ -116,11 +139,13 @@ def read_frames(path, use_expected: bool = False) -> Frames:
                                     f"lunarviz image --instrument)")
             eh = hdul["EXPECTED_COUNTS"]
             hdr = dict(eh.header)
+            _check_size(path, eh.header)
             expected = np.asarray(eh.data, dtype=float)
             counts = None
             if not use_expected:
                 if "COUNTS" not in names:
                     raise LunarvizError(f"{str(path)!r} has no COUNTS extension")
+                _check_size(path, hdul["COUNTS"].header)
                 counts = np.asarray(hdul["COUNTS"].data)
     except LunarvizError:
         raise
@@ -132,10 +157,14 @@ def read_frames(path, use_expected: bool = False) -> Frames:
         raise LunarvizError(f"{str(path)!r}: EXPECTED_COUNTS lacks the LVSETTNG/LVINSTR/LVKEY cards") from None
     try:
         settings, instrument = json.loads(settings_text), json.loads(instrument_text)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, RecursionError):
         raise LunarvizError(f"{str(path)!r}: the LVSETTNG or LVINSTR card is not readable JSON (damaged)") from None
     if not (isinstance(settings, dict) and isinstance(instrument, dict)):
         raise LunarvizError(f"{str(path)!r}: the LVSETTNG or LVINSTR card is not a table")
+    if expected.ndim != 2 or expected.size == 0:
+        raise LunarvizError(f"{str(path)!r}: EXPECTED_COUNTS of shape {expected.shape} is not an image")
+    if counts is not None and counts.ndim == 3 and counts.shape[0] == 0:
+        raise LunarvizError(f"{str(path)!r}: COUNTS holds no frames")
     if counts is not None and (counts.ndim != 3 or counts.shape[1:] != expected.shape):
         raise LunarvizError(f"{str(path)!r}: COUNTS of shape {counts.shape} does not match {expected.shape}")
     return Frames(counts, expected, hdr, settings, instrument, key)

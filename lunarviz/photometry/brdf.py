@@ -358,7 +358,8 @@ class Hapke:
         if self.rough:
             r = self._rough_r(mu0, mu, sin_hg, cos_hg, w)
             m0 = np.clip(mu0, 0.0, 1.0)
-            return np.where(m0 > 0.0, r / np.where(m0 > 0.0, m0, 1.0), 0.0)
+            live = (m0 > 0.0) & (m0 + np.clip(mu, 0.0, 1.0) > _DOUBLE_GRAZING)
+            return np.where(live, r / np.where(live, m0, 1.0), 0.0)
         mu0, mu, br = self._bracket(mu0, mu, sin_hg, cos_hg, w)
         s = mu0 + mu
         return np.where(s > _DOUBLE_GRAZING, w / (4.0 * np.pi) * br / np.where(s > _DOUBLE_GRAZING, s, 1.0), 0.0)

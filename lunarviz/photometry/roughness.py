@@ -93,7 +93,8 @@ def shadowing(mu0, mu, psi, theta_bar):
     last = np.where(ile, a_i, a_e)
     with np.errstate(divide="ignore", invalid="ignore"):
         b_e = np.where(eta_e > 0, mue / np.where(eta_e > 0, eta_e, 1.0), 0.0)  # effective μe over η(e)
-    S = b_e * a_i * chi / (1.0 - f + f * chi * last)
+    den = 1.0 - f + f * chi * last  # (0 only at double grazing with ψ = 0, where no light goes: S = 0)
+    S = np.where(den > 0, b_e * a_i * chi / np.where(den > 0, den, 1.0), 0.0)
     return mu0e, mue, S
 
 

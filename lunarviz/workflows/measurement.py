@@ -190,14 +190,22 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
         settings = ResolvedScene.from_dict(fr.settings)
         inst = instrument_from_dict(fr.instrument, f"{str(path)!r} instrument")
         key = fr.key if settings.times is not None else float(fr.key)
-        if not (isinstance(key, str) or np.isfinite(key)):
-            raise ValueError(f"LVKEY = {fr.key!r} is not a phase")
         exposure = float(fr.header["EXPTIME"])
-    except (ValueError, TypeError, KeyError) as exc:
+    except (ValueError, TypeError, KeyError, OverflowError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise LunarvizError(f"{str(path)!r}: its LVSETTNG, LVINSTR, LVKEY or EXPTIME card is damaged ({msg})") from None
-    if not (np.isfinite(exposure) and exposure > 0):
-        raise LunarvizError(f"{str(path)!r}: EXPTIME = {exposure!r} is not a positive exposure")
+    # the key must be one the stored settings image (an edited θ would measure another scene's p*)
+    keys = settings.times if settings.times is not None else settings.phases_deg
+    if key not in keys:
+        raise LunarvizError(f"{str(path)!r}: LVKEY = {fr.key!r} is not a phase or time of its own LVSETTNG "
+                            f"({', '.join(str(k) for k in keys[:3])}{', ...' if len(keys) > 3 else ''}): the file "
+                            f"was edited")
+    if not (np.isfinite(exposure) and MIN_EXPOSURE_S <= exposure <= MAX_EXPOSURE_S):
+        raise LunarvizError(f"{str(path)!r}: EXPTIME = {exposure!r} is outside [{MIN_EXPOSURE_S:g}, "
+                            f"{MAX_EXPOSURE_S:g}] s")
+    if fr.expected.shape != (inst.height, inst.width):
+        raise LunarvizError(f"{str(path)!r}: EXPECTED_COUNTS of shape {fr.expected.shape} is not its instrument's "
+                            f"{inst.height}x{inst.width} pixels")
     cal = calibration(settings, key, inst, exposure)
     if fr.counts is None:
         mean, n = fr.expected, 1
