@@ -67,16 +67,16 @@ def _check_covariance(path, free: list, sig: np.ndarray, corr: np.ndarray) -> No
     for k, v in zip(free, sig):
         span = np.subtract(*FIT_BOUNDS[k][::-1]) if k in FIT_BOUNDS else np.inf
         if not (np.isfinite(v) and 0 <= v <= 10 * span):
-            raise LunarvizError(f"--lunar-fit {str(path)!r}: sigma of {k} = {float(v)!r} is not a standard uncertainty "
-                                f"(finite, in [0, {10 * span:g}])")
+            raise LunarvizError(f"--lunar-fit {str(path)!r}: sigma of {k} = {float(v)!r} is not a standard "
+                                f"uncertainty (finite, in [0, {10 * span:g}])")
     tol = 1e-6
     if not np.all(np.isfinite(corr)) or np.any(np.abs(corr) > 1 + tol) or np.any(np.abs(np.diag(corr) - 1) > tol) \
             or np.any(np.abs(corr - corr.T) > tol):
         bad = np.argwhere(~np.isfinite(corr) | (np.abs(corr) > 1 + tol) | (np.abs(corr - corr.T) > tol)
                           | (np.eye(len(free), dtype=bool) & (np.abs(corr - 1) > tol)))
         a, b = bad[0] if len(bad) else (0, 0)
-        raise LunarvizError(f"--lunar-fit {str(path)!r}: correlation[{free[a]}][{free[b]}] = {float(corr[a, b])!r} is not "
-                            f"that of a correlation matrix (finite, symmetric, in [-1, 1], 1 on the diagonal)")
+        raise LunarvizError(f"--lunar-fit {str(path)!r}: correlation[{free[a]}][{free[b]}] = {float(corr[a, b])!r} "
+                            f"is not that of a correlation matrix (finite, symmetric, in [-1, 1], 1 on the diagonal)")
     if len(free) and np.linalg.eigvalsh(0.5 * (corr + corr.T)).min() < -1e-6:
         raise LunarvizError(f"--lunar-fit {str(path)!r}: the correlation matrix is not positive semi-definite "
                             f"(a variance would be negative)")

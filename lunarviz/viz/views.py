@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-from lunarviz.errors import LunarvizError, unknown_choice
+from lunarviz.errors import unknown_choice
 from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, write_bytes_atomic
 from lunarviz.viz.meshio import facet_polydata
