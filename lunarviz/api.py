@@ -17,6 +17,7 @@ Units are SI throughout: irradiance [W m⁻²], radiance [W m⁻² sr⁻¹], len
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -476,7 +477,14 @@ def measure(path=None, *, expected: bool = False, scene: Scene | None = None, si
     if simulate is None:
         if path is None:
             raise LunarvizError("measure needs a FITS file or simulate=N")
-        return measure_file(path, expected, lunar_fit)
+        if not isinstance(path, (str, os.PathLike)):
+            raise LunarvizError(f"measure's path {path!r} must be a file name")
+        given = [k for k, v in (("scene", scene), ("instrument", instrument), ("exposure", exposure),
+                                ("frames", None if frames == 1 else frames), ("seed", seed)) if v is not None]
+        if given or scene_options:
+            raise LunarvizError(f"measure of a file takes its scene, instrument and exposure from the file: drop "
+                                f"{(given + list(scene_options))[0]} (or simulate=N)")
+        return measure_file(path, bool(expected), lunar_fit)
     from lunarviz.instrument.spec import load_instrument
     sc = _scene(scene, scene_options)
     settings = sc.settings("raytrace")

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from lunarviz.errors import LunarvizError, close_match, command_line_words, did_you_mean, unknown_choice
-from lunarviz.options import BODIES, EXECUTORS, MAX_LEVEL, add_arguments, scene_options
+from lunarviz.options import BODIES, EXECUTORS, MAX_LEVEL, OPTIONS, add_arguments, scene_options
 from lunarviz.parsing import parse_float_list
 
 EXIT_USAGE = 2
@@ -731,6 +731,12 @@ def cmd_measure(a):
         for k in ("instrument", "phase", "exposure", "time", "time_range"):
             if getattr(a, k) is not None:
                 raise UsageError(f"--{k.replace('_', '-')} goes with --simulate (a file carries its own)")
+        defaults = vars(build_parser().parse_args(["measure", a.frames]))
+        scene_keys = {o.dest for o in OPTIONS} | set(DATE_OPTIONS) | {"brdf", "param", "seed"}
+        changed = sorted(k for k in scene_keys & set(vars(a)) if getattr(a, k) != defaults.get(k))
+        if changed:
+            raise UsageError(f"--{changed[0].replace('_', '-')} goes with --simulate: a file of frames carries its "
+                             f"own scene")
         res = api.measure(a.frames, expected=a.expected, lunar_fit=a.lunar_fit)
     else:
         if a.frames is not None:

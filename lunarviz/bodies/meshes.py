@@ -296,7 +296,7 @@ def check_mesh_file(p: Path, name: str) -> None:
     if p.suffix.lower() == ".gltf":
         try:
             doc = json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, ValueError, UnicodeDecodeError) as exc:
+        except (OSError, ValueError, UnicodeDecodeError, RecursionError) as exc:
             raise MeshError(f"{name}: unreadable glTF ({type(exc).__name__})") from None
         for buf in doc.get("buffers", []) if isinstance(doc, dict) else []:
             uri = buf.get("uri", "") if isinstance(buf, dict) else ""

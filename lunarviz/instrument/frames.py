@@ -18,7 +18,7 @@ import numpy as np
 from lunarviz.errors import LunarvizError
 from lunarviz.instrument.detector import count_dtype
 from lunarviz.instrument.detector import frames as draw_frames
-from lunarviz.outputs.images import tan_wcs
+from lunarviz.outputs.images import fits_text, tan_wcs
 
 #: BZERO of unsigned integer counts stored as FITS signed integers
 _BZERO = {16: 32768, 32: 2147483648}
@@ -27,7 +27,7 @@ _BZERO = {16: 32768, 32: 2147483648}
 def _detector_cards(hdr, obs) -> None:
     inst = obs.instrument
     for k, v, note in (("BUNIT", "adu", "detector counts"),
-                       ("INSTRUME", inst.name, "lunarviz instrument"),
+                       ("INSTRUME", fits_text(inst.name), "lunarviz instrument"),
                        ("GAIN", inst.gain_e_per_adu, "[e-/ADU]"),
                        ("RDNOISE", inst.read_noise_e, "[e-] read noise"),
                        ("EXPTIME", obs.exposure_s, "[s] exposure time"),
@@ -35,7 +35,7 @@ def _detector_cards(hdr, obs) -> None:
                        ("BIASLEV", inst.bias_adu, "[ADU] bias level"),
                        ("SATURATE", inst.saturate_adu, "[ADU] full well or ADC top"),
                        ("FULLWELL", inst.full_well_e, "[e-] full well"),
-                       ("BAND", inst.band, "spectral response"),
+                       ("BAND", fits_text(inst.band, 40), "spectral response"),
                        ("BRDF", obs.brdf, "lunar BRDF of the scene"),
                        ("SKYMODEL", obs.sky_note[:68], "sky and extinction"),
                        ("EXTINCT", obs.sky.transmission if obs.sky else 1.0, "atmospheric transmission on the Moon"),

@@ -94,6 +94,18 @@ def select_patches(geom: DiscGeometry, lit: np.ndarray, margin_px: float, masked
     return Patches(earthlit, sunlit, sky, r <= 1 + m)
 
 
+def check_patches(geometry, inst) -> None:
+    """Refuse, before any image is traced, a task whose patches cannot be selected: a geometric
+    sphere's sunlit region (n·s > 0 on the disc, α the phase angle) stands in for the model's image
+    (the PSF's reach and the margins are the same), so a full Moon is refused in milliseconds."""
+    camera = instrument_camera(inst)
+    geom, _, masked = masked_pixels(geometry, camera, inst.bright_side_nd, inst.margin_px())
+    r, along, _ = geom.coordinates((camera.height, camera.width))
+    a = np.radians(geom.phase_deg)
+    lit = (r <= 1) & (along * np.sin(a) + np.sqrt(np.clip(1 - r * r, 0, 1)) * np.cos(a) > 0)
+    select_patches(geom, lit, inst.margin_px(), masked)
+
+
 @dataclass
 class HaloFit:
     image: np.ndarray  # P: the image before the halo and the sky [e⁻ s⁻¹]

@@ -40,11 +40,12 @@ refused. Unknown keys are refused (a typo would otherwise be a silent default).
 from __future__ import annotations
 
 import json
+import re
+import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
 from lunarviz.errors import LunarvizError, did_you_mean
 from lunarviz.resources import DATA_DIR
@@ -162,6 +163,8 @@ _NON_NEGATIVE = ("read_noise_e", "dark_current_e_per_s", "bias_adu", "central_ob
                  "pixel_scale_arcsec", "bright_side_nd", "bright_side_nd_sigma", "band_centre_sigma_nm")
 _INTEGER = {"width": (8, 4096), "height": (8, 4096), "bit_depth": (8, 32), "supersample": (1, 16)}
 _TEXT = ("name", "band", "psf", "halo", "description", "source")
+#: an instrument's name: ASCII letters, digits, spaces and ._+-, not a path (no "/", "\\" or "..")
+_NAME = re.compile(r"(?!.*\.\.)[A-Za-z0-9][A-Za-z0-9 ._+-]{0,39}")
 _CURVES = ("optics_transmission", "quantum_efficiency")
 
 
@@ -170,11 +173,11 @@ def _check_curve(where: str, key: str, v):
         raise LunarvizError(f"{where}: {key} = {v!r} is not a number or a [[nm, value], ...] table")
     if isinstance(v, (int, float)):
         if not (0 < v <= 1):
-            raise LunarvizError(f"{where}: {key} = {v!r} must be in (0, 1]")
+            raise LunarvizError(f"{where}: {key} = {_short(v)} must be in (0, 1]")
         return float(v)
     try:
         t = np.asarray(v, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise LunarvizError(f"{where}: {key} is not a number or a [[nm, value], ...] table") from None
     if t.ndim != 2 or t.shape[1] != 2 or len(t) < 2:
         raise LunarvizError(f"{where}: {key} table must be [[nm, value], ...] with at least two rows")
@@ -202,11 +205,20 @@ MIN_EXPOSURE_S, MAX_EXPOSURE_S = _LOWER["exposure_s"], _UPPER["exposure_s"]
 
 def _check_number(where: str, key: str, v, positive: bool) -> float:
     hi, lo = _UPPER.get(key, np.inf), _LOWER.get(key, 0.0)
-    if (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0 or (positive and v == 0)
-            or v > hi or v < lo):
-        raise LunarvizError(f"{where}: {key} = {v!r} must be a {'positive' if positive else 'non-negative'} number "
-                            f"from {lo:g} to {hi:g}")
-    return float(v)
+    try:
+        x = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else np.nan
+    except OverflowError:  # (an integer of 400 digits)
+        x = np.inf
+    if not np.isfinite(x) or x < 0 or (positive and x == 0) or x > hi or x < lo:
+        raise LunarvizError(f"{where}: {key} = {_short(v)} must be a {'positive' if positive else 'non-negative'} "
+                            f"number from {lo:g} to {hi:g}")
+    return x
+
+
+def _short(v) -> str:
+    """``repr(v)``, at most 40 characters (an integer of 400 digits is named by its start)."""
+    text = repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def instrument_from_dict(d: dict, where: str = "instrument") -> Instrument:
@@ -231,6 +243,9 @@ def instrument_from_dict(d: dict, where: str = "instrument") -> Instrument:
         elif k in _TEXT:
             if not isinstance(v, str):
                 raise LunarvizError(f"{where}: {k} = {v!r} must be text")
+            if k == "name" and not _NAME.fullmatch(v):
+                raise LunarvizError(f"{where}: name = {v!r} must be 1-40 letters, digits, spaces or ._+- (it names "
+                                    f"files and FITS cards)")
             kw[k] = v
         elif k in _CURVES:
             kw[k] = _check_curve(where, k, v)
@@ -318,6 +333,8 @@ def load_instrument(spec) -> Instrument:
         raise LunarvizError(f"instrument {text!r}: larger than {MAX_FILE_BYTES} bytes")
     try:
         d = tomllib.loads(path.read_text(encoding="utf-8"))
+    except RecursionError:
+        raise LunarvizError(f"instrument {text!r}: nested too deep to be an instrument file") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise LunarvizError(f"instrument {text!r}: not readable TOML ({exc})") from None
     return instrument_from_dict(d, f"instrument {text!r}")

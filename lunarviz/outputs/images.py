@@ -21,6 +21,13 @@ def plane_key(brdf: str, label) -> str:
     return f"{brdf}|{wavelength_label(label)}" if isinstance(label, float) else f"{brdf}|{label}"
 
 
+def fits_text(value, size: int = 68) -> str:
+    """``value`` as a FITS card's text: printable ASCII (other characters as ``?``, control
+    characters as spaces), at most ``size`` characters (a band file's name may be ``bändé.csv``)."""
+    text = "".join(c if " " <= c <= "~" else (" " if ord(c) < 32 or ord(c) == 127 else "?") for c in str(value))
+    return text[:size]
+
+
 def plane_names(planes: dict) -> list[tuple[str, str, str]]:
     """``(EXTNAME, component, key)`` in file order; one BRDF keeps the bare names. A spectral
     plane's key ``BRDF|LABEL`` (a band, or a wavelength in nm) adds the label:
@@ -34,7 +41,7 @@ def plane_names(planes: dict) -> list[tuple[str, str, str]]:
             label += "NM"
         for comp in ("moonshine", "earthshine"):
             parts = [comp.upper()] + ([] if len(brdfs) == 1 else [b.upper()]) + ([label.upper()] if label else [])
-            out.append(("_".join(parts), comp, k))
+            out.append((fits_text("_".join(parts)).replace(" ", "_"), comp, k))
     return out
 
 
@@ -77,7 +84,7 @@ def write_fits(path, res, planes, extra: dict) -> None:
         hh["BUNIT"] = res.info.get("bunit", BUNIT)
         hh["BRDF"] = b
         if label:
-            hh["BAND"] = (label, "integral of L(lambda) S(lambda) dlambda")
+            hh["BAND"] = (fits_text(label, 40), "integral of L(lambda) S(lambda) dlambda")
         hh["LIGHT"] = (comp, "moonshine or earthshine")
         tan_wcs(hh, res, scale_deg)
         hh["INTEGRAT"] = (float(np.sum(planes[comp][key] * res.pixel_solid_angle)),

@@ -17,8 +17,17 @@ from lunarviz.options import earth_params
 from lunarviz.photometry.brdf import brdf_from_angles, half_angle_from_angles
 
 
-def _geometry(inc, emi, azi):
+#: the most rows a table may have (incidences × emissions × azimuths × wavelengths): ~1 GB of rows
+MAX_TABLE_ROWS = 1_000_000
+
+
+def _geometry(inc, emi, azi, wavelengths: int = 1):
     """(incidence, emission, azimuth) triples [deg] in row order, and their phase angles [deg]."""
+    n = len(inc) * len(emi) * len(azi) * wavelengths
+    if n > MAX_TABLE_ROWS:
+        raise LunarvizError(f"the table would have {n:,} rows ({len(inc)} incidences × {len(emi)} emissions × "
+                            f"{len(azi)} azimuths" + (f" × {wavelengths} wavelengths" if wavelengths > 1 else "")
+                            + f"): at most {MAX_TABLE_ROWS:,}; use coarser steps")
     grid = np.array([(i, e, z) for i in inc for e in emi for z in azi], dtype=float).reshape(-1, 3)
     ir, er, zr = np.radians(grid.T)
     s, c = half_angle_from_angles(ir, er, zr)
@@ -33,11 +42,8 @@ def _row(g, phase, f) -> dict:
 def lunar_rows(model, inc, emi, azi) -> list[dict]:
     """Rows of a lunar BRDF ``model`` (:func:`lunarviz.photometry.brdf.make_brdf`)."""
     grid, phase = _geometry(inc, emi, azi)
-    rows = []
-    for g, p in zip(grid, phase):
-        ir, er, zr = np.radians(g)
-        rows.append(_row(g, p, np.pi * float(brdf_from_angles(model, ir, er, zr))))
-    return rows
+    f = np.pi * np.asarray(brdf_from_angles(model, *np.radians(grid.T)), dtype=float)  # (all rows at once)
+    return [_row(g, p, v) for g, p, v in zip(grid, phase, f)]
 
 
 def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True, params: dict | None = None
@@ -47,8 +53,8 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     if "wavelength_nm" in (params or {}):
         raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
     p = earth_params(params)
+    grid, phase = _geometry(inc, emi, azi, len(wavelengths))
     s = surface_from_name(surface, wind_speed=p["wind_speed"])
-    grid, phase = _geometry(inc, emi, azi)
     mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
     rows = []
     for lam in wavelengths:

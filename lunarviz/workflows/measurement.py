@@ -22,7 +22,7 @@ from lunarviz.instrument.observation import (
     instrument_camera,
     observe,
 )
-from lunarviz.instrument.pipeline import Calibration, calibrate, measure
+from lunarviz.instrument.pipeline import Calibration, calibrate, check_patches, measure
 from lunarviz.instrument.response import instrument_request, photon_band, write_band_csv
 from lunarviz.instrument.spec import Instrument, instrument_from_dict
 from lunarviz.options import model_earth
@@ -57,6 +57,7 @@ def observation(scene, key, inst: Instrument, exposure_s: float | None = None, t
     (:func:`lunarviz.instrument.observation.observe`)."""
     t = check_exposure(inst, exposure_s)
     scene = instrument_scene(scene, inst)
+    check_patches(scene.geometry(key), inst)  # (a full Moon refused before its image is traced)
     res = tasks.image(scene, key, instrument_camera(inst), instrument_request(inst, scene.solar_spectrum),
                       trace_scene)
     return observe(res, scene.geometry(key), scene.brdfs[0], inst, t)
@@ -124,7 +125,7 @@ def sweep_p_star(settings, key, inst: Instrument, photon: bool = True) -> float:
     if not photon:
         return float(run_sweep(s, progress=False)["rows"][0]["apparent_albedo"])
     with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / f"{inst.name}_photon_band.csv"
+        path = Path(d) / "photon_band.csv"  # (a fixed name: the instrument's own is not a path)
         write_band_csv(photon_band(inst), path)
         return float(run_sweep(replace(s, bands=str(path)), progress=False)["rows"][0]["apparent_albedo"])
 
