@@ -61,6 +61,24 @@ def _number(value, name: str) -> float:
     return float(value)
 
 
+def _pixels(pixels) -> tuple[int, int]:
+    """``pixels``: N, (W, H), or the command line's ``"N"`` / ``"WxH"`` → (W, H)."""
+    from lunarviz.methods.camera import parse_pixels
+    if isinstance(pixels, str):
+        return parse_pixels(pixels)
+    sides = (pixels, pixels) if np.isscalar(pixels) else tuple(pixels) if isinstance(pixels, (list, tuple)) else ()
+    if len(sides) != 2 or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in sides):
+        raise LunarvizError(f"pixels {pixels!r} must be an integer N or integers (W, H)")
+    return int(sides[0]), int(sides[1])
+
+
+def _key_list(keys) -> list:
+    """``keys``: a list of θ [deg] or UTC times (a string alone would be read letter by letter)."""
+    if isinstance(keys, (str, bytes)) or not isinstance(keys, (list, tuple, np.ndarray)):
+        raise LunarvizError(f"keys {keys!r} must be a list of phases θ or times (one key: key=...)")
+    return list(keys)
+
+
 def _check_key(sc: "Scene", key):
     """A task key for ``sc``: a phase θ [deg] in [0, 360], or (a scene with times) a UTC time."""
     if key is None:
@@ -359,10 +377,10 @@ def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = 
 
 
 def _check_size(size) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in size)
-    except (TypeError, ValueError):
-        raise LunarvizError(f"size {size!r} must be (width, height) in pixels") from None
+    if not isinstance(size, (list, tuple)) or len(size) != 2 \
+            or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in size):
+        raise LunarvizError(f"size {size!r} must be (width, height): two whole numbers of pixels")
+    w, h = (int(v) for v in size)
     if not (64 <= w <= 8192 and 64 <= h <= 8192):
         raise LunarvizError(f"size {size!r}: each side must be 64..8192 pixels")
     return w, h
@@ -484,6 +502,8 @@ def measure(path=None, *, expected: bool = False, scene: Scene | None = None, si
         if given or scene_options:
             raise LunarvizError(f"measure of a file takes its scene, instrument and exposure from the file: drop "
                                 f"{(given + list(scene_options))[0]} (or simulate=N)")
+        if not isinstance(expected, (bool, np.bool_)):
+            raise LunarvizError(f"expected {expected!r} must be True or False")
         return measure_file(path, bool(expected), lunar_fit)
     from lunarviz.instrument.spec import load_instrument
     sc = _scene(scene, scene_options)
@@ -562,12 +582,14 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     if instrument is not None:
         if camera is not None or psf not in (None, "none") or halo not in (None, "none") or gif is not None:
             raise LunarvizError("an instrument sets the camera and its optics: drop camera, psf, halo and gif")
-        return _instrument_images(sc, keys or [key], instrument, exposure, frames, seed, out, progress)
+        return _instrument_images(sc, _key_list(keys) if keys is not None else [key], instrument, exposure, frames,
+                                  seed, out, progress)
     if camera is None:
-        w, h = (pixels, pixels) if np.isscalar(pixels) else tuple(pixels)
-        camera = Camera(fov_deg=fov_deg, width=int(w), height=int(h), supersample=supersample, pointing=pointing)
+        w, h = _pixels(pixels)
+        camera = Camera(fov_deg=_number(fov_deg, "fov_deg"), width=w, height=h, supersample=supersample,
+                        pointing=pointing)
     settings = sc.settings("raytrace")
-    keys = [_check_key(sc, k) for k in keys] if keys is not None else [_check_key(sc, key)]
+    keys = [_check_key(sc, k) for k in _key_list(keys)] if keys is not None else [_check_key(sc, key)]
     req = settings.spectral_request()
     if req is not None and req.kind == "wavelength" and out is not None and str(out).lower().endswith(".fits"):
         from lunarviz.outputs.images import check_cube_wavelengths
@@ -633,7 +655,16 @@ def _write_gif(results: list, path) -> None:
 
 
 def _angles(values, what: str, lo: float, hi: float) -> tuple:
-    out = tuple(float(v) for v in np.atleast_1d(values))
+    try:
+        if isinstance(values, str):
+            from lunarviz.parsing import parse_float_list
+            values = parse_float_list(values, what, lo, hi)
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise LunarvizError(f"{what} {values!r} must be a number or a list of numbers") from None
+    if arr.ndim > 1 or not np.all(np.isfinite(arr)):
+        raise LunarvizError(f"{what} {values!r} must be a finite number or a flat list of them")
+    out = tuple(float(v) for v in np.atleast_1d(arr))
     bad = [v for v in out if not (lo <= v <= hi)]
     if not out or bad:
         raise LunarvizError(f"{what} {bad[0] if bad else values!r} must be in {lo:g}…{hi:g}")

@@ -250,6 +250,8 @@ EARTH_PARAMETER_DEFAULTS = {o.name: o.default for o in EARTH_PARAMETERS}
 def earth_params(params: dict | None) -> dict:
     """The physical Earth's parameters: the defaults of :data:`EARTH_PARAMETERS` updated by
     ``params``, each checked (a one-line error names a bad one)."""
+    if params is not None and not isinstance(params, dict):
+        raise LunarvizError(f"earth parameters {params!r} must be a mapping {{name: value}}")
     out = dict(EARTH_PARAMETER_DEFAULTS)
     by_name = {o.name: o for o in EARTH_PARAMETERS}
     for k, v in (params or {}).items():

@@ -73,6 +73,8 @@ def check_exposure(inst: Instrument, exposure_s: float | None) -> float:
     """The exposure [s]: ``exposure_s``, or the instrument's own; a one-line error outside
     [MIN_EXPOSURE_S, MAX_EXPOSURE_S] (the bounds of an instrument file's own exposure)."""
     try:
+        if isinstance(exposure_s, (str, bool)):
+            raise TypeError
         t = inst.exposure_s if exposure_s is None else float(exposure_s)
     except (TypeError, ValueError):
         raise LunarvizError(f"--exposure {exposure_s!r} must be a number of seconds") from None

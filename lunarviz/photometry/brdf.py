@@ -407,6 +407,8 @@ def make_brdf(name: str, *, dhg_convention: str = BY_NAME["dhg_convention"].defa
     key = str(name).strip().lower()
     if key in BRDF_NAMES and moon_model != "paper":
         params = {**moon_model_params(moon_model, key), **(params or {})}
+    if params is not None and not isinstance(params, dict):
+        raise LunarvizError(f"params {params!r} must be a mapping {{name: value}}")
     params = dict(params or {})
     if key == "lambert":
         allowed = set(BRDF_PARAMETERS["lambert"])

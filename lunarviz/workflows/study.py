@@ -222,12 +222,18 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
             raise LunarvizError(f"levels {tuple(levels)!r} must increase (coarse to fine)")
     elif len(meshes) < 2:
         raise LunarvizError("meshes needs at least two meshes, coarse to fine")
+    if isinstance(phases, str):
+        from lunarviz.parsing import parse_float_list
+        phases = parse_float_list(phases, "phase", 0.0, 180.0)
+    if isinstance(brdfs, str):
+        brdfs = [b.strip().lower() for b in brdfs.split(",") if b.strip()]
     try:
         phases = [float(p) for p in phases]
     except (TypeError, ValueError):
         raise LunarvizError(f"phases {phases!r} must be numbers θ [deg]") from None
-    if not phases or not all(np.isfinite(p) and 0 <= p <= 180 for p in phases):
-        raise LunarvizError(f"phases {tuple(phases)!r} must be angles θ in [0, 180] deg")
+    if not phases or not all(np.isfinite(p) and 0 < p < 180 for p in phases):
+        raise LunarvizError(f"phases {tuple(phases)!r} must be angles θ in (0, 180) deg (at 0 the earthshine, at 180 "
+                            f"the moonshine vanishes: a relative error has no meaning there)")
     for b in brdfs:
         if b not in BRDF_NAMES:
             raise unknown_choice("BRDF", b, BRDF_NAMES)
