@@ -34,6 +34,32 @@ nitpicky = False
 suppress_warnings = ["myst.xref_missing", "myst.header"]
 html_theme = "alabaster"
 html_title = f"lunarviz {release}"
+# a page as wide as the window (alabaster's 940 px cut code blocks and the options table at 1280 px)
+html_theme_options = {"page_width": "95%", "body_max_width": "none"}
+html_static_path = ["_static"]
+html_css_files = ["wrap.css"]
+# "--flag" stays two hyphens (docutils' smart quotes made it an en dash: "–executor dask")
+smartquotes = False
+
+# "(paper Eq. 12)" does not end a module's one-line summary in the API tables
+import sphinx.ext.autosummary as _autosummary  # noqa: E402
+
+_autosummary.WELL_KNOWN_ABBREVIATIONS = (*_autosummary.WELL_KNOWN_ABBREVIATIONS, "Eq.", "Eqs.", "Fig.", "Figs.",
+                                         "cf.", "No.", "approx.")
+
+
+def _unlink_placeholders(app, doctree) -> None:
+    """Metavariables that docutils reads as addresses (``FILE:MEAN``: a "file:" URI,
+    ``tcp://host:8786``) stay text, not broken links."""
+    from docutils import nodes
+    for ref in list(doctree.findall(nodes.reference)):
+        uri = ref.get("refuri", "")
+        if uri == ref.astext() and (uri.split(":", 1)[0].isupper() or uri.startswith("tcp://host")):
+            ref.replace_self(nodes.Text(ref.astext()))
+
+
+def setup(app):
+    app.connect("doctree-read", _unlink_placeholders)
 
 
 def _write_options_table() -> None:

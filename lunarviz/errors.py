@@ -22,11 +22,15 @@ class LunarvizError(ValueError):
         return text if _WORDS["command_line"] else _FLAG.sub(_keyword, text)
 
 
+#: flags whose keyword is not the flag's own words (``--band``: ``bands``), registered by the
+#: option schema (:mod:`lunarviz.options`)
+FLAG_KEYWORDS: dict[str, str] = {}
+
+
 def _keyword(m: re.Match) -> str:
     """A flag's API keyword: ``--band`` → ``bands``, ``--no-occlusion`` → ``occlusion=False``."""
-    from lunarviz.options import OPTIONS  # (options imports this module)
     flag = f"--{m.group(1) or ''}{m.group(2)}"
-    name = next((o.name for o in OPTIONS if o.cli_flag == flag), None)
+    name = FLAG_KEYWORDS.get(flag)
     if name is not None:
         return name if not m.group(1) else f"{name}=False"
     return m.group(2).replace("-", "_") + ("=False" if m.group(1) else "")

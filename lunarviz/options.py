@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
 import lunarviz.constants as C
-from lunarviz.errors import LunarvizError, unknown_choice
+from lunarviz.errors import FLAG_KEYWORDS, LunarvizError, unknown_choice
 
 # ---- allowed values (each declared once, here; the modules that implement them import them) ----
 #: how a sweep computes: the paper's point-source quadrature, Embree ray tracing of the meshes, or the
@@ -374,6 +374,7 @@ OPTIONS: tuple[Option, ...] = (
 )
 
 BY_NAME: dict[str, Option] = {o.name: o for o in OPTIONS}
+FLAG_KEYWORDS.update({o.cli_flag: o.name for o in OPTIONS})  # (errors name keywords in the API)
 
 
 def group(*names: str) -> tuple[Option, ...]:

@@ -14,6 +14,7 @@ spans 70 pixels, enough for patches, and an image (one ray per pixel) takes a fr
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from dataclasses import replace
@@ -327,3 +328,118 @@ def test_a_damaged_file_is_one_line(tmp_path, small_observation):
         h["EXPECTED_COUNTS"].header["LVKEY"] = "not a phase"
     with pytest.raises(LunarvizError, match="LVKEY"):
         measure_file(path)
+
+
+def _frames_file(tmp_path, small_observation, name="f.fits", frames=2):
+    from astropy.io import fits
+
+    from lunarviz.instrument.frames import append_counts
+    settings, obs, _ = small_observation
+    path = tmp_path / name
+    fits.PrimaryHDU().writeto(path)
+    append_counts(path, obs, 120.0, json.dumps(settings.to_dict()), frames, 0)
+    return path
+
+
+@pytest.mark.parametrize("edit, named", [
+    # an edited key measured another scene's p* (0.16 at 140° for a true 0.30), exit 0
+    (lambda h: h["EXPECTED_COUNTS"].header.__setitem__("LVKEY", "140"), "LVKEY = '140' is not a phase"),
+    # EXPTIME of 1e-300: ZeroDivisionError in the noise model
+    (lambda h: h["EXPECTED_COUNTS"].header.__setitem__("EXPTIME", 1e-300), "EXPTIME = 1e-300"),
+])
+def test_an_edited_frames_file_is_refused(tmp_path, small_observation, edit, named):
+    from astropy.io import fits
+
+    from lunarviz.workflows.measurement import measure_file
+    path = _frames_file(tmp_path, small_observation)
+    with fits.open(path, mode="update") as h:
+        edit(h)
+    with pytest.raises(LunarvizError, match=re.escape(named)):
+        measure_file(path)
+
+
+def test_frames_of_another_size_none_or_compressed_are_refused(tmp_path, small_observation):
+    import gzip
+
+    from astropy.io import fits
+
+    from lunarviz.workflows.measurement import measure_file
+    path = _frames_file(tmp_path, small_observation)
+    crop = tmp_path / "crop.fits"
+    with fits.open(path) as h:
+        h["EXPECTED_COUNTS"].data = h["EXPECTED_COUNTS"].data[:64, :64]
+        h["COUNTS"].data = h["COUNTS"].data[:, :64, :64]
+        h.writeto(crop)
+    with pytest.raises(LunarvizError, match=r"shape \(64, 64\) is not its instrument's 128x128"):
+        measure_file(crop)  # (a broadcast ValueError in the pipeline before)
+    empty = tmp_path / "empty.fits"
+    with fits.open(path) as h:
+        h["COUNTS"].data = h["COUNTS"].data[:0]
+        h.writeto(empty)
+    with pytest.raises(LunarvizError, match="COUNTS holds no frames"):
+        measure_file(empty)  # (numpy's zero-size reduction error before)
+    packed = tmp_path / "packed.fits"
+    packed.write_bytes(gzip.compress(path.read_bytes()))
+    with pytest.raises(LunarvizError, match="is compressed"):
+        measure_file(packed)  # (a gzip bomb was inflated whole before)
+
+
+def test_a_lunar_fit_must_hold_a_covariance(tmp_path, small_observation):
+    # a NaN sigma gave a null uncertainty, correlations of -5 a wrong one, with exit 0
+    from lunarviz.resources import DATA_DIR
+    from lunarviz.workflows.measurement import measure_file
+    path = _frames_file(tmp_path, small_observation)
+    fit = json.loads((DATA_DIR / "lunar_fits" / "dhg_rolo_400-750.json").read_text())
+    for name, change, named in (("nan", lambda d: d["sigma"].__setitem__("w", float("nan")), "sigma of w"),
+                                ("neg", lambda d: d["sigma"].__setitem__("w", -1.0), "sigma of w"),
+                                ("corr", lambda d: [d["correlation"][a].__setitem__(b, -5.0) for a in d["correlation"]
+                                                    for b in d["correlation"][a] if a != b], "correlation[")):
+        bad = json.loads(json.dumps(fit))
+        change(bad)
+        f = tmp_path / f"{name}.json"
+        f.write_text(json.dumps(bad))
+        with pytest.raises(LunarvizError, match=re.escape(named)):
+            measure_file(path, lunar_fit=f)
+
+
+def test_measure_of_a_file_refuses_the_options_it_would_ignore(tmp_path, small_observation):
+    # --brdf and --earth-albedo were silently ignored (the file carries its own scene)
+    import lunarviz
+    path = _frames_file(tmp_path, small_observation)
+    r = run_cli("measure", str(path), "--brdf", "lambert", "--earth-albedo", "0.5")
+    assert r.returncode == 2 and "--brdf goes with --simulate" in r.stderr
+    with pytest.raises(LunarvizError, match="drop earth_albedo"):
+        lunarviz.measure(path, earth_albedo=0.5)
+
+
+@pytest.mark.parametrize("name", ["../../escape", "/tmp/abs", "café", "a\nb", "x" * 41])
+def test_an_instrument_name_is_not_a_path_nor_a_fits_breaker(name):
+    # '../' in the name wrote the photon band's file outside the temporary folder; non-ASCII
+    # names broke the FITS header (tracebacks)
+    d = SMALL.to_dict()
+    d["name"] = name
+    with pytest.raises(LunarvizError, match="name = "):
+        instrument_from_dict(d)
+
+
+def test_an_instrument_file_with_a_huge_integer_or_deep_nesting_is_one_line(tmp_path):
+    big = tmp_path / "big.toml"
+    d = SMALL.to_dict()
+    lines = [f"{k} = {json.dumps(v)}" for k, v in d.items() if k != "aperture_m"] + ["aperture_m = 1" + "0" * 400]
+    big.write_text("\n".join(lines) + "\n")
+    with pytest.raises(LunarvizError, match=r"aperture_m = 1000.*\.\.\. must be a positive number"):
+        load_instrument(big)  # (TypeError from np.isfinite before)
+    deep = tmp_path / "deep.toml"
+    deep.write_text("source = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(LunarvizError, match="nested too deep"):
+        load_instrument(deep)  # (RecursionError before)
+
+
+def test_a_full_moon_plan_is_refused_before_tracing(monkeypatch):
+    # plan --phase 0 traced the whole instrument image (100 s, 1.8 GB) before refusing: the
+    # geometric patches refuse it first; tracing is stubbed to prove it is never reached
+    from lunarviz.workflows import measurement, tasks
+    monkeypatch.setattr(tasks, "image", lambda *a, **k: pytest.fail("traced before refusing"))
+    settings = Scene([0.0], brdfs="dhg").settings("raytrace")
+    with pytest.raises(LunarvizError, match="earthlit patch has 0 pixels"):
+        measurement.plan(settings, 0.0, SMALL, 10.0)

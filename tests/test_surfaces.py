@@ -266,7 +266,7 @@ def test_bad_maps_end_with_one_line(tmp_path, kind):
 
 def test_earth_rotation_refused_on_dates():
     from lunarviz.errors import LunarvizError
-    with pytest.raises(LunarvizError, match="earth-rotation-deg"):
+    with pytest.raises(LunarvizError, match="earth_rotation_deg turns the Earth"):
         ResolvedScene(times=("2026-06-22T00:00Z",), earth_rotation_deg=10.0)
 
 
