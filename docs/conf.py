@@ -63,15 +63,17 @@ def setup(app):
 
 
 def _write_options_table() -> None:
-    """docs/_generated/options_table.md from the option schema (lunarviz.options)."""
+    """docs/_generated/options_table.md from the option schema (lunarviz.options): a table per group."""
     from lunarviz.options import GROUPS, group
 
-    out = ["| keyword | flag | default | unit | group | meaning |", "| --- | --- | --- | --- | --- | --- |"]
+    out = []
     for g in GROUPS:
+        out += [f"### {g}", "", "| keyword (flag) | default | unit | meaning |", "| --- | --- | --- | --- |"]
         for o in group(g):
             allowed = f" One of: {', '.join(o.choices)}." if o.choices and o.kind == "str" else ""
             doc = (o.doc + "." + allowed).replace("|", "\\|")
-            out.append(f"| `{o.name}` | `{o.cli_flag}` | `{o.default!r}` | {o.unit or ''} | {o.group} | {doc} |")
+            out.append(f"| `{o.name}` (`{o.cli_flag}`) | `{o.default!r}` | {o.unit or ''} | {doc} |")
+        out.append("")
     folder = os.path.join(os.path.dirname(__file__), "_generated")
     os.makedirs(folder, exist_ok=True)
     with open(os.path.join(folder, "options_table.md"), "w", encoding="utf-8") as f:
