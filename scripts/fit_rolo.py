@@ -128,7 +128,26 @@ def phase_curves(fitted: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def replot() -> int:
+    """Redraw every fit_*.png from its kept fit_*.json (``--plot-only``)."""
+    from lunarviz.workflows.fit import FitResult
+    for f in sorted(OUT.glob("fit_*.json")):
+        d = json.loads(f.read_text())
+        rows = d["rows"]
+        res = FitResult(d["brdf"], d["params"], tuple(d["free"]), d["sigma"], np.eye(len(d["free"])), d["constrained"],
+                        np.array([r["phase_deg"] for r in rows]), np.array([r["waxing"] for r in rows]),
+                        np.array([r["target_reflectance"] for r in rows]),
+                        np.array([r["model_reflectance"] for r in rows]), d["rms_log_residual"])
+        mp = d["settings"].get("moon_albedo_map")
+        plot_fit(res, f.with_suffix(".png"),
+                 title=f"{res.brdf} fitted to ROLO (400-750 nm){' on the synthetic albedo map' if mp else ''}, rms log "
+                       f"residual {res.rms_log_residual:.3f}; free: {', '.join(res.free)}")
+    return 0
+
+
 def main() -> int:
+    if "--plot-only" in sys.argv:
+        return replot()
     OUT.mkdir(parents=True, exist_ok=True)
     fitted, report = {}, {}
     for preset_name, mp in PRESETS.items():

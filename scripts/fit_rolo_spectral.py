@@ -129,9 +129,10 @@ def plot(tables: dict, path: Path) -> None:
             if brdf == "dhg":
                 for k in ("b", "c", "B0"):
                     ax[1].plot(lam, t["params"][k], ls, marker=".", label=f"{preset} dhg {k}")
-    ax[0].set_ylabel("w / albedo")
+    ax[0].set_ylabel("w (Hapke) or albedo (Lambert)")
     ax[1].set_ylabel("DHG b, c, B0")
-    ax[2].set_ylabel("rms log residual of the fit (phase 2-96°, both branches)")
+    ax[2].set_ylabel("rms log residual of the fit")
+    ax[2].set_title("phase 2-96°, both branches", fontsize=9)
     for a in ax:
         a.set_xlabel("wavelength [nm]")
         a.legend(fontsize=6)
@@ -168,6 +169,9 @@ def residuals() -> dict:
 
 
 def main() -> int:
+    if "--plot-only" in sys.argv:  # redraw spectral_fit.png from the kept spectral_fit.json
+        plot(json.loads((OUT / "spectral_fit.json").read_text()), OUT / "spectral_fit.png")
+        return 0
     if "--residuals" in sys.argv:
         (OUT / "spectral_residuals.json").write_text(json.dumps(residuals()) + "\n")
         return 0

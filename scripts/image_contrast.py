@@ -7,6 +7,8 @@ earthshine side is measured in a 9 × 9-pixel box centred 80 % of the way from t
 centre to its dark limb. Reported: the true earthshine there, and the moonshine that a
 Gaussian core (FWHM 2″: a good telescope) and power-law halos ((1 + (r/1″)²)^(-INDEX/2) wings
 carrying 1 % or 5 % of the light, INDEX 3 or 2) throw onto it, as a fraction of the earthshine.
+Pictures (one stretch for all): ``theta120.png`` (no optics), ``theta120_halo1pc.png`` and
+``theta120_halo.png`` (2″ core with a 1 % or 5 % r^-2 halo).
 """
 
 from __future__ import annotations
@@ -47,6 +49,10 @@ def main() -> int:
     true_es = float(es[box].mean())
     assert float(ms[box].max()) == 0.0, "the box must lie on the earthshine side"
     pix_arcsec = float(np.degrees(cam.scale_rad)) * 3600
+    tot = ms + es  # one stretch for every picture (the no-optics image's): their halos compare by eye
+    stretch = (float(np.percentile(tot[tot > 0], 5)), float(tot.max()))
+    pictures = {"0.05,2,1": ("theta120_halo.png", "2″ Gaussian + 5 % r^-2 halo"),
+                "0.01,2,1": ("theta120_halo1pc.png", "2″ Gaussian + 1 % r^-2 halo")}
     rows_out = []
     for label, psf, halo in (("no optics", None, None), ("Gaussian 2″", "gaussian:2", None),
                              ("Gaussian 2″ + 1 % halo r^-3", "gaussian:2", "0.01,3,1"),
@@ -58,10 +64,11 @@ def main() -> int:
         rows_out.append({"optics": label, "psf": psf, "halo": halo,
                          "observed_over_true_earthshine": float(obs[box].mean()) / true_es,
                          "scattered_moonshine_over_earthshine": float(apply_optics(ms, kp, kh)[box].mean()) / true_es})
-        if halo == "0.05,2,1":
+        if halo in pictures:
+            name, words = pictures[halo]
             planes = {"moonshine": {"dhg": apply_optics(ms, kp, kh)}, "earthshine": {"dhg": apply_optics(es, kp, kh)}}
-            write_png(OUT / "theta120_halo.png", im, planes, title="θ = 120°, DHG, 2″ Gaussian + 5 % r^-2 halo")
-    write_png(OUT / "theta120.png", im, im.planes, title="θ = 120°, DHG, no optics")
+            write_png(OUT / name, im, planes, title=f"θ = 120°, DHG, {words}", stretch=stretch)
+    write_png(OUT / "theta120.png", im, im.planes, title="θ = 120°, DHG, no optics", stretch=stretch)
     res = {"theta_deg": theta, "alpha_deg": im.info["alpha_deg"], "box_centre_px": [px, py], "box_px": 9,
            "true_earthshine_W_m2_sr": true_es, "rows": rows_out}
     (OUT / "contrast.json").write_text(json.dumps(res, indent=2) + "\n")

@@ -74,8 +74,11 @@ def plot_lunation(out: Path, payload: dict):
         p = np.array([val(r, "apparent_albedo") for r in rs], dtype=float)
         pp = np.array([val(r, "apparent_albedo_point_source_inversion") for r in rs], dtype=float)
         line, = ax[0].semilogy(d[~occ], ms[~occ], ".-", ms=3, lw=0.6, label=label)
-        ax[0].plot(d[occ], np.full(occ.sum(), ms[~occ].min() if (~occ).any() else 1e-8), "x",
-                   color=line.get_color(), ms=4)
+        # occulted dates (irradiance exactly 0: no place on a log axis) as ticks along the axis's
+        # foot, one row per observer
+        row = 0.03 + 0.04 * list(OBSERVERS).index(label)
+        ax[0].plot(d[occ], np.full(occ.sum(), row), "|", color=line.get_color(), ms=6,
+                   transform=ax[0].get_xaxis_transform())
         ax[1].semilogy(d[~occ], es[~occ], ".-", ms=3, lw=0.6, color=line.get_color())
         if np.isfinite(pp).any():
             ax[2].plot(d[~occ], pp[~occ], ".", ms=3, color=line.get_color())
@@ -83,7 +86,7 @@ def plot_lunation(out: Path, payload: dict):
             ax[2].plot(d[~occ], p[~occ], ".", ms=3, color=line.get_color())
     ax[0].set_ylabel("moonshine [W m$^{-2}$]")
     ax[0].set_title(f"One lunation, {rows[0]['time_utc'][:10]} to {rows[-1]['time_utc'][:10]}, {method}, "
-                    "DHG Moon; × = Moon occulted by the Earth (irradiance 0)", fontsize=10)
+                    "DHG Moon; | at the foot: the Moon occulted by the Earth (irradiance 0)", fontsize=10)
     ax[0].legend(fontsize=8)
     ax[1].set_ylabel("earthshine [W m$^{-2}$]")
     ax[2].set_ylabel("apparent albedo p*(β)")

@@ -75,6 +75,32 @@ def _child(code: str, *args) -> dict:
     return {"returncode": 0, **json.loads(p.stdout.strip().splitlines()[-1])}
 
 
+def plot(res: dict, out: Path, threads: int) -> None:
+    """Run time and peak memory against the Moon's facets, each on its own axis with its target."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ok = [r for r in res["rows"] if r["returncode"] == 0]
+    f = [r["facets"] for r in ok]
+    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(9, 3.8), sharex=True)
+    ax_t.loglog(f, [r["trace_seconds"] for r in ok], "o-", label="trace")
+    ax_t.axhline(res["targets"]["seconds"], color="C3", ls=":", lw=1, label=f"target {res['targets']['seconds']} s")
+    ax_t.set_ylabel("run time of one phase [s]")
+    ax_m.loglog(f, [r["peak_rss_GB"] or float("nan") for r in ok], "s-", color="C1", label="peak RSS")
+    ax_m.axhline(res["targets"]["peak_rss_GB"], color="C3", ls=":", lw=1,
+                 label=f"target {res['targets']['peak_rss_GB']} GiB")
+    ax_m.set_ylabel("peak memory of the run [GiB]")
+    for ax in (ax_t, ax_m):
+        ax.axvline(res["targets"]["facets"], color="gray", ls="--", lw=0.8, label="5 M facets")
+        ax.set_xlabel("Moon facets")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"cratered Moon, θ = 90°, both paths, {threads} thread(s)")
+    fig.tight_layout()
+    fig.savefig(out / "scale.png", dpi=110)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", default="5,6,7")
@@ -108,21 +134,7 @@ def main(argv=None) -> int:
                    "and traces one phase: peak_rss_GB (in GiB, 2**30 bytes) and wall_seconds are that run's own "
                    "(ru_maxrss of the process), load_seconds the reading and checking of the mesh within it"}
     (out / "scale.json").write_text(json.dumps(res, indent=1) + "\n")
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    ok = [r for r in rows if r["returncode"] == 0]
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
-    ax.loglog([r["facets"] for r in ok], [r["trace_seconds"] for r in ok], "o-", label="trace [s]")
-    ax.loglog([r["facets"] for r in ok], [r["peak_rss_GB"] or float("nan") for r in ok], "s-", label="peak RSS [GiB]")
-    ax.axvline(5e6, color="gray", ls=":")
-    ax.axhline(60, color="C0", ls=":", lw=0.8)
-    ax.axhline(4, color="C1", ls=":", lw=0.8)
-    ax.set_xlabel("Moon facets")
-    ax.legend()
-    ax.set_title(f"cratered Moon, θ = 90°, both paths, {a.threads} thread(s)")
-    fig.tight_layout()
-    fig.savefig(out / "scale.png", dpi=110)
+    plot(res, out, a.threads)
     return 0
 
 

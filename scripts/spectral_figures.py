@@ -9,7 +9,7 @@ Writes ``benchmarks/spectral/``:
   --method analytic --moon-model rolo-fit-map --brdf dhg --earth-surface landocean --clouds zonal
   --wavelengths 400:1000:10``); the ratio's slope is the Earth's colour over the Moon's;
 * ``moon_rvb.png``: ``lunarviz image --phase 120 --band R,V,B`` of the same scene, the sunlit and
-  the earthlit Moon side by side, white-balanced to the Sun.
+  the earthlit Moon side by side, white-balanced to the Sun (Moon mesh level 7: the map per facet).
 """
 
 from __future__ import annotations
@@ -52,14 +52,17 @@ def main() -> int:
     ax[2].set_ylabel("earthshine / moonshine, relative to 550 nm")
     for a in ax:
         a.set_xlabel("wavelength [nm]")
-        a.legend(fontsize=7)
+    # one legend for the three panels, beside them (in a panel it hid the curves)
+    fig.legend(*ax[0].get_legend_handles_labels(), loc="center right", fontsize=8, title="phase")
     fig.suptitle("geocentre, rolo-fit-map DHG Moon, land/ocean Earth with zonal clouds (USGS spectra), TSIS-1 Sun; "
                  "`python scripts/spectral_figures.py`", fontsize=9)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 0.93, 1))
     save_figure(fig, OUT / "spectrum.png", dpi=110)
     plt.close(fig)
-    scene = api.Scene(phases=[120.0], bands="R,V,B", **SCENE)
-    api.image(scene, camera=Camera(fov_deg=0.6, width=256, height=256, supersample=2), out=OUT / "moon_rvb.png")
+    # the albedo map is sampled per facet: level 7 (327,680 facets, ~12 km) puts several facets in
+    # each pixel, so the maria keep their outlines (level 5 drew them as hexagonal blobs)
+    scene = api.Scene(phases=[120.0], bands="R,V,B", moon_level=7, **SCENE)
+    api.image(scene, camera=Camera(fov_deg=0.6, width=320, height=320, supersample=2), out=OUT / "moon_rvb.png")
     return 0
 
 

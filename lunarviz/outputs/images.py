@@ -194,9 +194,11 @@ def write_colour_png(path, res, planes, title: str = "") -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
-def write_png(path, res, planes, title: str = "") -> None:
+def write_png(path, res, planes, title: str = "", stretch: tuple[float, float] | None = None) -> None:
     """The first BRDF's moonshine + earthshine with an asinh stretch and a colour bar; three
-    bands: a colour picture (:func:`write_colour_png`)."""
+    bands: a colour picture (:func:`write_colour_png`). ``stretch``: (linear width, top) of the
+    stretch [radiance], to show several pictures alike (default: this picture's own, the 5th
+    percentile of its lit pixels and its maximum)."""
     if colour_planes(res, planes) is not None:
         return write_colour_png(path, res, planes, title)
     import io
@@ -209,10 +211,16 @@ def write_png(path, res, planes, title: str = "") -> None:
     b = next(iter(planes["moonshine"]))
     tot = planes["moonshine"][b] + planes["earthshine"][b]
     pos = tot[tot > 0]
-    lin = float(np.percentile(pos, 5)) if pos.size else 1.0
+    lin, top = stretch if stretch is not None else (float(np.percentile(pos, 5)) if pos.size else 1.0,
+                                                     float(tot.max()) if pos.size else 1.0)
+    lin = max(lin, 1e-30)
     fig, ax = plt.subplots(figsize=(6.4, 5.4))
-    im = ax.imshow(tot, origin="lower", cmap="gray", norm=AsinhNorm(linear_width=max(lin, 1e-30), vmin=0.0))
+    im = ax.imshow(tot, origin="lower", cmap="gray", norm=AsinhNorm(linear_width=lin, vmin=0.0, vmax=max(top, lin)))
     cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    # ticks at 0 and the decades from 10× the linear width up (nearer ones would overlap 0's label)
+    decades = 10.0 ** np.arange(np.ceil(np.log10(10 * lin)), np.floor(np.log10(max(top, lin))) + 1)
+    cb.set_ticks([0.0, *decades])
+    cb.ax.minorticks_off()
     cb.set_label(f"radiance [{res.info.get('bunit', BUNIT)}] (asinh stretch)")
     ax.set_xlabel("pixel (east ←)")
     ax.set_ylabel("pixel (north ↑)")

@@ -316,15 +316,17 @@ def plot_fit(res: FitResult, path, title: str = "") -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    for wax, mk, name in ((True, "o", "waxing"), (False, "s", "waning")):
+    for wax, mk, name, col in ((True, "o", "waxing", "C0"), (False, "s", "waning", "C3")):  # (a colour a branch)
         k = res.waxing == wax
         if not k.any():
             continue
-        ax[0].semilogy(res.phases_deg[k], res.target[k], mk, ms=3, mfc="none", label=f"target, {name}")
-        ax[0].semilogy(res.phases_deg[k], res.model[k], "-", lw=1, label=f"{res.brdf} fit, {name}")
-        ax[1].plot(res.phases_deg[k], 100 * (res.model[k] / res.target[k] - 1), mk + "-", ms=3, lw=0.7, label=name)
+        ax[0].semilogy(res.phases_deg[k], res.target[k], mk, ms=3, mfc="none", color=col, label=f"target, {name}")
+        ax[0].semilogy(res.phases_deg[k], res.model[k], "-", lw=1, color=col, label=f"{res.brdf} fit, {name}")
+        ax[1].plot(res.phases_deg[k], 100 * (res.model[k] / res.target[k] - 1), mk + "-", ms=3, lw=0.7, color=col,
+                   mfc="none", label=name)
     ax[0].set_ylabel("disk reflectance A")
     ax[0].legend(fontsize=7)
+    ax[1].legend(fontsize=7, title="branch", title_fontsize=7)
     ax[0].set_title(title or f"{res.brdf} fitted: rms log residual {res.rms_log_residual:.3f}", fontsize=9)
     ax[1].axhline(0, color="k", lw=0.5)
     for y in (-5, 5):
