@@ -248,6 +248,8 @@ def _parser_sweep(sub):
                    "computed to time it), and write nothing")
     p.add_argument("--out", default=None, help=".json, .csv or .nc (NetCDF-4 through xarray); required unless "
                    "--dry-run")
+    p.add_argument("--plot", default=None, metavar="FILE.png",
+                   help="also a figure: moonshine, earthshine, their ratio and p* against θ or time")
 
 
 def _parser_brdf(sub):
@@ -505,6 +507,7 @@ def cmd_sweep(a):
     if a.out is None and not a.dry_run:
         raise UsageError("sweep needs --out FILE (.json, .csv or .nc), or --dry-run")
     out = None if a.dry_run else _check_out(a.out, (".json", ".csv", ".nc"))
+    plot = _check_out(a.plot, (".png", ".pdf", ".svg")) if a.plot is not None and not a.dry_run else None
     scene = _scene(a, phases, times)
     settings = scene.settings(a.method)  # method-specific checks before any work
     if a.scheduler is not None and a.executor != "dask":
@@ -520,6 +523,9 @@ def cmd_sweep(a):
         write_netcdf(out, res)
     else:
         write_results(out, res)
+    if plot is not None:
+        from lunarviz.outputs.sweep_plot import plot_sweep
+        plot_sweep(res, plot)
     if not a.quiet:
         for b, m in res["bond_albedo"].items():
             for meth, v in m.items():
@@ -531,7 +537,7 @@ def cmd_sweep(a):
                 else:
                     print(f"Bond albedo  {b:8s} {meth:10s} undefined: Eq. 17 integrates p* over the Earth's "
                           f"phases (sweep θ across 0-180°, or dates that span them)")
-        print(f"wrote {out}")
+        print(f"wrote {out}" + (f" and {plot}" if plot is not None else ""))
 
 
 def cmd_brdf(a):

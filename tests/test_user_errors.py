@@ -113,3 +113,14 @@ def test_theta_is_the_same_option_as_phase(capsys):
     a = build_parser().parse_args(["sweep", "--thetas", "30,60", "--out", "x.json"])
     assert a.phases == "30,60"
     assert "orbital angle" in build_parser()._subparsers._group_actions[0].choices["image"].format_help()
+
+
+def test_sweep_plot_is_written_beside_the_table(tmp_path, capsys):
+    out, png = tmp_path / "s.json", tmp_path / "s.png"
+    assert main(["sweep", "--method", "analytic", "--phases", "30,90,150", "--out", str(out), "--plot", str(png),
+                 "--quiet"]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.is_file()
+    # a bad figure name is refused before any work: nothing written
+    err = _cli_error(capsys, "sweep", "--method", "analytic", "--phases", "30", "--out", str(tmp_path / "t.json"),
+                     "--plot", str(tmp_path / "t.gif"))
+    assert "t.gif" in err and not (tmp_path / "t.json").exists()
