@@ -34,6 +34,8 @@ PAPER_BRDF_TEST = {"shg": 0.0228, "dhg": 0.0001}
 PAPER_MC_STD = 0.002
 BRDFS = ("lambert", "shg", "dhg")
 COLORS = {"lambert": "tab:gray", "shg": "tab:red", "dhg": "tab:blue"}
+#: SHG drawn wide under DHG's thin line: where the two agree both stay visible
+LINE_WIDTHS = {"lambert": 1.0, "shg": 2.6, "dhg": 1.0}
 
 
 def _plt():
@@ -134,13 +136,16 @@ def fig5_fluxes(out: Path, sw: dict):
         key = f"{path}_W_m2"
         top = np.nanmax([np.nanmax(_series(sw["analytic"], b, key)[1]) for b in BRDFS])
         floor = top * (1e-5 if path == "moonshine" else 1e-7)  # thinner crescents leave the axis as gaps
+        # the axis starts at the faintest value drawn (no empty decades below it)
+        shown = np.concatenate([_series(sw[m], b, key)[1] for m in ("analytic", "deterministic") for b in BRDFS])
+        bottom = max(floor, 0.5 * float(np.min(shown[shown > floor]))) if np.any(shown > floor) else floor
         for b in BRDFS:
-            c = COLORS[b]
+            c, lw = COLORS[b], LINE_WIDTHS[b]
             th, ref = _series(sw["reference"], b, key)
             th_a, v = _series(sw["analytic"], b, key)
-            ax.plot(th_a, _positive(v, floor), "-", color=c, lw=1.2)
+            ax.plot(th_a, _positive(v, floor), "-", color=c, lw=lw + 0.2)
             th_d, v = _series(sw["deterministic"], b, key)
-            ax.plot(th_d, _positive(v, floor), "--", color=c, lw=1)
+            ax.plot(th_d, _positive(v, floor), "--", color=c, lw=lw)
             th_m, v = _series(sw["montecarlo"], b, key)
             _, sd = _series(sw["montecarlo"], b, f"{path}_std_W_m2")
             ax.errorbar(th_m, _positive(v, floor), yerr=sd, fmt="x", color=c, ms=4, capsize=2)
@@ -149,11 +154,11 @@ def fig5_fluxes(out: Path, sw: dict):
             ok = (ref > 0) & (th >= 5.0) & (th <= 175.0)  # where the report's comparisons are made
             for src, style in (("analytic", "-"), ("deterministic", "--")):
                 th_s, v = _series(sw[src], b, key)
-                rx.plot(th_s[ok], v[ok] / ref[ok] - 1, style, color=c, lw=1)
+                rx.plot(th_s[ok], v[ok] / ref[ok] - 1, style, color=c, lw=lw)
             th_m, v = _series(sw["montecarlo"], b, key)
             rx.plot(th_m[ok], v[ok] / ref[ok] - 1, "x", color=c, ms=4)
         ax.set_yscale("log")
-        ax.set_ylim(floor, top * 3)
+        ax.set_ylim(bottom, top * 3)
         ax.set_ylabel(f"{path} at the detector [W m⁻²]")
         ax.set_title(f"({'ab'[k]}) {path}")
         rx.set_yscale("symlog", linthresh=1e-5)
@@ -164,7 +169,7 @@ def fig5_fluxes(out: Path, sw: dict):
         for a_ in (ax, rx):
             a_.grid(alpha=0.3, which="both")
     from matplotlib.lines import Line2D
-    handles = [Line2D([], [], color=COLORS[b], lw=2, label=b) for b in BRDFS] + [
+    handles = [Line2D([], [], color=COLORS[b], lw=LINE_WIDTHS[b] + 1, label=b) for b in BRDFS] + [
         Line2D([], [], color="k", ls="-", label="analytic (point Sun, point Earth)"),
         Line2D([], [], color="k", ls="--", label="ray traced, deterministic"),
         Line2D([], [], color="k", marker="x", ls="", label="ray traced, Monte Carlo (±1σ of one run)"),
