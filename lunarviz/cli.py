@@ -527,6 +527,7 @@ def cmd_sweep(a):
         from lunarviz.outputs.sweep_plot import plot_sweep
         plot_sweep(res, plot)
     if not a.quiet:
+        print("\n".join(row_table(res["rows"])))
         for b, m in res["bond_albedo"].items():
             for meth, v in m.items():
                 if isinstance(v, dict):  # a spectral run: one per wavelength or band
@@ -538,6 +539,25 @@ def cmd_sweep(a):
                     print(f"Bond albedo  {b:8s} {meth:10s} undefined: Eq. 17 integrates p* over the Earth's "
                           f"phases (sweep θ across 0-180°, or dates that span them)")
         print(f"wrote {out}" + (f" and {plot}" if plot is not None else ""))
+
+
+def row_table(rows: list[dict], most: int = 12) -> list[str]:
+    """The rows as a short table for the terminal (the first and last of many): θ or time, BRDF,
+    band or wavelength, moonshine, earthshine [W m⁻², per nm for a wavelength], p* and its bound."""
+    def cell(r):
+        key = r["time_utc"][:16] if r.get("time_utc") else f"{r['theta_deg']:g}"
+        label = r.get("band") or (f"{r['wavelength_nm']:g}nm" if r.get("wavelength_nm") is not None else "")
+        ms, es = (r.get(k, r.get(k + "_nm")) for k in ("moonshine_W_m2", "earthshine_W_m2"))
+        p, tol = r.get("apparent_albedo"), r.get("rtol")
+        num = (lambda v, f: "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, f))
+        why = r.get("skip_reason") or ""
+        return (f"{key:>16} {r.get('brdf', ''):7} {label:>8} {num(ms, '.4e'):>11} {num(es, '.4e'):>11} "
+                f"{num(p, '.4f'):>7} {num(tol, '.1e'):>8} {why}").rstrip()
+    head = f"{'time' if rows and rows[0].get('time_utc') else 'θ [deg]':>16} {'brdf':7} {'band':>8} " \
+           f"{'moon W/m²':>11} {'earth W/m²':>11} {'p*':>7} {'rtol':>8}"
+    shown = rows if len(rows) <= most else rows[:most // 2] + [None] + rows[-most // 2:]
+    return [head] + [f"{'...':>16} ({len(rows) - most} more rows in the file)" if r is None else cell(r)
+                     for r in shown]
 
 
 def cmd_brdf(a):
