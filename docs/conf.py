@@ -13,14 +13,21 @@ from lunarviz import __version__ as release  # noqa: E402
 version = release
 
 extensions = [
-    "myst_parser",
+    "myst_nb",  # (MyST Markdown, and the example notebook executed at each build)
     "numpydoc",
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
     "sphinxarg.ext",
 ]
-source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
+# the example notebook runs at every build (at smoke size, its 3D view as a static picture): the
+# pages show its outputs as this version computes them
+nb_execution_mode = "force"
+nb_execution_timeout = 300
+nb_execution_raise_on_error = True
+os.environ.setdefault("LUNARVIZ_SMOKE", "1")
+os.environ.setdefault("LUNARVIZ_JUPYTER_BACKEND", "static")
 myst_enable_extensions = ["dollarmath"]
 myst_heading_anchors = 3
 exclude_patterns = ["_build"]
@@ -81,4 +88,15 @@ def _write_options_table() -> None:
 
 
 _write_options_table()
+
+
+def _copy_notebook() -> None:
+    """docs/notebook/lunarviz_tour.ipynb: the example notebook, copied in to be executed here."""
+    import shutil
+    here = os.path.dirname(__file__)
+    os.makedirs(os.path.join(here, "notebook"), exist_ok=True)
+    shutil.copy(os.path.join(here, "..", "examples", "lunarviz_tour.ipynb"), os.path.join(here, "notebook"))
+
+
+_copy_notebook()
 exclude_patterns += ["_generated"]
