@@ -45,10 +45,12 @@ def _phases(phases) -> tuple:
     if isinstance(phases, str):
         return tuple(parse_float_list(phases, "phase", 0.0, THETA_MAX))
     try:
+        if isinstance(phases, (bool, np.bool_)):
+            raise TypeError
         vals = np.atleast_1d(np.asarray(phases, dtype=float))
-    except (TypeError, ValueError):
-        raise LunarvizError(f"phases {phases!r} must be numbers (θ [deg]) or a string a,b,c / start:stop:step") \
-            from None
+    except (TypeError, ValueError, OverflowError):
+        raise LunarvizError(f"phases {str(phases)[:40]!r} must be numbers (θ [deg]) or a string a,b,c / "
+                            f"start:stop:step") from None
     if vals.ndim != 1 or vals.size == 0 or not np.all(np.isfinite(vals)) or np.any((vals < 0) | (vals > THETA_MAX)):
         raise LunarvizError(f"phases {phases!r} must be finite angles θ in [0, 360] deg")
     return tuple(float(v) for v in vals)
@@ -56,9 +58,13 @@ def _phases(phases) -> tuple:
 
 def _number(value, name: str) -> float:
     """``value`` as a float, or a one-line error naming it (a string, a list, None)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise LunarvizError(f"{name} {value!r} must be a number")
-    return float(value)
+    try:
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise TypeError
+        return float(value)
+    except (TypeError, OverflowError):
+        text = repr(value)
+        raise LunarvizError(f"{name} {text if len(text) <= 40 else text[:37] + '...'} must be a number") from None
 
 
 def _pixels(pixels) -> tuple[int, int]:
@@ -77,6 +83,14 @@ def _key_list(keys) -> list:
     if isinstance(keys, (str, bytes)) or not isinstance(keys, (list, tuple, np.ndarray)):
         raise LunarvizError(f"keys {keys!r} must be a list of phases θ or times (one key: key=...)")
     return list(keys)
+
+
+def _brdf_name(brdf) -> str:
+    """A lunar BRDF's name in any case (``DHG``: ``dhg``), or the one-line error."""
+    from lunarviz.photometry.brdf import BRDF_NAMES
+    if not isinstance(brdf, str) or brdf.strip().lower() not in BRDF_NAMES:
+        raise unknown_choice("BRDF", brdf, BRDF_NAMES)
+    return brdf.strip().lower()
 
 
 def _check_key(sc: "Scene", key):
@@ -334,6 +348,7 @@ def trace(scene: Scene | None = None, key=None, brdf: str | None = None, **scene
     _grey_only(sc, "trace")
     settings = sc.settings("raytrace")
     key = _check_key(sc, key)
+    brdf = None if brdf is None else _brdf_name(brdf)
     if brdf is not None and brdf not in settings.brdfs:
         raise LunarvizError(f"BRDF {brdf!r} is not among the scene's {', '.join(settings.brdfs)}")
     res = facets(settings, key, brdf)
@@ -372,6 +387,7 @@ def render(scene: Scene | None = None, key=None, brdf: str = "dhg", view: str = 
     if out is not None:
         from lunarviz.outputs.writers import check_output_path
         out = check_output_path(out, (".png",))
+    brdf = _brdf_name(brdf)
     settings = replace(sc.settings("raytrace"), brdfs=(brdf,))
     return views.render_image(view_data(settings, _check_key(sc, key), brdf), view=view, size=size, out=out)
 
@@ -539,6 +555,8 @@ def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, per: s
     from lunarviz.instrument.spec import instrument_spec_text, load_instrument
     from lunarviz.workflows.measurement import plan as plan_exposure
     sc = _scene(scene, scene_options)
+    if key is None and len(sc.keys) > 1:
+        raise LunarvizError(f"plan takes one phase or time: the scene has {len(sc.keys)} (give key=...)")
     res = plan_exposure(sc.settings("raytrace"), _check_key(sc, key), load_instrument(instrument), _number(snr, "snr"),
                         per=per)
     return {**res, "instrument_spec": instrument_spec_text(instrument)}
@@ -584,6 +602,8 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
             raise LunarvizError("an instrument sets the camera and its optics: drop camera, psf, halo and gif")
         return _instrument_images(sc, _key_list(keys) if keys is not None else [key], instrument, exposure, frames,
                                   seed, out, progress)
+    if exposure is not None or frames != 1:
+        raise LunarvizError("exposure and frames go with an instrument (instrument=...)")
     if camera is None:
         w, h = _pixels(pixels)
         camera = Camera(fov_deg=_number(fov_deg, "fov_deg"), width=w, height=h, supersample=supersample,
@@ -722,4 +742,8 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
     from lunarviz.photometry.brdf import make_brdf
     if model is None or surface is not None:
         raise LunarvizError("brdf(body='moon') takes model=... (lambert, shg, dhg), not a surface")
+    known = ("dhg_convention", "h_function", "moon_model")
+    for k in moon_options:
+        if k not in known:
+            raise unknown_choice("brdf() option", k, known)
     return lunar_rows(make_brdf(model, params=params, **moon_options), inc, emi, azi)

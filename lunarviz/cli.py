@@ -50,6 +50,15 @@ class _Parser(argparse.ArgumentParser):
                 r"'([^']*)'", m.group(2))).replace(" (", "; "))
         raise UsageError(message)
 
+    def _get_value(self, action, arg_string):
+        """argparse's, with a choice in any case taken as the choice (``--shading SMOOTH``)."""
+        value = super()._get_value(action, arg_string)
+        if action.choices is not None and isinstance(value, str) and value not in action.choices:
+            same = [c for c in action.choices if isinstance(c, str) and c.lower() == value.lower()]
+            if len(same) == 1:
+                return same[0]
+        return value
+
     def parse_args(self, args=None, namespace=None):
         """argparse's, with the options a misspelt one most likely meant (``--methd``: ``--method``)."""
         ns, extras = self.parse_known_args(args, namespace)
@@ -116,14 +125,17 @@ def _brdf_list(text) -> list[str]:
     return list(dict.fromkeys(names))
 
 
-def _int_at_least(name, lo):
+def _int_at_least(name, lo, hi: int = 10**9):
+    """argparse's type for an integer from ``lo`` to ``hi`` (a bound on every count a user gives)."""
     def conv(text):
         try:
             v = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} is not an integer") from None
+            raise argparse.ArgumentTypeError(f"{name} {text[:40]!r} is not an integer") from None
         if v < lo:
             raise argparse.ArgumentTypeError(f"{name} {v} must be {'positive' if lo == 1 else 'non-negative'}")
+        if v > hi:
+            raise argparse.ArgumentTypeError(f"{name} {str(v)[:40]} is more than {hi:,}")
         return v
     return conv
 
@@ -195,6 +207,10 @@ def _add_scene_command(sub, name, helptext, groups=SCENE_GROUPS, brdfs=None):
 #: what --phase means: the paper's θ, not quite the phase angle (--theta is the same option)
 THETA_WORDS = "θ (the paper's orbital angle of the Moon from full Moon; the phase angle differs from it by the " \
     "Sun's parallax, up to 0.15°: rows give it as alpha_deg)"
+
+
+#: the most craters ``mesh make craters`` places (each is a pass over the mesh's vertices)
+MAX_CRATERS = 100_000
 
 
 #: the options that give dates (one of them at most)
@@ -394,7 +410,8 @@ def _parser_mesh(sub):
     p.add_argument("--axes", default="1.15,1.0,0.85", help="ellipsoid semi-axes a,b,c in units of R")
     p.add_argument("--dem", default=None, help="DEM map (.npy/.png/.tif, equirectangular, row 0 = +90°)")
     p.add_argument("--height-scale", type=float, default=1.0, help="metres per DEM map unit")
-    p.add_argument("--count", type=_nonneg_int("--count"), default=40, help="number of craters")
+    p.add_argument("--count", type=_int_at_least("--count", 0, MAX_CRATERS), default=40,
+                   help=f"number of craters (at most {MAX_CRATERS:,})")
     p.add_argument("--diameters-km", default="60:300", help="crater diameter range min:max [km]")
     p.add_argument("--region", default=None, help="craters only in the cap LAT,LON,RADIUS_DEG")
     p.add_argument("--crater-seed", type=_nonneg_int("--crater-seed"), default=0, help="seed of the crater draw")
@@ -498,6 +515,7 @@ def cmd_sweep(a):
     import lunarviz.api as api
     from lunarviz.options import METHODS
     from lunarviz.outputs.writers import write_results
+    a.method = a.method.lower() if a.method.lower() in METHODS else a.method
     if a.method not in METHODS:
         raise UsageError(str(unknown_choice("method", a.method, METHODS)))
     times = _times(a)
@@ -549,7 +567,8 @@ def row_table(rows: list[dict], most: int = 12) -> list[str]:
         label = r.get("band") or (f"{r['wavelength_nm']:g}nm" if r.get("wavelength_nm") is not None else "")
         ms, es = (r.get(k, r.get(k + "_nm")) for k in ("moonshine_W_m2", "earthshine_W_m2"))
         p, tol = r.get("apparent_albedo"), r.get("rtol")
-        num = (lambda v, f: "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, f))
+        def num(v, f):
+            return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, f)
         why = r.get("skip_reason") or ""
         return (f"{key:>16} {r.get('brdf', ''):7} {label:>8} {num(ms, '.4e'):>11} {num(es, '.4e'):>11} "
                 f"{num(p, '.4f'):>7} {num(tol, '.1e'):>8} {why}").rstrip()
@@ -699,17 +718,21 @@ def _apply_plan(a) -> None:
     (a different one given is an error)."""
     if getattr(a, "plan", None) is None:
         return
+    from lunarviz.instrument.spec import instrument_spec_text
     from lunarviz.workflows.measurement import read_plan
     p = read_plan(a.plan)
-    for k, v in (("instrument", p["instrument_spec"]), ("exposure", p["exposure_s"])):
-        if getattr(a, k) is not None and getattr(a, k) != v:
-            raise UsageError(f"--{k} {getattr(a, k)!r} differs from the plan's {v!r}: drop one")
-        setattr(a, k, v)
-    if a.phase is None and _times(a) is None:
-        if p["key"].endswith("Z"):
-            a.time = p["key"]
-        else:
-            a.phase = p["key"]
+    if a.instrument is not None and instrument_spec_text(a.instrument) != p["instrument_spec"]:
+        raise UsageError(f"--instrument {a.instrument!r} differs from the plan's {p['instrument_spec']!r}: drop one")
+    if a.exposure is not None and not math.isclose(a.exposure, p["exposure_s"], rel_tol=1e-9):
+        raise UsageError(f"--exposure {a.exposure!r} s differs from the plan's {p['exposure_s']!r} s: drop one")
+    a.instrument, a.exposure = p["instrument_spec"], p["exposure_s"]
+    if a.phase is not None or _times(a) is not None:
+        raise UsageError(f"--plan {a.plan!r} gives the θ or time its exposure was planned at ({p['key']}): drop "
+                         f"--phase/--time")
+    if p["key"].endswith("Z"):
+        a.time = p["key"]
+    else:
+        a.phase = p["key"]
 
 
 def cmd_image(a):
@@ -814,13 +837,15 @@ def cmd_plan(a):
         else:
             print(f"no exposure reaches SNR {res['snr_target']:g} on {of} unsaturated: the longest safe exposure "
                   f"{res['saturation_exposure_s']:.6g} s gives {res['snr_at_saturation_exposure']:.3g}; "
-                  f"{res['frames_needed_at_saturation_exposure']} such frames would")
+                  f"{res['frames_needed_at_saturation_exposure']} such frames averaged would reach it")
         print(f"  SNR per frame: patch ({res['earthlit_pixels']} pixels) {res['snr_patch_at_exposure']:.3g}, pixel "
               f"{res['snr_pixel_at_exposure']:.3g}; the brightest pixel holds {res['brightest_pixel_e']:.0f} e- "
               f"({100 * res['brightest_pixel_fraction_of_full_well']:.0f} % of the {res['full_well_e']:.0f} e- full "
               f"well)")
         if out is not None and res["feasible"]:
             print(f"wrote {out}: lunarviz image --plan {out} ... and measure --simulate N --plan {out} take it")
+        elif out is not None:
+            print(f"wrote {out} (no exposure to plan with: image --plan refuses it)")
         if out is None:
             print(json.dumps(res, indent=1))
 

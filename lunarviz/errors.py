@@ -18,8 +18,12 @@ class LunarvizError(ValueError):
     """
 
     def __str__(self) -> str:
-        text = super().__str__()
-        return text if _WORDS["command_line"] else _FLAG.sub(_keyword, text)
+        return in_callers_words(super().__str__())
+
+
+def in_callers_words(text: str) -> str:
+    """``text`` naming options as the caller does: flags on the command line, keywords in Python."""
+    return text if _WORDS["command_line"] else _FLAG.sub(_keyword, text)
 
 
 #: flags whose keyword is not the flag's own words (``--band``: ``bands``), registered by the
@@ -48,7 +52,11 @@ class command_line_words:
 
 
 class LunarvizWarning(UserWarning):
-    """A result that is computed but may not mean what the user expects (e.g. a stale TLE)."""
+    """A result that is computed but may not mean what the user expects (e.g. a stale TLE); it
+    names options in the caller's words, as :class:`LunarvizError` does."""
+
+    def __str__(self) -> str:
+        return in_callers_words(super().__str__())
 
 
 class ZonelessTimeWarning(LunarvizWarning):

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
 import lunarviz.constants as C
-from lunarviz.errors import FLAG_KEYWORDS, LunarvizError, unknown_choice
+from lunarviz.errors import FLAG_KEYWORDS, LunarvizError, close_match, unknown_choice
 
 # ---- allowed values (each declared once, here; the modules that implement them import them) ----
 #: how a sweep computes: the paper's point-source quadrature, Embree ray tracing of the meshes, or the
@@ -117,6 +117,9 @@ class Option:
     flag_help: str | None = None
     #: a list option given as text: a tuple or list of items is also taken (``("V", "B")``: ``"V,B"``)
     joins: bool = False
+    #: the named values of an option that also takes a FILE: matched in any case (``LANDOCEAN``),
+    #: and a name that is neither one of them nor a file gets their close match
+    keywords: tuple | None = None
 
     @property
     def cli_flag(self) -> str:
@@ -148,13 +151,13 @@ class Option:
             return bool(value)
         if k == "int":
             if isinstance(value, bool) or not isinstance(value, int) and type(value).__module__ != "numpy" \
-                    or not float(value).is_integer() or not self._in_range(value):
-                raise LunarvizError(f"{self.name}={value!r} must be {self._integer_phrase()}")
+                    or not _finite(value) or not float(value).is_integer() or not self._in_range(value):
+                raise LunarvizError(f"{self.name}={_short(value)} must be {self._integer_phrase()}")
             return value
         if k == "float":
             if isinstance(value, bool) or not isinstance(value, (int, float)) and type(value).__module__ != "numpy" \
-                    or not math.isfinite(float(value)) or not self._in_range(value):
-                raise LunarvizError(f"{self.what} {value!r} must be a finite number{self._range_text()}")
+                    or not _finite(value) or not self._in_range(value):
+                raise LunarvizError(f"{self.what} {_short(value)} must be a finite number{self._range_text()}")
             return value
         if k in ("str", "path"):
             if self.joins and isinstance(value, (list, tuple)) and value \
@@ -164,6 +167,8 @@ class Option:
                 raise LunarvizError(f"{self.what} {value!r} must be a string")
             if self.choices is not None and value not in self.choices:
                 value = _choice_any_case(value, self.choices, self.what)
+            if self.keywords is not None and value not in self.keywords:
+                value = _keyword_or_file(value, self.keywords, self.what)
             return value
         if k == "names":
             if isinstance(value, str):
@@ -176,7 +181,7 @@ class Option:
         if k == "xyz":
             try:
                 v = tuple(float(c) for c in value)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise LunarvizError(f"{self.name} {value!r} must be three numbers x, y, z [{self.unit}]") from None
             if len(v) != 3 or not all(math.isfinite(c) for c in v):
                 raise LunarvizError(f"{self.name} {value!r} must be three finite numbers x, y, z [{self.unit}]")
@@ -215,6 +220,33 @@ class Option:
         if self.lo is not None:
             return " ≥ 1" if self.lo == 1 else f" ≥ {self.lo:g}"
         return ""
+
+
+def _finite(value) -> bool:
+    """``float(value)`` is finite (an integer of 400 digits overflows: not finite)."""
+    try:
+        return math.isfinite(float(value))
+    except (OverflowError, TypeError, ValueError):
+        return False
+
+
+def _short(value) -> str:
+    """``repr(value)``, at most 40 characters."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _keyword_or_file(value: str, keywords, what: str) -> str:
+    """``value`` as a keyword in any case (``LANDOCEAN``), or as it is where it may be a file; a
+    name that is neither (no such file, no ``.``/``/`` in it) gets the keyword it most likely meant."""
+    import os
+    same = [k for k in keywords if k.lower() == value.strip().lower()]
+    if same:
+        return same[0]
+    base = value.split(":")[0]
+    if not os.path.exists(base) and not any(c in base for c in "./\\") and close_match(base, keywords):
+        raise unknown_choice(what, value, keywords)
+    return value
 
 
 def _choice_any_case(value: str, choices, what: str) -> str:
@@ -342,9 +374,11 @@ OPTIONS: tuple[Option, ...] = (
        "FILE:MEAN makes the map the albedo/w itself with area-weighted mean MEAN; 'synthetic' is the shipped "
        "demo map; 'none' drops a preset's map", "surfaces", metavar="FILE[:MEAN]"),
     _o("earth_surface", "str", "uniform", "uniform (the Earth albedo), landocean (a land mask with the land and "
-       "ocean albedos) or a clear-sky albedo map FILE", "earth", metavar="uniform|landocean|FILE"),
+       "ocean albedos) or a clear-sky albedo map FILE", "earth", metavar="uniform|landocean|FILE",
+       keywords=("uniform", "landocean"), label="Earth surface"),
     _o("clouds", "str", "none", "cloud fraction: none, zonal (zonal means shipped with the package) or a map "
-       "FILE; clouds reflect with the cloud albedo", "earth", metavar="none|zonal|FILE"),
+       "FILE; clouds reflect with the cloud albedo", "earth", metavar="none|zonal|FILE",
+       keywords=("none", "zonal")),
     _o("earth_brdf", "str", "lambert", "how the Earth reflects: lambert (each place a Lambert surface of its albedo) "
        "or physical (Rayleigh atmosphere over Cox-Munk ocean, Ross-Li land and snow, DISORT clouds; its parameters: "
        + ", ".join(f"--param earth.{o.name}=" for o in EARTH_PARAMETERS) + ")",
@@ -365,7 +399,8 @@ OPTIONS: tuple[Option, ...] = (
        "(wavelength_nm,response)", "spectral", flag="--band", metavar="NAME|LO-HI|FILE.csv[,...]", joins=True),
     _o("solar_spectrum", "str", "tsis1-hsrs", "the Sun's spectral irradiance at 1 au in spectral runs: tsis1-hsrs "
        "(TSIS-1 HSRS v2, Coddington et al. 2023), grey (the paper's Φ flat over 400-750 nm) or a CSV FILE "
-       "(wavelength_nm,irradiance_W_m2_nm)", "spectral", metavar="tsis1-hsrs|grey|FILE.csv"),
+       "(wavelength_nm,irradiance_W_m2_nm)", "spectral", metavar="tsis1-hsrs|grey|FILE.csv",
+       keywords=("tsis1-hsrs", "grey")),
     _o("earth_spectra", "str", "surface", "spectral runs: the Earth's ocean, vegetation, desert and snow take their "
        "packaged USGS spectra (surface) or the grey ocean/land albedos (grey); clouds and the uniform Earth stay grey",
        "spectral", choices=EARTH_SPECTRA, label="Earth spectra"),

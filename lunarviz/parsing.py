@@ -9,8 +9,8 @@ from lunarviz.errors import LunarvizError
 
 #: units a user may write after a number, by quantity: each unit's size in the quantity's own unit
 LENGTH_M = {"m": 1.0, "km": 1e3}
-TIME_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "min": 60.0}
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zµ]*)\s*$", re.I)
+TIME_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "μs": 1e-6, "min": 60.0}  # (micro sign and Greek mu)
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zµμ]*)\s*$", re.I)
 
 
 def parse_float_list(text: str, name: str, lo: float | None = None, hi: float | None = None) -> list[float]:

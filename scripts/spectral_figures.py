@@ -9,7 +9,8 @@ Writes ``benchmarks/spectral/``:
   --method analytic --moon-model rolo-fit-map --brdf dhg --earth-surface landocean --clouds zonal
   --wavelengths 400:1000:10``); the ratio's slope is the Earth's colour over the Moon's;
 * ``moon_rvb.png``: ``lunarviz image --phase 120 --band R,V,B`` of the same scene, the sunlit and
-  the earthlit Moon side by side, white-balanced to the Sun (Moon mesh level 7: the map per facet).
+  the earthlit Moon side by side, white-balanced to the Sun (Moon mesh level 6: the map per
+  facet, about a pixel each).
 """
 
 from __future__ import annotations
@@ -59,9 +60,9 @@ def main() -> int:
     fig.tight_layout(rect=(0, 0, 0.93, 1))
     save_figure(fig, OUT / "spectrum.png", dpi=110)
     plt.close(fig)
-    # the albedo map is sampled per facet: level 7 (327,680 facets, ~12 km) puts several facets in
-    # each pixel, so the maria keep their outlines (level 5 drew them as hexagonal blobs)
-    scene = api.Scene(phases=[120.0], bands="R,V,B", moon_level=7, **SCENE)
+    # the albedo map is sampled per facet: level 6 (81,920 facets, ~17 km, about a pixel each)
+    # keeps the maria's outlines (level 5 drew them as hexagonal blobs)
+    scene = api.Scene(phases=[120.0], bands="R,V,B", moon_level=6, **SCENE)
     api.image(scene, camera=Camera(fov_deg=0.6, width=320, height=320, supersample=2), out=OUT / "moon_rvb.png")
     return 0
 

@@ -76,3 +76,68 @@ def test_a_mesh_study_where_a_path_vanishes_is_refused():
     # θ = 0: the earthshine is 0 and its relative error divided by zero (a traceback)
     with pytest.raises(LunarvizError, match=r"in \(0, 180\)"):
         lunarviz.study.mesh(levels=[2, 3], phases=[0])
+
+
+def test_a_mesh_study_at_a_dark_phase_is_refused_before_tracing(monkeypatch):
+    # θ = 0.5: the exact earthshine is 0 (ZeroDivisionError after the whole study before)
+    from lunarviz.workflows import study
+    monkeypatch.setattr(study, "_study_task", lambda *a: pytest.fail("traced before refusing"))
+    with pytest.raises(LunarvizError, match=r"θ = 0.5 deg: the exact earthshine"):
+        lunarviz.study.mesh(levels=[2, 3], phases=[0.5])
+
+
+@pytest.mark.parametrize("kw", [dict(phases=10**400), dict(phases=[120], seed=10**400),
+                                dict(phases=[120], moon_level=10**400), dict(phases=[120], detector=(10**400, 0, 0)),
+                                dict(time_range="2026-01-15T00:00Z,2026-01-15T03:00Z,99999999999d")])
+def test_numbers_too_large_for_a_float_are_one_line(kw):
+    # OverflowError tracebacks before
+    with pytest.raises(LunarvizError):
+        lunarviz.Scene(**kw).settings("raytrace")
+
+
+def test_brdf_names_in_any_case_through_the_api():
+    # render(brdf="DHG") raised KeyError: 'moonshine_contribution_DHG'
+    from lunarviz.api import _brdf_name
+    assert _brdf_name("DHG") == "dhg"
+    with pytest.raises(LunarvizError, match="did you mean 'dhg'"):
+        _brdf_name("dgh")
+
+
+def test_rough_hapke_at_double_grazing_is_quiet():
+    import warnings
+
+    from lunarviz.photometry.brdf import brdf_from_angles, make_brdf
+    model = make_brdf("dhg", params={"theta_bar": 20.0})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (4 RuntimeWarnings of 0/0 before)
+        assert brdf_from_angles(model, np.pi / 2, np.pi / 2, np.pi) == 0.0
+
+
+def test_choices_and_keywords_in_any_case_on_the_command_line(tmp_path):
+    from lunarviz.cli import build_parser
+    a = build_parser().parse_args(["sweep", "--shading", "SMOOTH", "--out", "x.json"])
+    assert a.shading == "smooth"
+    s = lunarviz.Scene(phases=[30], earth_surface="LANDOCEAN", clouds="Zonal").settings("analytic")
+    assert (s.earth_surface, s.clouds) == ("landocean", "zonal")
+    with pytest.raises(LunarvizError, match="did you mean 'landocean'"):
+        lunarviz.Scene(phases=[30], earth_surface="landocen").settings("analytic")
+    from lunarviz.spectral.bands import parse_band
+    assert parse_band("s2a-b4").name == "S2A-B4"
+
+
+def test_the_band_term_of_a_traced_mesh_level_run():
+    # the band term's analytic sweeps kept --mesh-level ("cannot be used with --method analytic":
+    # measure failed for any salex run made with --mesh-level)
+    from dataclasses import replace
+
+    from lunarviz.instrument.spec import load_instrument
+    from lunarviz.workflows.measurement import band_sigma
+    inst = load_instrument("salex")
+    settings = replace(lunarviz.Scene([120.0], brdfs="dhg", moon_level=3).settings("raytrace"))
+    assert 0 < band_sigma(settings, 120.0, inst) < 0.05
+
+
+def test_a_mesh_craters_count_is_bounded(capsys):
+    from lunarviz.cli import main
+    assert main(["mesh", "make", "craters", "--level", "2", "--count", "1000000000", "--out", "c.ply"]) == 2
+    assert "more than 100,000" in capsys.readouterr().err

@@ -87,6 +87,10 @@ def read_fit(path) -> dict:
     try:
         d = json.loads(Path(path).read_text(encoding="utf-8"))
         free = list(d["free"])
+        if len(set(free)) != len(free) or not all(isinstance(k, str) for k in free):
+            raise ValueError("free parameters listed twice")
+        if any(isinstance(d["sigma"][k], bool) for k in free):
+            raise TypeError("a sigma is not a number")
         sig = np.array([float(d["sigma"][k]) for k in free])
         corr = np.array([[float(d["correlation"][a][b]) for b in free] for a in free])
         params = {k: float(v) for k, v in d["params"].items()}

@@ -96,6 +96,8 @@ class Frames:
     settings: dict
     instrument: dict
     key: str
+    #: the COUNTS extension's header (None when only EXPECTED_COUNTS is read)
+    counts_header: dict | None = None
 
 
 #: the largest image or cube of frames read [bytes]: a file beyond it holds more frames than a
@@ -141,12 +143,13 @@ def read_frames(path, use_expected: bool = False) -> Frames:
             hdr = dict(eh.header)
             _check_size(path, eh.header)
             expected = np.asarray(eh.data, dtype=float)
-            counts = None
+            counts, counts_hdr = None, None
             if not use_expected:
                 if "COUNTS" not in names:
                     raise LunarvizError(f"{str(path)!r} has no COUNTS extension")
                 _check_size(path, hdul["COUNTS"].header)
                 counts = np.asarray(hdul["COUNTS"].data)
+                counts_hdr = dict(hdul["COUNTS"].header)
     except LunarvizError:
         raise
     except Exception as exc:  # astropy raises many types on a damaged file
@@ -167,4 +170,4 @@ def read_frames(path, use_expected: bool = False) -> Frames:
         raise LunarvizError(f"{str(path)!r}: COUNTS holds no frames")
     if counts is not None and (counts.ndim != 3 or counts.shape[1:] != expected.shape):
         raise LunarvizError(f"{str(path)!r}: COUNTS of shape {counts.shape} does not match {expected.shape}")
-    return Frames(counts, expected, hdr, settings, instrument, key)
+    return Frames(counts, expected, hdr, settings, instrument, key, counts_hdr)

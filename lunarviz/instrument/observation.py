@@ -76,8 +76,9 @@ def check_exposure(inst: Instrument, exposure_s: float | None) -> float:
         if isinstance(exposure_s, (str, bool)):
             raise TypeError
         t = inst.exposure_s if exposure_s is None else float(exposure_s)
-    except (TypeError, ValueError):
-        raise LunarvizError(f"--exposure {exposure_s!r} must be a number of seconds") from None
+    except (TypeError, ValueError, OverflowError):
+        raise LunarvizError(f"--exposure {str(exposure_s)[:40]!r} must be a number of seconds in "
+                            f"[{MIN_EXPOSURE_S:g}, {MAX_EXPOSURE_S:g}]") from None
     if not (np.isfinite(t) and MIN_EXPOSURE_S <= t <= MAX_EXPOSURE_S):
         raise LunarvizError(f"--exposure {exposure_s!r} must be in [{MIN_EXPOSURE_S:g}, {MAX_EXPOSURE_S:g}] seconds")
     return t

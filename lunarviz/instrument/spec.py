@@ -244,8 +244,8 @@ def instrument_from_dict(d: dict, where: str = "instrument") -> Instrument:
             if not isinstance(v, str):
                 raise LunarvizError(f"{where}: {k} = {v!r} must be text")
             if k == "name" and not _NAME.fullmatch(v):
-                raise LunarvizError(f"{where}: name = {v!r} must be 1-40 letters, digits, spaces or ._+- (it names "
-                                    f"files and FITS cards)")
+                raise LunarvizError(f"{where}: name = {v!r} must be 1-40 ASCII letters, digits, spaces or ._+- "
+                                    f"(it names files and FITS cards)")
             kw[k] = v
         elif k in _CURVES:
             kw[k] = _check_curve(where, k, v)

@@ -77,14 +77,18 @@ def shadowing(mu0, mu, psi, theta_bar):
     eta_e = chi * (mu + se * tb * e2e / (2.0 - e1e))
     cpsi, s2 = np.cos(psi), np.sin(0.5 * psi) ** 2
     ile = mu0 >= mu  # i ≤ e
+    # the denominators vanish only at double grazing with ψ = π (where no light goes): there the
+    # slope terms are dropped (0/0 otherwise, with numpy's warnings)
     # i ≤ e
     den_a = 2.0 - e1e - (psi / np.pi) * e1i
-    mu0e_a = chi * (mu0 + si * tb * (cpsi * e2e + s2 * e2i) / den_a)
-    mue_a = chi * (mu + se * tb * (e2e - s2 * e2i) / den_a)
+    da = np.where(den_a > 0, den_a, np.inf)
+    mu0e_a = chi * (mu0 + si * tb * (cpsi * e2e + s2 * e2i) / da)
+    mue_a = chi * (mu + se * tb * (e2e - s2 * e2i) / da)
     # e < i
     den_b = 2.0 - e1i - (psi / np.pi) * e1e
-    mu0e_b = chi * (mu0 + si * tb * (e2i - s2 * e2e) / den_b)
-    mue_b = chi * (mu + se * tb * (cpsi * e2i + s2 * e2e) / den_b)
+    db = np.where(den_b > 0, den_b, np.inf)
+    mu0e_b = chi * (mu0 + si * tb * (e2i - s2 * e2e) / db)
+    mue_b = chi * (mu + se * tb * (cpsi * e2i + s2 * e2e) / db)
     mu0e = np.where(ile, mu0e_a, mu0e_b)
     mue = np.where(ile, mue_a, mue_b)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -109,6 +109,10 @@ _STEP_SECONDS = {"s": 1, "sec": 1, "min": 60, "m": 60, "h": 3600, "hr": 3600, "d
 MAX_TIMES = 100_000
 
 
+#: the longest time step [s]: the ephemeris's span (about 150 years)
+MAX_STEP_S = 150 * 366 * 86400.0
+
+
 def parse_time(text: str) -> datetime:
     """An ISO 8601 UTC time (``2025-03-14T06:58Z``, ``2025-03-14 06:58:00``, ``2025-03-14``) as an
     aware UTC datetime; one-line errors name a malformed or out-of-range time."""
@@ -136,10 +140,13 @@ def format_time(t: datetime) -> str:
 
 
 def parse_step(text: str) -> timedelta:
-    m = _STEP.match(str(text))
-    if not m or float(m.group(1)) <= 0:
-        raise LunarvizError(f"time step {text!r} is not a positive step such as 30s, 10min, 1h or 1d")
-    return timedelta(seconds=float(m.group(1)) * _STEP_SECONDS[m.group(2)])
+    m = _STEP.match(str(text).strip().lower())
+    if not m or not 0 < float(m.group(1)) < float("inf"):
+        raise LunarvizError(f"time step {str(text)[:40]!r} is not a positive step such as 30s, 10min, 1h or 1d")
+    seconds = float(m.group(1)) * _STEP_SECONDS[m.group(2)]
+    if seconds > MAX_STEP_S:
+        raise LunarvizError(f"time step {str(text)[:40]!r} is longer than the ephemeris ({VALID_RANGE})")
+    return timedelta(seconds=seconds)
 
 
 def time_list(times: str | None = None, time_range: str | None = None) -> tuple[str, ...]:

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.caches import file_key, memoize
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import LunarvizError, did_you_mean
 from lunarviz.resources import DATA_DIR, read_table
 
 #: node step of band integrals [nm]: surface spectra (the vegetation's red edge is ~30 nm wide)
@@ -112,13 +112,15 @@ def parse_band(text: str) -> Band:
             raise LunarvizError(f"band {t!r}: need 0 < LO < HI [nm]")
         return Band(t, np.array([lo, hi]), np.array([1.0, 1.0]), f"top-hat {lo:g}-{hi:g} nm")
     packaged = packaged_bands()
+    t = next((n for n in packaged if n.lower() == t.lower()), t)  # (s2a-b4: S2A-B4)
     if t in packaged:
         return _file_band(file_key(packaged[t]), t)
     b = _speclite_band(JOHNSON.get(t, t))
     if b is not None:
         return Band(t, b.wavelength_nm, b.response, b.source)
-    raise LunarvizError(f"unknown band {t!r}: use {', '.join(JOHNSON)}, a packaged band ({', '.join(packaged)}), "
-                        f"a speclite filter name (e.g. sdss2010-r), LO-HI [nm] or a .csv file")
+    raise LunarvizError(f"unknown band {t!r}{did_you_mean(t, [*JOHNSON, *packaged])}: use {', '.join(JOHNSON)}, a "
+                        f"packaged band ({', '.join(packaged)}), a speclite filter name (e.g. sdss2010-r), LO-HI [nm] "
+                        f"or a .csv file")
 
 
 def parse_bands(text) -> tuple[Band, ...]:

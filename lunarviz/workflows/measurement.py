@@ -93,7 +93,10 @@ def band_sigma(scene, key, inst: Instrument) -> float:
         return 0.0
     c = parse_band(inst.band).centre_nm
     step = budget.BAND_STEP_NM
+    # (the analytic method takes the packaged spheres: a traced run's mesh options are dropped)
     model = replace(scene, method="analytic", earth_surface="landocean", clouds="zonal", bands=None,
+                    moon_mesh=None, earth_mesh=None, sun_mesh=None, moon_level=None, earth_level=None,
+                    sun_level=None,
                     wavelengths=f"{c - step:.6f},{c + step:.6f}", earth_spectra="surface",
                     phases_deg=(float(key),) if scene.times is None else scene.phases_deg,
                     times=None if scene.times is None else (str(key),))
@@ -204,6 +207,10 @@ def measure_file(path, use_expected: bool = False, lunar_fit=None) -> dict:
     if not (np.isfinite(exposure) and MIN_EXPOSURE_S <= exposure <= MAX_EXPOSURE_S):
         raise LunarvizError(f"{str(path)!r}: EXPTIME = {exposure!r} is outside [{MIN_EXPOSURE_S:g}, "
                             f"{MAX_EXPOSURE_S:g}] s")
+    counts_t = fr.counts_header.get("EXPTIME") if fr.counts_header is not None else None
+    if counts_t is not None and not np.isclose(float(counts_t), exposure, rtol=1e-9):
+        raise LunarvizError(f"{str(path)!r}: EXPTIME of EXPECTED_COUNTS ({exposure!r}) and of COUNTS ({counts_t!r}) "
+                            f"differ: the file was edited")
     if fr.expected.shape != (inst.height, inst.width):
         raise LunarvizError(f"{str(path)!r}: EXPECTED_COUNTS of shape {fr.expected.shape} is not its instrument's "
                             f"{inst.height}x{inst.width} pixels")
@@ -241,13 +248,20 @@ def read_plan(path) -> dict:
     if not isinstance(d, dict) or not all(isinstance(d.get(k), str) for k in ("instrument_spec", "key")):
         raise LunarvizError(f"plan {str(path)!r} is not a lunarviz plan file (no instrument_spec and key)")
     t = d.get("exposure_s")
-    if not d.get("feasible") or isinstance(t, bool) or not isinstance(t, (int, float)):
+    key = d["key"].strip()
+    try:
+        ok_key = key.endswith("Z") or 0 <= float(key) <= 360
+    except ValueError:
+        ok_key = False
+    if not ok_key or "," in key:
+        raise LunarvizError(f"plan {str(path)!r}: key {d['key']!r} is not one phase θ [deg] or one UTC time")
+    if d.get("feasible") is not True or isinstance(t, bool) or not isinstance(t, (int, float)):
         raise LunarvizError(f"plan {str(path)!r} found no exposure that reaches its SNR unsaturated: plan again with a "
                             "lower --snr, or several frames")
     if not (np.isfinite(t) and MIN_EXPOSURE_S <= t <= MAX_EXPOSURE_S):
         raise LunarvizError(f"plan {str(path)!r}: exposure_s {t!r} is outside [{MIN_EXPOSURE_S:g}, "
                             f"{MAX_EXPOSURE_S:g}] s")
-    return {"instrument_spec": d["instrument_spec"], "exposure_s": float(t), "key": d["key"]}
+    return {"instrument_spec": d["instrument_spec"], "exposure_s": float(t), "key": key}
 
 
 #: what a plan's SNR is of: the earthlit patch's mean charge, or one of its pixels

@@ -98,6 +98,11 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = BY_NAME["shading"
     exact = shape == "sphere" and not meshes
     refs = {th: reference_irradiance(SceneGeometry(th), models, ReferenceSettings(32, 12)) for th in phases} \
         if exact else {}
+    for th, by in refs.items():  # (before any tracing: a path with no light has no relative error)
+        dark = [f"{p} ({b})" for b in brdfs for p in ("moonshine", "earthshine") if not getattr(by[b], f"{p}_W_m2") > 0]
+        if dark:
+            raise LunarvizError(f"phase θ = {th:g} deg: the exact {dark[0]} is 0 there (the Earth or the Moon shows "
+                                f"no lit side): a mesh study needs light on both paths")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         paths = _study_meshes(body, shape, levels, axes, meshes, tmp)
@@ -139,6 +144,9 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = BY_NAME["shading"
         for r in rows:
             ref = next(q["value_W_m2"] for q in rows if q["level"] == finest and q["theta_deg"] == r["theta_deg"]
                        and q["brdf"] == r["brdf"] and q["path"] == r["path"])
+            if not ref > 0:
+                raise LunarvizError(f"phase θ = {r['theta_deg']:g} deg: the finest mesh's {r['path']} is 0 there: a "
+                                    f"mesh study needs light on both paths")
             r["reference_W_m2"] = ref
             r["relative_error"] = r["value_W_m2"] / ref - 1
     summary = []
