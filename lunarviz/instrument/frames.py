@@ -133,7 +133,9 @@ def read_frames(path, use_expected: bool = False) -> Frames:
                             f"it is read)")
     import warnings
     try:
-        with warnings.catch_warnings(), fits.open(p, memmap=False, lazy_load_hdus=True) as hdul:
+        # (our own file object: astropy leaves its own open when a damaged file makes it raise)
+        with warnings.catch_warnings(), open(p, "rb") as fobj, fits.open(fobj, memmap=False, lazy_load_hdus=True) \
+                as hdul:
             warnings.simplefilter("ignore")  # a damaged file's warnings: the one-line error below says it
             names = [h.name for h in hdul]
             if "EXPECTED_COUNTS" not in names:
