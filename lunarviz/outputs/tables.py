@@ -50,7 +50,7 @@ DESCRIPTIONS = {
     "theta_deg": ("theta", "degree", "orbital angle theta: 180 deg minus the Sun-Earth-Moon angle (paper Eq. 3)"),
     "alpha_deg": ("alpha", "degree", "lunar phase angle: Sun-Moon-detector angle"),
     "beta_deg": ("beta", "degree", "Earth's phase angle seen from the Moon: Sun-Earth-Moon angle"),
-    "phase_angle_deg": ("phase_angle", "degree", "Sun-Moon-observer angle"),
+    "phase_angle_deg": ("phase_angle", "degree", "Sun-Moon-observer angle: alpha under the dated rows' name"),
     "observer_moon_distance_m": ("observer_moon_distance", "m", "observer to Moon centre distance"),
     "sun_moon_distance_m": ("sun_moon_distance", "m", "Sun centre to Moon centre distance"),
     "sub_observer_lat_deg": ("sub_observer_lat", "degree", "selenographic lat., sub-observer point (MOON_ME)"),
