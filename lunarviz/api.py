@@ -562,8 +562,9 @@ def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, per: s
     return {**res, "instrument_spec": instrument_spec_text(instrument)}
 
 
-def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_deg: float = 0.75, pixels=256,
-          supersample: int = 4, pointing: str = "moon", psf: str | None = None, halo: str | None = None, out=None,
+def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_deg: float | None = None, pixels=None,
+          supersample: int | None = None, pointing: str | None = None, psf: str | None = None, halo: str | None = None,
+          out=None,
           gif=None, progress: bool = False, instrument=None, exposure: float | None = None, frames: int = 1,
           seed: int | None = None, **scene_options):
     """Synthetic camera images (:mod:`lunarviz.methods.camera`) in radiance [W m-2 sr-1].
@@ -575,8 +576,9 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     key : float or str, optional
         One phase θ [deg] or UTC time (default: the scene's first); ``keys`` for several frames.
     camera : lunarviz.methods.camera.Camera, optional
-        Or ``fov_deg`` [deg], ``pixels`` (N or (W, H)), ``supersample`` (K×K rays per pixel),
-        ``pointing`` ("moon" or "RA,DEC" [deg]).
+        Or ``fov_deg`` [deg, default 0.75], ``pixels`` (N or (W, H), default 256), ``supersample``
+        (K×K rays per pixel, default 4), ``pointing`` ("moon", the default, or "RA,DEC" [deg]); an
+        instrument sets them all itself.
     psf, halo : str, optional
         ``gaussian:FWHM_ARCSEC`` or a .npy kernel; ``FRACTION,INDEX[,CORE_ARCSEC]`` power-law wing
         (:mod:`lunarviz.outputs.images`).
@@ -597,17 +599,21 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     from lunarviz.outputs.images import write_fits, write_npy, write_png
     from lunarviz.workflows.tasks import image as task_image
     sc = _scene(scene, scene_options)
+    given = [k for k, v in (("camera", camera), ("fov_deg", fov_deg), ("pixels", pixels), ("supersample", supersample),
+                            ("pointing", pointing), ("gif", gif)) if v is not None] + \
+        [k for k, v in (("psf", psf), ("halo", halo)) if v not in (None, "none")]
     if instrument is not None:
-        if camera is not None or psf not in (None, "none") or halo not in (None, "none") or gif is not None:
-            raise LunarvizError("an instrument sets the camera and its optics: drop camera, psf, halo and gif")
+        if given:
+            raise LunarvizError(f"an instrument sets the camera and its optics: drop {given[0]}")
         return _instrument_images(sc, _key_list(keys) if keys is not None else [key], instrument, exposure, frames,
                                   seed, out, progress)
     if exposure is not None or frames != 1:
         raise LunarvizError("exposure and frames go with an instrument (instrument=...)")
     if camera is None:
-        w, h = _pixels(pixels)
-        camera = Camera(fov_deg=_number(fov_deg, "fov_deg"), width=w, height=h, supersample=supersample,
-                        pointing=pointing)
+        w, h = _pixels(256 if pixels is None else pixels)
+        camera = Camera(fov_deg=_number(0.75 if fov_deg is None else fov_deg, "fov_deg"), width=w, height=h,
+                        supersample=4 if supersample is None else supersample,
+                        pointing="moon" if pointing is None else pointing)
     settings = sc.settings("raytrace")
     keys = [_check_key(sc, k) for k in _key_list(keys)] if keys is not None else [_check_key(sc, key)]
     req = settings.spectral_request()

@@ -86,6 +86,18 @@ def observation_calibration(settings, key, inst: Instrument, obs):
     return calibration(settings, key, inst, obs.exposure_s, rates=obs.raw_rates if uniform else None)
 
 
+def _model_sweep(scene) -> dict:
+    """A sweep the measurement makes for its own model (p* in a band, its slope): its rows' bounds
+    are not the user's rows', so their warnings are not shown."""
+    import warnings
+
+    from lunarviz.errors import LooseRowsWarning, UnboundedRowsWarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnboundedRowsWarning)
+        warnings.simplefilter("ignore", LooseRowsWarning)
+        return run_sweep(scene, progress=False)
+
+
 def band_sigma(scene, key, inst: Instrument) -> float:
     """Relative σ of p* from the band centre's uncertainty (:mod:`lunarviz.instrument.budget`): the
     model Earth's p*(λ) from analytic sweeps ``BAND_STEP_NM`` either side of the band's centre."""
@@ -100,7 +112,7 @@ def band_sigma(scene, key, inst: Instrument) -> float:
                     wavelengths=f"{c - step:.6f},{c + step:.6f}", earth_spectra="surface",
                     phases_deg=(float(key),) if scene.times is None else scene.phases_deg,
                     times=None if scene.times is None else (str(key),))
-    rows = [r for r in run_sweep(model, progress=False)["rows"] if r["brdf"] == scene.brdfs[0]]
+    rows = [r for r in _model_sweep(model)["rows"] if r["brdf"] == scene.brdfs[0]]
     p = {r["wavelength_nm"]: r["apparent_albedo"] for r in rows}
     return budget.band_slope_sigma(p[min(p)], p[max(p)], inst)
 
@@ -126,11 +138,11 @@ def sweep_p_star(settings, key, inst: Instrument, photon: bool = True) -> float:
     s = replace(s, method="raytrace", phases_deg=(float(key),) if s.times is None else s.phases_deg,
                 times=None if s.times is None else (str(key),))
     if not photon:
-        return float(run_sweep(s, progress=False)["rows"][0]["apparent_albedo"])
+        return float(_model_sweep(s)["rows"][0]["apparent_albedo"])
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "photon_band.csv"  # (a fixed name: the instrument's own is not a path)
         write_band_csv(photon_band(inst), path)
-        return float(run_sweep(replace(s, bands=str(path)), progress=False)["rows"][0]["apparent_albedo"])
+        return float(_model_sweep(replace(s, bands=str(path)))["rows"][0]["apparent_albedo"])
 
 
 def check_count(n: int, what: str, hi: int) -> int:
