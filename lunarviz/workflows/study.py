@@ -269,7 +269,20 @@ def plot_study(res: dict, path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    for path_name, mark in (("moonshine", "o-"), ("earthshine", "s--")):  # what a study is for: error against time
+        s = [r for r in res["summary"] if r["path"] == path_name and r["max_abs_relative_error"] > 0]
+        axes[2].loglog([r["mean_seconds_per_phase"] for r in s], [r["max_abs_relative_error"] for r in s], mark,
+                       label=path_name)
+        for r in s:
+            axes[2].annotate(f"{r['facets']:,}", (r["mean_seconds_per_phase"], r["max_abs_relative_error"]),
+                             fontsize=6, textcoords="offset points", xytext=(4, -8))
+    axes[2].axhline(1e-3, color="k", ls="--", lw=0.8)
+    axes[2].set_xlabel("run time per phase [s] (labels: facets)")
+    axes[2].set_ylabel("max |relative error|")
+    axes[2].set_title("error against run time")
+    axes[2].grid(alpha=0.3, which="both")
+    axes[2].legend(fontsize=7)
     for path_name, ax in zip(("moonshine", "earthshine"), axes):
         s = [r for r in res["summary"] if r["path"] == path_name]
         facets = [r["facets"] for r in s]
@@ -287,6 +300,9 @@ def plot_study(res: dict, path) -> None:
                      f"{res['settings']['shading']} shading")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7)
+    from matplotlib.ticker import NullFormatter
+    for ax in axes:  # (decades only: the minor labels of a short log axis overlap)
+        ax.xaxis.set_minor_formatter(NullFormatter())
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
     plt.close(fig)
