@@ -55,7 +55,7 @@ def test_bad_observers_with_a_date_are_one_line(tmp_path, capsys, value):
 NASTY_JSON = [None, True, 0, -1, 1e308, float("nan"), "", "x", [], {}, [1, 2], {"a": 1}, 10**400, "120,130", "../x"]
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(key=st.sampled_from(sorted(__import__("lunarviz.instrument.spec", fromlist=["Instrument"])
                                   .Instrument.__dataclass_fields__)),
        value=st.one_of(st.sampled_from(NASTY_JSON), st.text(max_size=30), st.floats(), st.integers()))
@@ -75,7 +75,7 @@ def test_any_instrument_value_is_an_instrument_or_one_line(key, value):
         assert inst.width >= 8 and inst.exposure_s > 0
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(field=st.sampled_from(["instrument_spec", "exposure_s", "key", "feasible"]),
        value=st.sampled_from(NASTY_JSON + [1e-300, 1e6, "salex", "2026-01-01T00:00Z"]))
 def test_any_plan_file_is_a_plan_or_one_line(tmp_path_factory, field, value):
@@ -95,7 +95,7 @@ def test_any_plan_file_is_a_plan_or_one_line(tmp_path_factory, field, value):
         assert 1e-6 <= p["exposure_s"] <= 1e5 and p["key"]
 
 
-@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.binary(max_size=4000), head=st.sampled_from([b"", b"SIMPLE  =                    T", b"\x1f\x8b",
                                                            b"PK\x03\x04", b"BZh"]))
 def test_any_bytes_as_frames_are_one_line(tmp_path_factory, capsys, data, head):

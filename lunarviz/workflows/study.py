@@ -98,11 +98,7 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = BY_NAME["shading"
     exact = shape == "sphere" and not meshes
     refs = {th: reference_irradiance(SceneGeometry(th), models, ReferenceSettings(32, 12)) for th in phases} \
         if exact else {}
-    for th, by in refs.items():  # (before any tracing: a path with no light has no relative error)
-        dark = [f"{p} ({b})" for b in brdfs for p in ("moonshine", "earthshine") if not getattr(by[b], f"{p}_W_m2") > 0]
-        if dark:
-            raise LunarvizError(f"phase θ = {th:g} deg: the exact {dark[0]} is 0 there (the Earth or the Moon shows "
-                                f"no lit side): a mesh study needs light on both paths")
+    _refuse_dark_phases(refs, brdfs)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         paths = _study_meshes(body, shape, levels, axes, meshes, tmp)
@@ -140,15 +136,7 @@ def mesh_study(levels, phases, brdfs, out=None, shading: str = BY_NAME["shading"
                                  "relative_error": res.mean[b] / ref - 1 if exact else None, "seconds": dt,
                                  "rays": ms.rays + es.rays, "shading": shading, "refine": refine})
     if not exact:  # error against the finest mesh; order from successive differences
-        finest = max(levels)
-        for r in rows:
-            ref = next(q["value_W_m2"] for q in rows if q["level"] == finest and q["theta_deg"] == r["theta_deg"]
-                       and q["brdf"] == r["brdf"] and q["path"] == r["path"])
-            if not ref > 0:
-                raise LunarvizError(f"phase θ = {r['theta_deg']:g} deg: the finest mesh's {r['path']} is 0 there: a "
-                                    f"mesh study needs light on both paths")
-            r["reference_W_m2"] = ref
-            r["relative_error"] = r["value_W_m2"] / ref - 1
+        _against_finest(rows, max(levels))
     summary = []
     for path in ("moonshine", "earthshine"):
         prev = None
@@ -263,6 +251,28 @@ def mesh(levels=(2, 3, 4, 5), phases=(30.0, 90.0, 150.0), brdfs=("lambert", "shg
     if plot is not None:
         plot_study(res, plot)
     return res
+
+
+def _against_finest(rows: list[dict], finest: int) -> None:
+    """Each row's relative error against the finest mesh's row of its phase, BRDF and path."""
+    for r in rows:
+        ref = next(q["value_W_m2"] for q in rows if q["level"] == finest and q["theta_deg"] == r["theta_deg"]
+                   and q["brdf"] == r["brdf"] and q["path"] == r["path"])
+        if not ref > 0:
+            raise LunarvizError(f"phase θ = {r['theta_deg']:g} deg: the finest mesh's {r['path']} is 0 there: a "
+                                f"mesh study needs light on both paths")
+        r["reference_W_m2"] = ref
+        r["relative_error"] = r["value_W_m2"] / ref - 1
+
+
+def _refuse_dark_phases(refs: dict, brdfs) -> None:
+    """Before any tracing: a phase whose exact moonshine or earthshine is 0 (no lit side to see)
+    has no relative error, and the study refuses it in one line."""
+    for th, by in refs.items():
+        dark = [f"{p} ({b})" for b in brdfs for p in ("moonshine", "earthshine") if not getattr(by[b], f"{p}_W_m2") > 0]
+        if dark:
+            raise LunarvizError(f"phase θ = {th:g} deg: the exact {dark[0]} is 0 there (the Earth or the Moon shows "
+                                f"no lit side): a mesh study needs light on both paths")
 
 
 def plot_study(res: dict, path) -> None:
