@@ -680,6 +680,12 @@ def _write_gif(results: list, path) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
+def _one_line(value) -> str:
+    """``repr(value)`` on one line, at most 60 characters (an array's repr has many)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _angles(values, what: str, lo: float, hi: float) -> tuple:
     try:
         if isinstance(values, str):
@@ -687,13 +693,13 @@ def _angles(values, what: str, lo: float, hi: float) -> tuple:
             values = parse_float_list(values, what, lo, hi)
         arr = np.asarray(values, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise LunarvizError(f"{what} {values!r} must be a number or a list of numbers") from None
+        raise LunarvizError(f"{what} {_one_line(values)} must be a number or a list of numbers") from None
     if arr.ndim > 1 or not np.all(np.isfinite(arr)):
-        raise LunarvizError(f"{what} {values!r} must be a finite number or a flat list of them")
+        raise LunarvizError(f"{what} {_one_line(values)} must be a finite number or a flat list of them")
     out = tuple(float(v) for v in np.atleast_1d(arr))
     bad = [v for v in out if not (lo <= v <= hi)]
     if not out or bad:
-        raise LunarvizError(f"{what} {bad[0] if bad else values!r} must be in {lo:g}…{hi:g}")
+        raise LunarvizError(f"{what} {bad[0] if bad else _one_line(values)} must be in {lo:g}…{hi:g}")
     return out
 
 
