@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import lunarviz.constants as C
-from lunarviz.errors import LunarvizError, unknown_choice
+from lunarviz.errors import LunarvizError, did_you_mean, unknown_choice
 from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.options import BY_NAME, OPTIONS, defaults, numpydoc_parameters
 
@@ -139,7 +139,9 @@ class Scene:
                  **options):
         unknown = set(options) - set(SCENE_DEFAULTS)
         if unknown:
-            raise LunarvizError(f"unknown Scene option {sorted(unknown)[0]!r}; known: {', '.join(SCENE_DEFAULTS)}")
+            name = sorted(unknown)[0]
+            raise LunarvizError(f"unknown Scene option {name!r}{did_you_mean(name, SCENE_DEFAULTS)}; known: "
+                                f"{', '.join(SCENE_DEFAULTS)}")
         from lunarviz.sky.ephemeris import time_list
         if phases is not None and (time is not None or time_range is not None):
             raise LunarvizError("give phases (the θ scene) or time/time_range (the real sky), not both")
