@@ -262,8 +262,8 @@ def _parser_sweep(sub):
     p.add_argument("--dry-run", action="store_true",
                    help="print the tasks, those that will be skipped and an estimate of time and memory (one task "
                    "computed to time it), and write nothing")
-    p.add_argument("--out", default=None, help=".json, .csv or .nc (NetCDF-4 through xarray); required unless "
-                   "--dry-run")
+    p.add_argument("--out", default=None, help=".json, .csv or .nc (NetCDF-4 through xarray), or - for the rows as "
+                   "CSV on standard output; required unless --dry-run")
     p.add_argument("--plot", default=None, metavar="FILE.png",
                    help="also a figure: moonshine, earthshine, their ratio and p* against θ or time")
 
@@ -523,8 +523,9 @@ def cmd_sweep(a):
         raise UsageError("give --phases (the θ scene) or --time/--time-range (the real sky), not both")
     phases = parse_float_list(a.phases or "0:180:5", "phase", 0.0, 360.0)
     if a.out is None and not a.dry_run:
-        raise UsageError("sweep needs --out FILE (.json, .csv or .nc), or --dry-run")
-    out = None if a.dry_run else _check_out(a.out, (".json", ".csv", ".nc"))
+        raise UsageError("sweep needs --out FILE (.json, .csv or .nc; - for CSV on standard output), or --dry-run")
+    to_stdout = a.out == "-"  # (the rows as CSV on standard output, nothing else there)
+    out = None if a.dry_run or to_stdout else _check_out(a.out, (".json", ".csv", ".nc"))
     plot = _check_out(a.plot, (".png", ".pdf", ".svg")) if a.plot is not None and not a.dry_run else None
     scene = _scene(a, phases, times)
     settings = scene.settings(a.method)  # method-specific checks before any work
@@ -536,7 +537,10 @@ def cmd_sweep(a):
         return
     res = api.run(scene, a.method, workers=a.workers, progress=not a.quiet, executor=a.executor,
                   scheduler=a.scheduler)
-    if out.suffix.lower() == ".nc":
+    if to_stdout:
+        from lunarviz.outputs.writers import rows_csv
+        sys.stdout.write(rows_csv(res))
+    elif out.suffix.lower() == ".nc":
         from lunarviz.outputs.tables import write_netcdf
         write_netcdf(out, res)
     else:
@@ -544,7 +548,7 @@ def cmd_sweep(a):
     if plot is not None:
         from lunarviz.outputs.sweep_plot import plot_sweep
         plot_sweep(res, plot)
-    if not a.quiet:
+    if not a.quiet and not to_stdout:
         print("\n".join(row_table(res["rows"])))
         for b, m in res["bond_albedo"].items():
             for meth, v in m.items():

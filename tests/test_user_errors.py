@@ -124,3 +124,11 @@ def test_sweep_plot_is_written_beside_the_table(tmp_path, capsys):
     err = _cli_error(capsys, "sweep", "--method", "analytic", "--phases", "30", "--out", str(tmp_path / "t.json"),
                      "--plot", str(tmp_path / "t.gif"))
     assert "t.gif" in err and not (tmp_path / "t.json").exists()
+
+
+def test_sweep_rows_as_csv_on_standard_output(capsys):
+    import csv
+    import io
+    assert main(["sweep", "--method", "analytic", "--phases", "30,90", "--brdf", "dhg", "--quiet", "--out", "-"]) == 0
+    rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert [float(r["theta_deg"]) for r in rows] == [30.0, 90.0] and float(rows[0]["moonshine_W_m2"]) > 0

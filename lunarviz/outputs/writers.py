@@ -176,20 +176,25 @@ def save_figure(fig, path, dpi: int = 120) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
+def rows_csv(payload: dict) -> str:
+    """``payload``'s rows as CSV text (every field any row has; empty where a row has none)."""
+    rows = [json_safe(r) for r in payload.get("rows", [])]
+    fields: list[str] = []
+    for r in rows:
+        fields += [k for k in r if k not in fields]
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in fields})
+    return buf.getvalue()
+
+
 def write_results(path, payload: dict) -> None:
     """Write ``payload`` (with a ``rows`` list) as JSON, or its rows as CSV, atomically."""
     p = Path(path)
     if p.suffix.lower() == ".json":
         data = json.dumps(json_safe(payload), indent=2, allow_nan=False).encode()
     else:
-        rows = [json_safe(r) for r in payload.get("rows", [])]
-        fields: list[str] = []
-        for r in rows:
-            fields += [k for k in r if k not in fields]
-        buf = io.StringIO()
-        w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in fields})
-        data = buf.getvalue().encode()
+        data = rows_csv(payload).encode()
     write_bytes_atomic(p, data)
