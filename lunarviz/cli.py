@@ -812,6 +812,11 @@ def cmd_measure(a):
         if a.simulate is None:
             print(f"p* = {r['p_star']:.5f} ± {r['p_star_sigma']:.5f} (random) ± {r['p_star_sigma_systematic']:.5f} "
                   f"(systematic); U(k=2) = {r['p_star_U_k2']:.5f}")
+            terms = [(k[len("sigma_"):].replace("_", " "), v) for k, v in r.items()
+                     if k.startswith("sigma_") and isinstance(v, (int, float)) and math.isfinite(v)]
+            if terms:  # the error budget, largest first (σ of p*, in the units of p*, as the rows give them)
+                print("error budget (σ of p*): " + ", ".join(
+                    f"{name} {v:.2e}" for name, v in sorted(terms, key=lambda t: -t[1])))
         else:
             print(f"{r['measurements']} measurements: sweep p* = {r['p_star_sweep']:.5f}, noiseless "
                   f"{r['p_star_noiseless']:.5f}; standardised error mean {r['standardised_error_mean']:+.3f}, "
