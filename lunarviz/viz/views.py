@@ -396,8 +396,8 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         pl.add_text(text, font_size=8, position="upper_left", color="white")
         return pl
     if view == "maps":
-        panels = [("incidence_deg", "i [deg]", "twilight", (0, 90), "incidence i of sunlight"),
-                  ("emission_deg", "e [deg]", "twilight", (0, 90), "emission e toward the detector"),
+        panels = [("incidence_deg", "i [deg]", "cividis", (0, 90), "incidence i of sunlight"),  # (sequential: 0 and 90 differ)
+                  ("emission_deg", "e [deg]", "cividis", (0, 90), "emission e toward the detector"),
                   ("solar_lit_fraction", "sunlit\nfraction", "gray", (0, 1), "sunlit fraction (shadows)"),
                   ("reflectance_factor", "pi*BRDF", "viridis", None, "reflectance factor pi*BRDF for sunlight")]
         for k, (field, title, cmap, clim, long_title) in enumerate(panels):
