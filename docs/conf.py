@@ -26,6 +26,7 @@ source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-n
 nb_execution_mode = "force"
 nb_execution_timeout = 300
 nb_execution_raise_on_error = True
+nb_output_stderr = "remove"  # (a headless VTK's display warnings are not the notebook's output)
 os.environ.setdefault("LUNARVIZ_SMOKE", "1")
 os.environ.setdefault("LUNARVIZ_JUPYTER_BACKEND", "static")
 myst_enable_extensions = ["dollarmath"]
@@ -52,7 +53,7 @@ smartquotes = False
 import sphinx.ext.autosummary as _autosummary  # noqa: E402
 
 _autosummary.WELL_KNOWN_ABBREVIATIONS = (*_autosummary.WELL_KNOWN_ABBREVIATIONS, "Eq.", "Eqs.", "Fig.", "Figs.",
-                                         "cf.", "No.", "approx.")
+                                         "Sec.", "Secs.", "cf.", "No.", "approx.")
 
 
 def _unlink_placeholders(app, doctree) -> None:

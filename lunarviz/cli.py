@@ -565,7 +565,10 @@ def cmd_sweep(a):
 
 def row_table(rows: list[dict], most: int = 12) -> list[str]:
     """The rows as a short table for the terminal (the first and last of many): θ or time, BRDF,
-    band or wavelength, moonshine, earthshine [W m⁻², per nm for a wavelength], p* and its bound."""
+    band or wavelength (where the run has them), moonshine, earthshine [W m⁻², per nm for a
+    wavelength], p* and its bound."""
+    banded = any(r.get("band") or r.get("wavelength_nm") is not None for r in rows)
+
     def cell(r):
         key = r["time_utc"][:16] if r.get("time_utc") else f"{r['theta_deg']:g}"
         label = r.get("band") or (f"{r['wavelength_nm']:g}nm" if r.get("wavelength_nm") is not None else "")
@@ -574,10 +577,11 @@ def row_table(rows: list[dict], most: int = 12) -> list[str]:
         def num(v, f):
             return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, f)
         why = r.get("skip_reason") or ""
-        return (f"{key:>16} {r.get('brdf', ''):7} {label:>8} {num(ms, '.4e'):>11} {num(es, '.4e'):>11} "
+        band = f" {label:>8}" if banded else ""
+        return (f"{key:>16} {r.get('brdf', ''):7}{band} {num(ms, '.4e'):>11} {num(es, '.4e'):>11} "
                 f"{num(p, '.4f'):>7} {num(tol, '.1e'):>8} {why}").rstrip()
-    head = f"{'time' if rows and rows[0].get('time_utc') else 'θ [deg]':>16} {'brdf':7} {'band':>8} " \
-           f"{'moon W/m²':>11} {'earth W/m²':>11} {'p*':>7} {'rtol':>8}"
+    head = f"{'time' if rows and rows[0].get('time_utc') else 'θ [deg]':>16} {'brdf':7}" \
+           + (f" {'band':>8}" if banded else "") + f" {'moon W/m²':>11} {'earth W/m²':>11} {'p*':>7} {'rtol':>8}"
     shown = rows if len(rows) <= most else rows[:most // 2] + [None] + rows[-most // 2:]
     return [head] + [f"{'...':>16} ({len(rows) - most} more rows in the file)" if r is None else cell(r)
                      for r in shown]

@@ -192,7 +192,7 @@ def _plots(out: Path, r: dict) -> None:
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(6, 4))
     for k, style in (("physical", "o-"), ("lambert", "s--")):
-        rows = r["colour"][k]
+        rows = sorted(r["colour"][k], key=lambda x: x["alpha_deg"])  # (drawn along the phase, not the date)
         ax.plot([x["alpha_deg"] for x in rows], [x["delta_b_minus_v"] for x in rows], style, label=f"{k} Earth")
     ob = THEJLL_2014
     ax.axhspan(ob["delta_b_minus_v"] - ob["sigma"], ob["delta_b_minus_v"] + ob["sigma"], color="0.8",

@@ -97,22 +97,28 @@ def plot(rows: dict, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.6), sharey=True)
     for ax, (name, rs) in zip(axes, rows.items()):
         rs = sorted((r for r in rs if "error" not in r), key=lambda r: r["phase_angle_deg"])
-        x = [r["phase_angle_deg"] for r in rs]
+        x = np.array([r["phase_angle_deg"] for r in rs])
+
+        def rel(k):  # σ/p*; zeros and infinities have no place on a log axis: gaps, marked below
+            v = np.array([r[k] / r["p_star"] for r in rs], dtype=float)
+            return np.where(np.isfinite(v) & (v > 0), v, np.nan)
         for k, style in (("p_star_sigma_total", "k-"), ("p_star_sigma", "b-"), ("p_star_sigma_systematic", "r-")):
-            ax.semilogy(x, [min(r[k] / r["p_star"], 10.0) for r in rs], style, lw=2,
-                        label=k.replace("p_star_", ""))
+            ax.semilogy(x, rel(k), style, lw=2, label=k.replace("p_star_", ""))
         for k in TERMS:
-            ax.semilogy(x, [min(max(r[k] / r["p_star"], 1e-7), 10.0) for r in rs], ".--", lw=0.8,
-                        label=k.replace("sigma_", ""))
-        ax.set_xlabel("lunar phase angle [deg]")
+            ax.semilogy(x, rel(k), ".--", lw=0.8, label=k.replace("sigma_", ""))
+        # phases where a term is infinite (the halo's shape unconstrained: too few sky pixels)
+        inf = [r["phase_angle_deg"] for r in rs if not np.isfinite(r["p_star_sigma_total"])]
+        for xi in inf:
+            ax.axvline(xi, color="gray", lw=6, alpha=0.25)
+        ax.set_xlabel("lunar phase angle [deg]" + ("  (grey: a term infinite there)" if inf else ""))
         ax.set_title(f"{name}: σ(p*)/p* at SNR {TARGET_SNR:g} (or ≤ {MAX_FRAMES} frames)", fontsize=9)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("relative standard uncertainty of p*")
-    axes[1].legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
+    fig.legend(*axes[1].get_legend_handles_labels(), fontsize=7, loc="center right")
+    fig.tight_layout(rect=(0, 0, 0.88, 1))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
@@ -150,8 +156,12 @@ def main(argv=None) -> None:
     ap.add_argument("--quick", action="store_true",
                     help="a smoke run: one phase, one date, 128² detectors, no simulation")
     ap.add_argument("--out", default="benchmarks/measurement", help="output folder")
+    ap.add_argument("--plot-only", action="store_true", help="redraw budget.png from the kept budget.json")
     a = ap.parse_args(argv)
     out = Path(a.out)
+    if a.plot_only:
+        plot(json.loads((out / "budget.json").read_text())["rows"], out / "budget.png")
+        return
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     phases = [120.0] if a.quick else [float(p) for p in range(30, 171, 10)]

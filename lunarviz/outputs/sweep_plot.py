@@ -78,8 +78,9 @@ def plot_sweep(res: dict, path) -> None:
         a.grid(alpha=0.3, which="both")
     ax[0].legend(fontsize=7, loc="best")
     what = "per nm " if any(r.get("wavelength_nm") is not None for r in rows) else ""
-    ax[0].set_title(f"{len(rows)} rows, irradiances {what}at the detector; | at the foot: the Moon down, hidden "
-                    "or eclipsed", fontsize=9)
+    dark = any(r.get("skip_reason") or r.get("moon_occulted") for r in rows)
+    ax[0].set_title(f"{len(rows)} rows, irradiances {what}at the detector"
+                    + ("; | at the foot: the Moon down, hidden or eclipsed" if dark else ""), fontsize=9)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
     plt.close(fig)

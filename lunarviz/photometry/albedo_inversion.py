@@ -1,5 +1,7 @@
-"""Earth albedo from the earthshine/moonshine ratio: paper Eqs. 15-17 (Eq. 17 corrected: the
-documentation's paper notes, item 4)::
+"""Earth albedo from the earthshine/moonshine ratio: paper Eqs. 15-17, Eq. 17 corrected (the
+documentation's paper notes, item 4).
+
+The equations::
 
     Eq. 15:  p_E f_E(β) = [p_b f_b(θ) / (p_a f_a(θ0))] · (E_a / E_b) · D_EM² D_SE² / (R_E² D_SM²)
     Eq. 16:  p*(β) = 3 / (2 f_L(β)) · p_E f_E(β)

@@ -284,9 +284,9 @@ def plot_study(res: dict, path) -> None:
         s = [r for r in res["summary"] if r["path"] == path_name and r["max_abs_relative_error"] > 0]
         axes[2].loglog([r["mean_seconds_per_phase"] for r in s], [r["max_abs_relative_error"] for r in s], mark,
                        label=path_name)
-        for r in s:
+        for r in s:  # (the two paths' labels on either side of their points)
             axes[2].annotate(f"{r['facets']:,}", (r["mean_seconds_per_phase"], r["max_abs_relative_error"]),
-                             fontsize=6, textcoords="offset points", xytext=(4, -8))
+                             fontsize=6, textcoords="offset points", xytext=(-34, 4) if mark[0] == "o" else (4, -9))
     axes[2].axhline(1e-3, color="k", ls="--", lw=0.8)
     axes[2].set_xlabel("run time per phase [s] (labels: facets)")
     axes[2].set_ylabel("max |relative error|")
@@ -300,7 +300,7 @@ def plot_study(res: dict, path) -> None:
         ax.loglog(facets, [r["max_abs_relative_error"] for r in s], "o-",
                   label="max |error| over phases, BRDFs")
         for x, r in zip(facets, s):
-            if r["observed_order"] is not None:
+            if r["observed_order"] is not None and r["observed_order"] > 0:  # (a negative one: not yet asymptotic)
                 ax.annotate(f"p={r['observed_order']:.1f}", (x, r["max_abs_relative_error"]), fontsize=7,
                             textcoords="offset points", xytext=(4, 4))
         ax.axhline(1e-3, color="k", ls="--", lw=0.8, label="0.1 % target")
