@@ -294,9 +294,10 @@ def plot_pareto(res: dict, path) -> None:
         for method, (c, m) in style.items():
             rs = [r for r in res["rows"] if r["method"] == method and r["path"] == path_name]
             settings = list(dict.fromkeys(r["setting"] for r in rs))
-            x = [np.mean([r["seconds"] for r in rs if r["setting"] == s]) for s in settings]
+            x = np.array([np.mean([r["seconds"] for r in rs if r["setting"] == s]) for s in settings])
             key = "error_vs_own_limit" if method == "analytic" else "error_vs_reference"
-            y = [max(max(r[key] for r in rs if r["setting"] == s), 1e-12) for s in settings]
+            y = np.array([max(r[key] for r in rs if r["setting"] == s) for s in settings], dtype=float)
+            y = np.where(y > 0, y, np.nan)  # (an exact 0 has no place on a log axis: a gap, not a made-up floor)
             label = {"analytic": "analytic (vs its converged limit)", "deterministic": "ray traced, deterministic",
                      "montecarlo": "ray traced, Monte Carlo (one run)"}[method]
             ax.loglog(x, y, m + "-", color=c, label=label)
