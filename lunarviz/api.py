@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import lunarviz.constants as C
-from lunarviz.errors import LunarvizError, did_you_mean, unknown_choice
+from lunarviz.errors import LunarvizError, any_case, did_you_mean, short_repr, unknown_choice
 from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.options import BY_NAME, OPTIONS, defaults, numpydoc_parameters
 
@@ -63,8 +63,7 @@ def _number(value, name: str) -> float:
             raise TypeError
         return float(value)
     except (TypeError, OverflowError):
-        text = repr(value)
-        raise LunarvizError(f"{name} {text if len(text) <= 40 else text[:37] + '...'} must be a number") from None
+        raise LunarvizError(f"{name} {short_repr(value)} must be a number") from None
 
 
 def _pixels(pixels) -> tuple[int, int]:
@@ -88,9 +87,10 @@ def _key_list(keys) -> list:
 def _brdf_name(brdf) -> str:
     """A lunar BRDF's name in any case (``DHG``: ``dhg``), or the one-line error."""
     from lunarviz.photometry.brdf import BRDF_NAMES
-    if not isinstance(brdf, str) or brdf.strip().lower() not in BRDF_NAMES:
+    name = any_case(brdf.strip(), BRDF_NAMES) if isinstance(brdf, str) else None
+    if name is None:
         raise unknown_choice("BRDF", brdf, BRDF_NAMES)
-    return brdf.strip().lower()
+    return name
 
 
 def _check_key(sc: "Scene", key):
@@ -682,12 +682,6 @@ def _write_gif(results: list, path) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
-def _one_line(value) -> str:
-    """``repr(value)`` on one line, at most 60 characters (an array's repr has many)."""
-    text = " ".join(repr(value).split())
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
 def _angles(values, what: str, lo: float, hi: float) -> tuple:
     try:
         if isinstance(values, str):
@@ -695,13 +689,13 @@ def _angles(values, what: str, lo: float, hi: float) -> tuple:
             values = parse_float_list(values, what, lo, hi)
         arr = np.asarray(values, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise LunarvizError(f"{what} {_one_line(values)} must be a number or a list of numbers") from None
+        raise LunarvizError(f"{what} {short_repr(values, 60)} must be a number or a list of numbers") from None
     if arr.ndim > 1 or not np.all(np.isfinite(arr)):
-        raise LunarvizError(f"{what} {_one_line(values)} must be a finite number or a flat list of them")
+        raise LunarvizError(f"{what} {short_repr(values, 60)} must be a finite number or a flat list of them")
     out = tuple(float(v) for v in np.atleast_1d(arr))
     bad = [v for v in out if not (lo <= v <= hi)]
     if not out or bad:
-        raise LunarvizError(f"{what} {bad[0] if bad else _one_line(values)} must be in {lo:g}…{hi:g}")
+        raise LunarvizError(f"{what} {bad[0] if bad else short_repr(values, 60)} must be in {lo:g}…{hi:g}")
     return out
 
 

@@ -13,7 +13,7 @@ import re
 import sys
 from pathlib import Path
 
-from lunarviz.errors import LunarvizError, close_match, command_line_words, did_you_mean, unknown_choice
+from lunarviz.errors import LunarvizError, any_case, close_match, command_line_words, did_you_mean, unknown_choice
 from lunarviz.options import BODIES, EXECUTORS, MAX_LEVEL, OPTIONS, add_arguments, scene_options
 from lunarviz.parsing import parse_float_list
 
@@ -53,10 +53,8 @@ class _Parser(argparse.ArgumentParser):
     def _get_value(self, action, arg_string):
         """argparse's, with a choice in any case taken as the choice (``--shading SMOOTH``)."""
         value = super()._get_value(action, arg_string)
-        if action.choices is not None and isinstance(value, str) and value not in action.choices:
-            same = [c for c in action.choices if isinstance(c, str) and c.lower() == value.lower()]
-            if len(same) == 1:
-                return same[0]
+        if action.choices is not None and isinstance(value, str):
+            return any_case(value, action.choices) or value
         return value
 
     def parse_args(self, args=None, namespace=None):
@@ -209,6 +207,12 @@ THETA_WORDS = "θ (the paper's orbital angle of the Moon from full Moon; the pha
     "Sun's parallax, up to 0.15°: rows give it as alpha_deg)"
 
 
+def _add_theta(p, many: bool = False, **kw) -> None:
+    """``--phase`` (``--phases`` with ``many``), also spelt ``--theta`` (``--thetas``): the paper's θ."""
+    flags = ("--phases", "--thetas") if many else ("--phase", "--theta")
+    p.add_argument(*flags, dest=flags[0][2:], **kw)
+
+
 #: the most craters ``mesh make craters`` places (each is a pass over the mesh's vertices)
 MAX_CRATERS = 100_000
 
@@ -253,8 +257,8 @@ def _parser_sweep(sub):
     from lunarviz.options import METHODS
     p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases",
                            SCENE_GROUPS + ("analytic", "accuracy", "spectral"))
-    p.add_argument("--phases", "--thetas", dest="phases", default=None,
-                   help=f"{THETA_WORDS} list [deg]: a,b,c or start:stop:step (default 0:180:5)")
+    _add_theta(p, many=True, default=None,
+               help=f"{THETA_WORDS} list [deg]: a,b,c or start:stop:step (default 0:180:5)")
     p.add_argument("--method", default="analytic", help=" | ".join(METHODS) + ": the paper's point-source "
                    "quadrature, Embree ray tracing of the meshes, or the exact extended-source reference")
     _add_executor_options(p)
@@ -289,8 +293,8 @@ def _parser_brdf(sub):
 def _parser_trace(sub):
     p = _add_scene_command(sub, "trace", "ray trace one phase; write the lunar mesh with per-facet arrays",
                            brdfs="dhg")
-    p.add_argument("--phase", "--theta", dest="phase", type=float, default=None,
-                   help=f"{THETA_WORDS} [deg] (or give --time)")
+    _add_theta(p, type=float, default=None,
+               help=f"{THETA_WORDS} [deg] (or give --time)")
     p.add_argument("--out", required=True,
                    help="the Moon with per-facet arrays (.vtp, .vtk, .ply), or every body (.vtm multiblock: "
                         "moon, earth, sun in scene coordinates [m])")
@@ -300,9 +304,9 @@ def _parser_trace(sub):
 def _parser_pictures(sub):
     for name, helptext in (("render", "offscreen picture of a phase"), ("view", "interactive desktop viewer")):
         p = _add_scene_command(sub, name, helptext, brdfs="dhg")
-        p.add_argument("--phase", "--theta", dest="phase", default=None,
-                       help=f"{THETA_WORDS} [deg] (default 90); a list writes numbered frames" if name == "render"
-                       else f"{THETA_WORDS} [deg] to start at (default 90); the viewer's slider moves through θ")
+        _add_theta(p, default=None,
+                   help=f"{THETA_WORDS} [deg] (default 90); a list writes numbered frames" if name == "render"
+                   else f"{THETA_WORDS} [deg] to start at (default 90); the viewer's slider moves through θ")
         p.add_argument("--view", default="composite", help="composite | moon | rays | maps | surfaces")
         p.add_argument("--size", default="1600x900", help="WxH pixels")
         if name == "render":
@@ -319,8 +323,8 @@ def _parser_pictures(sub):
 def _parser_image(sub):
     p = _add_scene_command(sub, "image", "synthetic camera image in radiance units (FITS, NPY or PNG)",
                            SCENE_GROUPS + ("spectral",), brdfs="dhg")
-    p.add_argument("--phase", "--theta", dest="phase", default=None,
-                   help=f"{THETA_WORDS} [deg] (default 90); a list writes numbered frames")
+    _add_theta(p, default=None,
+               help=f"{THETA_WORDS} [deg] (default 90); a list writes numbered frames")
     p.add_argument("--fov-deg", type=float, default=None, help="field of view across the width [deg] (default 0.75)")
     p.add_argument("--pixels", default=None, help="N or WxH (default 256)")
     p.add_argument("--supersample", type=int, default=None, help="K: K×K stratified rays per pixel (default 4)")
@@ -353,7 +357,7 @@ def _parser_measure(sub):
     p.add_argument("--expected", action="store_true", help="measure the file's noise-free EXPECTED_COUNTS")
     p.add_argument("--simulate", type=int, default=None, metavar="N", help="simulate N measurements instead")
     _add_instrument_option(p)
-    p.add_argument("--phase", "--theta", dest="phase", default=None, help=f"with --simulate: {THETA_WORDS} [deg]")
+    _add_theta(p, default=None, help=f"with --simulate: {THETA_WORDS} [deg]")
     p.add_argument("--exposure", type=_seconds, default=None,
                    help="with --simulate: exposure [s], or with a unit: 8ms (the instrument's)")
     p.add_argument("--plan", default=None, metavar="PLAN.json",
@@ -375,7 +379,7 @@ def _parser_plan(sub):
     p.add_argument("--snr", type=float, required=True, help="signal-to-noise ratio in one frame (--snr-of)")
     p.add_argument("--snr-of", default="patch", choices=["patch", "pixel"],
                    help="the SNR of the earthlit patch's mean charge (what measure uses) or of one of its pixels")
-    p.add_argument("--phase", "--theta", dest="phase", default=None, help=f"{THETA_WORDS} [deg] (or --time)")
+    _add_theta(p, default=None, help=f"{THETA_WORDS} [deg] (or --time)")
     p.add_argument("--out", default=None, help=".json: a plan file that image --plan and measure --plan take")
     p.add_argument("--quiet", action="store_true", help="no summary on the terminal")
 
@@ -384,8 +388,8 @@ def _parser_study(sub):
     p = sub.add_parser("study", help="mesh-resolution study")
     p.add_argument("kind", choices=["mesh"], help="what to study: mesh (the resolution of one body's mesh)")
     p.add_argument("--levels", default="2:6:1", help="icosphere levels (integers)")
-    p.add_argument("--phases", "--thetas", dest="phases", default="30,90,150",
-                   help=f"{THETA_WORDS} list [deg]: a,b,c or start:stop:step")
+    _add_theta(p, many=True, default="30,90,150",
+               help=f"{THETA_WORDS} list [deg]: a,b,c or start:stop:step")
     p.add_argument("--body", default="moon", choices=list(BODIES), help="the body whose mesh varies")
     p.add_argument("--shape", default="sphere", choices=["sphere", "ellipsoid", "craters"],
                    help="the shape refined level by level: the exact sphere, an ellipsoid (--axes) or a cratered Moon")
@@ -515,7 +519,7 @@ def cmd_sweep(a):
     import lunarviz.api as api
     from lunarviz.options import METHODS
     from lunarviz.outputs.writers import write_results
-    a.method = a.method.lower() if a.method.lower() in METHODS else a.method
+    a.method = any_case(a.method, METHODS) or a.method
     if a.method not in METHODS:
         raise UsageError(str(unknown_choice("method", a.method, METHODS)))
     times = _times(a)

@@ -72,6 +72,20 @@ class LooseRowsWarning(LunarvizWarning):
     not foresee (a mapped Earth's, which depends on each row's own albedos and light)."""
 
 
+def any_case(value, choices) -> str | None:
+    """The choice ``value`` names, exactly or in another case (``DHG``: ``dhg``), where one does."""
+    if value in choices:
+        return value
+    same = [c for c in choices if isinstance(c, str) and isinstance(value, str) and c.lower() == value.lower()]
+    return same[0] if len(same) == 1 else None
+
+
+def short_repr(value, size: int = 40) -> str:
+    """``repr(value)`` on one line, at most ``size`` characters (an integer of 400 digits, an array)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= size else text[:size - 3] + "..."
+
+
 def close_match(value, choices) -> str | None:
     """The choice a misspelt ``value`` most likely meant (case ignored), or None."""
     names = [str(c) for c in choices]

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
 import lunarviz.constants as C
-from lunarviz.errors import FLAG_KEYWORDS, LunarvizError, close_match, unknown_choice
+from lunarviz.errors import FLAG_KEYWORDS, LunarvizError, any_case, close_match, short_repr, unknown_choice
 
 # ---- allowed values (each declared once, here; the modules that implement them import them) ----
 #: how a sweep computes: the paper's point-source quadrature, Embree ray tracing of the meshes, or the
@@ -152,12 +152,12 @@ class Option:
         if k == "int":
             if isinstance(value, bool) or not isinstance(value, int) and type(value).__module__ != "numpy" \
                     or not _finite(value) or not float(value).is_integer() or not self._in_range(value):
-                raise LunarvizError(f"{self.name}={_short(value)} must be {self._integer_phrase()}")
+                raise LunarvizError(f"{self.name}={short_repr(value)} must be {self._integer_phrase()}")
             return value
         if k == "float":
             if isinstance(value, bool) or not isinstance(value, (int, float)) and type(value).__module__ != "numpy" \
                     or not _finite(value) or not self._in_range(value):
-                raise LunarvizError(f"{self.what} {_short(value)} must be a finite number{self._range_text()}")
+                raise LunarvizError(f"{self.what} {short_repr(value)} must be a finite number{self._range_text()}")
             return value
         if k in ("str", "path"):
             if self.joins and isinstance(value, (list, tuple)) and value \
@@ -230,19 +230,13 @@ def _finite(value) -> bool:
         return False
 
 
-def _short(value) -> str:
-    """``repr(value)``, at most 40 characters."""
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
 def _keyword_or_file(value: str, keywords, what: str) -> str:
     """``value`` as a keyword in any case (``LANDOCEAN``), or as it is where it may be a file; a
     name that is neither (no such file, no ``.``/``/`` in it) gets the keyword it most likely meant."""
     import os
-    same = [k for k in keywords if k.lower() == value.strip().lower()]
-    if same:
-        return same[0]
+    same = any_case(value.strip(), keywords)
+    if same is not None:
+        return same
     base = value.split(":")[0]
     if not os.path.exists(base) and not any(c in base for c in "./\\") and close_match(base, keywords):
         raise unknown_choice(what, value, keywords)
@@ -251,10 +245,10 @@ def _keyword_or_file(value: str, keywords, what: str) -> str:
 
 def _choice_any_case(value: str, choices, what: str) -> str:
     """The choice ``value`` names in another case (``DHG``: ``dhg``), else the one-line error."""
-    same = [c for c in choices if isinstance(c, str) and c.lower() == value.lower()]
-    if len(same) == 1:
-        return same[0]
-    raise unknown_choice(what, value, choices)
+    same = any_case(value, choices)
+    if same is None:
+        raise unknown_choice(what, value, choices)
+    return same
 
 
 def _o(name, kind, default, doc, group, **kw) -> Option:

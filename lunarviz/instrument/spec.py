@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lunarviz.errors import LunarvizError, did_you_mean
+from lunarviz.errors import LunarvizError, any_case, did_you_mean, short_repr
 from lunarviz.resources import DATA_DIR
 from lunarviz.spectral.bands import parse_band
 
@@ -173,7 +173,7 @@ def _check_curve(where: str, key: str, v):
         raise LunarvizError(f"{where}: {key} = {v!r} is not a number or a [[nm, value], ...] table")
     if isinstance(v, (int, float)):
         if not (0 < v <= 1):
-            raise LunarvizError(f"{where}: {key} = {_short(v)} must be in (0, 1]")
+            raise LunarvizError(f"{where}: {key} = {short_repr(v)} must be in (0, 1]")
         return float(v)
     try:
         t = np.asarray(v, dtype=float)
@@ -210,15 +210,9 @@ def _check_number(where: str, key: str, v, positive: bool) -> float:
     except OverflowError:  # (an integer of 400 digits)
         x = np.inf
     if not np.isfinite(x) or x < 0 or (positive and x == 0) or x > hi or x < lo:
-        raise LunarvizError(f"{where}: {key} = {_short(v)} must be a {'positive' if positive else 'non-negative'} "
+        raise LunarvizError(f"{where}: {key} = {short_repr(v)} must be a {'positive' if positive else 'non-negative'} "
                             f"number from {lo:g} to {hi:g}")
     return x
-
-
-def _short(v) -> str:
-    """``repr(v)``, at most 40 characters (an integer of 400 digits is named by its start)."""
-    text = repr(v)
-    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def instrument_from_dict(d: dict, where: str = "instrument") -> Instrument:
@@ -313,7 +307,7 @@ def instrument_spec_text(spec) -> str | None:
     if isinstance(spec, Instrument):
         return None
     text = str(spec).strip()
-    return text.lower() if text.lower() in packaged_instruments() else str(Path(text).resolve())
+    return any_case(text, packaged_instruments()) or str(Path(text).resolve())
 
 
 def load_instrument(spec) -> Instrument:
@@ -322,9 +316,9 @@ def load_instrument(spec) -> Instrument:
         return spec
     text = str(spec).strip()
     presets = packaged_instruments()
-    preset = text.lower() if text.lower() in presets and not text.lower().endswith(".toml") else text
-    path = presets.get(preset, Path(text))
-    if preset not in presets and path.suffix.lower() != ".toml":
+    preset = any_case(text, presets)
+    path = presets[preset] if preset is not None else Path(text)
+    if preset is None and path.suffix.lower() != ".toml":
         raise LunarvizError(f"instrument {text!r}{did_you_mean(text, presets)} is not {', '.join(presets)} or a "
                             ".toml file")
     if not path.is_file():

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.caches import file_key, memoize
-from lunarviz.errors import LunarvizError, did_you_mean
+from lunarviz.errors import LunarvizError, any_case, did_you_mean
 from lunarviz.resources import DATA_DIR, read_table
 
 #: node step of band integrals [nm]: surface spectra (the vegetation's red edge is ~30 nm wide)
@@ -112,7 +112,7 @@ def parse_band(text: str) -> Band:
             raise LunarvizError(f"band {t!r}: need 0 < LO < HI [nm]")
         return Band(t, np.array([lo, hi]), np.array([1.0, 1.0]), f"top-hat {lo:g}-{hi:g} nm")
     packaged = packaged_bands()
-    t = next((n for n in packaged if n.lower() == t.lower()), t)  # (s2a-b4: S2A-B4)
+    t = any_case(t, packaged) or t  # (s2a-b4: S2A-B4)
     if t in packaged:
         return _file_band(file_key(packaged[t]), t)
     b = _speclite_band(JOHNSON.get(t, t))

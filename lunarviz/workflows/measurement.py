@@ -57,10 +57,11 @@ def observation(scene, key, inst: Instrument, exposure_s: float | None = None, t
     (:func:`lunarviz.instrument.observation.observe`)."""
     t = check_exposure(inst, exposure_s)
     scene = instrument_scene(scene, inst)
-    check_patches(scene.geometry(key), inst)  # (a full Moon refused before its image is traced)
+    geometry = scene.geometry(key)
+    check_patches(geometry, inst)  # (a full Moon refused before its image is traced)
     res = tasks.image(scene, key, instrument_camera(inst), instrument_request(inst, scene.solar_spectrum),
                       trace_scene)
-    return observe(res, scene.geometry(key), scene.brdfs[0], inst, t)
+    return observe(res, geometry, scene.brdfs[0], inst, t)
 
 
 def model_earth_scene(scene):
