@@ -194,6 +194,12 @@ class SceneGeometry:
         return {"sun": self.r_sun * self.scale, "earth": self.r_earth * self.scale,
                 "moon": self.r_moon * self.scale}
 
+    @property
+    def sky_north(self) -> np.ndarray:
+        """The sky's north in scene axes, "up" in every picture: the ICRF pole (z) on dates; in the
+        θ scene, which has no sky, the orbit's normal +x (both bodies' north poles there)."""
+        return np.array([0.0, 0.0, 1.0]) if self.general else np.array([1.0, 0.0, 0.0])
+
     def rotation(self, body: str) -> np.ndarray | None:
         """Body-to-scene rotation matrix of ``body``'s mesh, or ``None`` for the identity."""
         r = {"moon": self.moon_rotation, "earth": self.earth_rotation}.get(body)

@@ -116,14 +116,18 @@ def camera_axes(scene, camera: Camera):
     else:
         ra, dec = np.radians(camera.radec())
         f = np.array([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)])
-    z = np.array([0.0, 0.0, 1.0])
+    # the sky's pole (SceneGeometry.sky_north): ICRF z on dates; +x in the θ scene, whose RA/Dec
+    # are then about that pole, RA 0 toward +y (the cyclic frame y, z, x)
+    axes = (0, 1, 2) if scene.general else (1, 2, 0)
+    z = scene.sky_north
     e = np.cross(z, f)
     if np.linalg.norm(e) < 1e-12:  # boresight at a pole: any east will do
-        e = np.cross(np.array([1.0, 0.0, 0.0]), f)
+        e = np.cross(np.eye(3)[axes[0]], f)
     e = unit(e)
     n = np.cross(f, e)
-    ra = float(np.degrees(np.arctan2(f[1], f[0])) % 360.0)
-    dec = float(np.degrees(np.arcsin(np.clip(f[2], -1, 1))))
+    fx, fy, fz = f[list(axes)]
+    ra = float(np.degrees(np.arctan2(fy, fx)) % 360.0)
+    dec = float(np.degrees(np.arcsin(np.clip(fz, -1, 1))))
     return f, e, n, ra, dec
 
 

@@ -121,17 +121,22 @@ def _in_image_plane(v, view):
     return w / n if n > 1e-6 else None
 
 
+def _sky_north(fr: FacetResult) -> np.ndarray:
+    """The sky's north in scene axes (SceneGeometry.sky_north): ICRF z on dates, +x in the θ scene."""
+    return np.array([0.0, 0.0, 1.0]) if "time_utc" in fr.info else np.array([1.0, 0.0, 0.0])
+
+
 def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=None, key=True):
-    """Look at the Moon from the detector (parallel projection). ``up`` defaults to the Sun's
-    direction in the image (the lit limb on top, as the schematic draws the Sun), or lunar north
-    where the Sun is behind the detector or the Moon (full and new Moon). ``key`` draws the
-    orientation key: arrows toward the Sun and to lunar north, and where the view is from."""
+    """Look at the Moon from the detector (parallel projection), oriented like the sky and like
+    ``lunarviz image``: the sky's north up and east to the left (:func:`_sky_north`; lunar north
+    where the sky's lies along the line of sight). ``key`` draws the orientation key: arrows
+    toward the Sun and to lunar north, and where the view is from."""
     moon = np.array(fr.info["moon_centre_m"])
     det = np.array(fr.info["detector_m"])
     R = float(np.max(np.linalg.norm(fr.vertices, axis=1)))
     view = (det - moon) / np.linalg.norm(det - moon)
     if up is None:
-        up = _in_image_plane(_sun_direction(fr), view)
+        up = _in_image_plane(_sky_north(fr), view)
         if up is None:
             up = _in_image_plane(_lunar_north(fr), view)
     up = np.asarray(up, dtype=float)
@@ -154,7 +159,7 @@ def _orientation_key(pl, fr: FacetResult, view, up, R):
     screen_up = np.asarray(up, dtype=float)
     screen_right = -np.cross(view, screen_up)  # the image's right
     base = (-1.05 * screen_right - 1.0 * screen_up) * R + view * 1.2 * R  # in front of the disc
-    for vec, label, color in ((_sun_direction(fr), "Sun", "gold"), (_lunar_north(fr), "N", "white")):
+    for vec, label, color in ((_sun_direction(fr), "Sun", "gold"), (_lunar_north(fr), "lunar N", "white")):
         d = _in_image_plane(vec, view)
         if d is None:  # along the line of sight: say so instead of drawing a dot
             label = f"{label} (along the line of sight)"
@@ -167,7 +172,7 @@ def _orientation_key(pl, fr: FacetResult, view, up, R):
         pl.add_point_labels([start + d * 0.42 * R], [label], font_size=10, text_color=color, shape=None,
                             show_points=False, always_visible=True)
     where = "the detector at the Earth's centre" if "time_utc" not in fr.info else "the observer"
-    pl.add_text(f"seen from {where}", font_size=8, position="lower_left", color="white")
+    pl.add_text(f"seen from {where}; north up, east left", font_size=8, position="lower_left", color="white")
     if not (fr.totals.get("moonshine_W_m2") or fr.totals.get("earthshine_W_m2")):
         why = "hidden from the observer" if fr.info.get("moon_occulted") else "dark: no light reaches the detector"
         pl.add_text(f"the Moon is {why}", font_size=6, position=(0.02, 0.9), viewport=True, color="orange")
@@ -380,8 +385,7 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         seen = poly.cell_data["emission_deg"] < 90
         _moon_panel(pl, poly, "albedo_parameter", "albedo\nor w", "gray", log=False, bar_fmt="%.3f", mask=seen)
         pl.add_text("Moon: albedo parameter per facet", font_size=9, position="upper_left", color="white")
-        # lunar north up: +x in the θ scene (docs: conventions); the sky's north (ICRF z) on dates
-        _camera_from_detector(pl, fr, up=(0.0, 0.0, 1.0) if "time_utc" in fr.info else (1.0, 0.0, 0.0))
+        _camera_from_detector(pl, fr)
         pl.subplot(0, 1)
         pl.set_background("black")
         _earth_panel(pl, fr, "albedo", "albedo", "Blues_r", log=False)
