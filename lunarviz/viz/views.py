@@ -34,6 +34,8 @@ from lunarviz.viz.render_window import choose_render_window
 from lunarviz.viz.view_data import ComputeView, ViewData
 
 VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
+#: the explorer's four panels: the composite's, without its numbers (the explorer prints them beside)
+EXPLORE_VIEW = "explore"
 #: Dynamic range of the logarithmic colour scales (max / floor).
 LOG_RANGE = 1e7
 #: Colour levels of every colour map: 256 levels over the six decades of a log scale drew false
@@ -172,10 +174,10 @@ def _orientation_key(pl, fr: FacetResult, view, up, R):
         pl.add_point_labels([start + d * 0.42 * R], [label], font_size=10, text_color=color, shape=None,
                             show_points=False, always_visible=True)
     where = "the detector at the Earth's centre" if "time_utc" not in fr.info else "the observer"
-    pl.add_text(f"seen from {where}; north up, east left", font_size=8, position="lower_left", color="white")
+    pl.add_text(f"seen from {where}; north up, east left", font_size=10, position="lower_left", color="white")
     if not (fr.totals.get("moonshine_W_m2") or fr.totals.get("earthshine_W_m2")):
         why = "hidden from the observer" if fr.info.get("moon_occulted") else "dark: no light reaches the detector"
-        pl.add_text(f"the Moon is {why}", font_size=6, position=(0.02, 0.9), viewport=True, color="orange")
+        pl.add_text(f"the Moon is {why}", font_size=9, position=(0.02, 0.9), viewport=True, color="orange")
 
 
 def _cells_to_points(mesh, names):
@@ -304,20 +306,24 @@ def _ray_panel(pl, data: ViewData, text: str | None = None):
     pl.add_point_labels([snap(det, "earth")], ["detector"], font_size=9, text_color="white",
                         point_color="red", point_size=8, shape=None)
     legend = "light paths (schematic)\norange: Sun>Moon>detector\nblue: Sun>Earth>Moon>detector"
-    pl.add_text(legend if text is None else text + "\n\n" + legend, font_size=8, position="upper_left",
-                color="white")
+    pl.add_text(legend if text is None else text + "\n\n" + legend, font_size=10 if text is None else 9,
+                position="upper_left", color="white")
     pts = np.array(list(C.values()))
     centre = 0.5 * (pts.min(0) + pts.max(0))
     span = float(np.max(np.linalg.norm(pts - centre, axis=1))) + 0.6
     right = np.cross(up, normal)
-    # the schematic in the right ~55 % of the panel, a little above the bottom controls
-    focal = centre - right * span * 0.7 - up * span * 0.2
+    if text is None:  # the schematic fills the panel, under the legend
+        focal = centre + up * span * 0.1
+        scale = span * 1.0
+    else:  # the schematic in the right ~55 % of the panel (the numbers on the left), above the controls
+        focal = centre - right * span * 0.7 - up * span * 0.2
+        scale = span * 1.3
     pl.camera_position = [tuple(focal + normal * 20 * span), tuple(focal), tuple(up)]
     pl.enable_parallel_projection()
-    pl.camera.parallel_scale = span * 1.3
+    pl.camera.parallel_scale = scale
 
 
-SHAPES = {"composite": (2, 2), "maps": (2, 2), "moon": (1, 1), "rays": (1, 1), "surfaces": (2, 2)}
+SHAPES = {"composite": (2, 2), "maps": (2, 2), "moon": (1, 1), "rays": (1, 1), "surfaces": (2, 2), "explore": (2, 2)}
 
 
 def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bool):
@@ -347,7 +353,7 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
 
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True) -> pv.Plotter:
     """A plotter showing ``view`` of ``data``; call ``show()`` or ``screenshot()``."""
-    if view not in VIEWS:
+    if view not in VIEWS + (EXPLORE_VIEW,):
         raise unknown_choice("view", view, VIEWS)
     choose_render_window()
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
@@ -371,7 +377,7 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         pl.set_background("black")
         _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", _grey_map(), floor=_ashen_floor(poly),
                     sun_dir=sun_dir, dark_field="earthshine_radiance_W_m2_sr")
-        pl.add_text(text, font_size=8, position="upper_left", color="white")
+        pl.add_text(text, font_size=9, position="upper_left", color="white")
         _camera_from_detector(pl, fr)
         return pl
     if view == "rays":
@@ -384,20 +390,20 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
         pl.set_background("black")
         seen = poly.cell_data["emission_deg"] < 90
         _moon_panel(pl, poly, "albedo_parameter", "albedo\nor w", "gray", log=False, bar_fmt="%.3f", mask=seen)
-        pl.add_text("Moon: albedo parameter per facet", font_size=9, position="upper_left", color="white")
+        pl.add_text("Moon: albedo parameter per facet", font_size=11, position="upper_left", color="white")
         _camera_from_detector(pl, fr)
         pl.subplot(0, 1)
         pl.set_background("black")
         _earth_panel(pl, fr, "albedo", "albedo", "Blues_r", log=False)
-        pl.add_text("Earth from the Moon: albedo per facet", font_size=9, position="upper_left", color="white")
+        pl.add_text("Earth from the Moon: albedo per facet", font_size=11, position="upper_left", color="white")
         pl.subplot(1, 0)
         pl.set_background("black")
         _earth_panel(pl, fr, "radiance_toward_moon_W_m2_sr", "radiance\nW m-2 sr-1", "inferno", log=True)
-        pl.add_text("Earth from the Moon: radiance toward the Moon", font_size=9, position="upper_left",
+        pl.add_text("Earth from the Moon: radiance toward the Moon", font_size=11, position="upper_left",
                     color="white")
         pl.subplot(1, 1)
         pl.set_background("black")
-        pl.add_text(text, font_size=8, position="upper_left", color="white")
+        pl.add_text(text, font_size=9, position="upper_left", color="white")
         return pl
     if view == "maps":
         panels = [("incidence_deg", "i [deg]", "cividis", (0, 90), "incidence i of sunlight"),  # (sequential: 0 and 90 differ)
@@ -412,31 +418,32 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
             _moon_panel(pl, poly, field, title, cmap, log=False, clim=clim, bar_fmt="%.3g",
                         mask=seen if field == "emission_deg" else lit,
                         sun_dir=None if field == "emission_deg" else sun_dir)
-            pl.add_text("Moon: " + long_title, font_size=9, position="upper_left", color="white")
+            pl.add_text("Moon: " + long_title, font_size=11, position="upper_left", color="white")
             _camera_from_detector(pl, fr)
         return pl
+    zoom = 0.8 if view == EXPLORE_VIEW else 1.0  # (the explorer's panels are square: room for the colour bar)
     pl.subplot(0, 0)
     pl.set_background("black")
     _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", _grey_map(), floor=_ashen_floor(poly),
                 sun_dir=sun_dir, dark_field="earthshine_radiance_W_m2_sr")
-    pl.add_text("Moon: radiance toward the detector (log)", font_size=9, position="upper_left", color="white")
-    _camera_from_detector(pl, fr)
+    pl.add_text("Moon: radiance toward the detector (log)", font_size=11, position="upper_left", color="white")
+    _camera_from_detector(pl, fr, zoom=zoom)
     pl.subplot(0, 1)
     pl.set_background("black")
     _moon_panel(pl, poly, "earthshine_radiance_W_m2_sr", "earthshine\nW m-2 sr-1", "cividis")
-    pl.add_text("Moon: earthshine only (own log scale)", font_size=9, position="upper_left", color="white")
-    _camera_from_detector(pl, fr)
+    pl.add_text("Moon: earthshine only (own log scale)", font_size=11, position="upper_left", color="white")
+    _camera_from_detector(pl, fr, zoom=zoom)
     pl.subplot(1, 0)
     pl.set_background("black")
-    _ray_panel(pl, data, text)
+    _ray_panel(pl, data, None if view == EXPLORE_VIEW else text)
     pl.subplot(1, 1)
     pl.set_background("black")
     lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
     _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\nsunlight", "viridis", log=False,
                 bar_fmt="%.3f", mask=lit, sun_dir=sun_dir)
-    pl.add_text(f"Moon: BRDF map pi*BRDF ({data.numbers['brdf']}, sunlight)", font_size=9, position="upper_left",
+    pl.add_text(f"Moon: BRDF map pi*BRDF ({data.numbers['brdf']}, sunlight)", font_size=11, position="upper_left",
                 color="white")
-    _camera_from_detector(pl, fr)
+    _camera_from_detector(pl, fr, zoom=zoom)
     return pl
 
 

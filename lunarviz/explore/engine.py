@@ -1,0 +1,265 @@
+"""The explorer's worker: a state's numbers and picture, computed off the window's thread.
+
+A control change calls :meth:`Engine.request`, which returns at once. One worker thread then
+makes, for the newest request only (a newer one supersedes it between steps):
+
+1. a **first** frame: the numbers of the paper's point-source method (``analytic``: milliseconds)
+   and the Moon traced on a mesh two levels coarser, said so on the picture;
+2. the **converged** frame: the ray tracer's row (the same :func:`~lunarviz.workflows.sweeps.run_phase`
+   call as ``lunarviz sweep``, its ``rtol`` bound shown) and the picture on the scene's own mesh.
+
+Frames already made return at once from a bounded cache (:data:`CACHE_FRAMES`). A second thread,
+the **background pass**, computes the rows of every slider value (the curves) and then the
+converged frames of the slider's neighbours, only while no request is in flight, so scrubbing
+over a computed range is instant. Every frame goes to the ``on_frame`` callback (from the worker's
+thread: a window posts it to its own loop).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from lunarviz.caches import BoundedCache
+from lunarviz.errors import LunarvizError
+from lunarviz.explore.state import ExploreState
+from lunarviz.options import DEFAULT_LEVELS
+
+#: frames kept (a frame holds its picture, ~3 MB at 1280×800)
+CACHE_FRAMES = 96
+#: rows kept (one per slider value, BRDF, band and scene)
+CACHE_ROWS = 20_000
+#: how many slider values on each side of the one on show the background pass renders
+NEIGHBOURS = 3
+#: the first frame's Moon mesh: this many levels under the scene's own (at least level 2)
+COARSER_LEVELS = 2
+
+
+@dataclass
+class Frame:
+    """What the explorer shows for one state at one quality.
+
+    ``quality`` is ``"first"`` (point-source numbers, a coarser Moon) or ``"converged"`` (the ray
+    tracer's row and the scene's own mesh); ``row`` the sweep row shown; ``series`` the rows of the
+    slider range computed so far (None where a value is not yet); ``image`` the picture (RGB);
+    ``seconds`` what it took; ``error`` a one-line message where the state cannot be computed."""
+
+    state: ExploreState
+    quality: str
+    row: dict | None = None
+    series: list = field(default_factory=list)
+    image: np.ndarray | None = None
+    seconds: float = 0.0
+    error: str | None = None
+
+
+def pick_row(rows: list[dict], state: ExploreState) -> dict:
+    """The row of ``rows`` (one task's) for the state's BRDF and band."""
+    for r in rows:
+        if r.get("brdf") == state.brdf and (state.band is None or r.get("band") == state.band):
+            return r
+    raise LunarvizError(f"no row for BRDF {state.brdf!r} and band {state.band!r}")
+
+
+class Engine:
+    """Computes frames of states on a worker thread (see the module's text).
+
+    Parameters
+    ----------
+    on_frame : callable
+        ``on_frame(frame)``, called from the worker thread for every frame made.
+    painter : object, optional
+        A :class:`~lunarviz.explore.picture.Painter` (made on the worker's thread when omitted).
+    background : bool
+        Run the background pass over the slider's range.
+    """
+
+    def __init__(self, on_frame=None, painter=None, background: bool = True):
+        self.on_frame = on_frame or (lambda frame: None)
+        self._painters = {} if painter is None else {threading.get_ident(): painter}
+        self._frames = BoundedCache(CACHE_FRAMES)
+        self._rows = BoundedCache(CACHE_ROWS)
+        self._lock = threading.Condition()
+        self._wanted: ExploreState | None = None
+        self._generation = 0
+        self._busy = False
+        self._closed = False
+        self._shown: ExploreState | None = None
+        self._worker = threading.Thread(target=self._work, name="lunarviz-explore", daemon=True)
+        self._worker.start()
+        self._bg = threading.Thread(target=self._background, name="lunarviz-explore-bg", daemon=True) \
+            if background else None
+        if self._bg is not None:
+            self._bg.start()
+
+    # ---- the window's side -------------------------------------------------------------------
+    def request(self, state: ExploreState) -> None:
+        """Ask for ``state``'s frames; returns at once (a newer request supersedes this one)."""
+        with self._lock:
+            self._wanted = state
+            self._generation += 1
+            self._lock.notify_all()
+
+    def wait_idle(self, timeout: float = 600.0) -> bool:
+        """Block until the newest request's converged frame is made (tests, benchmarks, screenshots)."""
+        end = time.monotonic() + timeout
+        with self._lock:
+            while self._wanted is not None or self._busy:
+                left = end - time.monotonic()
+                if left <= 0:
+                    return False
+                self._lock.wait(left)
+        return True
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            self._lock.notify_all()
+
+    # ---- computing (any thread) --------------------------------------------------------------
+    def frame(self, state: ExploreState, quality: str = "converged", full_series: bool = False) -> Frame:
+        """The frame of ``state`` at ``quality``, made on the calling thread (cached). With
+        ``full_series`` every slider value's row is computed first (the picture ``render --state``
+        makes; the window's own converged frame shows the rows computed so far)."""
+        key = (state.cache_key(), quality, full_series)
+        hit = self._frames.get(key)
+        if hit is not None:
+            return hit
+        t0 = time.perf_counter()
+        try:
+            if full_series:
+                for k in state.keys:
+                    self.row(state.with_(key=k), "converged")
+            row = self.row(state, quality)
+            series = [self._rows.get((state.with_(key=k).cache_key(), "converged")) for k in state.keys]
+            image = self.painter().paint(state, quality, row, series,
+                                         self._view(state, quality))
+            out = Frame(state, quality, row, series, image, time.perf_counter() - t0)
+        except LunarvizError as exc:
+            out = Frame(state, quality, error=str(exc), seconds=time.perf_counter() - t0)
+            out.image = self.painter().paint_error(state, str(exc))
+        if out.error is None and (not full_series or all(r is not None for r in out.series)):
+            self._frames[key] = out
+        return out
+
+    def row(self, state: ExploreState, quality: str = "converged") -> dict:
+        """The sweep row of ``state``'s task (``analytic`` for the first frame, else ``raytrace``):
+        what ``lunarviz sweep --state`` computes for it."""
+        key = (state.cache_key(), quality)
+        hit = self._rows.get(key)
+        if hit is not None:
+            return hit
+        row = state_row(state, "analytic" if quality == "first" else "raytrace")
+        self._rows[key] = row
+        return row
+
+    def series_done(self, state: ExploreState) -> int:
+        """How many of the slider's values have their converged row."""
+        return sum((state.with_(key=k).cache_key(), "converged") in self._rows for k in state.keys)
+
+    def painter(self):
+        """This thread's painter (an OpenGL context belongs to the thread that made it)."""
+        me = threading.get_ident()
+        if me not in self._painters:
+            from lunarviz.explore.picture import Painter
+            self._painters[me] = Painter()
+        return self._painters[me]
+
+    def _view(self, state: ExploreState, quality: str):
+        """What the 3-D panels draw: the task traced per facet (grey), on a coarser Moon first."""
+        from lunarviz.workflows.tasks import view_data
+        sc = state.with_(band=None)
+        if quality == "first":
+            level = state.options.get("moon_level") or DEFAULT_LEVELS["moon"]
+            if state.options.get("moon_mesh") is None:
+                sc = sc.with_(moon_level=max(2, int(level) - COARSER_LEVELS))
+        scene = sc.scene()
+        settings = replace(scene.settings("raytrace"), brdfs=(state.brdf,))
+        return view_data(settings, scene.keys[0], state.brdf)
+
+    # ---- threads ------------------------------------------------------------------------------
+    def _take(self):
+        with self._lock:
+            while self._wanted is None and not self._closed:
+                self._lock.wait()
+            if self._closed:
+                return None, None
+            state, gen = self._wanted, self._generation
+            self._wanted = None
+            self._busy = True
+            return state, gen
+
+    def _current(self, gen: int) -> bool:
+        with self._lock:
+            return gen == self._generation
+
+    def _work(self) -> None:
+        while True:
+            state, gen = self._take()
+            if state is None:
+                return
+            try:
+                self._shown = state
+                for quality in ("first", "converged"):
+                    if quality == "first" and (state.cache_key(), "converged", False) in self._frames:
+                        continue  # seen before: its converged frame at once
+                    if not self._current(gen):
+                        break
+                    self.on_frame(self.frame(state, quality))
+            finally:
+                with self._lock:
+                    self._busy = False
+                    self._lock.notify_all()
+
+    def _idle(self) -> bool:
+        with self._lock:
+            return self._wanted is None and not self._busy
+
+    def _background(self) -> None:
+        """Rows of every slider value of the state on show, then its neighbours' frames, while idle;
+        the state on show is repainted as its curves fill in."""
+        done: set = set()
+        while True:
+            with self._lock:
+                if self._closed:
+                    return
+            state = self._shown
+            todo = None if state is None else self._next_task(state, done)
+            if todo is None or not self._idle():
+                time.sleep(0.05)
+                continue
+            kind, s = todo
+            try:
+                if kind == "row":
+                    self.row(s, "converged")
+                    if self.series_done(state) == len(state.keys) and self._idle() and state is self._shown:
+                        self.request(state)  # its curves complete: paint it again
+                else:
+                    self.frame(s, "converged")
+            except LunarvizError:
+                pass
+            done.add((kind, s.cache_key()))
+
+    def _next_task(self, state: ExploreState, done: set):
+        keys = state.keys
+        order = sorted(range(len(keys)), key=lambda i: abs(i - state.index))
+        for i in order:
+            s = state.with_(key=keys[i])
+            if (s.cache_key(), "converged") not in self._rows and ("row", s.cache_key()) not in done:
+                return "row", s
+        for i in order[1:2 * NEIGHBOURS + 1]:
+            s = state.with_(key=keys[i])
+            if (s.cache_key(), "converged", False) not in self._frames and ("frame", s.cache_key()) not in done:
+                return "frame", s
+        return None
+
+
+def state_row(state: ExploreState, method: str = "raytrace") -> dict:
+    """The sweep row of ``state``'s task by ``method``: :func:`~lunarviz.workflows.sweeps.run_phase` on
+    the state's one-task scene, as ``lunarviz sweep --state`` runs it."""
+    from lunarviz.workflows.sweeps import run_phase
+    scene = state.scene()
+    return pick_row(run_phase(scene.settings(method), scene.keys[0]), state)

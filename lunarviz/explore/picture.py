@@ -1,0 +1,198 @@
+"""The explorer's picture of a state: four 3-D panels on the left (the Moon seen from the observer,
+its earthshine alone, the light paths, the BRDF map; :data:`~lunarviz.viz.views.EXPLORE_VIEW`), and
+on the right the curves of the slider's range with the state marked and the numbers with their
+units and error bound.
+
+One :class:`Painter` per thread: it keeps its offscreen plotter and its figure between pictures
+(a new render window costs more than a picture). The same painter code makes the window's
+pictures and ``lunarviz render --state``'s, so the two agree pixel for pixel.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+import numpy as np
+
+#: the 3-D panels' share of the picture's width
+SPLIT = 0.62
+#: the figure's resolution [dots per inch]: 10-point text is ~14 pixels high
+DPI = 100
+
+
+def _x(state, keys) -> tuple[np.ndarray, str]:
+    """Abscissae of the slider's values: θ [deg], or days since its first date."""
+    if state.times is None:
+        return np.asarray(keys, dtype=float), "θ [deg] (0: full Moon, 180: new Moon)"
+    t = [datetime.fromisoformat(str(k).replace("Z", "+00:00")) for k in keys]
+    return np.array([(u - t[0]).total_seconds() / 86400 for u in t]), f"days since {keys[0]}"
+
+
+def _values(series, name: str) -> np.ndarray:
+    """A column of the series' rows; NaN where a row is not computed yet, null, or zero (gaps on log axes)."""
+    out = np.full(len(series), np.nan)
+    for i, r in enumerate(series):
+        v = None if r is None else r.get(name)
+        if v is not None and np.isfinite(v) and v > 0:
+            out[i] = v
+    return out
+
+
+def numbers_lines(state, quality: str, row: dict) -> list[str]:
+    """The numbers panel: the state, the irradiances with units, their ratio, p*, the bound."""
+    def f(v, fmt):
+        return "n/a" if v is None or not np.isfinite(v) else format(v, fmt)
+    if quality == "first":
+        head = "FIRST PICTURE, converging...\n(the paper's point sources; a coarser Moon)"
+    else:
+        b = row.get("rtol")
+        why = row.get("no_bound_reason") or row.get("skip_reason") or ""
+        bound = f"relative error bound {b:.1e}" if b is not None and np.isfinite(b) and b > 0 else \
+            ("exact zeros" if b == 0 else f"no error bound: {why or 'no model for this row'}")
+        head = f"converged: ray traced ({row.get('estimator', 'deterministic')})\n{bound}"
+    where = f"θ = {f(row.get('theta_deg'), '.1f')}°" if state.times is None else \
+        f"{row.get('time_utc', state.key)}   observer {state.options.get('observer', 'geocentre')}"
+    unit = "W m⁻²"
+    lines = [head, where,
+             f"phase angle α = {f(row.get('alpha_deg'), '.2f')}°   β = {f(row.get('beta_deg'), '.2f')}°",
+             f"BRDF {state.brdf}   Moon {state.options.get('moon_model', 'paper')}   "
+             f"{'band ' + state.band if state.band else 'grey'}",
+             f"Earth {state.options.get('earth_brdf', 'lambert')}, {state.options.get('earth_surface', 'uniform')}, "
+             f"clouds {state.options.get('clouds', 'none')}",
+             f"moonshine  E = {f(row.get('moonshine_W_m2'), '.5e')} {unit}",
+             f"earthshine E = {f(row.get('earthshine_W_m2'), '.5e')} {unit}",
+             f"earthshine / moonshine = {f(row.get('ratio_earthshine_moonshine'), '.5e')}",
+             f"apparent albedo p* = {f(row.get('apparent_albedo'), '.4f')}"]
+    if row.get("skip_reason"):
+        lines.append(f"nothing computed: {row['skip_reason']}")
+    elif row.get("rays"):
+        lines.append(f"rays traced: {row['rays']:,}")
+    return lines
+
+
+def draw_curves(fig, state, series: list) -> dict:
+    """The right-hand panels on ``fig``: irradiances and (ratio, p*) against θ or time, and the
+    artists that mark a state and print its numbers (animated: :func:`mark` draws them over the
+    curves' saved pixels, so a new state costs no redraw of the axes)."""
+    keys = state.keys
+    x, xlabel = _x(state, keys)
+    gs = fig.add_gridspec(3, 1, height_ratios=(1.0, 1.0, 1.05), hspace=0.4, left=0.2, right=0.84, top=0.90,
+                          bottom=0.02)
+    ax1, ax2 = fig.add_subplot(gs[0]), fig.add_subplot(gs[1])
+    done = sum(r is not None for r in series)
+    for name, label, colour in (("moonshine_W_m2", "moonshine", "C1"), ("earthshine_W_m2", "earthshine", "C0")):
+        ax1.semilogy(x, _values(series, name), ".-", ms=3, lw=1, color=colour, label=label)
+    ax1.set_ylabel("irradiance at the\ndetector [W m⁻²]")
+    ax1.legend(fontsize=9, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2, frameon=False)
+    fig.text(0.5, 0.985, f"ray-traced rows of the slider's {len(keys)} values ({done} computed)", fontsize=10,
+             ha="center", va="top")
+    ax2.semilogy(x, _values(series, "ratio_earthshine_moonshine"), ".-", ms=3, lw=1, color="C2")
+    ax2.set_ylabel("earthshine / moonshine", color="C2")
+    ax3 = ax2.twinx()
+    ax3.plot(x, _values(series, "apparent_albedo"), ".-", ms=3, lw=1, color="C3")
+    ax3.set_ylabel("apparent albedo p*", color="C3")
+    ax2.set_xlabel(xlabel)
+    for a in (ax1, ax2):
+        a.grid(alpha=0.3, which="both")
+        if len(x) > 1:
+            a.set_xlim(x.min() - 0.01 * np.ptp(x), x.max() + 0.01 * np.ptp(x))
+    return {"x": x,
+            "lines": [a.axvline(x[0], color="0.3", lw=0.9, ls=":", animated=True) for a in (ax1, ax2)],
+            "points": [ax1.plot([], [], "o", ms=8, mfc="none", mec="k", animated=True)[0] for _ in range(2)],
+            "text": fig.text(0.03, 0.27, "", fontsize=9.5, family="monospace", va="top", ha="left", animated=True)}
+
+
+def mark(fig, artists: dict, state, quality: str, row: dict) -> None:
+    """Draw the state's marker and numbers over the curves (after their pixels are restored)."""
+    here = artists["x"][state.index]
+    for line in artists["lines"]:
+        line.set_xdata([here, here])
+        fig.draw_artist(line)
+    for point, name in zip(artists["points"], ("moonshine_W_m2", "earthshine_W_m2")):
+        v = row.get(name)
+        point.set_data(([here], [v]) if v is not None and np.isfinite(v) and v > 0 else ([], []))
+        fig.draw_artist(point)
+    text = artists["text"]
+    text.set_text("\n".join(numbers_lines(state, quality, row)))
+    text.set_color("darkred" if quality == "first" else "black")
+    fig.draw_artist(text)
+
+
+class Painter:
+    """Makes pictures of states; keeps one offscreen plotter and one figure (use from one thread)."""
+
+    def __init__(self):
+        self._plotter = None
+        self._size = None
+        self._curves_sig = None
+        self._curves_fig = None
+
+    def _plot3d(self, view, size) -> np.ndarray:
+        from lunarviz.viz import views
+        if self._plotter is None or self._size != size:
+            if self._plotter is not None:
+                self._plotter.close()
+            self._plotter = views.build_plotter(view, views.EXPLORE_VIEW, size, off_screen=True)
+            self._size = size
+        else:
+            pl = self._plotter
+            pl.suppress_rendering = True  # (else every actor added renders the window: ~30 ms each)
+            try:
+                for title in list(pl.scalar_bars.keys()):
+                    pl.remove_scalar_bar(title, render=False)
+                for r in pl.renderers:
+                    r.clear_actors()
+                views.populate(pl, view, views.EXPLORE_VIEW)
+            finally:
+                pl.suppress_rendering = False
+        self._plotter.render()
+        return np.asarray(self._plotter.screenshot(return_img=True))[..., :3]
+
+    @staticmethod
+    def _figure(size):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+        fig = Figure(figsize=(size[0] / DPI, size[1] / DPI), dpi=DPI)
+        FigureCanvasAgg(fig)
+        return fig
+
+    @staticmethod
+    def _pixels(fig) -> np.ndarray:
+        fig.canvas.draw()
+        return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+
+    def _curves(self, state, series: list, size):
+        """The figure of the curves, drawn once per slider range and set of rows (its pixels kept)."""
+        sig = (state.with_(key=state.keys[0]).cache_key(), size,
+               tuple(None if r is None else (r.get("moonshine_W_m2"), r.get("earthshine_W_m2"),
+                                             r.get("apparent_albedo")) for r in series))
+        if self._curves_sig != sig:
+            fig = self._figure(size)
+            artists = draw_curves(fig, state, series)
+            fig.canvas.draw()
+            self._curves_fig = (fig, artists, fig.canvas.copy_from_bbox(fig.bbox))
+            self._curves_sig = sig
+        return self._curves_fig
+
+    def paint(self, state, quality: str, row: dict, series: list, view) -> np.ndarray:
+        """The picture (RGB, height × width × 3, uint8) of ``state``."""
+        W, H = state.size
+        w3 = int(W * SPLIT) // 2 * 2
+        left = self._plot3d(view, (w3, H))
+        fig, artists, background = self._curves(state, series, (W - w3, H))
+        fig.canvas.restore_region(background)
+        mark(fig, artists, state, quality, row)
+        right = np.asarray(fig.canvas.buffer_rgba())[..., :3]
+        return np.concatenate([left, right[:H, :W - w3]], axis=1)
+
+    def paint_error(self, state, message: str) -> np.ndarray:
+        """A picture that says why ``state`` cannot be shown."""
+        fig = self._figure(state.size)
+        fig.text(0.05, 0.5, "cannot show this state:\n" + message, fontsize=12, va="center", wrap=True,
+                 color="darkred")
+        return self._pixels(fig)
+
+    def close(self) -> None:
+        if self._plotter is not None:
+            self._plotter.close()
+            self._plotter = None

@@ -1,0 +1,228 @@
+"""What the explorer shows: the scene (every option the ``Scene`` takes), the slider's range (θ or
+dates), the task on show, its BRDF and band, and the picture's size; saved as JSON.
+
+A state file is what ``lunarviz explore`` saves and what ``lunarviz render --state`` and
+``lunarviz sweep --state`` read: the same state gives the same picture and the same numbers,
+because all three build the same :class:`lunarviz.Scene` from it (:meth:`ExploreState.scene`)
+and compute its task with the same functions.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from lunarviz.api import SCENE_DEFAULTS, Scene
+from lunarviz.errors import LunarvizError, short_repr, unknown_choice
+from lunarviz.options import BRDF_NAMES
+
+#: the state file's format: ``{"lunarviz": FORMAT, "version": VERSION, ...}``
+FORMAT = "explore-state"
+VERSION = 1
+#: the default slider range of the θ scene [deg] (the sweep's default)
+DEFAULT_PHASES = tuple(float(t) for t in range(0, 181, 5))
+#: the picture's default size [pixels]: readable at 1280 px wide
+DEFAULT_SIZE = (1280, 800)
+#: options the state holds apart (the BRDF and band on show; the slider's range)
+OWN = ("brdfs", "bands", "wavelengths")
+#: a small list of observatories by name (geodetic latitude, east longitude [deg], height [m]) and a
+#: low orbit: the explorer's observer menu (any --observer text works too)
+OBSERVERS = {
+    "geocentre": "geocentre",
+    "Big Bear Solar Observatory": "site:34.2583,-116.9214,2067m",  # BBSO, Goode et al. (2001)
+    "Mauna Loa Observatory": "site:19.5362,-155.5763,3397m",  # NOAA MLO
+    "Observatorio del Teide": "site:28.3004,-16.5122,2390m",  # IAC
+    "Paranal": "site:-24.6272,-70.4042,2635m",  # ESO VLT
+    "550 km polar orbit": "orbit:550,97.6,0,0",
+}
+#: the most keys a slider may hold (each is a task the background pass may compute)
+MAX_KEYS = 2000
+
+
+@dataclass(frozen=True)
+class ExploreState:
+    """One state of the explorer (immutable: a control change makes a new one with :meth:`with_`).
+
+    Parameters
+    ----------
+    options : dict
+        ``Scene`` keywords other than the defaults (not ``brdfs``, ``bands``, ``wavelengths``: the
+        state's own ``brdf`` and ``band``).
+    phases : tuple of float or None
+        The θ slider's values [deg] (the θ scene), or None on dates.
+    times : tuple of str or None
+        The time slider's UTC labels (a dated scene), or None.
+    key : float or str
+        The task on show: θ [deg] (one of ``phases``) or a UTC label (one of ``times``).
+    brdf : str
+        The lunar BRDF on show.
+    band : str or None
+        A band (``V``, ``S2A-B4``, ``500-600``...): the numbers and curves band-integrated; None: grey.
+    size : (int, int)
+        The picture's width and height [pixels].
+    """
+
+    options: dict = field(default_factory=dict)
+    phases: tuple | None = DEFAULT_PHASES
+    times: tuple | None = None
+    key: float | str = 90.0
+    brdf: str = "dhg"
+    band: str | None = None
+    size: tuple = DEFAULT_SIZE
+
+    def __post_init__(self):
+        extra = sorted(set(self.options) - set(SCENE_DEFAULTS))
+        if extra:
+            raise unknown_choice("scene option", extra[0], SCENE_DEFAULTS)
+        own = sorted(set(self.options) & set(OWN))
+        if own:
+            raise LunarvizError(f"state option {own[0]!r}: the state's brdf and band say what is shown")
+        if self.brdf not in BRDF_NAMES:
+            raise unknown_choice("BRDF", self.brdf, BRDF_NAMES)
+        keys = self.keys
+        if not keys or len(keys) > MAX_KEYS:
+            raise LunarvizError(f"the slider holds {len(keys)} values: give 1 to {MAX_KEYS}")
+        if self.key not in keys:
+            raise LunarvizError(f"key {short_repr(self.key)} is not among the slider's {short_repr(keys)}")
+        w, h = self.size
+        if not (320 <= w <= 4096 and 240 <= h <= 4096):
+            raise LunarvizError(f"size {short_repr(self.size)}: width 320-4096 and height 240-4096 pixels")
+
+    @property
+    def keys(self) -> tuple:
+        """The slider's values: θ [deg] or UTC labels."""
+        return tuple(self.times) if self.times is not None else tuple(self.phases or ())
+
+    @property
+    def index(self) -> int:
+        """The position of :attr:`key` on the slider."""
+        return self.keys.index(self.key)
+
+    def with_(self, **changes) -> "ExploreState":
+        """A new state with ``changes``: fields of the state, or scene options (``moon_model=...``;
+        ``None`` restores an option's default). A new slider range moves the key to its nearest value."""
+        opts = dict(self.options)
+        for name in [n for n in changes if n in SCENE_DEFAULTS]:
+            value = changes.pop(name)
+            if value is None or value == SCENE_DEFAULTS[name]:
+                opts.pop(name, None)
+            else:
+                opts[name] = value
+        new = {"options": opts, **changes}
+        if ("phases" in changes or "times" in changes) and "key" not in changes:
+            keys = tuple(changes.get("times") or ()) or tuple(changes.get("phases") or ())
+            new["key"] = keys[min(self.index, len(keys) - 1)] if keys else self.key
+        if "times" in changes and changes["times"] is not None:
+            new.setdefault("phases", None)
+        if "phases" in changes and changes["phases"] is not None:
+            new.setdefault("times", None)
+        return replace(self, **new)
+
+    def scene(self) -> Scene:
+        """The :class:`lunarviz.Scene` of the task on show (its one key), with the state's BRDF
+        and band: what the numbers, the picture and ``sweep --state`` compute."""
+        kw = {**self.options, "brdfs": (self.brdf,), "bands": (self.band,) if self.band else None}
+        if self.times is not None:
+            return Scene(time=str(self.key), **kw)
+        return Scene(phases=[float(self.key)], **kw)
+
+    def range_scene(self) -> Scene:
+        """The :class:`lunarviz.Scene` of the whole slider range (the curves' rows)."""
+        kw = {**self.options, "brdfs": (self.brdf,), "bands": (self.band,) if self.band else None}
+        if self.times is not None:
+            return Scene(time=list(self.times), **kw)
+        return Scene(phases=list(self.phases), **kw)
+
+    def cache_key(self) -> str:
+        """A text that two states share exactly when they show the same thing."""
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    def to_dict(self) -> dict:
+        return {"lunarviz": FORMAT, "version": VERSION, "options": _plain(self.options),
+                "phases": None if self.phases is None else list(self.phases),
+                "times": None if self.times is None else list(self.times),
+                "key": self.key, "brdf": self.brdf, "band": self.band, "size": list(self.size)}
+
+    def save(self, path) -> Path:
+        """Write the state as JSON (atomically)."""
+        from lunarviz.outputs.writers import check_output_path, write_bytes_atomic
+        path = check_output_path(path, (".json",))
+        write_bytes_atomic(path, (json.dumps(self.to_dict(), indent=1, sort_keys=True) + "\n").encode())
+        return path
+
+    @classmethod
+    def from_dict(cls, d) -> "ExploreState":
+        if not isinstance(d, dict) or d.get("lunarviz") != FORMAT:
+            raise LunarvizError(f"not an explorer state (no \"lunarviz\": \"{FORMAT}\" entry)")
+        if d.get("version") != VERSION:
+            raise LunarvizError(f"explorer state version {short_repr(d.get('version'))}: this lunarviz reads {VERSION}")
+        extra = sorted(set(d) - {"lunarviz", "version", "options", "phases", "times", "key", "brdf", "band", "size"})
+        if extra:
+            raise LunarvizError(f"explorer state: unknown entry {extra[0]!r}")
+        options = d.get("options") or {}
+        if not isinstance(options, dict):
+            raise LunarvizError(f"explorer state: options must be an object, got {short_repr(options)}")
+        phases, times = d.get("phases"), d.get("times")
+        try:
+            phases = None if phases is None else tuple(float(p) for p in phases)
+            times = None if times is None else tuple(str(t) for t in times)
+            key = str(d["key"]) if times is not None else float(d["key"])
+            size = tuple(int(v) for v in d.get("size", DEFAULT_SIZE))
+        except (KeyError, TypeError, ValueError):
+            raise LunarvizError("explorer state: phases, times, key or size malformed") from None
+        if phases is not None and not all(math.isfinite(p) for p in phases):
+            raise LunarvizError("explorer state: phases must be finite numbers")
+        if len(size) != 2:
+            raise LunarvizError(f"explorer state: size {short_repr(size)} is not [width, height]")
+        state = cls(options=options, phases=None if times is not None else phases, times=times, key=key,
+                    brdf=str(d.get("brdf", "dhg")), band=d.get("band"), size=size)
+        state.scene()  # every option checked now, by the Scene itself
+        return state
+
+    @classmethod
+    def load(cls, path) -> "ExploreState":
+        """Read a state file; a one-line error for anything that is not one."""
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise LunarvizError(f"cannot read state file {str(path)!r}: {exc.__class__.__name__}") from None
+        if len(text) > 10_000_000:
+            raise LunarvizError(f"state file {str(path)!r} is over 10 MB: not an explorer state")
+        try:
+            d = json.loads(text)
+        except (ValueError, RecursionError):
+            raise LunarvizError(f"state file {str(path)!r} is not JSON") from None
+        try:
+            return cls.from_dict(d)
+        except LunarvizError as exc:
+            raise LunarvizError(f"state file {str(path)!r}: {exc}") from None
+
+
+def _plain(v):
+    """JSON types: tuples as lists, recursively."""
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
+
+
+def state_from_scene(sc: Scene, key=None, brdf: str = "dhg", band: str | None = None,
+                     size=DEFAULT_SIZE) -> ExploreState:
+    """The state of a :class:`lunarviz.Scene` (the command line's options): its non-default options,
+    its θ or dates as the slider, ``key`` (default the first) on show."""
+    opts = {k: v for k, v in sc.options.items() if k not in OWN and v != SCENE_DEFAULTS[k]}
+    keys = sc.keys
+    if key is None:
+        key = keys[0]
+    if sc.times is not None:
+        return ExploreState(options=_plain(opts), phases=None, times=tuple(keys), key=str(key), brdf=brdf, band=band,
+                            size=tuple(size))
+    phases = tuple(float(k) for k in keys)
+    if len(phases) == 1:  # one θ given: the slider still spans the sweep's default range, through it
+        phases = tuple(sorted(set(DEFAULT_PHASES) | set(phases)))
+    return ExploreState(options=_plain(opts), phases=phases, times=None, key=float(key), brdf=brdf, band=band,
+                        size=tuple(size))
