@@ -270,6 +270,30 @@ def _parser_sweep(sub):
                    "CSV on standard output; required unless --dry-run")
     p.add_argument("--plot", default=None, metavar="FILE.png",
                    help="also a figure: moonshine, earthshine, their ratio and p* against θ or time")
+    p.add_argument("--state", default=None, metavar="FILE.json",
+                   help="the row of a saved explorer state (lunarviz explore's Save), ray traced, instead of the "
+                   "scene options")
+
+
+def _parser_explore(sub):
+    p = _add_scene_command(sub, "explore", "explore a scene: controls, the Moon, its light paths, curves and numbers "
+                           "(a desktop window, or --web in a browser)", brdfs="dhg")
+    _add_theta(p, many=True, default=None, help=f"{THETA_WORDS} [deg]: the slider's values (default 0:180:5)")
+    p.add_argument("--band", dest="explore_band", default=None, help="a band shown first (B, V, R, S2A-B4, ...)")
+    p.add_argument("--state", default=None, metavar="FILE.json", help="start from a saved state")
+    p.add_argument("--web", action="store_true", help="serve the explorer to a browser through trame (no display needed)")
+    p.add_argument("--port", type=int, default=None, help="with --web: TCP port (default: a free one)")
+    p.add_argument("--host", default=None, help="with --web: interface to bind (default 127.0.0.1)")
+    p.add_argument("--screenshot", default=None, metavar="FILE.png",
+                   help="no window: write the converged picture of the state and exit")
+    p.add_argument("--save-state", default=None, metavar="FILE.json", help="also write the state shown first")
+    p.add_argument("--size", default="1280x800", help="WxH pixels of the picture")
+
+
+def _parser_plot(sub):
+    p = sub.add_parser("plot", help="figures of any sweep, study, measurement or bench output")
+    p.add_argument("file", help="a .json (sweep, study, measure, bench, fit) or a sweep's .csv or .nc")
+    p.add_argument("--out", required=True, help=".png, .pdf or .svg")
 
 
 def _parser_brdf(sub):
@@ -312,6 +336,9 @@ def _parser_pictures(sub):
         if name == "render":
             p.add_argument("--out", required=True, help="PNG path; with several phases, frames FILE_000.png …")
             p.add_argument("--gif", default=None, help="also write an animated GIF of the frames")
+            p.add_argument("--state", default=None, metavar="FILE.json",
+                           help="the explorer's picture of a saved state (lunarviz explore's Save), instead of the "
+                           "scene options")
         else:
             p.add_argument("--web", action="store_true",
                            help="serve the viewer to a browser through trame (no display needed)")
@@ -469,6 +496,10 @@ EXAMPLES = {
     "render": ["lunarviz render --phase 120 --out moon.png",
                "lunarviz render --phase 0:180:30 --view moon --out frames.png --gif orbit.gif"],
     "view": ["lunarviz view --phase 120", "lunarviz view --web --port 8080"],
+    "explore": ["lunarviz explore --phase 120",
+                "lunarviz explore --web --lunation 2026-03-19 --observer site:34.26,-116.92,2067m",
+                "lunarviz explore --state view.json --screenshot view.png"],
+    "plot": ["lunarviz plot sweep.json --out sweep.png", "lunarviz plot study.json --out study.png"],
     "image": ["lunarviz image --phase 120 --pixels 512 --out moon.fits",
               "lunarviz image --phase 120 --psf gaussian:2 --halo 0.01,3 --out moon.png",
               "lunarviz image --phase 120 --band B,V,R --moon-model rolo-fit-map --out moon_bvr.fits",
@@ -499,7 +530,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for add in (_parser_sweep, _parser_brdf, _parser_trace, _parser_pictures, _parser_image, _parser_measure,
                 _parser_plan, _parser_study,
-                _parser_mesh, _parser_fit, _parser_bench_paper):
+                _parser_mesh, _parser_fit, _parser_bench_paper, _parser_explore, _parser_plot):
         add(sub)
     for name, command in sub.choices.items():
         command.epilog = "examples:\n" + "\n".join(f"  {e}" for e in EXAMPLES[name])
@@ -522,6 +553,11 @@ def cmd_sweep(a):
     a.method = any_case(a.method, METHODS) or a.method
     if a.method not in METHODS:
         raise UsageError(str(unknown_choice("method", a.method, METHODS)))
+    if a.state is not None:  # the explorer's row: its scene, ray traced
+        _state_alone(a, "sweep")
+        if a.method != "analytic":
+            raise UsageError("sweep --state gives the explorer's ray-traced row: drop --method")
+        a.method = "raytrace"
     times = _times(a)
     if times is not None and a.phases is not None:
         raise UsageError("give --phases (the θ scene) or --time/--time-range (the real sky), not both")
@@ -531,7 +567,7 @@ def cmd_sweep(a):
     to_stdout = a.out == "-"  # (the rows as CSV on standard output, nothing else there)
     out = None if a.dry_run or to_stdout else _check_out(a.out, (".json", ".csv", ".nc"))
     plot = _check_out(a.plot, (".png", ".pdf", ".svg")) if a.plot is not None and not a.dry_run else None
-    scene = _scene(a, phases, times)
+    scene = _scene(a, phases, times) if a.state is None else _load_state(a.state).scene()
     settings = scene.settings(a.method)  # method-specific checks before any work
     if a.scheduler is not None and a.executor != "dask":
         raise UsageError("--scheduler goes with --executor dask")
@@ -664,10 +700,38 @@ def cmd_trace(a):
         print(f"wrote {out} ({res.n_faces} facets; unsuffixed arrays: {res.info['brdf']})")
 
 
+def _state_alone(a, command: str, own: tuple = ()) -> None:
+    """Refuse scene options, dates and θ given beside ``--state`` (the state holds the scene)."""
+    from lunarviz.api import SCENE_DEFAULTS
+    from lunarviz.options import scene_options
+    given = [k for k, v in scene_options(a).items() if k != "brdfs" and v != SCENE_DEFAULTS[k]]
+    given += [n for n in DATE_OPTIONS + ("phase", "phases") + own if getattr(a, n, None) not in (None, False)]
+    if a.brdf not in ("dhg", ",".join(SCENE_DEFAULTS["brdfs"])):
+        given.append("brdf")
+    if given:
+        raise UsageError(f"{command} --state takes the scene from the state file: drop --{given[0].replace('_', '-')}")
+
+
+def _load_state(path):
+    from lunarviz.explore.state import ExploreState
+    try:
+        return ExploreState.load(path)
+    except LunarvizError as exc:
+        raise UsageError(str(exc)) from None
+
+
 def cmd_render(a, interactive=False):
     if not interactive:  # a bad output path is refused before anything is loaded or computed
         out = _check_out(a.out, (".png",))
         gif = _check_out(a.gif, (".gif",)) if a.gif else None
+        if a.state is not None:
+            _state_alone(a, "render", ("gif",))
+            from lunarviz.explore.engine import state_picture
+            from lunarviz.outputs.writers import write_picture
+            write_picture(out, state_picture(_load_state(a.state)))
+            if not a.quiet:
+                print(f"wrote {out}")
+            return
     from lunarviz.viz import views
     phases = parse_float_list(a.phase or "90", "phase", 0.0, 360.0)
     try:
@@ -1006,10 +1070,72 @@ def cmd_paper(a):
     run_paper(out, quick=a.quick, progress=not a.quiet, executor=a.executor, scheduler=a.scheduler)
 
 
+def cmd_explore(a):
+    from lunarviz.explore.state import state_from_scene
+    size = _size(a.size)
+    shot = _check_out(a.screenshot, (".png",)) if a.screenshot else None
+    keep = _check_out(a.save_state, (".json",)) if a.save_state else None
+    if not a.web and (a.port is not None or a.host is not None):
+        raise UsageError("--port and --host go with --web")
+    if a.state is not None:
+        _state_alone(a, "explore", ("explore_band",))
+        state = _load_state(a.state)
+    else:
+        times = _times(a)
+        if times is not None and a.phases is not None:
+            raise UsageError("give --phase (the θ scene) or --time/--time-range/--nights/--lunation, not both")
+        brdf = _brdf_list(a.brdf)
+        if len(brdf) != 1:
+            raise UsageError(f"--brdf takes one BRDF here (the menu changes it), got {a.brdf!r}")
+        phases = parse_float_list(a.phases or "0:180:5", "phase", 0.0, 360.0)
+        scene = _scene(a, phases, times)
+        key = phases[0] if times is None and a.phases is not None else None
+        state = state_from_scene(scene, key=key, brdf=brdf[0], band=a.explore_band, size=size)
+        state.scene()  # the band and the rest checked now
+    if keep is not None:
+        state.save(keep)
+    if shot is not None:
+        from lunarviz.explore.engine import state_picture
+        from lunarviz.outputs.writers import write_picture
+        write_picture(shot, state_picture(state))
+        print(f"wrote {shot}")
+        return
+    if a.web:
+        port = 0 if a.port is None else a.port
+        if not 0 <= port <= 65535:
+            raise UsageError(f"--port {port} is not a TCP port (0-65535; 0 picks a free one)")
+        from lunarviz.explore.web_app import serve
+        serve(state, host=a.host or "127.0.0.1", port=port)
+        return
+    import os
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UsageError("lunarviz explore needs a display (DISPLAY is not set); use lunarviz explore --web "
+                         "(a browser) or --screenshot FILE.png")
+    from lunarviz.explore.desktop import run_desktop
+    run_desktop(state)
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+        if not (320 <= w <= 4096 and 240 <= h <= 4096):
+            raise ValueError
+    except ValueError:
+        raise UsageError(f"malformed --size {text!r}: use WxH, width 320-4096 and height 240-4096") from None
+    return w, h
+
+
+def cmd_plot(a):
+    from lunarviz.workflows.plot_file import plot_file
+    out = _check_out(a.out, (".png", ".pdf", ".svg"))
+    kind = plot_file(a.file, out)
+    print(f"wrote {out} (a {kind})")
+
+
 COMMANDS = {"sweep": cmd_sweep, "brdf": cmd_brdf, "trace": cmd_trace, "render": cmd_render,
             "view": lambda a: cmd_render(a, interactive=True), "study": cmd_study,
             "bench": cmd_bench, "paper": cmd_paper, "mesh": cmd_mesh, "fit": cmd_fit, "image": cmd_image,
-            "measure": cmd_measure, "plan": cmd_plan}
+            "measure": cmd_measure, "plan": cmd_plan, "explore": cmd_explore, "plot": cmd_plot}
 
 
 #: warnings already printed in this run: the same one (settings are checked more than once) is shown once

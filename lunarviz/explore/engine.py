@@ -54,6 +54,8 @@ class Frame:
     image: np.ndarray | None = None
     seconds: float = 0.0
     error: str | None = None
+    #: what the 3-D panels drew (:class:`~lunarviz.viz.view_data.ViewData`): picking reads it
+    view: object = None
 
 
 def pick_row(rows: list[dict], state: ExploreState) -> dict:
@@ -77,23 +79,22 @@ class Engine:
         Run the background pass over the slider's range.
     """
 
-    def __init__(self, on_frame=None, painter=None, background: bool = True):
+    def __init__(self, on_frame=None, painter=None, background: bool = True, start: bool = True):
         self.on_frame = on_frame or (lambda frame: None)
         self._painters = {} if painter is None else {threading.get_ident(): painter}
         self._frames = BoundedCache(CACHE_FRAMES)
         self._rows = BoundedCache(CACHE_ROWS)
+        self._views = BoundedCache(CACHE_FRAMES)
         self._lock = threading.Condition()
         self._wanted: ExploreState | None = None
         self._generation = 0
         self._busy = False
         self._closed = False
         self._shown: ExploreState | None = None
-        self._worker = threading.Thread(target=self._work, name="lunarviz-explore", daemon=True)
-        self._worker.start()
-        self._bg = threading.Thread(target=self._background, name="lunarviz-explore-bg", daemon=True) \
-            if background else None
-        if self._bg is not None:
-            self._bg.start()
+        if start:  # (without: frames made on the caller's thread only, by :meth:`frame`)
+            threading.Thread(target=self._work, name="lunarviz-explore", daemon=True).start()
+            if background:
+                threading.Thread(target=self._background, name="lunarviz-explore-bg", daemon=True).start()
 
     # ---- the window's side -------------------------------------------------------------------
     def request(self, state: ExploreState) -> None:
@@ -134,10 +135,11 @@ class Engine:
                 for k in state.keys:
                     self.row(state.with_(key=k), "converged")
             row = self.row(state, quality)
-            series = [self._rows.get((state.with_(key=k).cache_key(), "converged")) for k in state.keys]
-            image = self.painter().paint(state, quality, row, series,
-                                         self._view(state, quality))
-            out = Frame(state, quality, row, series, image, time.perf_counter() - t0)
+            series = [self._rows.get((state.with_(key=k, picked=None).cache_key(), "converged"))
+                      for k in state.keys]
+            view = self._view(state, quality)
+            image = self.painter().paint(state, quality, row, series, view)
+            out = Frame(state, quality, row, series, image, time.perf_counter() - t0, view=view)
         except LunarvizError as exc:
             out = Frame(state, quality, error=str(exc), seconds=time.perf_counter() - t0)
             out.image = self.painter().paint_error(state, str(exc))
@@ -148,7 +150,7 @@ class Engine:
     def row(self, state: ExploreState, quality: str = "converged") -> dict:
         """The sweep row of ``state``'s task (``analytic`` for the first frame, else ``raytrace``):
         what ``lunarviz sweep --state`` computes for it."""
-        key = (state.cache_key(), quality)
+        key = (state.with_(picked=None).cache_key(), quality)
         hit = self._rows.get(key)
         if hit is not None:
             return hit
@@ -158,7 +160,7 @@ class Engine:
 
     def series_done(self, state: ExploreState) -> int:
         """How many of the slider's values have their converged row."""
-        return sum((state.with_(key=k).cache_key(), "converged") in self._rows for k in state.keys)
+        return sum((state.with_(key=k, picked=None).cache_key(), "converged") in self._rows for k in state.keys)
 
     def painter(self):
         """This thread's painter (an OpenGL context belongs to the thread that made it)."""
@@ -171,14 +173,19 @@ class Engine:
     def _view(self, state: ExploreState, quality: str):
         """What the 3-D panels draw: the task traced per facet (grey), on a coarser Moon first."""
         from lunarviz.workflows.tasks import view_data
-        sc = state.with_(band=None)
+        key = (state.with_(band=None, picked=None).cache_key(), quality)
+        hit = self._views.get(key)
+        if hit is not None:
+            return hit
+        sc = state.with_(band=None, picked=None)
         if quality == "first":
             level = state.options.get("moon_level") or DEFAULT_LEVELS["moon"]
             if state.options.get("moon_mesh") is None:
                 sc = sc.with_(moon_level=max(2, int(level) - COARSER_LEVELS))
         scene = sc.scene()
         settings = replace(scene.settings("raytrace"), brdfs=(state.brdf,))
-        return view_data(settings, scene.keys[0], state.brdf)
+        self._views[key] = out = view_data(settings, scene.keys[0], state.brdf)
+        return out
 
     # ---- threads ------------------------------------------------------------------------------
     def _take(self):
@@ -247,14 +254,25 @@ class Engine:
         keys = state.keys
         order = sorted(range(len(keys)), key=lambda i: abs(i - state.index))
         for i in order:
-            s = state.with_(key=keys[i])
+            s = state.with_(key=keys[i], picked=None)
             if (s.cache_key(), "converged") not in self._rows and ("row", s.cache_key()) not in done:
                 return "row", s
         for i in order[1:2 * NEIGHBOURS + 1]:
-            s = state.with_(key=keys[i])
+            s = state.with_(key=keys[i], picked=None)
             if (s.cache_key(), "converged", False) not in self._frames and ("frame", s.cache_key()) not in done:
                 return "frame", s
         return None
+
+
+def state_picture(state: ExploreState) -> np.ndarray:
+    """The converged picture of ``state`` with its curves complete, made on this thread: what
+    ``lunarviz render --state`` and ``lunarviz explore --screenshot`` write, and the explorer saves."""
+    engine = Engine(background=False, start=False)
+    frame = engine.frame(state, "converged", full_series=True)
+    engine.painter().close()
+    if frame.error is not None:
+        raise LunarvizError(frame.error)
+    return frame.image
 
 
 def state_row(state: ExploreState, method: str = "raytrace") -> dict:

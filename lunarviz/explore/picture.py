@@ -76,7 +76,7 @@ def draw_curves(fig, state, series: list) -> dict:
     curves' saved pixels, so a new state costs no redraw of the axes)."""
     keys = state.keys
     x, xlabel = _x(state, keys)
-    gs = fig.add_gridspec(3, 1, height_ratios=(1.0, 1.0, 1.05), hspace=0.4, left=0.2, right=0.84, top=0.90,
+    gs = fig.add_gridspec(3, 1, height_ratios=(0.9, 0.9, 1.45), hspace=0.42, left=0.2, right=0.84, top=0.90,
                           bottom=0.02)
     ax1, ax2 = fig.add_subplot(gs[0]), fig.add_subplot(gs[1])
     done = sum(r is not None for r in series)
@@ -99,11 +99,12 @@ def draw_curves(fig, state, series: list) -> dict:
     return {"x": x,
             "lines": [a.axvline(x[0], color="0.3", lw=0.9, ls=":", animated=True) for a in (ax1, ax2)],
             "points": [ax1.plot([], [], "o", ms=8, mfc="none", mec="k", animated=True)[0] for _ in range(2)],
-            "text": fig.text(0.03, 0.27, "", fontsize=9.5, family="monospace", va="top", ha="left", animated=True)}
+            "text": fig.text(0.03, ax2.get_position().y0 - 0.065, "", fontsize=9.5, family="monospace", va="top", ha="left", animated=True)}
 
 
-def mark(fig, artists: dict, state, quality: str, row: dict) -> None:
-    """Draw the state's marker and numbers over the curves (after their pixels are restored)."""
+def mark(fig, artists: dict, state, quality: str, row: dict, extra: list = ()) -> None:
+    """Draw the state's marker and numbers (and ``extra`` lines) over the curves (after their
+    pixels are restored)."""
     here = artists["x"][state.index]
     for line in artists["lines"]:
         line.set_xdata([here, here])
@@ -113,9 +114,47 @@ def mark(fig, artists: dict, state, quality: str, row: dict) -> None:
         point.set_data(([here], [v]) if v is not None and np.isfinite(v) and v > 0 else ([], []))
         fig.draw_artist(point)
     text = artists["text"]
-    text.set_text("\n".join(numbers_lines(state, quality, row)))
+    text.set_text("\n".join(numbers_lines(state, quality, row) + list(extra)))
     text.set_color("darkred" if quality == "first" else "black")
     fig.draw_artist(text)
+
+
+def facet_lines(view, picked) -> list[str]:
+    """The picked facet's numbers (its light, its angles, its BRDF for sunlight)."""
+    if picked is None:
+        return []
+    cd = view.facets.cell_data
+
+    def v(name, fmt):
+        x = cd.get(name)
+        return "n/a" if x is None or not np.isfinite(x[picked]) else format(float(x[picked]), fmt)
+    return [f"facet {picked}: i = {v('incidence_deg', '.1f')}°  e = {v('emission_deg', '.1f')}°  "
+            f"(red: its paths)",
+            f"  moonshine  L = {v('moonshine_radiance_W_m2_sr', '.4e')} W m⁻² sr⁻¹",
+            f"  earthshine L = {v('earthshine_radiance_W_m2_sr', '.4e')} W m⁻² sr⁻¹",
+            f"  π·BRDF for sunlight = {v('reflectance_factor', '.4f')}"]
+
+
+def facet_at(view, state, x: float, y: float):
+    """The lunar facet under pixel (x, y) of the picture's top-left panel (the Moon seen from the
+    observer), or None: the panel's camera (:func:`lunarviz.viz.views.panel_camera`) inverted, and
+    of the facets facing the observer the one whose centre projects nearest."""
+    from lunarviz.viz.views import EXPLORE_ZOOM, facet_centroids, panel_camera
+    W, H = state.size
+    pw, ph = (int(W * SPLIT) // 2 * 2) / 2.0, H / 2.0
+    if not (0 <= x < pw and 0 <= y < ph):
+        return None
+    fr = view.facets
+    focal, look, up, scale = panel_camera(fr, EXPLORE_ZOOM)
+    right = np.cross(look, up)  # the image's right (look: from the observer toward the Moon)
+    u, w = (x - pw / 2) * 2 * scale / ph, (ph / 2 - y) * 2 * scale / ph
+    c = facet_centroids(fr)
+    front = c @ -look > 0
+    d = (c - focal) @ right - u, (c - focal) @ up - w
+    dist = np.where(front, d[0] ** 2 + d[1] ** 2, np.inf)
+    i = int(np.argmin(dist))
+    R = float(np.max(np.linalg.norm(c, axis=1)))
+    return i if dist[i] < (0.05 * R) ** 2 else None
 
 
 class Painter:
@@ -127,12 +166,12 @@ class Painter:
         self._curves_sig = None
         self._curves_fig = None
 
-    def _plot3d(self, view, size) -> np.ndarray:
+    def _plot3d(self, view, size, picked=None) -> np.ndarray:
         from lunarviz.viz import views
         if self._plotter is None or self._size != size:
             if self._plotter is not None:
                 self._plotter.close()
-            self._plotter = views.build_plotter(view, views.EXPLORE_VIEW, size, off_screen=True)
+            self._plotter = views.build_plotter(view, views.EXPLORE_VIEW, size, off_screen=True, picked=picked)
             self._size = size
         else:
             pl = self._plotter
@@ -142,7 +181,7 @@ class Painter:
                     pl.remove_scalar_bar(title, render=False)
                 for r in pl.renderers:
                     r.clear_actors()
-                views.populate(pl, view, views.EXPLORE_VIEW)
+                views.populate(pl, view, views.EXPLORE_VIEW, picked)
             finally:
                 pl.suppress_rendering = False
         self._plotter.render()
@@ -178,10 +217,11 @@ class Painter:
         """The picture (RGB, height × width × 3, uint8) of ``state``."""
         W, H = state.size
         w3 = int(W * SPLIT) // 2 * 2
-        left = self._plot3d(view, (w3, H))
+        picked = state.picked if state.picked is not None and state.picked < view.facets.n_faces else None
+        left = self._plot3d(view, (w3, H), picked)
         fig, artists, background = self._curves(state, series, (W - w3, H))
         fig.canvas.restore_region(background)
-        mark(fig, artists, state, quality, row)
+        mark(fig, artists, state, quality, row, facet_lines(view, picked))
         right = np.asarray(fig.canvas.buffer_rgba())[..., :3]
         return np.concatenate([left, right[:H, :W - w3]], axis=1)
 

@@ -62,6 +62,8 @@ class ExploreState:
         A band (``V``, ``S2A-B4``, ``500-600``...): the numbers and curves band-integrated; None: grey.
     size : (int, int)
         The picture's width and height [pixels].
+    picked : int or None
+        A lunar facet picked on the picture: its paths and numbers are shown.
     """
 
     options: dict = field(default_factory=dict)
@@ -71,6 +73,7 @@ class ExploreState:
     brdf: str = "dhg"
     band: str | None = None
     size: tuple = DEFAULT_SIZE
+    picked: int | None = None
 
     def __post_init__(self):
         extra = sorted(set(self.options) - set(SCENE_DEFAULTS))
@@ -89,6 +92,9 @@ class ExploreState:
         w, h = self.size
         if not (320 <= w <= 4096 and 240 <= h <= 4096):
             raise LunarvizError(f"size {short_repr(self.size)}: width 320-4096 and height 240-4096 pixels")
+        if self.picked is not None and (isinstance(self.picked, bool) or not isinstance(self.picked, int)
+                                        or self.picked < 0):
+            raise LunarvizError(f"picked facet {short_repr(self.picked)} is not a facet number (0, 1, 2, ...)")
 
     @property
     def keys(self) -> tuple:
@@ -143,7 +149,8 @@ class ExploreState:
         return {"lunarviz": FORMAT, "version": VERSION, "options": _plain(self.options),
                 "phases": None if self.phases is None else list(self.phases),
                 "times": None if self.times is None else list(self.times),
-                "key": self.key, "brdf": self.brdf, "band": self.band, "size": list(self.size)}
+                "key": self.key, "brdf": self.brdf, "band": self.band, "size": list(self.size),
+                "picked": self.picked}
 
     def save(self, path) -> Path:
         """Write the state as JSON (atomically)."""
@@ -158,7 +165,8 @@ class ExploreState:
             raise LunarvizError(f"not an explorer state (no \"lunarviz\": \"{FORMAT}\" entry)")
         if d.get("version") != VERSION:
             raise LunarvizError(f"explorer state version {short_repr(d.get('version'))}: this lunarviz reads {VERSION}")
-        extra = sorted(set(d) - {"lunarviz", "version", "options", "phases", "times", "key", "brdf", "band", "size"})
+        extra = sorted(set(d) - {"lunarviz", "version", "options", "phases", "times", "key", "brdf", "band", "size",
+                            "picked"})
         if extra:
             raise LunarvizError(f"explorer state: unknown entry {extra[0]!r}")
         options = d.get("options") or {}
@@ -177,7 +185,7 @@ class ExploreState:
         if len(size) != 2:
             raise LunarvizError(f"explorer state: size {short_repr(size)} is not [width, height]")
         state = cls(options=options, phases=None if times is not None else phases, times=times, key=key,
-                    brdf=str(d.get("brdf", "dhg")), band=d.get("band"), size=size)
+                    brdf=str(d.get("brdf", "dhg")), band=d.get("band"), size=size, picked=d.get("picked"))
         state.scene()  # every option checked now, by the Scene itself
         return state
 
@@ -214,7 +222,8 @@ def state_from_scene(sc: Scene, key=None, brdf: str = "dhg", band: str | None = 
                      size=DEFAULT_SIZE) -> ExploreState:
     """The state of a :class:`lunarviz.Scene` (the command line's options): its non-default options,
     its θ or dates as the slider, ``key`` (default the first) on show."""
-    opts = {k: v for k, v in sc.options.items() if k not in OWN and v != SCENE_DEFAULTS[k]}
+    opts = {k: v for k, v in sc.options.items() if k not in OWN and v != SCENE_DEFAULTS[k]
+            and not (k == "params" and not v)}
     keys = sc.keys
     if key is None:
         key = keys[0]

@@ -111,6 +111,20 @@ def write_bytes_atomic(path, data: bytes) -> None:
                                 f"(is the disk full?)")
 
 
+def png_bytes(img) -> bytes:
+    """An RGB(A) picture (height × width × 3 or 4, uint8) as PNG bytes."""
+    import numpy as np
+    from PIL import Image
+    buf = io.BytesIO()
+    Image.fromarray(np.asarray(img)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def write_picture(path, img) -> None:
+    """Write a picture as PNG, atomically."""
+    write_bytes_atomic(path, png_bytes(img))
+
+
 def check_free_space(path, nbytes: int) -> None:
     """Refuse, before writing, a file its folder cannot hold: twice ``nbytes`` and a megabyte
     (for writers that crash the process or leave broken files on a full disk: VTK, HDF5)."""

@@ -28,7 +28,7 @@ import pyvista as pv
 
 from lunarviz.errors import unknown_choice
 from lunarviz.methods.tracer.facet_result import FacetResult
-from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, write_bytes_atomic
+from lunarviz.outputs.writers import StagedFiles, check_output_path, numbered_paths, png_bytes, write_bytes_atomic
 from lunarviz.viz.meshio import facet_polydata
 from lunarviz.viz.render_window import choose_render_window
 from lunarviz.viz.view_data import ComputeView, ViewData
@@ -36,6 +36,8 @@ from lunarviz.viz.view_data import ComputeView, ViewData
 VIEWS = ("composite", "moon", "rays", "maps", "surfaces")
 #: the explorer's four panels: the composite's, without its numbers (the explorer prints them beside)
 EXPLORE_VIEW = "explore"
+#: its Moon panels' zoom (they are nearly square: room for the colour bar beside the disc)
+EXPLORE_ZOOM = 0.8
 #: Dynamic range of the logarithmic colour scales (max / floor).
 LOG_RANGE = 1e7
 #: Colour levels of every colour map: 256 levels over the six decades of a log scale drew false
@@ -128,11 +130,12 @@ def _sky_north(fr: FacetResult) -> np.ndarray:
     return np.array([0.0, 0.0, 1.0]) if "time_utc" in fr.info else np.array([1.0, 0.0, 0.0])
 
 
-def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=None, key=True):
-    """Look at the Moon from the detector (parallel projection), oriented like the sky and like
-    ``lunarviz image``: the sky's north up and east to the left (:func:`_sky_north`; lunar north
-    where the sky's lies along the line of sight). ``key`` draws the orientation key: arrows
-    toward the Sun and to lunar north, and where the view is from."""
+def panel_camera(fr: FacetResult, zoom=1.0, up=None):
+    """The Moon panels' camera: focal point, viewing direction (from the observer toward the Moon),
+    up (unit vectors, scene axes) and the parallel scale (half the panel's height) [m]; the
+    Moon's centre at the origin. Oriented like the sky and like ``lunarviz image``: the sky's
+    north up and east to the left (:func:`_sky_north`; lunar north where the sky's lies along
+    the line of sight)."""
     moon = np.array(fr.info["moon_centre_m"])
     det = np.array(fr.info["detector_m"])
     R = float(np.max(np.linalg.norm(fr.vertices, axis=1)))
@@ -144,15 +147,24 @@ def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=None, key=True):
     up = np.asarray(up, dtype=float)
     if abs(np.dot(up, view)) > 0.99:
         up = np.array([0.0, 1.0, 0.0])
+    up = _in_image_plane(up, view)
     # the Moon a little left of centre, so the colour bar on the right never covers its limb
     right = np.cross(view, up)
     right = right / np.linalg.norm(right)
     focal = -right * 0.25 * R / zoom  # ``right`` = cross(view, up) points to the image's left
-    pl.camera_position = [tuple(focal + view * 8 * R), tuple(focal), tuple(up)]
+    return focal, -view, up, 1.2 * R / zoom
+
+
+def _camera_from_detector(pl, fr: FacetResult, zoom=1.0, up=None, key=True):
+    """Look at the Moon from the detector (parallel projection; :func:`panel_camera`). ``key`` draws
+    the orientation key: arrows toward the Sun and to lunar north, and where the view is from."""
+    focal, look, up, scale = panel_camera(fr, zoom, up)
+    R = float(np.max(np.linalg.norm(fr.vertices, axis=1)))
+    pl.camera_position = [tuple(focal - look * 8 * R), tuple(focal), tuple(up)]
     pl.enable_parallel_projection()
-    pl.camera.parallel_scale = 1.2 * R / zoom
+    pl.camera.parallel_scale = scale
     if key:
-        _orientation_key(pl, fr, view, up, R)
+        _orientation_key(pl, fr, -look, up, R)
 
 
 def _orientation_key(pl, fr: FacetResult, view, up, R):
@@ -262,7 +274,23 @@ def _moon_panel(pl, poly, field, title, cmap, log=True, clim=None, bar_fmt="%.1e
     return mesh
 
 
-def _ray_panel(pl, data: ViewData, text: str | None = None):
+def facet_centroids(fr: FacetResult) -> np.ndarray:
+    """The lunar facets' centroids in scene axes about the Moon's centre [m] (as the panels draw them)."""
+    c = np.asarray(fr.vertices, dtype=float)[np.asarray(fr.faces)].mean(axis=1)
+    rot = fr.info.get("moon_rotation_body_to_scene")
+    return c if rot is None else c @ np.asarray(rot, dtype=float).T
+
+
+def _mark_facet(pl, fr: FacetResult, picked: int | None) -> None:
+    """A red ring about the picked facet on a Moon panel (in front of the disc)."""
+    if picked is None:
+        return
+    c = facet_centroids(fr)[picked]
+    R = float(np.linalg.norm(c))
+    pl.add_mesh(pv.Sphere(radius=0.045 * R, center=c * 1.02), color="red", lighting=False)
+
+
+def _ray_panel(pl, data: ViewData, text: str | None = None, picked: int | None = None):
     """Light paths, schematic: directions as seen from the Earth are kept, distances are not
     (the Moon at 2 units, the Sun at 3.4: the triangle stays legible), bodies enlarged. Seen
     from the normal of the Sun-Earth-Moon plane, drawn in the right part of the panel; the
@@ -306,6 +334,12 @@ def _ray_panel(pl, data: ViewData, text: str | None = None):
     pl.add_point_labels([snap(det, "earth")], ["detector"], font_size=9, text_color="white",
                         point_color="red", point_size=8, shape=None)
     legend = "light paths (schematic)\norange: Sun>Moon>detector\nblue: Sun>Earth>Moon>detector"
+    if picked is not None:  # the picked facet's own paths: from the Sun's and the Earth's centres, to the detector
+        p = snap(facet_centroids(fr)[picked] + moon, "moon")
+        for a, b in ((C["sun"], p), (C["earth"], p), (p, snap(det, "earth"))):
+            pl.add_mesh(pv.lines_from_points(np.array([a, b])), color="red", line_width=3)
+        pl.add_mesh(pv.Sphere(radius=0.035, center=p), color="red")
+        legend += f"\nred: facet {picked}'s paths"
     pl.add_text(legend if text is None else text + "\n\n" + legend, font_size=10 if text is None else 9,
                 position="upper_left", color="white")
     pts = np.array(list(C.values()))
@@ -351,18 +385,20 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
     pl.camera.parallel_scale = 1.25 * R
 
 
-def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True) -> pv.Plotter:
-    """A plotter showing ``view`` of ``data``; call ``show()`` or ``screenshot()``."""
+def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True,
+                  picked: int | None = None) -> pv.Plotter:
+    """A plotter showing ``view`` of ``data`` (``picked``: a facet marked); call ``show()`` or ``screenshot()``."""
     if view not in VIEWS + (EXPLORE_VIEW,):
         raise unknown_choice("view", view, VIEWS)
     choose_render_window()
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
-    populate(pl, data, view)
+    populate(pl, data, view, picked)
     return pl
 
 
-def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plotter:
-    """Draw ``view`` of ``data`` into an existing plotter of shape ``SHAPES[view]``."""
+def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: int | None = None) -> pv.Plotter:
+    """Draw ``view`` of ``data`` into an existing plotter of shape ``SHAPES[view]``; ``picked``: a
+    lunar facet marked on the Moon panels, its paths drawn in the schematic (composite views)."""
     fr = data.facets
     poly = facet_polydata(fr)
     rot = fr.info.get("moon_rotation_body_to_scene")
@@ -421,21 +457,23 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
             pl.add_text("Moon: " + long_title, font_size=11, position="upper_left", color="white")
             _camera_from_detector(pl, fr)
         return pl
-    zoom = 0.8 if view == EXPLORE_VIEW else 1.0  # (the explorer's panels are square: room for the colour bar)
+    zoom = EXPLORE_ZOOM if view == EXPLORE_VIEW else 1.0
     pl.subplot(0, 0)
     pl.set_background("black")
     _moon_panel(pl, poly, "total_radiance", "radiance\nW m-2 sr-1", _grey_map(), floor=_ashen_floor(poly),
                 sun_dir=sun_dir, dark_field="earthshine_radiance_W_m2_sr")
     pl.add_text("Moon: radiance toward the detector (log)", font_size=11, position="upper_left", color="white")
     _camera_from_detector(pl, fr, zoom=zoom)
+    _mark_facet(pl, fr, picked)
     pl.subplot(0, 1)
     pl.set_background("black")
     _moon_panel(pl, poly, "earthshine_radiance_W_m2_sr", "earthshine\nW m-2 sr-1", "cividis")
     pl.add_text("Moon: earthshine only (own log scale)", font_size=11, position="upper_left", color="white")
     _camera_from_detector(pl, fr, zoom=zoom)
+    _mark_facet(pl, fr, picked)
     pl.subplot(1, 0)
     pl.set_background("black")
-    _ray_panel(pl, data, None if view == EXPLORE_VIEW else text)
+    _ray_panel(pl, data, None if view == EXPLORE_VIEW else text, picked)
     pl.subplot(1, 1)
     pl.set_background("black")
     lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
@@ -444,6 +482,7 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite") -> pv.Plot
     pl.add_text(f"Moon: BRDF map pi*BRDF ({data.numbers['brdf']}, sunlight)", font_size=11, position="upper_left",
                 color="white")
     _camera_from_detector(pl, fr, zoom=zoom)
+    _mark_facet(pl, fr, picked)
     return pl
 
 
@@ -455,7 +494,7 @@ def render_image(data: ViewData, view="composite", size=(1600, 900), out=None) -
     img = np.asarray(pl.screenshot(return_img=True))
     pl.close()
     if out is not None:
-        write_bytes_atomic(out, _png_bytes(img))
+        write_bytes_atomic(out, png_bytes(img))
     return img
 
 
@@ -489,12 +528,3 @@ def render_frames(compute: ComputeView, phases, brdf, out, view="composite", siz
             write_bytes_atomic(staged.stage(gif), buf.getvalue())
             files.append(Path(gif))
     return files
-
-
-def _png_bytes(img) -> bytes:
-    import io
-
-    from PIL import Image
-    buf = io.BytesIO()
-    Image.fromarray(np.asarray(img)).save(buf, format="PNG")
-    return buf.getvalue()
