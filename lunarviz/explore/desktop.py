@@ -91,6 +91,8 @@ class DesktopExplorer:
         frame = None
         while not self.frames.empty():
             frame = self.frames.get_nowait()
+        if frame is not None and frame.state != self.explorer.state:
+            frame = None  # a superseded state's frame (queued before the newest change): not shown
         if frame is not None:
             from PIL import Image, ImageTk
             self._photo = ImageTk.PhotoImage(Image.fromarray(frame.image))
@@ -98,7 +100,7 @@ class DesktopExplorer:
             self.slider.set(frame.state.index)
             self.key_label.config(text=str(frame.state.key) + ("" if frame.state.times else " deg"))
             for c in CONTROLS:  # the menus follow the state shown (a refused change put back)
-                self.menus[c.name].set(choice_text(c, state_value(frame.state, c.name)))
+                self.menus[c.name].set(choice_text(c, state_value(self.explorer.state, c.name)))
         st = self.explorer
         shown = st.frame
         self.status.config(text=st.message or ("" if shown is None else

@@ -32,6 +32,8 @@ from lunarviz.options import DEFAULT_LEVELS
 CACHE_FRAMES = 96
 #: rows kept (one per slider value, BRDF, band and scene)
 CACHE_ROWS = 20_000
+#: options of the tracer's meshes, which the point-source method (the first frame's numbers) refuses
+MESH_ONLY = ("mesh_units", "moon_level", "earth_level", "sun_level", "shading", "self_shadow")
 #: how many slider values on each side of the one on show the background pass renders
 NEIGHBOURS = 3
 #: the first frame's Moon mesh: this many levels under the scene's own (at least level 2)
@@ -85,6 +87,9 @@ class Engine:
         self._frames = BoundedCache(CACHE_FRAMES)
         self._rows = BoundedCache(CACHE_ROWS)
         self._views = BoundedCache(CACHE_FRAMES)
+        #: one computation at a time (the worker's and the background pass's): the tracer and VTK
+        #: each take both cores, and an OpenGL context is not shared between threads
+        self._compute = threading.RLock()
         self._lock = threading.Condition()
         self._wanted: ExploreState | None = None
         self._generation = 0
@@ -100,9 +105,18 @@ class Engine:
     def request(self, state: ExploreState) -> None:
         """Ask for ``state``'s frames; returns at once (a newer request supersedes this one)."""
         with self._lock:
-            self._wanted = state
+            self._wanted = self._shown = state
             self._generation += 1
             self._lock.notify_all()
+
+    def _repaint(self, state: ExploreState) -> None:
+        """Make ``state``'s frames again (its curves now complete), unless a newer state was asked
+        for meanwhile or work is in flight: decided under the lock, so it never supersedes a newer request."""
+        with self._lock:
+            if self._shown is state and self._wanted is None and not self._busy:
+                self._wanted = state
+                self._generation += 1
+                self._lock.notify_all()
 
     def wait_idle(self, timeout: float = 600.0) -> bool:
         """Block until the newest request's converged frame is made (tests, benchmarks, screenshots)."""
@@ -129,6 +143,10 @@ class Engine:
         hit = self._frames.get(key)
         if hit is not None:
             return hit
+        with self._compute:
+            return self._make_frame(state, quality, full_series, key)
+
+    def _make_frame(self, state: ExploreState, quality: str, full_series: bool, key) -> Frame:
         t0 = time.perf_counter()
         try:
             if full_series:
@@ -140,9 +158,10 @@ class Engine:
             view = self._view(state, quality)
             image = self.painter().paint(state, quality, row, series, view)
             out = Frame(state, quality, row, series, image, time.perf_counter() - t0, view=view)
-        except LunarvizError as exc:
-            out = Frame(state, quality, error=str(exc), seconds=time.perf_counter() - t0)
-            out.image = self.painter().paint_error(state, str(exc))
+        except Exception as exc:  # noqa: BLE001 (the window's worker must outlive any state: it shows why)
+            why = str(exc) if isinstance(exc, LunarvizError) else f"{type(exc).__name__}: {exc}"
+            out = Frame(state, quality, error=why, seconds=time.perf_counter() - t0)
+            out.image = self.painter().paint_error(state, why)
         if out.error is None and (not full_series or all(r is not None for r in out.series)):
             self._frames[key] = out
         return out
@@ -154,6 +173,10 @@ class Engine:
         hit = self._rows.get(key)
         if hit is not None:
             return hit
+        if quality == "first":  # the paper's point sources on exact spheres: the tracer's mesh options dropped
+            if any(state.options.get(f"{b}_mesh") for b in ("moon", "earth", "sun")):
+                return {}  # (a user's mesh: no sphere stands for it; the converged row only)
+            state = state.with_(**{k: None for k in MESH_ONLY})
         row = state_row(state, "analytic" if quality == "first" else "raytrace")
         self._rows[key] = row
         return row
@@ -209,7 +232,6 @@ class Engine:
             if state is None:
                 return
             try:
-                self._shown = state
                 for quality in ("first", "converged"):
                     if quality == "first" and (state.cache_key(), "converged", False) in self._frames:
                         continue  # seen before: its converged frame at once
@@ -240,13 +262,14 @@ class Engine:
                 continue
             kind, s = todo
             try:
-                if kind == "row":
-                    self.row(s, "converged")
-                    if self.series_done(state) == len(state.keys) and self._idle() and state is self._shown:
-                        self.request(state)  # its curves complete: paint it again
-                else:
-                    self.frame(s, "converged")
-            except LunarvizError:
+                with self._compute:
+                    if kind == "row":
+                        self.row(s, "converged")
+                    else:  # the neighbours' traced views: their pictures then only render
+                        self._view(s, "converged")
+                if kind == "row" and self.series_done(state) == len(state.keys):
+                    self._repaint(state)  # its curves complete: paint it again
+            except Exception:  # noqa: BLE001,S110 (a value that fails here fails again, shown, when asked for)
                 pass
             done.add((kind, s.cache_key()))
 
@@ -259,8 +282,8 @@ class Engine:
                 return "row", s
         for i in order[1:2 * NEIGHBOURS + 1]:
             s = state.with_(key=keys[i], picked=None)
-            if (s.cache_key(), "converged", False) not in self._frames and ("frame", s.cache_key()) not in done:
-                return "frame", s
+            if (s.with_(band=None).cache_key(), "converged") not in self._views and ("view", s.cache_key()) not in done:
+                return "view", s
         return None
 
 

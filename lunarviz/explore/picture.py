@@ -42,6 +42,7 @@ def numbers_lines(state, quality: str, row: dict) -> list[str]:
     """The numbers panel: the state, the irradiances with units, their ratio, p*, the bound."""
     def f(v, fmt):
         return "n/a" if v is None or not np.isfinite(v) else format(v, fmt)
+    row = row or {}
     if quality == "first":
         head = "FIRST PICTURE, converging...\n(the paper's point sources; a coarser Moon)"
     else:
@@ -110,7 +111,7 @@ def mark(fig, artists: dict, state, quality: str, row: dict, extra: list = ()) -
         line.set_xdata([here, here])
         fig.draw_artist(line)
     for point, name in zip(artists["points"], ("moonshine_W_m2", "earthshine_W_m2")):
-        v = row.get(name)
+        v = (row or {}).get(name)
         point.set_data(([here], [v]) if v is not None and np.isfinite(v) and v > 0 else ([], []))
         fig.draw_artist(point)
     text = artists["text"]

@@ -1,0 +1,139 @@
+"""``lunarviz explore --web`` for real: a server, a headless Chromium, screenshots.
+
+The command line's server is started on a free port of 127.0.0.1 on a coarse Moon (level 3, so a
+converged picture takes well under a second); the page is loaded in headless Chromium
+(``tests/web_browser.py``) and each kind of control is set through the page's state (what
+moving a slider or choosing in a menu sets). From the picture the page shows (its ``img``, read
+back as PNG) the test checks that the panels a control should change do change and the others
+hold, and that a click on the Moon picks a facet (its red paths appear in the schematic).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import io
+import os
+import re
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+from web_browser import Browser, chromium_path
+
+pytestmark = [pytest.mark.skipif(chromium_path() is None and not os.environ.get("CI"),
+                                 reason="no chromium here (CI installs it: scripts/install.sh test)"),
+              pytest.mark.xdist_group("web_server")]
+
+SIZE = (1000, 640)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def explore_server(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("explore")
+    port = _free_port()
+    log = open(tmp / "server.log", "w")  # noqa: SIM115 (closed at teardown)
+    proc = subprocess.Popen([sys.executable, "-m", "lunarviz.cli", "explore", "--web", "--port", str(port),
+                             "--phases", "30:150:30", "--mesh-level", "3", "--size", f"{SIZE[0]}x{SIZE[1]}"],
+                            stdout=log, stderr=subprocess.STDOUT, text=True, cwd=tmp)
+    base = f"http://127.0.0.1:{port}/"
+    t0 = time.time()
+    while True:
+        text = (tmp / "server.log").read_text()
+        found = re.search(r"serving on (http://\S+/\?secret=\S+)", text)
+        if found:
+            try:
+                with urllib.request.urlopen(base, timeout=2) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                pass
+        if proc.poll() is not None or time.time() - t0 > 120:
+            proc.kill()
+            log.close()
+            raise RuntimeError(f"lunarviz explore --web did not serve: {text}")
+        time.sleep(0.5)
+    yield found.group(1), tmp
+    proc.terminate()
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(10)
+    log.close()
+
+
+async def _picture(b, condition: str) -> np.ndarray:
+    """The page's picture once the state it shows (``shown``, a JavaScript object) meets
+    ``condition`` and is converged (grey levels)."""
+    from PIL import Image
+    await b.wait_for("(() => { const shown = window.trame.state.get('shown') || {};"
+                     f" return shown.quality === 'converged' && ({condition}); }})()", 120)
+    url = await b.evaluate("window.trame.state.get('picture')")
+    img = Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))).convert("L")
+    return np.asarray(img).astype(float)
+
+
+def _panels(a: np.ndarray) -> dict:
+    """The picture's parts: the four 3-D panels (2×2 over 62 % of the width) and the curves."""
+    h, w = a.shape
+    w3 = int(w * 0.62) // 2 * 2
+    return {"moon": a[:h // 2, :w3 // 2], "earthshine": a[:h // 2, w3 // 2:w3], "rays": a[h // 2:, :w3 // 2],
+            "brdf_map": a[h // 2:, w3 // 2:w3], "curves": a[:, w3:]}
+
+
+def _changed(a, b) -> set:
+    pa, pb = _panels(a), _panels(b)
+    return {k for k in pa if np.abs(pa[k] - pb[k]).mean() > 0.3}
+
+
+def test_explorer_controls_change_the_right_panels(explore_server):
+    url, _ = explore_server
+
+    async def run():
+        async with Browser(1400, 900) as b:
+            await b.goto(url)
+            await b.wait_for("window.trame && window.trame.state && window.trame.state.get('picture')", 120)
+            pics = {"start": await _picture(b, "shown.key === 30")}
+            await b.evaluate("window.trame.state.set('index', 3); true")  # θ: 30° → 120°
+            pics["theta"] = await _picture(b, "shown.key === 120")
+            await b.evaluate("window.trame.state.set('brdf', 'lambert'); true")
+            pics["brdf"] = await _picture(b, "shown.brdf === 'lambert'")
+            await b.evaluate("window.trame.state.set('band', 'V'); true")
+            pics["band"] = await _picture(b, "shown.band === 'V'")
+            await b.evaluate("window.trame.state.set('earth_surface', 'landocean'); true")
+            pics["earth"] = await _picture(b, "shown.earth_surface === 'landocean'")
+            # a click on the Moon panel, on the disc (its centre is left of the panel's: room for the bar)
+            await b.evaluate("(() => { const i = document.querySelector('img.explore_picture');"
+                             " const r = i.getBoundingClientRect();"
+                             " i.dispatchEvent(new MouseEvent('click', {clientX: r.left + 0.17 * r.width,"
+                             " clientY: r.top + 0.25 * r.height, bubbles: true})); return true; })()")
+            pics["picked"] = await _picture(b, "shown.picked !== null")
+            status = await b.evaluate("window.trame.state.get('status')")
+            return pics, status
+
+    pics, status = asyncio.run(run())
+    assert "converged" in status
+    # θ moves the Sun: every panel changes (the Moon, its earthshine, the paths, the map, the marker)
+    assert _changed(pics["start"], pics["theta"]) == {"moon", "earthshine", "rays", "brdf_map", "curves"}
+    # the lunar BRDF: the Moon's shading, its earthshine, the map and the numbers; not the geometry's paths
+    assert {"moon", "brdf_map", "curves"} <= _changed(pics["theta"], pics["brdf"])
+    assert "rays" not in _changed(pics["theta"], pics["brdf"])
+    # a band: the numbers and curves only (the 3-D panels are grey, as render)
+    assert _changed(pics["brdf"], pics["band"]) == {"curves"}
+    # the Earth's surface: what the Earth sends (the earthshine panel and the numbers), not the sunlit Moon's map
+    changed = _changed(pics["band"], pics["earth"])
+    assert {"earthshine", "curves"} <= changed and "brdf_map" not in changed
+    # a picked facet: marked on the Moon panels, its red paths in the schematic, its numbers
+    pa, pb = _panels(pics["earth"]), _panels(pics["picked"])
+    assert np.abs(pa["rays"] - pb["rays"]).mean() > 0.05 and "curves" in _changed(pics["earth"], pics["picked"])
