@@ -281,7 +281,8 @@ def _parser_explore(sub):
     _add_theta(p, many=True, default=None, help=f"{THETA_WORDS} [deg]: the slider's values (default 0:180:5)")
     p.add_argument("--band", dest="explore_band", default=None, help="a band shown first (B, V, R, S2A-B4, ...)")
     p.add_argument("--state", default=None, metavar="FILE.json", help="start from a saved state")
-    p.add_argument("--web", action="store_true", help="serve the explorer to a browser through trame (no display needed)")
+    p.add_argument("--web", action="store_true",
+                   help="serve the explorer to a browser through trame (no display needed)")
     p.add_argument("--port", type=int, default=None, help="with --web: TCP port (default: a free one)")
     p.add_argument("--host", default=None, help="with --web: interface to bind (default 127.0.0.1)")
     p.add_argument("--screenshot", default=None, metavar="FILE.png",

@@ -3,12 +3,12 @@
 #   bash scripts/install.sh        # the package with its viewer/plot extras
 #   bash scripts/install.sh test   # … and the test tools
 # System packages: Mesa's EGL/GL for offscreen rendering (PyVista/VTK) and Xvfb for the
-# desktop-viewer test; with `test`, Debian's chromium for the browser-viewer test
+# desktop-viewer test, Tk for the explorer's desktop window; with `test`, Debian's chromium for the browser tests
 # (tests/test_web.py). Installed only where missing and where we may (root, apt-get).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 extra="viz"
-pkgs="libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0 libxrender1 xvfb xauth"
+pkgs="libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0 libxrender1 xvfb xauth libtk8.6"
 if [ "${1:-}" = "test" ]; then extra="test"; pkgs="$pkgs chromium"; fi
 need=()
 for pkg in $pkgs; do

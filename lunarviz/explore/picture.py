@@ -100,7 +100,8 @@ def draw_curves(fig, state, series: list) -> dict:
     return {"x": x,
             "lines": [a.axvline(x[0], color="0.3", lw=0.9, ls=":", animated=True) for a in (ax1, ax2)],
             "points": [ax1.plot([], [], "o", ms=8, mfc="none", mec="k", animated=True)[0] for _ in range(2)],
-            "text": fig.text(0.03, ax2.get_position().y0 - 0.065, "", fontsize=9.5, family="monospace", va="top", ha="left", animated=True)}
+            "text": fig.text(0.03, ax2.get_position().y0 - 0.065, "", fontsize=9.5, family="monospace", va="top",
+                             ha="left", animated=True)}
 
 
 def mark(fig, artists: dict, state, quality: str, row: dict, extra: list = ()) -> None:
@@ -155,7 +156,8 @@ def facet_at(view, state, x: float, y: float):
     dist = np.where(front, d[0] ** 2 + d[1] ** 2, np.inf)
     i = int(np.argmin(dist))
     R = float(np.max(np.linalg.norm(c, axis=1)))
-    return i if dist[i] < (0.05 * R) ** 2 else None
+    spacing = R * np.sqrt(4 * np.pi / len(c))  # (the facets' mean spacing: off the disc, none is that near)
+    return i if dist[i] < spacing ** 2 else None
 
 
 class Painter:

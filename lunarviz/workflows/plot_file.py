@@ -2,7 +2,8 @@
 
 * a sweep (``sweep --out`` .json, .csv or .nc): moonshine, earthshine, their ratio and p* against θ
   or time (:func:`lunarviz.outputs.sweep_plot.plot_sweep`);
-* a mesh study (``study mesh``): error against facets and against run time (:func:`~lunarviz.workflows.study.plot_study`);
+* a mesh study (``study mesh``): error against facets and against run time
+  (:func:`~lunarviz.workflows.study.plot_study`);
 * a benchmark (``bench``): run time against error per method (:func:`~lunarviz.workflows.bench.plot_pareto`);
 * a measurement (``measure``): p* per measurement with its 1σ and k = 2 bars against the sweep's, and
   its error budget, largest term first (:func:`plot_measurement`).
@@ -112,7 +113,8 @@ def plot_measurement(res: dict, path) -> None:
     ax.set_ylabel("apparent albedo p*")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(0.0, -0.18), ncol=3, frameon=False)
     ax.grid(alpha=0.3)
-    terms = {label: float(np.mean([(r.get(k) or 0.0) / r["p_star"] for r in rows])) for k, label in BUDGET_TERMS.items()}
+    terms = {label: float(np.mean([(r.get(k) or 0.0) / r["p_star"] for r in rows]))
+             for k, label in BUDGET_TERMS.items()}
     shown = dict(sorted(((k, v) for k, v in terms.items() if v > 0), key=lambda t: t[1]))
     zero = [k for k, v in terms.items() if not v > 0]  # (no place on a log axis: named in the title)
     bx.barh(list(shown), list(shown.values()), color="C0")

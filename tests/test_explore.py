@@ -1,0 +1,273 @@
+"""The explorer without a browser: its state file, its engine (first and converged frames, newer
+requests superseding older, the cache), ``render --state`` and ``sweep --state`` against the
+explorer's own picture and numbers, picking, ``lunarviz plot``, and the desktop window under Xvfb.
+
+Every scene here is the θ scene on a coarse Moon (``moon_level`` 3) over a short slider, so a
+converged frame takes well under a second.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from lunarviz.errors import LunarvizError
+from lunarviz.explore.engine import Engine, state_picture, state_row
+from lunarviz.explore.picture import facet_at
+from lunarviz.explore.state import ExploreState, state_from_scene
+
+PHASES = (30.0, 60.0, 90.0, 120.0, 150.0)
+
+
+def _state(**kw) -> ExploreState:
+    base = {"options": {"moon_level": 3}, "phases": PHASES, "key": 120.0, "size": (800, 500)}
+    return ExploreState(**{**base, **kw})
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "lunarviz", *args], capture_output=True, text=True, cwd=cwd)
+
+
+# ---- the state file -------------------------------------------------------------------------------
+def test_a_state_round_trips_through_its_file(tmp_path):
+    s = _state(brdf="shg", band="V", picked=12).with_(moon_model="rolo-fit")
+    path = s.save(tmp_path / "view.json")
+    assert ExploreState.load(path) == s
+    assert json.loads(path.read_text())["lunarviz"] == "explore-state"
+
+
+@pytest.mark.parametrize("edit, words", [
+    ({"lunarviz": "sweep"}, "not an explorer state"),
+    ({"version": 9}, "version 9"),
+    ({"key": 45.0}, "not among the slider"),
+    ({"brdf": "dgh"}, "did you mean 'dhg'"),
+    ({"options": {"moon_levle": 3}}, "did you mean 'moon_level'"),
+    ({"options": {"earth_albedo": 7.0}}, "Earth albedo 7.0"),
+    ({"size": [10, 10]}, "size"),
+    ({"picked": -3}, "picked facet"),
+    ({"extra": 1}, "unknown entry 'extra'"),
+])
+def test_a_bad_state_file_gets_one_line_naming_the_bad_value(tmp_path, edit, words):
+    d = _state().to_dict()
+    d.update(edit)
+    p = tmp_path / "bad.json"
+    p.write_text(json.dumps(d))
+    with pytest.raises(LunarvizError, match=words.replace("(", r"\(")) as e:
+        ExploreState.load(p)
+    assert "\n" not in str(e.value) and "bad.json" in str(e.value)
+
+
+def test_a_scene_of_the_command_line_becomes_a_state_with_its_slider():
+    import lunarviz
+    s = state_from_scene(lunarviz.Scene(phases=[120.0], moon_level=3), brdf="dhg")
+    assert s.key == 120.0 and 0.0 in s.keys and 180.0 in s.keys  # one θ: the default slider through it
+    assert s.options == {"moon_level": 3}
+
+
+# ---- the engine -----------------------------------------------------------------------------------
+def test_first_then_converged_frames_and_the_cache():
+    made = []
+    engine = Engine(on_frame=made.append, background=False)
+    s = _state()
+    engine.request(s)
+    assert engine.wait_idle(120)
+    assert [f.quality for f in made] == ["first", "converged"]
+    first, conv = made
+    assert first.error is None and conv.error is None
+    assert first.image.shape == conv.image.shape == (500, 800, 3)
+    # the first frame's numbers are the paper's point sources; the converged one's the tracer's row with its bound
+    assert first.row["method"] == "analytic" and conv.row["method"] == "raytrace"
+    # (level-3 facets asked for: the rows' bound for that level, 5e-4; the default level meets 1e-4)
+    assert 0 < conv.row["rtol"] < 1e-3 and abs(first.row["moonshine_W_m2"] / conv.row["moonshine_W_m2"] - 1) < 0.05
+    # a state seen before: its converged frame at once, no first frame
+    engine.request(s.with_(key=90.0))
+    engine.wait_idle(120)
+    made.clear()
+    engine.request(s)
+    engine.wait_idle(120)
+    assert [f.quality for f in made] == ["converged"] and made[0] is conv
+    engine.close()
+
+
+def test_a_newer_request_supersedes_an_older_one():
+    """Ten requests in a row while the worker is busy: the states between the first and the last
+    are never computed (each frame made is of the first, in flight, or of the last)."""
+    made = []
+    gate = threading.Event()
+
+    def on_frame(f):
+        made.append(f)
+        gate.wait(30)  # hold the worker on its first frame while the requests pile up
+    engine = Engine(on_frame=on_frame, background=False)
+    states = [_state(key=k) for k in (30.0, 60.0, 90.0, 120.0, 150.0)]
+    engine.request(states[0])
+    time.sleep(0.2)
+    for s in states[1:]:
+        engine.request(s)
+    gate.set()
+    assert engine.wait_idle(120)
+    keys = {f.state.key for f in made}
+    assert keys <= {30.0, 150.0} and 150.0 in keys
+    assert made[-1].state.key == 150.0 and made[-1].quality == "converged"
+    engine.close()
+
+
+def test_a_state_that_cannot_be_computed_shows_why_and_the_worker_goes_on():
+    made = []
+    engine = Engine(on_frame=made.append, background=False)
+    bad = _state(options={"moon_level": 3, "earth_albedo": 0.3, "detector": (1e12, 0.0, 0.0)})
+    engine.request(bad)
+    engine.wait_idle(120)
+    engine.request(_state())
+    engine.wait_idle(120)
+    assert made[-1].error is None and made[-1].state == _state()
+    engine.close()
+
+
+def test_the_background_pass_fills_the_curves():
+    made = []
+    engine = Engine(on_frame=made.append, background=True)
+    s = _state()
+    engine.request(s)
+    t0 = time.time()
+    while engine.series_done(s) < len(PHASES) and time.time() - t0 < 120:
+        time.sleep(0.2)
+    assert engine.series_done(s) == len(PHASES)
+    engine.close()
+
+
+def test_numbers_agree_with_the_sweep_row():
+    """The converged frame's row is the sweep's: ``run_phase`` of the same scene (here against a
+    sweep run by the API, the path ``lunarviz sweep`` takes)."""
+    import lunarviz
+    s = _state(key=90.0)
+    conv = Engine(background=False, start=False).frame(s, "converged")
+    ds = lunarviz.run(lunarviz.Scene(phases=[90.0], brdfs=("dhg",), moon_level=3), "raytrace")
+    row = ds["rows"][0]
+    for k in ("moonshine_W_m2", "earthshine_W_m2", "apparent_albedo", "rtol"):
+        assert conv.row[k] == row[k]
+
+
+# ---- the command line ------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory):
+    """A state saved by ``explore --save-state`` with its ``--screenshot``."""
+    tmp = tmp_path_factory.mktemp("state")
+    r = _cli("explore", "--phases", "30:150:30", "--phase", "120", "--mesh-level", "3", "--size", "800x500",
+             "--save-state", str(tmp / "view.json"), "--screenshot", str(tmp / "view.png"))
+    if r.returncode:  # (--phases and --phase are one option: the last given wins)
+        raise AssertionError(r.stderr)
+    return tmp
+
+
+def test_render_state_makes_the_explorers_picture(saved):
+    from PIL import Image
+    r = _cli("render", "--state", str(saved / "view.json"), "--out", str(saved / "again.png"))
+    assert r.returncode == 0, r.stderr
+    a = np.asarray(Image.open(saved / "view.png")).astype(int)
+    b = np.asarray(Image.open(saved / "again.png")).astype(int)
+    assert a.shape == b.shape == (500, 800, 3)
+    assert np.abs(a - b).max() <= 2  # (the same code and data: identical, but for GPU-free rasteriser noise)
+
+
+def test_sweep_state_gives_the_explorers_numbers_exactly(saved):
+    r = _cli("sweep", "--state", str(saved / "view.json"), "--out", str(saved / "row.json"), "--quiet")
+    assert r.returncode == 0, r.stderr
+    row = json.loads((saved / "row.json").read_text())["rows"][0]
+    state = ExploreState.load(saved / "view.json")
+    mine = state_row(state)
+    assert row["theta_deg"] == state.key
+    for k, v in mine.items():
+        if k != "seconds":
+            assert row[k] == v or (v != v and row[k] is None), k
+
+
+@pytest.mark.parametrize("args, words", [
+    (["render", "--out", "x.png", "--phase", "30"], "drop --phase"),
+    (["sweep", "--out", "x.json", "--earth-albedo", "0.4"], "drop --earth-albedo"),
+    (["sweep", "--out", "x.json", "--method", "reference"], "drop --method"),
+])
+def test_state_refuses_scene_options_beside_it(saved, args, words):
+    r = _cli(*args[:1], "--state", str(saved / "view.json"), *args[1:], cwd=saved)
+    assert r.returncode == 2 and words in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_picking_finds_the_facet_under_the_pixel():
+    """The pixel of the top-left panel where the sub-observer point is drawn picks a facet seen
+    face on (e < 5°); a pixel off the disc picks none."""
+    s = _state()
+    f = Engine(background=False, start=False).frame(s)
+    W, H = s.size
+    pw, ph = (int(W * 0.62) // 2 * 2) / 2, H / 2
+    # the disc's centre: 0.25 R / zoom left of the panel's centre, at 2 × 1.2 R / zoom per panel height
+    x = pw / 2 - (0.25 / 0.8) * ph / (2 * 1.2 / 0.8)
+    i = facet_at(f.view, s, x, ph / 2)
+    assert i is not None and f.view.facets.cell_data["emission_deg"][i] < 5
+    assert facet_at(f.view, s, 3, 3) is None
+    picked = Engine(background=False, start=False).frame(s.with_(picked=i))
+    assert np.abs(picked.image.astype(int) - f.image.astype(int)).max() > 100  # its red marker and paths
+
+
+# ---- plot ------------------------------------------------------------------------------------------------
+def test_plot_draws_a_sweep_and_refuses_what_is_not_an_output(tmp_path):
+    r = _cli("sweep", "--phases", "30:150:60", "--out", str(tmp_path / "s.csv"), "--quiet")
+    assert r.returncode == 0, r.stderr
+    r = _cli("plot", str(tmp_path / "s.csv"), "--out", str(tmp_path / "s.png"))
+    assert r.returncode == 0 and "a sweep" in r.stdout and (tmp_path / "s.png").stat().st_size > 10_000
+    (tmp_path / "x.json").write_text('{"a": 1}')
+    r = _cli("plot", str(tmp_path / "x.json"), "--out", str(tmp_path / "x.png"))
+    assert r.returncode == 2 and "not a lunarviz" in r.stderr and not (tmp_path / "x.png").exists()
+
+
+# ---- the desktop window ---------------------------------------------------------------------------------
+@pytest.mark.skipif(shutil.which("Xvfb") is None and not os.environ.get("CI"), reason="no Xvfb here")
+def test_desktop_window_under_xvfb(tmp_path):
+    """The Tk window under Xvfb: a control change reaches the picture, a click picks a facet, Save
+    writes the state and its picture."""
+    script = f"""
+import time, tkinter as tk
+from lunarviz.explore.state import ExploreState
+from lunarviz.explore.desktop import DesktopExplorer
+from lunarviz.explore.controls import BY_CONTROL
+root = tk.Tk()
+app = DesktopExplorer(root, ExploreState(options={{"moon_level": 3}}, phases={PHASES!r}, key=120.0,
+                                          size=(800, 500)), background=False)
+def pump(cond, sec=60):
+    end = time.time() + sec
+    while time.time() < end and not cond():
+        root.update(); time.sleep(0.01)
+    assert cond()
+conv = lambda: app.explorer.frame is not None and app.explorer.frame.quality == "converged"
+pump(conv)
+before = app.explorer.frame.image
+app._set(BY_CONTROL["brdf"], "Lambert")
+pump(lambda: conv() and app.explorer.frame.state.brdf == "lambert")
+assert abs(app.explorer.frame.image.astype(int) - before.astype(int)).mean() > 0.5
+assert app.menus["brdf"].get() == "Lambert"
+app.picture.event_generate("<Button-1>", x=160, y=125)
+pump(lambda: conv() and app.explorer.frame.state.picked is not None)
+t = app.explorer.save({str(tmp_path / 'saved.json')!r})
+t.join(120)
+pump(lambda: "saved" in app.status.cget("text"))
+print("ok", app.explorer.frame.state.picked)
+root.destroy()
+"""
+    r = subprocess.run(["xvfb-run", "-a", sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "ok" in r.stdout, r.stderr[-2000:]
+    assert (tmp_path / "saved.json").exists() and (tmp_path / "saved.png").exists()
+    assert ExploreState.load(tmp_path / "saved.json").picked is not None
+
+
+def test_state_picture_equals_the_windows_converged_frame_with_complete_curves():
+    s = _state(key=60.0)
+    engine = Engine(background=False, start=False)
+    frame = engine.frame(s, full_series=True)
+    assert np.array_equal(frame.image, state_picture(s))
