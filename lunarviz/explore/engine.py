@@ -34,8 +34,6 @@ CACHE_FRAMES = 96
 CACHE_ROWS = 20_000
 #: options of the tracer's meshes, which the point-source method (the first frame's numbers) refuses
 MESH_ONLY = ("mesh_units", "moon_level", "earth_level", "sun_level", "shading", "self_shadow")
-#: how many slider values on each side of the one on show the background pass renders
-NEIGHBOURS = 3
 #: the first frame's Moon mesh: this many levels under the scene's own (at least level 2)
 COARSER_LEVELS = 2
 
@@ -207,7 +205,8 @@ class Engine:
                 sc = sc.with_(moon_level=max(2, int(level) - COARSER_LEVELS))
         scene = sc.scene()
         settings = replace(scene.settings("raytrace"), brdfs=(state.brdf,))
-        self._views[key] = out = view_data(settings, scene.keys[0], state.brdf)
+        self._views[key] = out = view_data(settings, scene.keys[0], state.brdf,
+                                                  quick=True if quality == "first" else "picture")
         return out
 
     # ---- threads ------------------------------------------------------------------------------
@@ -248,43 +247,55 @@ class Engine:
             return self._wanted is None and not self._busy
 
     def _background(self) -> None:
-        """Rows of every slider value of the state on show, then its neighbours' frames, while idle;
-        the state on show is repainted as its curves fill in."""
+        """Rows of every slider value of the state on show, nearest first, computed in a process of
+        its own at the lowest priority (:func:`_background_row`): the window's worker never waits
+        for it, and the operating system gives it only what the worker leaves; the state on show is
+        repainted as its curves fill in."""
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+        try:  # a band's first use imports speclite (~0.7 s): done here, before a user asks for one
+            import speclite.filters  # noqa: F401
+        except ImportError:
+            pass
         done: set = set()
-        while True:
-            with self._lock:
-                if self._closed:
-                    return
-            state = self._shown
-            todo = None if state is None else self._next_task(state, done)
-            if todo is None or not self._idle():
-                time.sleep(0.05)
-                continue
-            kind, s = todo
-            try:
-                with self._compute:
-                    if kind == "row":
-                        self.row(s, "converged")
-                    else:  # the neighbours' traced views: their pictures then only render
-                        self._view(s, "converged")
-                if kind == "row" and self.series_done(state) == len(state.keys):
+        # (spawned, not forked: this process holds threads and OpenGL contexts)
+        spawn = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(1, mp_context=spawn, initializer=_lowest_priority) as pool:
+            while True:
+                with self._lock:
+                    if self._closed:
+                        return
+                state = self._shown
+                todo = None if state is None else self._next_task(state, done)
+                if todo is None:
+                    time.sleep(0.05)
+                    continue
+                done.add(todo.cache_key())
+                try:
+                    row = pool.submit(state_row, todo).result()
+                except Exception:  # noqa: BLE001,S112 (a value that fails here fails again, shown, when asked for)
+                    continue
+                self._rows[(todo.cache_key(), "converged")] = row
+                if self.series_done(state) == len(state.keys):
                     self._repaint(state)  # its curves complete: paint it again
-            except Exception:  # noqa: BLE001,S110 (a value that fails here fails again, shown, when asked for)
-                pass
-            done.add((kind, s.cache_key()))
 
     def _next_task(self, state: ExploreState, done: set):
+        """The next slider value of ``state`` whose converged row is not yet known, nearest first."""
         keys = state.keys
-        order = sorted(range(len(keys)), key=lambda i: abs(i - state.index))
-        for i in order:
+        for i in sorted(range(len(keys)), key=lambda i: abs(i - state.index)):
             s = state.with_(key=keys[i], picked=None)
-            if (s.cache_key(), "converged") not in self._rows and ("row", s.cache_key()) not in done:
-                return "row", s
-        for i in order[1:2 * NEIGHBOURS + 1]:
-            s = state.with_(key=keys[i], picked=None)
-            if (s.with_(band=None).cache_key(), "converged") not in self._views and ("view", s.cache_key()) not in done:
-                return "view", s
+            if (s.cache_key(), "converged") not in self._rows and s.cache_key() not in done:
+                return s
         return None
+
+
+def _lowest_priority() -> None:
+    """The background process's start: the lowest scheduling priority (where the system has one)."""
+    import os
+    try:
+        os.nice(19)
+    except (AttributeError, OSError):
+        pass
 
 
 def state_picture(state: ExploreState) -> np.ndarray:

@@ -94,7 +94,7 @@ def draw_curves(fig, state, series: list) -> dict:
     ax3.set_ylabel("apparent albedo p*", color="C3")
     ax2.set_xlabel(xlabel)
     for a in (ax1, ax2):
-        a.grid(alpha=0.3, which="both")
+        a.grid(alpha=0.3)
         if len(x) > 1:
             a.set_xlim(x.min() - 0.01 * np.ptp(x), x.max() + 0.01 * np.ptp(x))
     return {"x": x,
@@ -168,6 +168,7 @@ class Painter:
         self._size = None
         self._curves_sig = None
         self._curves_fig = None
+        self._left, self._left_of = None, None
 
     def _plot3d(self, view, size, picked=None) -> np.ndarray:
         from lunarviz.viz import views
@@ -203,13 +204,17 @@ class Painter:
         fig.canvas.draw()
         return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
 
-    def _curves(self, state, series: list, size):
-        """The figure of the curves, drawn once per slider range and set of rows (its pixels kept)."""
-        sig = (state.with_(key=state.keys[0]).cache_key(), size,
-               tuple(None if r is None else (r.get("moonshine_W_m2"), r.get("earthshine_W_m2"),
-                                             r.get("apparent_albedo")) for r in series))
-        if self._curves_sig != sig:
-            fig = self._figure(size)
+    def _curves(self, state, series: list, size, quick: bool = False):
+        """The figure of the curves, drawn once per slider range and set of rows (its pixels kept);
+        ``quick`` (a first picture): the range's last drawn curves, though rows came since."""
+        scene = (state.with_(key=state.keys[0], picked=None).cache_key(), size)
+        sig = (*scene, tuple(None if r is None else (r.get("moonshine_W_m2"), r.get("earthshine_W_m2"),
+                                                     r.get("apparent_albedo")) for r in series))
+        if self._curves_sig != sig and not (quick and self._curves_sig is not None and self._curves_sig[:2] == scene):
+            fig = self._curves_fig[0] if self._curves_fig is not None and self._curves_sig[1] == size else None
+            if fig is None:
+                fig = self._figure(size)
+            fig.clear()
             artists = draw_curves(fig, state, series)
             fig.canvas.draw()
             self._curves_fig = (fig, artists, fig.canvas.copy_from_bbox(fig.bbox))
@@ -221,8 +226,12 @@ class Painter:
         W, H = state.size
         w3 = int(W * SPLIT) // 2 * 2
         picked = state.picked if state.picked is not None and state.picked < view.facets.n_faces else None
-        left = self._plot3d(view, (w3, H), picked)
-        fig, artists, background = self._curves(state, series, (W - w3, H))
+        last = self._left_of
+        if last is None or last[0] is not view or last[1:] != (picked, (w3, H)):
+            self._left = self._plot3d(view, (w3, H), picked)  # (else a band's change: the 3-D panels are grey)
+            self._left_of = (view, picked, (w3, H))
+        left = self._left
+        fig, artists, background = self._curves(state, series, (W - w3, H), quick=quality == "first")
         fig.canvas.restore_region(background)
         mark(fig, artists, state, quality, row, facet_lines(view, picked))
         right = np.asarray(fig.canvas.buffer_rgba())[..., :3]

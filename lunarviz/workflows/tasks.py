@@ -17,11 +17,25 @@ from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.viz.view_data import ViewData
 
 
-def facets(scene, key, brdf: str | None = None, trace_scene=None) -> FacetResult:
+#: the tracer's settings of a quick look (:func:`view_data`'s ``quick``): the fewest beams to each source,
+#: the Earth's rule about each sample's sub-point, no refinement at edges (an explorer's first picture)
+QUICK_TRACE = {"earth_order": 2, "sun_order": 2, "earth_pole": "centre", "refine": False}
+#: ... of a picture (``quick="picture"``: the explorer's converged one): the Earth's rule about each
+#: facet's sub-point, not its zero-phase point. Off the Earth's centre a rough, surging BRDF's
+#: earthshine then errs by up to ~5e-3 (docs: accuracy), nothing on a colour scale; the numbers
+#: beside a picture are the sweep's rows, with their bounds
+PICTURE_TRACE = {"earth_pole": "centre"}
+
+
+def facets(scene, key, brdf: str | None = None, trace_scene=None, quick: bool | str = False) -> FacetResult:
     """Per-facet arrays of task ``key`` (θ [deg] or a UTC time) for every BRDF of ``scene``
-    (:func:`lunarviz.methods.tracer.facets.trace_facets`); the unsuffixed ones for ``brdf``."""
+    (:func:`lunarviz.methods.tracer.facets.trace_facets`); the unsuffixed ones for ``brdf``;
+    ``quick``: with :data:`QUICK_TRACE` (True) or :data:`PICTURE_TRACE` (``"picture"``)."""
     geometry, fields = scene.task(key)
-    return trace_facets(geometry, fields, scene.trace_settings(), scene.brdf_models(), brdf, trace_scene)
+    settings = scene.trace_settings()
+    if quick:
+        settings = replace(settings, **(PICTURE_TRACE if quick == "picture" else QUICK_TRACE))
+    return trace_facets(geometry, fields, settings, scene.brdf_models(), brdf, trace_scene)
 
 
 def image(scene, key, camera: Camera, request=None, trace_scene=None) -> ImageResult:
@@ -32,10 +46,11 @@ def image(scene, key, camera: Camera, request=None, trace_scene=None) -> ImageRe
                       scene.spectral_inputs(request), trace_scene)
 
 
-def view_data(scene, key, brdf: str) -> ViewData:
-    """Trace task ``key`` with ``brdf`` and collect everything a view shows."""
+def view_data(scene, key, brdf: str, quick: bool | str = False) -> ViewData:
+    """Trace task ``key`` with ``brdf`` and collect everything a view shows (``quick``: as for
+    :func:`facets`)."""
     scene = replace(scene, brdfs=(brdf,))
-    fr = facets(scene, key, brdf)
+    fr = facets(scene, key, brdf, quick=quick)
     sc, fields = scene.task(key)
     ms, es = fr.totals["moonshine_W_m2"], fr.totals["earthshine_W_m2"]
     model = scene.brdf_models()
