@@ -87,13 +87,20 @@ def test_first_then_converged_frames_and_the_cache():
     assert first.row["method"] == "analytic" and conv.row["method"] == "raytrace"
     # (level-3 facets asked for: the rows' bound for that level, 5e-4; the default level meets 1e-4)
     assert 0 < conv.row["rtol"] < 1e-3 and abs(first.row["moonshine_W_m2"] / conv.row["moonshine_W_m2"] - 1) < 0.05
-    # a state seen before: its converged frame at once, no first frame
+    # a state seen before: its converged frame at once, no first frame; then, as a row (θ = 90°'s)
+    # came since, the same with its curves redrawn
     engine.request(s.with_(key=90.0))
     engine.wait_idle(120)
     made.clear()
     engine.request(s)
     engine.wait_idle(120)
-    assert [f.quality for f in made] == ["converged"] and made[0] is conv
+    assert [f.quality for f in made] == ["converged", "converged"] and made[0] is conv
+    assert sum(r is not None for r in made[1].series) == sum(r is not None for r in conv.series) + 1
+    redrawn = made[1]
+    made.clear()
+    engine.request(s)  # nothing new since: that frame, once
+    engine.wait_idle(120)
+    assert len(made) == 1 and made[0] is redrawn
     engine.close()
 
 

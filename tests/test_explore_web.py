@@ -30,6 +30,7 @@ pytestmark = [pytest.mark.skipif(chromium_path() is None and not os.environ.get(
               pytest.mark.xdist_group("web_server")]
 
 SIZE = (1000, 640)
+KEYS = (30.0, 60.0, 90.0, 120.0, 150.0)
 
 
 def _free_port() -> int:
@@ -98,13 +99,18 @@ def _changed(a, b) -> set:
 
 
 def test_explorer_controls_change_the_right_panels(explore_server):
-    url, _ = explore_server
+    url, tmp = explore_server
 
     async def run():
         async with Browser(1400, 900) as b:
             await b.goto(url)
             await b.wait_for("window.trame && window.trame.state && window.trame.state.get('picture')", 120)
             pics = {"start": await _picture(b, "shown.key === 30")}
+            # the curves complete (the background pass), then Save: the state and the page's picture
+            saved = await _picture(b, f"shown.key === 30 && shown.rows === {len(KEYS)}")
+            await b.evaluate("window.trame.state.set('save_path', 'saved.json'); true")
+            await b.evaluate("window.trame.trigger('save'); true")
+            await b.wait_for("(window.trame.state.get('status') || '').includes('saved')", 120)
             await b.evaluate("window.trame.state.set('index', 3); true")  # θ: 30° → 120°
             pics["theta"] = await _picture(b, "shown.key === 120")
             await b.evaluate("window.trame.state.set('brdf', 'lambert'); true")
@@ -120,10 +126,17 @@ def test_explorer_controls_change_the_right_panels(explore_server):
                              " clientY: r.top + 0.25 * r.height, bubbles: true})); return true; })()")
             pics["picked"] = await _picture(b, "shown.picked !== null")
             status = await b.evaluate("window.trame.state.get('status')")
-            return pics, status
+            return pics, status, saved
 
-    pics, status = asyncio.run(run())
+    pics, status, saved = asyncio.run(run())
     assert "converged" in status
+    # render --state makes the page's picture of the saved state, pixel for pixel (rendering noise aside)
+    from PIL import Image
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "render", "--state", str(tmp / "saved.json"), "--out",
+                        str(tmp / "rendered.png")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    rendered = np.asarray(Image.open(tmp / "rendered.png").convert("L")).astype(float)
+    assert rendered.shape == saved.shape and np.abs(rendered - saved).max() <= 2
     # θ moves the Sun: every panel changes (the Moon, its earthshine, the paths, the map, the marker)
     assert _changed(pics["start"], pics["theta"]) == {"moon", "earthshine", "rays", "brdf_map", "curves"}
     # the lunar BRDF: the Moon's shading, its earthshine, the map and the numbers; not the geometry's paths

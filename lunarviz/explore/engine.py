@@ -85,6 +85,7 @@ class Engine:
         self._frames = BoundedCache(CACHE_FRAMES)
         self._rows = BoundedCache(CACHE_ROWS)
         self._views = BoundedCache(CACHE_FRAMES)
+        self._seen = BoundedCache(CACHE_FRAMES)  # each state's newest converged frame, its curves as they were
         #: one computation at a time (the worker's and the background pass's): the tracer and VTK
         #: each take both cores, and an OpenGL context is not shared between threads
         self._compute = threading.RLock()
@@ -137,22 +138,27 @@ class Engine:
         """The frame of ``state`` at ``quality``, made on the calling thread (cached). With
         ``full_series`` every slider value's row is computed first (the picture ``render --state``
         makes; the window's own converged frame shows the rows computed so far)."""
-        key = (state.cache_key(), quality, full_series)
+        key = self._frame_key(state, quality, full_series)
         hit = self._frames.get(key)
         if hit is not None:
             return hit
         with self._compute:
             return self._make_frame(state, quality, full_series, key)
 
+    def _frame_key(self, state: ExploreState, quality: str, full_series: bool) -> tuple:
+        """A frame's cache key: its state, quality and, for a converged frame, how many rows its
+        curves hold (the background pass adds them: a frame drawn with fewer is made again)."""
+        return state.cache_key(), quality, full_series, self.series_done(state) if quality == "converged" else 0
+
     def _make_frame(self, state: ExploreState, quality: str, full_series: bool, key) -> Frame:
         t0 = time.perf_counter()
         try:
             if full_series:
                 for k in state.keys:
-                    self.row(state.with_(key=k), "converged")
+                    if (state.task_key(k), "converged") not in self._rows:
+                        self.row(state.with_(key=k), "converged")
             row = self.row(state, quality)
-            series = [self._rows.get((state.with_(key=k, picked=None).cache_key(), "converged"))
-                      for k in state.keys]
+            series = [self._rows.get((state.task_key(k), "converged")) for k in state.keys]
             view = self._view(state, quality)
             image = self.painter().paint(state, quality, row, series, view)
             out = Frame(state, quality, row, series, image, time.perf_counter() - t0, view=view)
@@ -161,13 +167,13 @@ class Engine:
             out = Frame(state, quality, error=why, seconds=time.perf_counter() - t0)
             out.image = self.painter().paint_error(state, why)
         if out.error is None and (not full_series or all(r is not None for r in out.series)):
-            self._frames[key] = out
+            self._frames[self._frame_key(state, quality, full_series)] = out  # (its own row now counted)
         return out
 
     def row(self, state: ExploreState, quality: str = "converged") -> dict:
         """The sweep row of ``state``'s task (``analytic`` for the first frame, else ``raytrace``):
         what ``lunarviz sweep --state`` computes for it."""
-        key = (state.with_(picked=None).cache_key(), quality)
+        key = (state.task_key(), quality)
         hit = self._rows.get(key)
         if hit is not None:
             return hit
@@ -181,7 +187,7 @@ class Engine:
 
     def series_done(self, state: ExploreState) -> int:
         """How many of the slider's values have their converged row."""
-        return sum((state.with_(key=k, picked=None).cache_key(), "converged") in self._rows for k in state.keys)
+        return sum((state.task_key(k), "converged") in self._rows for k in state.keys)
 
     def painter(self):
         """This thread's painter (an OpenGL context belongs to the thread that made it)."""
@@ -194,7 +200,7 @@ class Engine:
     def _view(self, state: ExploreState, quality: str):
         """What the 3-D panels draw: the task traced per facet (grey), on a coarser Moon first."""
         from lunarviz.workflows.tasks import view_data
-        key = (state.with_(band=None, picked=None).cache_key(), quality)
+        key = (state.task_key(band=None), quality)
         hit = self._views.get(key)
         if hit is not None:
             return hit
@@ -231,12 +237,18 @@ class Engine:
             if state is None:
                 return
             try:
+                seen = self._seen.get(state.cache_key())
                 for quality in ("first", "converged"):
-                    if quality == "first" and (state.cache_key(), "converged", False) in self._frames:
-                        continue  # seen before: its converged frame at once
+                    if quality == "first" and seen is not None:
+                        self.on_frame(seen)  # seen before: its converged frame at once (its curves redrawn next
+                        continue             # where rows came since)
                     if not self._current(gen):
                         break
-                    self.on_frame(self.frame(state, quality))
+                    frame = self.frame(state, quality)
+                    if frame is not seen:
+                        self.on_frame(frame)
+                    if quality == "converged" and frame.error is None:
+                        self._seen[state.cache_key()] = frame
             finally:
                 with self._lock:
                     self._busy = False
@@ -270,12 +282,12 @@ class Engine:
                 if todo is None:
                     time.sleep(0.05)
                     continue
-                done.add(todo.cache_key())
+                done.add(todo.task_key())
                 try:
                     row = pool.submit(state_row, todo).result()
                 except Exception:  # noqa: BLE001,S112 (a value that fails here fails again, shown, when asked for)
                     continue
-                self._rows[(todo.cache_key(), "converged")] = row
+                self._rows[(todo.task_key(), "converged")] = row
                 if self.series_done(state) == len(state.keys):
                     self._repaint(state)  # its curves complete: paint it again
 
@@ -283,9 +295,9 @@ class Engine:
         """The next slider value of ``state`` whose converged row is not yet known, nearest first."""
         keys = state.keys
         for i in sorted(range(len(keys)), key=lambda i: abs(i - state.index)):
-            s = state.with_(key=keys[i], picked=None)
-            if (s.cache_key(), "converged") not in self._rows and s.cache_key() not in done:
-                return s
+            task = state.task_key(keys[i])
+            if (task, "converged") not in self._rows and task not in done:
+                return state.with_(key=keys[i], picked=None)
         return None
 
 

@@ -141,6 +141,13 @@ class ExploreState:
             return Scene(time=list(self.times), **kw)
         return Scene(phases=list(self.phases), **kw)
 
+    def task_key(self, key=None, band="same") -> str:
+        """A text naming one task's computation (options, the key, BRDF and band; not the slider,
+        the size or the pick): what its row and its traced view depend on. ``key``: another slider
+        value; ``band``: another band (None: grey)."""
+        return json.dumps([_plain(self.options), self.key if key is None else key, self.brdf,
+                           self.band if band == "same" else band], sort_keys=True)
+
     def cache_key(self) -> str:
         """A text that two states share exactly when they show the same thing."""
         return json.dumps(self.to_dict(), sort_keys=True)

@@ -93,12 +93,18 @@ def build_app(state: ExploreState, server=None, background: bool = True):
                     st.key_label = str(frame.state.key) + ("" if frame.state.times else " deg")
                     st.frames_shown += 1
                     st.shown = {"key": frame.state.key, "brdf": frame.state.brdf, "band": frame.state.band or NONE,
-                                "picked": frame.state.picked, "quality": frame.quality, **frame.state.options}
+                                "picked": frame.state.picked, "quality": frame.quality,
+                                "rows": sum(r is not None for r in frame.series), **frame.state.options}
                     for c in CONTROLS:  # the menus follow the state (a refused change put back)
                         v = state_value(explorer.state, c.name)
                         st[c.name] = NONE if v is None else v
-                    st.status = (explorer.message or f"{frame.quality} picture in {frame.seconds:.2f} s"
-                                 + (f"   {frame.error}" if frame.error else "")) + explorer.saved_note
+
+                shown = explorer.frame
+                status = (explorer.message or ("computing ..." if shown is None else
+                                               f"{shown.quality} picture in {shown.seconds:.2f} s"
+                                               + (f"   {shown.error}" if shown.error else ""))) + explorer.saved_note
+                if status != st.status:
+                    st.status = status
                 if st.playing and ticks % round(PLAY_S / POLL_S) == 0:
                     explorer.show((explorer.state.index + 1) % len(explorer.state.keys))
             await asyncio.sleep(POLL_S)
