@@ -108,8 +108,8 @@ def report(res: dict, out: Path) -> None:
              "| change | changes | first picture, median [s] | max [s] | converged, median [s] | max [s] | "
              "largest difference from `sweep --state` |", "| --- | --- | --- | --- | --- | --- | --- |"]
     for kind, s in res["summary"].items():
-        lines.append(f"| {kind.replace('_', ' ')} | {s['changes']} | {s['first_median_s']:.3f} | {s['first_max_s']:.3f} "
-                     f"| {s['converged_median_s']:.3f} | {s['converged_max_s']:.3f} | "
+        lines.append(f"| {kind.replace('_', ' ')} | {s['changes']} | {s['first_median_s']:.3f} "
+                     f"| {s['first_max_s']:.3f} | {s['converged_median_s']:.3f} | {s['converged_max_s']:.3f} | "
                      f"{s['max_rel_difference_vs_sweep_state']:.1e} |")
     (out / "README.md").write_text("\n".join(lines) + "\n")
 
