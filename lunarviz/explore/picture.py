@@ -90,8 +90,13 @@ def draw_curves(fig, state, series: list) -> dict:
     ax2.semilogy(x, _values(series, "ratio_earthshine_moonshine"), ".-", ms=3, lw=1, color="C2")
     ax2.set_ylabel("earthshine / moonshine", color="C2")
     ax3 = ax2.twinx()
-    ax3.plot(x, _values(series, "apparent_albedo"), ".-", ms=3, lw=1, color="C3")
+    p = _values(series, "apparent_albedo")
+    ax3.plot(x, p, ".-", ms=3, lw=1, color="C3")
     ax3.set_ylabel("apparent albedo p*", color="C3")
+    ax3.ticklabel_format(axis="y", useOffset=False, style="plain")
+    if np.isfinite(p).any() and np.nanmax(p) - np.nanmin(p) < 1e-3 * np.nanmax(np.abs(p)):
+        mid = float(np.nanmean(p))  # (a constant p*, the Lambert Earth's: an axis about it, not about 1e-13)
+        ax3.set_ylim(mid - 0.05 * abs(mid) - 1e-3, mid + 0.05 * abs(mid) + 1e-3)
     ax2.set_xlabel(xlabel)
     for a in (ax1, ax2):
         a.grid(alpha=0.3)
