@@ -160,7 +160,8 @@ class Engine:
             row = self.row(state, quality)
             series = [self._rows.get((state.task_key(k), "converged")) for k in state.keys]
             view = self._view(state, quality)
-            image = self.painter().paint(state, quality, row, series, view)
+            model = None if state.picked is None else state.scene().settings("raytrace").brdf_models()[state.brdf]
+            image = self.painter().paint(state, quality, row, series, view, model)
             out = Frame(state, quality, row, series, image, time.perf_counter() - t0, view=view)
         except Exception as exc:  # noqa: BLE001 (the window's worker must outlive any state: it shows why)
             why = str(exc) if isinstance(exc, LunarvizError) else f"{type(exc).__name__}: {exc}"

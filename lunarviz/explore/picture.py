@@ -175,12 +175,13 @@ class Painter:
         self._curves_fig = None
         self._left, self._left_of = None, None
 
-    def _plot3d(self, view, size, picked=None) -> np.ndarray:
+    def _plot3d(self, view, size, picked=None, model=None) -> np.ndarray:
         from lunarviz.viz import views
         if self._plotter is None or self._size != size:
             if self._plotter is not None:
                 self._plotter.close()
-            self._plotter = views.build_plotter(view, views.EXPLORE_VIEW, size, off_screen=True, picked=picked)
+            self._plotter = views.build_plotter(view, views.EXPLORE_VIEW, size, off_screen=True, picked=picked,
+                                                brdf_model=model)
             self._size = size
         else:
             pl = self._plotter
@@ -190,7 +191,7 @@ class Painter:
                     pl.remove_scalar_bar(title, render=False)
                 for r in pl.renderers:
                     r.clear_actors()
-                views.populate(pl, view, views.EXPLORE_VIEW, picked)
+                views.populate(pl, view, views.EXPLORE_VIEW, picked, model)
             finally:
                 pl.suppress_rendering = False
         self._plotter.render()
@@ -226,14 +227,15 @@ class Painter:
             self._curves_sig = sig
         return self._curves_fig
 
-    def paint(self, state, quality: str, row: dict, series: list, view) -> np.ndarray:
-        """The picture (RGB, height × width × 3, uint8) of ``state``."""
+    def paint(self, state, quality: str, row: dict, series: list, view, model=None) -> np.ndarray:
+        """The picture (RGB, height × width × 3, uint8) of ``state`` (``model``: its lunar BRDF, for
+        a picked facet's own map)."""
         W, H = state.size
         w3 = int(W * SPLIT) // 2 * 2
         picked = state.picked if state.picked is not None and state.picked < view.facets.n_faces else None
         last = self._left_of
         if last is None or last[0] is not view or last[1:] != (picked, (w3, H)):
-            self._left = self._plot3d(view, (w3, H), picked)  # (else a band's change: the 3-D panels are grey)
+            self._left = self._plot3d(view, (w3, H), picked, model)  # (else a band's change: the panels are grey)
             self._left_of = (view, picked, (w3, H))
         left = self._left
         fig, artists, background = self._curves(state, series, (W - w3, H), quick=quality == "first")

@@ -290,6 +290,57 @@ def _mark_facet(pl, fr: FacetResult, picked: int | None) -> None:
     pl.add_mesh(pv.Sphere(radius=0.045 * R, center=c * 1.02), color="red", lighting=False)
 
 
+def facet_brdf_dome(fr: FacetResult, picked: int, model):
+    """The picked facet's own BRDF map: π·BRDF for sunlight (point data ``pi*BRDF``) over the
+    hemisphere of view directions about its normal (the sphere's, as the exact shading takes it),
+    at its own albedo parameter; and the unit directions from it toward the Sun, the detector and
+    the Earth (scene axes). Zero where the Sun is below its horizon."""
+    from lunarviz.geometry.scene_geometry import half_angle_sin_cos
+    c = facet_centroids(fr)[picked]
+    n = c / np.linalg.norm(c)
+    here = np.array(fr.info["moon_centre_m"]) + c
+    towards = {name: (np.array(fr.info[key]) - here) / np.linalg.norm(np.array(fr.info[key]) - here)
+               for name, key in (("Sun", "sun_m"), ("detector", "detector_m"), ("Earth", "earth_m"))}
+    dome = pv.Sphere(radius=1.0, theta_resolution=96, phi_resolution=48).clip(normal=tuple(-n), origin=(0, 0, 0))
+    w = np.asarray(dome.points, dtype=float)
+    w /= np.linalg.norm(w, axis=1)[:, None]
+    s = towards["Sun"]
+    mu0 = max(float(n @ s), 0.0)
+    sh, ch = half_angle_sin_cos(np.broadcast_to(s, w.shape), w)
+    alb = fr.cell_data.get("albedo_parameter")
+    a = None if alb is None else np.full(len(w), float(alb[picked]))
+    f = np.pi * np.asarray(model.brdf(np.full(len(w), mu0), np.clip(w @ n, 0.0, 1.0), sh, ch, albedo=a), dtype=float) \
+        if mu0 > 0 else np.zeros(len(w))
+    dome.point_data["pi*BRDF"] = np.where(np.isfinite(f), f, 0.0)
+    return dome, n, towards
+
+
+def _facet_brdf_panel(pl, fr: FacetResult, picked: int, model) -> None:
+    """:func:`facet_brdf_dome` drawn, with arrows toward the Sun, the detector and the Earth."""
+    dome, n, towards = facet_brdf_dome(fr, picked, model)
+    pl.add_mesh(dome, scalars="pi*BRDF", cmap="viridis", lighting=False, n_colors=N_COLORS,
+                scalar_bar_args={"title": "pi*BRDF\n", "vertical": True, "color": "white", "position_x": 0.82,
+                                 "position_y": 0.06, "height": 0.66, "width": 0.045, "fmt": "%.3f",
+                                 "title_font_size": 12, "label_font_size": 11})
+    for (name, v), colour, at in zip(towards.items(), ("gold", "white", "deepskyblue"), (1.55, 1.55, 1.8)):
+        pl.add_mesh(pv.Arrow(start=(0, 0, 0), direction=v, scale=1.45, tip_length=0.12, tip_radius=0.03,
+                             shaft_radius=0.012), color=colour, lighting=False)
+        pl.add_point_labels([v * at], [name], font_size=10, text_color=colour, shape=None, show_points=False,
+                            always_visible=True)
+    cos_i = float(n @ towards["Sun"])
+    i = np.degrees(np.arccos(np.clip(cos_i, -1, 1)))
+    pl.add_text(f"facet {picked}: pi*BRDF over view directions\n(sunlight at i = {i:.1f} deg"
+                + (", below its horizon)" if cos_i <= 0 else ")"), font_size=11, position="upper_left", color="white")
+    side = np.cross(n, towards["detector"])
+    side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-9 else np.cross(n, [1.0, 0.0, 0.0])
+    eye = n + 0.7 * side / np.linalg.norm(side)  # oblique (35° off the normal): the dome's map and the arrows
+    up = n - (n @ eye) / (eye @ eye) * eye
+    focal = 0.35 * n
+    pl.camera_position = [tuple(focal + 5 * eye), tuple(focal), tuple(up)]
+    pl.enable_parallel_projection()
+    pl.camera.parallel_scale = 1.6
+
+
 def _ray_panel(pl, data: ViewData, text: str | None = None, picked: int | None = None):
     """Light paths, schematic: directions as seen from the Earth are kept, distances are not
     (the Moon at 2 units, the Sun at 3.4: the triangle stays legible), bodies enlarged. Seen
@@ -386,19 +437,21 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
 
 
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True,
-                  picked: int | None = None) -> pv.Plotter:
+                  picked: int | None = None, brdf_model=None) -> pv.Plotter:
     """A plotter showing ``view`` of ``data`` (``picked``: a facet marked); call ``show()`` or ``screenshot()``."""
     if view not in VIEWS + (EXPLORE_VIEW,):
         raise unknown_choice("view", view, VIEWS)
     choose_render_window()
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
-    populate(pl, data, view, picked)
+    populate(pl, data, view, picked, brdf_model)
     return pl
 
 
-def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: int | None = None) -> pv.Plotter:
+def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: int | None = None,
+             brdf_model=None) -> pv.Plotter:
     """Draw ``view`` of ``data`` into an existing plotter of shape ``SHAPES[view]``; ``picked``: a
-    lunar facet marked on the Moon panels, its paths drawn in the schematic (composite views)."""
+    lunar facet marked on the Moon panels, its paths drawn in the schematic (composite views) and,
+    in the explorer's view with its ``brdf_model``, its own BRDF map in place of the Moon's."""
     fr = data.facets
     poly = facet_polydata(fr)
     rot = fr.info.get("moon_rotation_body_to_scene")
@@ -476,6 +529,9 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: in
     _ray_panel(pl, data, None if view == EXPLORE_VIEW else text, picked)
     pl.subplot(1, 1)
     pl.set_background("black")
+    if view == EXPLORE_VIEW and picked is not None and brdf_model is not None:  # the picked facet's own map
+        _facet_brdf_panel(pl, fr, picked, brdf_model)
+        return pl
     lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
     _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\nsunlight", "viridis", log=False,
                 bar_fmt="%.3f", mask=lit, sun_dir=sun_dir)
