@@ -556,7 +556,7 @@ def cmd_sweep(a):
         raise UsageError(str(unknown_choice("method", a.method, METHODS)))
     if a.state is not None:  # the explorer's row: its scene, ray traced
         _state_alone(a, "sweep")
-        if a.method != "analytic":
+        if a.method not in ("analytic", "raytrace"):  # (analytic: the flag's default, not given)
             raise UsageError("sweep --state gives the explorer's ray-traced row: drop --method")
         a.method = "raytrace"
     times = _times(a)
@@ -704,13 +704,14 @@ def cmd_trace(a):
 def _state_alone(a, command: str, own: tuple = ()) -> None:
     """Refuse scene options, dates and θ given beside ``--state`` (the state holds the scene)."""
     from lunarviz.api import SCENE_DEFAULTS
-    from lunarviz.options import scene_options
-    given = [k for k, v in scene_options(a).items() if k != "brdfs" and v != SCENE_DEFAULTS[k]]
-    given += [n for n in DATE_OPTIONS + ("phase", "phases") + own if getattr(a, n, None) not in (None, False)]
+    from lunarviz.options import BY_NAME
+    given = [BY_NAME[k].cli_flag for k, v in scene_options(a).items() if k != "brdfs" and v != SCENE_DEFAULTS[k]]
+    given += ["--" + n.replace("_", "-") for n in DATE_OPTIONS + ("phase", "phases") if getattr(a, n, None) is not None]
+    given += [flag for dest, flag in own if getattr(a, dest, None) not in (None, False)]
     if a.brdf not in ("dhg", ",".join(SCENE_DEFAULTS["brdfs"])):
-        given.append("brdf")
+        given.append("--brdf")
     if given:
-        raise UsageError(f"{command} --state takes the scene from the state file: drop --{given[0].replace('_', '-')}")
+        raise UsageError(f"{command} --state takes the scene from the state file: drop {given[0]}")
 
 
 def _load_state(path):
@@ -726,7 +727,7 @@ def cmd_render(a, interactive=False):
         out = _check_out(a.out, (".png",))
         gif = _check_out(a.gif, (".gif",)) if a.gif else None
         if a.state is not None:
-            _state_alone(a, "render", ("gif",))
+            _state_alone(a, "render", (("gif", "--gif"),))
             from lunarviz.explore.engine import state_picture
             from lunarviz.outputs.writers import write_picture
             write_picture(out, state_picture(_load_state(a.state)))
@@ -1079,8 +1080,10 @@ def cmd_explore(a):
     if not a.web and (a.port is not None or a.host is not None):
         raise UsageError("--port and --host go with --web")
     if a.state is not None:
-        _state_alone(a, "explore", ("explore_band",))
+        _state_alone(a, "explore", (("explore_band", "--band"),))
         state = _load_state(a.state)
+        if a.size != "1280x800":  # (a size asked for: the state's picture at that size)
+            state = state.with_(size=size)
     else:
         times = _times(a)
         if times is not None and a.phases is not None:
@@ -1093,14 +1096,17 @@ def cmd_explore(a):
         key = phases[0] if times is None and a.phases is not None else None
         state = state_from_scene(scene, key=key, brdf=brdf[0], band=a.explore_band, size=size)
         state.scene()  # the band and the rest checked now
-    if keep is not None:
-        state.save(keep)
-    if shot is not None:
+    if shot is not None:  # the picture first: a state that cannot be drawn leaves no file behind
         from lunarviz.explore.engine import state_picture
         from lunarviz.outputs.writers import write_picture
-        write_picture(shot, state_picture(state))
+        picture = state_picture(state)
+        if keep is not None:
+            state.save(keep)
+        write_picture(shot, picture)
         print(f"wrote {shot}")
         return
+    if keep is not None:
+        state.save(keep)
     if a.web:
         port = 0 if a.port is None else a.port
         if not 0 <= port <= 65535:

@@ -104,7 +104,10 @@ def report(res: dict, out: Path) -> None:
     lines = ["# The explorer's latency", "",
              f"`{cmd}` on this 2-core machine (no GPU): a control change every {res['pause_s']:g} s after the "
              "previous state converged, each to a state not seen before, the background pass on (as in the "
-             "windows). Targets: the first picture ≤ 0.3 s and the converged one ≤ 3 s (medians).", "",
+             "windows). Targets: the first picture ≤ 0.3 s and the converged one ≤ 3 s (medians). Times run to the "
+             "engine's callback: the browser app adds its PNG encoding (~25 ms at 1280×800) and up to one 30 ms poll, "
+             "the desktop window one 30 ms poll. Steps go to a neighbouring value, whose row the background pass may "
+             "have computed already (its picture never: pictures are traced when asked for).", "",
              "| change | changes | first picture, median [s] | max [s] | converged, median [s] | max [s] | "
              "largest difference from `sweep --state` |", "| --- | --- | --- | --- | --- | --- | --- |"]
     for kind, s in res["summary"].items():

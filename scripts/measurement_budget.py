@@ -94,33 +94,9 @@ def bbso_dates(start: str, days: int) -> list[str]:
 
 
 def plot(rows: dict, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.6), sharey=True)
-    for ax, (name, rs) in zip(axes, rows.items()):
-        rs = sorted((r for r in rs if "error" not in r), key=lambda r: r["phase_angle_deg"])
-        x = np.array([r["phase_angle_deg"] for r in rs])
-
-        def rel(k):  # σ/p*; zeros and infinities have no place on a log axis: gaps, marked below
-            v = np.array([r[k] / r["p_star"] for r in rs], dtype=float)
-            return np.where(np.isfinite(v) & (v > 0), v, np.nan)
-        for k, style in (("p_star_sigma_total", "k-"), ("p_star_sigma", "b-"), ("p_star_sigma_systematic", "r-")):
-            ax.semilogy(x, rel(k), style, lw=2, label=k.replace("p_star_", ""))
-        for k in TERMS:
-            ax.semilogy(x, rel(k), ".--", lw=0.8, label=k.replace("sigma_", ""))
-        # phases where a term is infinite (the halo's shape unconstrained: too few sky pixels)
-        inf = [r["phase_angle_deg"] for r in rs if not np.isfinite(r["p_star_sigma_total"])]
-        for xi in inf:
-            ax.axvline(xi, color="gray", lw=6, alpha=0.25)
-        ax.set_xlabel("lunar phase angle [deg]" + ("  (grey: a term infinite there)" if inf else ""))
-        ax.set_title(f"{name}: σ(p*)/p* at SNR {TARGET_SNR:g} (or ≤ {MAX_FRAMES} frames)", fontsize=9)
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel("relative standard uncertainty of p*")
-    fig.legend(*axes[1].get_legend_handles_labels(), fontsize=7, loc="center right")
-    fig.tight_layout(rect=(0, 0, 0.88, 1))
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    """The budget's figure: ``lunarviz plot budget.json`` draws the same (lunarviz.workflows.plot_file)."""
+    from lunarviz.workflows.plot_file import plot_budget
+    plot_budget({"rows": rows}, path)
 
 
 def markdown(rows: dict, sim: dict | None) -> str:

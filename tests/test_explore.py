@@ -54,6 +54,12 @@ def test_a_state_round_trips_through_its_file(tmp_path):
     ({"size": [10, 10]}, "size"),
     ({"picked": -3}, "picked facet"),
     ({"extra": 1}, "unknown entry 'extra'"),
+    ({"phases": [30.0, 120.0, 999.0]}, "must be finite angles"),  # (every slider value, not only the key)
+    ({"band": "V,R"}, "one band"),
+    ({"version": True}, "version True"),
+    ({"size": [float("inf"), 800]}, "malformed"),
+    ({"key": True}, "not true/false"),
+    ({"times": ["2026-01-01T00:00Z"]}, "not both"),
 ])
 def test_a_bad_state_file_gets_one_line_naming_the_bad_value(tmp_path, edit, words):
     d = _state().to_dict()
@@ -224,6 +230,38 @@ def test_picking_finds_the_facet_under_the_pixel():
 
 
 # ---- plot ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("suffix", [".nc", ".json"])
+def test_plot_draws_a_dated_banded_sweep(tmp_path, suffix):
+    """A NetCDF sweep (its variables named without units) and a JSON one, dated and in two bands."""
+    out = tmp_path / f"d{suffix}"
+    r = _cli("sweep", "--time-range", "2026-03-01,2026-03-02,12h", "--band", "V,R", "--brdf", "dhg", "--out", str(out),
+             "--quiet")
+    assert r.returncode == 0, r.stderr
+    r = _cli("plot", str(out), "--out", str(tmp_path / "d.png"))
+    assert r.returncode == 0 and "a sweep" in r.stdout, r.stderr
+
+
+def test_plot_draws_the_shipped_budget_and_refuses_a_partial_output(tmp_path):
+    from pathlib import Path
+    budget = Path(__file__).resolve().parents[1] / "benchmarks" / "measurement" / "budget.json"
+    r = _cli("plot", str(budget), "--out", str(tmp_path / "b.png"))
+    assert r.returncode == 0 and "a budget" in r.stdout, r.stderr
+    (tmp_path / "partial.json").write_text('{"rows": [{"moonshine_W_m2": 1.0}]}')
+    r = _cli("plot", str(tmp_path / "partial.json"), "--out", str(tmp_path / "p.png"))
+    assert r.returncode == 2 and "not a whole one" in r.stderr and r.stderr.count("\n") == 1
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_a_pick_waits_for_the_converged_picture():
+    """A first picture's Moon is a coarser mesh: a click on it picks nothing (and says why)."""
+    from lunarviz.explore.controls import Explorer
+    ex = Explorer(_state(), background=False)
+    ex.engine.close()  # (no worker: the frames below are set by hand)
+    first = Engine(background=False, start=False).frame(_state(), "first")
+    ex.frame = first
+    assert not ex.pick(100, 100) and "converging" in ex.message and ex.state.picked is None
+
+
 def test_plot_draws_a_sweep_and_refuses_what_is_not_an_output(tmp_path):
     r = _cli("sweep", "--phases", "30:150:60", "--out", str(tmp_path / "s.csv"), "--quiet")
     assert r.returncode == 0, r.stderr

@@ -132,7 +132,9 @@ class Explorer:
         elsewhere: the pick is cleared)."""
         from lunarviz.explore.picture import facet_at
         frame = self.frame
-        if frame is None or frame.view is None:
+        if frame is None or frame.view is None or frame.quality != "converged":
+            # (a first picture's Moon is a coarser mesh: its facets are not the scene's)
+            self.message = "the picture is converging: pick again in a moment"
             return False
         return self.set("picked", facet_at(frame.view, self.state, x, y))
 
@@ -146,12 +148,13 @@ class Explorer:
         state = self.state
 
         def work():
-            try:
+            try:  # the picture first: a state that cannot be drawn leaves nothing behind
+                png = Path(path).with_suffix(".png")
+                picture = state_picture(state)
                 written = state.save(path)
-                png = Path(written).with_suffix(".png")
-                write_picture(png, state_picture(state))
+                write_picture(png, picture)
                 self.saved_note = f"   saved {written} and {png}"
-            except LunarvizError as exc:
+            except (LunarvizError, OSError) as exc:
                 self.saved_note = f"   not saved: {exc}"
         t = threading.Thread(target=work, name="lunarviz-explore-save", daemon=True)
         t.start()

@@ -28,8 +28,9 @@ from lunarviz.errors import LunarvizError
 from lunarviz.explore.state import ExploreState
 from lunarviz.options import DEFAULT_LEVELS
 
-#: frames kept (a frame holds its picture, ~3 MB at 1280×800)
-CACHE_FRAMES = 96
+#: frames kept (a frame holds its picture, ~3 MB at 1280×800, and its view: ~8 MB at the Moon's level 4,
+#: ×4 a level)
+CACHE_FRAMES = 32
 #: rows kept (one per slider value, BRDF, band and scene)
 CACHE_ROWS = 20_000
 #: options of the tracer's meshes, which the point-source method (the first frame's numbers) refuses
@@ -160,7 +161,8 @@ class Engine:
             row = self.row(state, quality)
             series = [self._rows.get((state.task_key(k), "converged")) for k in state.keys]
             view = self._view(state, quality)
-            model = None if state.picked is None else state.scene().settings("raytrace").brdf_models()[state.brdf]
+            model = None if state.picked is None or quality != "converged" else \
+                state.scene().settings("raytrace").brdf_models()[state.brdf]
             image = self.painter().paint(state, quality, row, series, view, model)
             out = Frame(state, quality, row, series, image, time.perf_counter() - t0, view=view)
         except Exception as exc:  # noqa: BLE001 (the window's worker must outlive any state: it shows why)
@@ -303,12 +305,20 @@ class Engine:
 
 
 def _lowest_priority() -> None:
-    """The background process's start: the lowest scheduling priority (where the system has one)."""
+    """The background process's start: the lowest scheduling priority (where the system has one),
+    and a watch on its parent: killed, it leaves no orphan waiting on its pipe."""
     import os
     try:
         os.nice(19)
     except (AttributeError, OSError):
         pass
+    parent = os.getppid()
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(0)
+    threading.Thread(target=watch, name="lunarviz-explore-parent", daemon=True).start()
 
 
 def state_picture(state: ExploreState) -> np.ndarray:

@@ -232,7 +232,10 @@ class Painter:
         a picked facet's own map)."""
         W, H = state.size
         w3 = int(W * SPLIT) // 2 * 2
-        picked = state.picked if state.picked is not None and state.picked < view.facets.n_faces else None
+        picked = state.picked if quality == "converged" else None  # (a first picture's Moon is coarser)
+        if picked is not None and picked >= view.facets.n_faces:
+            from lunarviz.errors import LunarvizError
+            raise LunarvizError(f"picked facet {picked} is not on the Moon's mesh of {view.facets.n_faces} facets")
         last = self._left_of
         if last is None or last[0] is not view or last[1:] != (picked, (w3, H)):
             self._left = self._plot3d(view, (w3, H), picked, model)  # (else a band's change: the panels are grey)

@@ -84,6 +84,10 @@ class ExploreState:
             raise LunarvizError(f"state option {own[0]!r}: the state's brdf and band say what is shown")
         if self.brdf not in BRDF_NAMES:
             raise unknown_choice("BRDF", self.brdf, BRDF_NAMES)
+        if self.band is not None and (not isinstance(self.band, str) or not self.band.strip() or "," in self.band):
+            raise LunarvizError(f"band {short_repr(self.band)}: one band (B, V, S2A-B4, 500-600, a file) or none")
+        if (self.phases is None) == (self.times is None):
+            raise LunarvizError("a state's slider holds phases or times: give one of them")
         keys = self.keys
         if not keys or len(keys) > MAX_KEYS:
             raise LunarvizError(f"the slider holds {len(keys)} values: give 1 to {MAX_KEYS}")
@@ -170,7 +174,7 @@ class ExploreState:
     def from_dict(cls, d) -> "ExploreState":
         if not isinstance(d, dict) or d.get("lunarviz") != FORMAT:
             raise LunarvizError(f"not an explorer state (no \"lunarviz\": \"{FORMAT}\" entry)")
-        if d.get("version") != VERSION:
+        if type(d.get("version")) is not int or d.get("version") != VERSION:
             raise LunarvizError(f"explorer state version {short_repr(d.get('version'))}: this lunarviz reads {VERSION}")
         extra = sorted(set(d) - {"lunarviz", "version", "options", "phases", "times", "key", "brdf", "band", "size",
                             "picked"})
@@ -180,12 +184,19 @@ class ExploreState:
         if not isinstance(options, dict):
             raise LunarvizError(f"explorer state: options must be an object, got {short_repr(options)}")
         phases, times = d.get("phases"), d.get("times")
+        if phases is not None and times is not None:
+            raise LunarvizError("explorer state: give phases (the θ scene) or times (dates), not both")
+        for name, v in (("phases", phases), ("times", times), ("size", d.get("size", DEFAULT_SIZE))):
+            if v is not None and not isinstance(v, list):
+                raise LunarvizError(f"explorer state: {name} must be a list, got {short_repr(v)}")
+        if isinstance(d.get("key"), bool) or any(isinstance(v, bool) for v in (phases or []) + list(d.get("size", []))):
+            raise LunarvizError("explorer state: key, phases and size are numbers, not true/false")
         try:
             phases = None if phases is None else tuple(float(p) for p in phases)
             times = None if times is None else tuple(str(t) for t in times)
             key = str(d["key"]) if times is not None else float(d["key"])
             size = tuple(int(v) for v in d.get("size", DEFAULT_SIZE))
-        except (KeyError, TypeError, ValueError):
+        except (KeyError, TypeError, ValueError, OverflowError):
             raise LunarvizError("explorer state: phases, times, key or size malformed") from None
         if phases is not None and not all(math.isfinite(p) for p in phases):
             raise LunarvizError("explorer state: phases must be finite numbers")
@@ -193,7 +204,8 @@ class ExploreState:
             raise LunarvizError(f"explorer state: size {short_repr(size)} is not [width, height]")
         state = cls(options=options, phases=None if times is not None else phases, times=times, key=key,
                     brdf=str(d.get("brdf", "dhg")), band=d.get("band"), size=size, picked=d.get("picked"))
-        state.scene()  # every option checked now, by the Scene itself
+        state.range_scene()  # every option and every slider value checked now, by the Scene itself
+        state.scene()
         return state
 
     @classmethod

@@ -35,9 +35,6 @@ def _items(control) -> list[dict]:
 def build_app(state: ExploreState, server=None, background: bool = True):
     """A trame server showing the explorer on ``state``; returns ``(server, explorer)``."""
     from trame.app import get_server
-    from trame.ui.vuetify3 import SinglePageLayout
-    from trame.widgets import html
-    from trame.widgets import vuetify3 as v3
 
     server = server or get_server("lunarviz-explore", client_type="vue3")
     st, ctrl = server.state, server.controller
@@ -110,6 +107,17 @@ def build_app(state: ExploreState, server=None, background: bool = True):
             await asyncio.sleep(POLL_S)
     ctrl.on_server_ready.add(lambda **_: asyncio.ensure_future(pump()))
 
+    _layout(server, state)
+    return server, explorer
+
+
+def _layout(server, state: ExploreState) -> None:
+    """The page: the menus in the toolbar; the step and play buttons, the slider, Save; the picture
+    (a click picks a facet) and the status line."""
+    from trame.ui.vuetify3 import SinglePageLayout
+    from trame.widgets import html
+    from trame.widgets import vuetify3 as v3
+
     with SinglePageLayout(server, full_height=True) as layout:
         layout.title.set_text("lunarviz explore")
         with layout.toolbar:
@@ -135,7 +143,6 @@ def build_app(state: ExploreState, server=None, background: bool = True):
                      style=f"display: block; width: {state.size[0]}px; height: {state.size[1]}px; margin: 0 8px;",
                      click="trigger('pick', [$event.offsetX, $event.offsetY])")
             html.Div("{{ status }}", classes="explore_status", style="margin: 4px 8px; font-family: monospace;")
-    return server, explorer
 
 
 def serve(state: ExploreState, host: str = "127.0.0.1", port: int = 0) -> None:

@@ -23,10 +23,14 @@ def _x(rows: list[dict]) -> tuple[np.ndarray, str]:
 
 
 def _series(rows: list[dict]) -> dict[tuple, list[dict]]:
-    """Rows by (BRDF, method, band or wavelength), at most MAX_SERIES labels per BRDF and method."""
+    """Rows by (BRDF, method, band or wavelength, and observer where the rows have several), at most
+    MAX_SERIES labels per BRDF and method."""
     groups: dict[tuple, list[dict]] = {}
+    observers = {r.get("observer") for r in rows}
     for r in rows:
         label = r.get("band") or (f"{r['wavelength_nm']:g} nm" if r.get("wavelength_nm") is not None else "")
+        if len(observers) > 1:
+            label = f"{label} {r.get('observer')}".strip()
         groups.setdefault((r.get("brdf", ""), r.get("method", ""), label), []).append(r)
     keys = list(groups)
     heads = {k[:2] for k in keys}
@@ -51,7 +55,7 @@ def plot_sweep(res: dict, path) -> None:
     import matplotlib.pyplot as plt
 
     rows = res["rows"]
-    fig, ax = plt.subplots(4, 1, figsize=(8, 10), sharex=True)
+    fig, ax = plt.subplots(4, 1, figsize=(8.5, 10.5), sharex=True)
     xlabel = _x(rows)[1]
     for (brdf, method, label), rs in _series(rows).items():
         x, _ = _x(rs)
@@ -74,13 +78,18 @@ def plot_sweep(res: dict, path) -> None:
     ax[2].set_ylabel("earthshine / moonshine")
     ax[3].set_ylabel("apparent albedo p*")
     ax[3].set_xlabel(xlabel)
+    ax[3].ticklabel_format(axis="y", useOffset=False, style="plain")
+    lo, hi = ax[3].get_ylim()
+    if hi - lo < 1e-3 * max(abs(hi), abs(lo), 1e-300):  # a constant p* (a Lambert Earth's): an axis about it
+        mid = 0.5 * (lo + hi)
+        ax[3].set_ylim(mid - 0.05 * abs(mid) - 1e-3, mid + 0.05 * abs(mid) + 1e-3)
     for a in ax:
         a.grid(alpha=0.3, which="both")
-    ax[0].legend(fontsize=7, loc="best")
+    ax[0].legend(fontsize=7, loc="lower left", bbox_to_anchor=(0.0, 1.02), ncol=3, frameon=False)  # (off the data)
     what = "per nm " if any(r.get("wavelength_nm") is not None for r in rows) else ""
     dark = any(r.get("skip_reason") or r.get("moon_occulted") for r in rows)
-    ax[0].set_title(f"{len(rows)} rows, irradiances {what}at the detector"
-                    + ("; | at the foot: the Moon down, hidden or eclipsed" if dark else ""), fontsize=9)
-    fig.tight_layout()
+    fig.suptitle(f"{len(rows)} rows, irradiances {what}at the detector"
+                 + ("; | at the foot: the Moon down, hidden or eclipsed" if dark else ""), fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
     save_figure(fig, path, dpi=110)
     plt.close(fig)

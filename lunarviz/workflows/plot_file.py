@@ -6,7 +6,9 @@
   (:func:`~lunarviz.workflows.study.plot_study`);
 * a benchmark (``bench``): run time against error per method (:func:`~lunarviz.workflows.bench.plot_pareto`);
 * a measurement (``measure``): p* per measurement with its 1σ and k = 2 bars against the sweep's, and
-  its error budget, largest term first (:func:`plot_measurement`).
+  its error budget, largest term first (:func:`plot_measurement`);
+* an error budget over phases (``scripts/measurement_budget.py``'s ``budget.json``: rows per
+  instrument): each term's σ(p*)/p* against the phase angle (:func:`plot_budget`).
 """
 
 from __future__ import annotations
@@ -19,6 +21,12 @@ import numpy as np
 from lunarviz.errors import LunarvizError
 from lunarviz.outputs.writers import save_figure
 
+#: a NetCDF sweep's variables under the names of the rows they hold (lunarviz.outputs.tables)
+NETCDF_NAMES = {"moonshine": "moonshine_W_m2", "earthshine": "earthshine_W_m2", "theta": "theta_deg",
+                "alpha": "alpha_deg", "beta": "beta_deg", "time": "time_utc"}
+#: the terms of an error budget over phases (σ of p*), as ``measure`` and the budget script write them
+BUDGET_ROW_TERMS = ("sigma_photon", "sigma_read_dark", "sigma_halo_fit", "sigma_lunar_model", "sigma_halo_shape",
+                    "sigma_nd_filter", "sigma_ephemeris", "sigma_band")
 #: the error budget's terms (σ of p*) as ``measure`` writes them, with their names in a figure
 BUDGET_TERMS = {"p_star_sigma": "random (photon, read, dark, halo fit)", "sigma_lunar_model": "lunar model",
                 "sigma_nd_filter": "ND filter", "sigma_ephemeris": "ephemeris", "sigma_band": "band centre",
@@ -39,9 +47,16 @@ def read_output(path) -> dict:
         if suffix == ".nc":
             import xarray as xr
             with xr.open_dataset(p) as ds:
-                frame = ds.to_dataframe().reset_index()
-            return {"rows": [{k: _cell(v) for k, v in r.items()} for r in frame.to_dict("records")]}
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+                frame = ds.drop_vars([v for v in ds.data_vars if not set(ds[v].dims) >= {d for d in ds.dims
+                                                                                          if d != "brdf"}]
+                                     ).to_dataframe().reset_index()
+            rows = [{NETCDF_NAMES.get(k, k): _cell(v) for k, v in r.items()} for r in frame.to_dict("records")]
+            for r in rows:
+                if isinstance(r.get("time_utc"), str) or r.get("time_utc") is None:
+                    continue
+                r["time_utc"] = str(np.datetime64(r["time_utc"], "s")) + "Z"
+            return {"rows": rows}
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError, KeyError, TypeError) as exc:
         raise LunarvizError(f"cannot read {str(path)!r}: {exc.__class__.__name__}") from None
     raise LunarvizError(f"{str(path)!r}: lunarviz plot reads .json, .csv or .nc outputs, not {suffix or 'no suffix'!r}")
 
@@ -63,8 +78,11 @@ def _cell(v):
 
 
 def kind_of(res) -> str:
-    """What an output is: ``sweep``, ``study``, ``bench`` or ``measurement``."""
+    """What an output is: ``sweep``, ``study``, ``bench``, ``measurement`` or ``budget``."""
     rows = res.get("rows") if isinstance(res, dict) else None
+    if isinstance(rows, dict) and rows and all(isinstance(v, list) for v in rows.values()) \
+            and any(isinstance(r, dict) and "p_star_sigma_total" in r for v in rows.values() for r in v):
+        return "budget"
     if isinstance(res, dict) and isinstance(res.get("summary"), list) and rows is not None:
         return "study"
     if isinstance(rows, list) and rows and isinstance(rows[0], dict):
@@ -85,8 +103,47 @@ def plot_file(path, out) -> str:
     from lunarviz.workflows.study import plot_study
     res = read_output(path)
     kind = kind_of(res)
-    {"sweep": plot_sweep, "study": plot_study, "bench": plot_pareto, "measurement": plot_measurement}[kind](res, out)
+    draw = {"sweep": plot_sweep, "study": plot_study, "bench": plot_pareto, "measurement": plot_measurement,
+            "budget": plot_budget}[kind]
+    try:
+        draw(res, out)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        raise LunarvizError(f"{str(path)!r} looks like a {kind} output but is not a whole one "
+                            f"({exc.__class__.__name__}: {exc})") from None
     return kind
+
+
+def plot_budget(res: dict, path) -> None:
+    """Each term of the error budget, σ(p*)/p*, against the lunar phase angle, one panel per
+    instrument or site (``res["rows"]``: name → rows); zeros and infinities as gaps, the phases
+    where a term is infinite shaded."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    groups = res["rows"]
+    fig, axes = plt.subplots(1, len(groups), figsize=(6.5 * len(groups), 4.6), sharey=True, squeeze=False)
+    for ax, (name, rs) in zip(axes[0], groups.items()):
+        rs = sorted((r for r in rs if "error" not in r), key=lambda r: r["phase_angle_deg"])
+        x = np.array([r["phase_angle_deg"] for r in rs])
+
+        def rel(k, rs=rs):
+            v = np.array([(r.get(k) if r.get(k) is not None else np.nan) / r["p_star"] for r in rs], dtype=float)
+            return np.where(np.isfinite(v) & (v > 0), v, np.nan)
+        for k, style in (("p_star_sigma_total", "k-"), ("p_star_sigma", "b-"), ("p_star_sigma_systematic", "r-")):
+            ax.semilogy(x, rel(k), style, lw=2, label=k.replace("p_star_", ""))
+        for k in BUDGET_ROW_TERMS:
+            ax.semilogy(x, rel(k), ".--", lw=0.8, label=k.replace("sigma_", ""))
+        inf = [r["phase_angle_deg"] for r in rs if not np.isfinite(r.get("p_star_sigma_total", np.nan))]
+        for xi in inf:
+            ax.axvline(xi, color="gray", lw=6, alpha=0.25)
+        ax.set_xlabel("lunar phase angle [deg]" + ("  (grey: a term infinite there)" if inf else ""))
+        ax.set_title(f"{name}: σ(p*)/p*", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("relative standard uncertainty of p*")
+    fig.legend(*axes[0][-1].get_legend_handles_labels(), fontsize=7, loc="center right")
+    fig.tight_layout(rect=(0, 0, 0.86, 1))
+    save_figure(fig, path, dpi=120)
+    plt.close(fig)
 
 
 def plot_measurement(res: dict, path) -> None:

@@ -13,18 +13,9 @@ from lunarviz.methods.analytic import analytic_irradiance
 from lunarviz.methods.camera import Camera, ImageResult, synthesize
 from lunarviz.methods.tracer.facet_result import FacetResult
 from lunarviz.methods.tracer.facets import sample_ray_paths, trace_facets
+from lunarviz.methods.tracer.settings import PICTURE_TRACE, QUICK_TRACE
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.viz.view_data import ViewData
-
-
-#: the tracer's settings of a quick look (:func:`view_data`'s ``quick``): the fewest beams to each source,
-#: the Earth's rule about each sample's sub-point, no refinement at edges (an explorer's first picture)
-QUICK_TRACE = {"earth_order": 2, "sun_order": 2, "earth_pole": "centre", "refine": False}
-#: ... of a picture (``quick="picture"``: the explorer's converged one): the Earth's rule about each
-#: facet's sub-point, not its zero-phase point. Off the Earth's centre a rough, surging BRDF's
-#: earthshine then errs by up to ~5e-3 (docs: accuracy), nothing on a colour scale; the numbers
-#: beside a picture are the sweep's rows, with their bounds
-PICTURE_TRACE = {"earth_pole": "centre"}
 
 
 def facets(scene, key, brdf: str | None = None, trace_scene=None, quick: bool | str = False) -> FacetResult:

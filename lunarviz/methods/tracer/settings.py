@@ -56,6 +56,14 @@ LIMB_SUB = 4
 POLE_RULE_NODES = 1 << 17
 #: the poles the Earth's beam rules may take (:attr:`TraceSettings.earth_pole`)
 EARTH_POLES = ("centre", "detector", "detector-cut")
+#: a quick look's settings (an explorer's first picture): the fewest beams to each source, the
+#: Earth's rule about each sample's sub-point, no refinement at edges
+QUICK_TRACE = {"earth_order": 2, "sun_order": 2, "earth_pole": "centre", "refine": False}
+#: a picture's settings (the explorer's converged one): the Earth's rule about each facet's
+#: sub-point, not its zero-phase point. Off the Earth's centre a rough, surging BRDF's earthshine
+#: then errs by up to ~5e-3 (docs: accuracy), nothing on a colour scale; the numbers beside a
+#: picture are the sweep's rows, with their bounds
+PICTURE_TRACE = {"earth_pole": "centre"}
 
 
 @dataclass(frozen=True)
