@@ -38,7 +38,7 @@ def _cli(*args, cwd=None):
 
 # ---- the state file -------------------------------------------------------------------------------
 def test_a_state_round_trips_through_its_file(tmp_path):
-    s = _state(brdf="shg", band="V", picked=12).with_(moon_model="rolo-fit")
+    s = _state(brdf="shg", band="V", picked=12, instrument="salex").with_(moon_model="rolo-fit")
     path = s.save(tmp_path / "view.json")
     assert ExploreState.load(path) == s
     assert json.loads(path.read_text())["lunarviz"] == "explore-state"
@@ -53,6 +53,7 @@ def test_a_state_round_trips_through_its_file(tmp_path):
     ({"options": {"earth_albedo": 7.0}}, "Earth albedo 7.0"),
     ({"size": [10, 10]}, "size"),
     ({"picked": -3}, "picked facet"),
+    ({"instrument": "salx"}, "did you mean 'salex'"),  # (the instrument's own message)
     ({"extra": 1}, "unknown entry 'extra'"),
     ({"phases": [30.0, 120.0, 999.0]}, "must be finite angles"),  # (every slider value, not only the key)
     ({"band": "V,R"}, "one band"),

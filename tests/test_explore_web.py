@@ -117,6 +117,8 @@ def test_explorer_controls_change_the_right_panels(explore_server):
             pics["brdf"] = await _picture(b, "shown.brdf === 'lambert'")
             await b.evaluate("window.trame.state.set('band', 'V'); true")
             pics["band"] = await _picture(b, "shown.band === 'V'")
+            await b.evaluate("window.trame.state.set('instrument', 'salex'); true")
+            pics["instrument"] = await _picture(b, "shown.instrument === 'salex'")
             await b.evaluate("window.trame.state.set('earth_surface', 'landocean'); true")
             pics["earth"] = await _picture(b, "shown.earth_surface === 'landocean'")
             # a click on the Moon panel, on the disc (its centre is left of the panel's: room for the bar)
@@ -144,9 +146,11 @@ def test_explorer_controls_change_the_right_panels(explore_server):
     assert "rays" not in _changed(pics["theta"], pics["brdf"])
     # a band: the numbers and curves only (the 3-D panels are grey, as render)
     assert _changed(pics["brdf"], pics["band"]) == {"curves"}
-    # the Earth's surface: what the Earth sends (the earthshine panel and the numbers), not the sunlit Moon's map
-    changed = _changed(pics["band"], pics["earth"])
-    assert {"earthshine", "curves"} <= changed and "brdf_map" not in changed
+    # an instrument: its frame in counts with the pipeline's patches (the lower right panel) and its numbers
+    assert _changed(pics["band"], pics["instrument"]) == {"brdf_map", "curves"}
+    # the Earth's surface: what the Earth sends (the earthshine, the frame's earthlit side, the numbers), not the paths
+    changed = _changed(pics["instrument"], pics["earth"])
+    assert {"earthshine", "curves"} <= changed and "rays" not in changed  # (the geometry holds)
     # a picked facet: marked on the Moon panels, its red paths in the schematic, its numbers, and its
     # own BRDF map (over view directions) in the BRDF map's place
     pa, pb = _panels(pics["earth"]), _panels(pics["picked"])

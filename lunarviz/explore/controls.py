@@ -35,6 +35,8 @@ CONTROLS = (
     Control("clouds", "clouds", (("none", "none"), ("zonal", "zonal"))),
     Control("band", "band", (("grey", None), ("B", "B"), ("V", "V"), ("R", "R"), ("Sentinel-2A B4", "S2A-B4"),
                              ("MODIS Terra B1", "MODIS-TERRA-B1"))),
+    Control("instrument", "instrument", (("none", None), ("SALEX-like (LEO)", "salex"), ("BBSO-like (ground)", "bbso")),
+            editable=True),
 )
 BY_CONTROL = {c.name: c for c in CONTROLS}
 
@@ -59,7 +61,7 @@ def choice_text(control: Control, value) -> str:
 
 def state_value(state: ExploreState, name: str):
     """The current value of control ``name`` in ``state``."""
-    if name in ("brdf", "band"):
+    if name in ("brdf", "band", "instrument"):
         return getattr(state, name)
     from lunarviz.api import SCENE_DEFAULTS
     return state.options.get(name, SCENE_DEFAULTS[name])
@@ -107,8 +109,14 @@ class Explorer:
     def set(self, name: str, value) -> bool:
         """Set control ``name`` (a state field or scene option) to ``value``; False (and
         :attr:`message`) where the scene refuses it."""
-        if name in ("brdf", "band", "picked"):
-            new = self.state.with_(**{name: value})
+        if name in ("brdf", "band", "picked", "instrument"):
+            if name == "instrument" and value in ("", "none"):
+                value = None
+            try:
+                new = self.state.with_(**{name: value})
+            except LunarvizError as exc:
+                self.message = str(exc)
+                return False
         elif name == "observer" and (self.state.times is None) != (value == "geocentre"):
             self.message = ("an observer other than the geocentre needs dates: start the explorer with --time-range, "
                             "--nights or --lunation" if self.state.times is None else "")

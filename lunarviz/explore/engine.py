@@ -86,6 +86,7 @@ class Engine:
         self._frames = BoundedCache(CACHE_FRAMES)
         self._rows = BoundedCache(CACHE_ROWS)
         self._views = BoundedCache(CACHE_FRAMES)
+        self._instrument_frames = BoundedCache(8)
         self._seen = BoundedCache(CACHE_FRAMES)  # each state's newest converged frame, its curves as they were
         #: one computation at a time (the worker's and the background pass's): the tracer and VTK
         #: each take both cores, and an OpenGL context is not shared between threads
@@ -163,7 +164,13 @@ class Engine:
             view = self._view(state, quality)
             model = None if state.picked is None or quality != "converged" else \
                 state.scene().settings("raytrace").brdf_models()[state.brdf]
-            image = self.painter().paint(state, quality, row, series, view, model)
+            frame = None
+            if state.instrument is not None and quality == "converged":
+                frame = self._instrument_frames.get((state.task_key(band=None), state.instrument))
+                if frame is None:
+                    frame = instrument_frame(state)
+                    self._instrument_frames[(state.task_key(band=None), state.instrument)] = frame
+            image = self.painter().paint(state, quality, row, series, view, model, frame)
             out = Frame(state, quality, row, series, image, time.perf_counter() - t0, view=view)
         except Exception as exc:  # noqa: BLE001 (the window's worker must outlive any state: it shows why)
             why = str(exc) if isinstance(exc, LunarvizError) else f"{type(exc).__name__}: {exc}"
@@ -330,6 +337,31 @@ def state_picture(state: ExploreState) -> np.ndarray:
     if frame.error is not None:
         raise LunarvizError(frame.error)
     return frame.image
+
+
+def instrument_frame(state: ExploreState) -> dict:
+    """The frame of ``state``'s instrument in counts [ADU] at its default exposure, noise-free (the
+    same :func:`~lunarviz.workflows.measurement.observation` as ``lunarviz image --instrument``),
+    and the measurement pipeline's patches on it (earthlit, sunlit, sky: ``None`` where the
+    pipeline cannot select them, with ``note`` saying why)."""
+    from lunarviz.instrument.disc import masked_pixels
+    from lunarviz.instrument.observation import instrument_camera
+    from lunarviz.instrument.pipeline import select_patches
+    from lunarviz.instrument.spec import load_instrument
+    from lunarviz.workflows.measurement import instrument_scene, observation
+    inst = load_instrument(state.instrument)
+    scene = state.with_(band=None, picked=None).scene()
+    settings, key = scene.settings("raytrace"), scene.keys[0]
+    obs = observation(settings, key, inst, None)
+    out = {"name": inst.name, "band": inst.band, "exposure_s": obs.exposure_s, "counts": obs.expected_counts,
+           "full_well_adu": inst.bias_adu + inst.full_well_e / inst.gain_e_per_adu, "patches": None, "note": ""}
+    geom, _, masked = masked_pixels(instrument_scene(settings, inst).geometry(key), instrument_camera(inst),
+                                    inst.bright_side_nd, inst.margin_px())
+    try:
+        out["patches"] = select_patches(geom, obs.raw_rates["moonshine"] > 0, inst.margin_px(), masked)
+    except LunarvizError as exc:
+        out["note"] = str(exc)
+    return out
 
 
 def state_row(state: ExploreState, method: str = "raytrace") -> dict:

@@ -142,6 +142,21 @@ def facet_lines(view, picked) -> list[str]:
             f"  π·BRDF for sunlight = {v('reflectance_factor', '.4f')}"]
 
 
+def instrument_lines(state, frame) -> list[str]:
+    """The instrument's frame in words: its exposure, its brightest pixel, its patches."""
+    if state.instrument is None:
+        return []
+    if frame is None:
+        return [f"instrument {state.instrument}: its frame comes with the converged picture"]
+    c = frame["counts"]
+    lines = [f"instrument {frame['name']} ({frame['band']}): exposure {frame['exposure_s']:g} s",
+             f"  counts {c.min():.0f}-{c.max():.0f} ADU (full well {frame['full_well_adu']:.0f})"]
+    p = frame["patches"]
+    lines.append("  patches: " + (f"earthlit {int(p.earthlit.sum())}, sunlit {int(p.sunlit.sum())}, "
+                                  f"sky {int(p.sky.sum())} px" if p is not None else frame["note"][:60]))
+    return lines
+
+
 def facet_at(view, state, x: float, y: float):
     """The lunar facet under pixel (x, y) of the picture's top-left panel (the Moon seen from the
     observer), or None: the panel's camera (:func:`lunarviz.viz.views.panel_camera`) inverted, and
@@ -175,13 +190,13 @@ class Painter:
         self._curves_fig = None
         self._left, self._left_of = None, None
 
-    def _plot3d(self, view, size, picked=None, model=None) -> np.ndarray:
+    def _plot3d(self, view, size, picked=None, model=None, frame=None) -> np.ndarray:
         from lunarviz.viz import views
         if self._plotter is None or self._size != size:
             if self._plotter is not None:
                 self._plotter.close()
             self._plotter = views.build_plotter(view, views.EXPLORE_VIEW, size, off_screen=True, picked=picked,
-                                                brdf_model=model)
+                                                brdf_model=model, frame=frame)
             self._size = size
         else:
             pl = self._plotter
@@ -191,7 +206,7 @@ class Painter:
                     pl.remove_scalar_bar(title, render=False)
                 for r in pl.renderers:
                     r.clear_actors()
-                views.populate(pl, view, views.EXPLORE_VIEW, picked, model)
+                views.populate(pl, view, views.EXPLORE_VIEW, picked, model, frame)
             finally:
                 pl.suppress_rendering = False
         self._plotter.render()
@@ -227,9 +242,9 @@ class Painter:
             self._curves_sig = sig
         return self._curves_fig
 
-    def paint(self, state, quality: str, row: dict, series: list, view, model=None) -> np.ndarray:
+    def paint(self, state, quality: str, row: dict, series: list, view, model=None, frame=None) -> np.ndarray:
         """The picture (RGB, height × width × 3, uint8) of ``state`` (``model``: its lunar BRDF, for
-        a picked facet's own map)."""
+        a picked facet's own map; ``frame``: its instrument's, :func:`~lunarviz.explore.engine.instrument_frame`)."""
         W, H = state.size
         w3 = int(W * SPLIT) // 2 * 2
         picked = state.picked if quality == "converged" else None  # (a first picture's Moon is coarser)
@@ -237,13 +252,13 @@ class Painter:
             from lunarviz.errors import LunarvizError
             raise LunarvizError(f"picked facet {picked} is not on the Moon's mesh of {view.facets.n_faces} facets")
         last = self._left_of
-        if last is None or last[0] is not view or last[1:] != (picked, (w3, H)):
-            self._left = self._plot3d(view, (w3, H), picked, model)  # (else a band's change: the panels are grey)
-            self._left_of = (view, picked, (w3, H))
+        if last is None or last[0] is not view or last[1] is not frame or last[2:] != (picked, (w3, H)):
+            self._left = self._plot3d(view, (w3, H), picked, model, frame)  # (else a band's change: kept)
+            self._left_of = (view, frame, picked, (w3, H))
         left = self._left
         fig, artists, background = self._curves(state, series, (W - w3, H), quick=quality == "first")
         fig.canvas.restore_region(background)
-        mark(fig, artists, state, quality, row, facet_lines(view, picked))
+        mark(fig, artists, state, quality, row, facet_lines(view, picked) + instrument_lines(state, frame))
         right = np.asarray(fig.canvas.buffer_rgba())[..., :3]
         return np.concatenate([left, right[:H, :W - w3]], axis=1)
 

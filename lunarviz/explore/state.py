@@ -64,6 +64,9 @@ class ExploreState:
         The picture's width and height [pixels].
     picked : int or None
         A lunar facet picked on the picture: its paths and numbers are shown.
+    instrument : str or None
+        An instrument (``salex``, ``bbso`` or a TOML file): its frame in counts, at its default
+        exposure, with the measurement pipeline's patches, takes the lower right panel.
     """
 
     options: dict = field(default_factory=dict)
@@ -74,6 +77,7 @@ class ExploreState:
     band: str | None = None
     size: tuple = DEFAULT_SIZE
     picked: int | None = None
+    instrument: str | None = None
 
     def __post_init__(self):
         extra = sorted(set(self.options) - set(SCENE_DEFAULTS))
@@ -96,6 +100,11 @@ class ExploreState:
         w, h = self.size
         if not (320 <= w <= 4096 and 240 <= h <= 4096):
             raise LunarvizError(f"size {short_repr(self.size)}: width 320-4096 and height 240-4096 pixels")
+        if self.instrument is not None:
+            from lunarviz.instrument.spec import load_instrument
+            if not isinstance(self.instrument, str):
+                raise LunarvizError(f"instrument {short_repr(self.instrument)}: a name (salex, bbso) or a TOML file")
+            load_instrument(self.instrument)  # (an unknown one refused here, with the names it knows)
         if self.picked is not None and (isinstance(self.picked, bool) or not isinstance(self.picked, int)
                                         or self.picked < 0):
             raise LunarvizError(f"picked facet {short_repr(self.picked)} is not a facet number (0, 1, 2, ...)")
@@ -161,7 +170,7 @@ class ExploreState:
                 "phases": None if self.phases is None else list(self.phases),
                 "times": None if self.times is None else list(self.times),
                 "key": self.key, "brdf": self.brdf, "band": self.band, "size": list(self.size),
-                "picked": self.picked}
+                "picked": self.picked, "instrument": self.instrument}
 
     def save(self, path) -> Path:
         """Write the state as JSON (atomically)."""
@@ -177,7 +186,7 @@ class ExploreState:
         if type(d.get("version")) is not int or d.get("version") != VERSION:
             raise LunarvizError(f"explorer state version {short_repr(d.get('version'))}: this lunarviz reads {VERSION}")
         extra = sorted(set(d) - {"lunarviz", "version", "options", "phases", "times", "key", "brdf", "band", "size",
-                            "picked"})
+                            "picked", "instrument"})
         if extra:
             raise LunarvizError(f"explorer state: unknown entry {extra[0]!r}")
         options = d.get("options") or {}
@@ -203,7 +212,8 @@ class ExploreState:
         if len(size) != 2:
             raise LunarvizError(f"explorer state: size {short_repr(size)} is not [width, height]")
         state = cls(options=options, phases=None if times is not None else phases, times=times, key=key,
-                    brdf=str(d.get("brdf", "dhg")), band=d.get("band"), size=size, picked=d.get("picked"))
+                    brdf=str(d.get("brdf", "dhg")), band=d.get("band"), size=size, picked=d.get("picked"),
+                    instrument=d.get("instrument"))
         state.range_scene()  # every option and every slider value checked now, by the Scene itself
         state.scene()
         return state

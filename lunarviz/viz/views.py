@@ -341,6 +341,35 @@ def _facet_brdf_panel(pl, fr: FacetResult, picked: int, model) -> None:
     pl.camera.parallel_scale = 1.6
 
 
+def _frame_panel(pl, frame: dict) -> None:
+    """An instrument's frame in counts [ADU] (row 0 at the bottom: north up, east left, as
+    ``lunarviz image``), on a square-root grey scale, with the measurement pipeline's patches
+    outlined: earthlit (blue), sunlit (orange), sky (green)."""
+    counts = np.asarray(frame["counts"], dtype=float)
+    H, W = counts.shape
+    grid = pv.ImageData(dimensions=(W + 1, H + 1, 1))
+    grid.cell_data["counts"] = counts.ravel()  # (x fastest: a row of the frame at a time, row 0 at y = 0)
+    lo, hi = float(counts.min()), float(counts.max())
+    pl.add_mesh(grid, scalars="counts", cmap="gray", clim=(lo, hi if hi > lo else lo + 1), lighting=False,
+                scalar_bar_args={"title": "counts\nADU\n", "vertical": True, "color": "white", "position_x": 0.82,
+                                 "position_y": 0.06, "height": 0.66, "width": 0.045, "fmt": "%.0f",
+                                 "title_font_size": 12, "label_font_size": 11})
+    patches = frame.get("patches")
+    if patches is not None:
+        for name, colour in (("earthlit", "deepskyblue"), ("sunlit", "orange"), ("sky", "limegreen")):
+            mask = pv.ImageData(dimensions=(W + 1, H + 1, 1))
+            mask.cell_data["in"] = np.asarray(getattr(patches, name), dtype=float).ravel()
+            edge = mask.cell_data_to_point_data().contour([0.5], scalars="in")
+            if edge.n_points:
+                pl.add_mesh(edge.translate((0, 0, 1)), color=colour, line_width=2, lighting=False)
+    pl.add_text(f"{frame['name']}: frame in counts, {frame['exposure_s']:g} s\npatches: earthlit (blue), sunlit "
+                "(orange), sky (green)" if patches is not None else f"{frame['name']}: frame in counts "
+                f"({frame['note'][:48]})", font_size=10, position="upper_left", color="white")
+    pl.camera_position = [(W / 2, H / 2, 3 * max(W, H)), (W / 2, H / 2, 0.0), (0.0, 1.0, 0.0)]
+    pl.enable_parallel_projection()
+    pl.camera.parallel_scale = 0.62 * H
+
+
 def _ray_panel(pl, data: ViewData, text: str | None = None, picked: int | None = None):
     """Light paths, schematic: directions as seen from the Earth are kept, distances are not
     (the Moon at 2 units, the Sun at 3.4: the triangle stays legible), bodies enlarged. Seen
@@ -437,21 +466,22 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
 
 
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True,
-                  picked: int | None = None, brdf_model=None) -> pv.Plotter:
+                  picked: int | None = None, brdf_model=None, frame: dict | None = None) -> pv.Plotter:
     """A plotter showing ``view`` of ``data`` (``picked``: a facet marked); call ``show()`` or ``screenshot()``."""
     if view not in VIEWS + (EXPLORE_VIEW,):
         raise unknown_choice("view", view, VIEWS)
     choose_render_window()
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
-    populate(pl, data, view, picked, brdf_model)
+    populate(pl, data, view, picked, brdf_model, frame)
     return pl
 
 
 def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: int | None = None,
-             brdf_model=None) -> pv.Plotter:
+             brdf_model=None, frame: dict | None = None) -> pv.Plotter:
     """Draw ``view`` of ``data`` into an existing plotter of shape ``SHAPES[view]``; ``picked``: a
     lunar facet marked on the Moon panels, its paths drawn in the schematic (composite views) and,
-    in the explorer's view with its ``brdf_model``, its own BRDF map in place of the Moon's."""
+    in the explorer's view with its ``brdf_model``, its own BRDF map in place of the Moon's; ``frame``
+    (the explorer's view): an instrument's frame in counts with its patches, there instead."""
     fr = data.facets
     poly = facet_polydata(fr)
     rot = fr.info.get("moon_rotation_body_to_scene")
@@ -531,6 +561,9 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: in
     pl.set_background("black")
     if view == EXPLORE_VIEW and picked is not None and brdf_model is not None:  # the picked facet's own map
         _facet_brdf_panel(pl, fr, picked, brdf_model)
+        return pl
+    if view == EXPLORE_VIEW and frame is not None:  # the instrument's frame
+        _frame_panel(pl, frame)
         return pl
     lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
     _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\nsunlight", "viridis", log=False,
