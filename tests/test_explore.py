@@ -337,3 +337,16 @@ def test_a_picked_facets_brdf_map_meets_its_traced_reflectance(moon_model):
         w = np.asarray(dome.points) / np.linalg.norm(dome.points, axis=1)[:, None]
         k = int(np.argmax(w @ towards["detector"]))
         assert dome.point_data["pi*BRDF"][k] == pytest.approx(cd["reflectance_factor"][j], rel=0.01)
+
+
+def test_the_lower_right_panel_shows_the_earth_seen_from_the_moon():
+    """``panel="earth"``: the lower right quarter of the 3-D panels changes (the Earth's disc, lit
+    toward the Sun) and nothing else does."""
+    engine = Engine(background=False, start=False)
+    a = engine.frame(_state()).image.astype(float)
+    b = engine.frame(_state(panel="earth")).image.astype(float)
+    h, w = a.shape[:2]
+    w3 = int(w * 0.62) // 2 * 2
+    diff = np.abs(a - b).mean(axis=2)
+    assert diff[h // 2:, w3 // 2:w3].mean() > 5
+    assert diff[:h // 2, :w3].max() == 0 and diff[h // 2:, :w3 // 2].max() == 0 and diff[:, w3:].max() == 0

@@ -35,6 +35,7 @@ CONTROLS = (
     Control("clouds", "clouds", (("none", "none"), ("zonal", "zonal"))),
     Control("band", "band", (("grey", None), ("B", "B"), ("V", "V"), ("R", "R"), ("Sentinel-2A B4", "S2A-B4"),
                              ("MODIS Terra B1", "MODIS-TERRA-B1"))),
+    Control("panel", "lower right panel", (("the Moon's BRDF map", "brdf"), ("the Earth seen from the Moon", "earth"))),
     Control("instrument", "instrument", (("none", None), ("SALEX-like (LEO)", "salex"), ("BBSO-like (ground)", "bbso")),
             editable=True),
 )
@@ -61,7 +62,7 @@ def choice_text(control: Control, value) -> str:
 
 def state_value(state: ExploreState, name: str):
     """The current value of control ``name`` in ``state``."""
-    if name in ("brdf", "band", "instrument"):
+    if name in ("brdf", "band", "instrument", "panel"):
         return getattr(state, name)
     from lunarviz.api import SCENE_DEFAULTS
     return state.options.get(name, SCENE_DEFAULTS[name])
@@ -109,7 +110,7 @@ class Explorer:
     def set(self, name: str, value) -> bool:
         """Set control ``name`` (a state field or scene option) to ``value``; False (and
         :attr:`message`) where the scene refuses it."""
-        if name in ("brdf", "band", "picked", "instrument"):
+        if name in ("brdf", "band", "picked", "instrument", "panel"):
             if name == "instrument" and value in ("", "none"):
                 value = None
             try:

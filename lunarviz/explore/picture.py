@@ -190,13 +190,13 @@ class Painter:
         self._curves_fig = None
         self._left, self._left_of = None, None
 
-    def _plot3d(self, view, size, picked=None, model=None, frame=None) -> np.ndarray:
+    def _plot3d(self, view, size, picked=None, model=None, frame=None, lower="brdf") -> np.ndarray:
         from lunarviz.viz import views
         if self._plotter is None or self._size != size:
             if self._plotter is not None:
                 self._plotter.close()
             self._plotter = views.build_plotter(view, views.EXPLORE_VIEW, size, off_screen=True, picked=picked,
-                                                brdf_model=model, frame=frame)
+                                                brdf_model=model, frame=frame, lower=lower)
             self._size = size
         else:
             pl = self._plotter
@@ -206,7 +206,7 @@ class Painter:
                     pl.remove_scalar_bar(title, render=False)
                 for r in pl.renderers:
                     r.clear_actors()
-                views.populate(pl, view, views.EXPLORE_VIEW, picked, model, frame)
+                views.populate(pl, view, views.EXPLORE_VIEW, picked, model, frame, lower)
             finally:
                 pl.suppress_rendering = False
         self._plotter.render()
@@ -252,9 +252,9 @@ class Painter:
             from lunarviz.errors import LunarvizError
             raise LunarvizError(f"picked facet {picked} is not on the Moon's mesh of {view.facets.n_faces} facets")
         last = self._left_of
-        if last is None or last[0] is not view or last[1] is not frame or last[2:] != (picked, (w3, H)):
-            self._left = self._plot3d(view, (w3, H), picked, model, frame)  # (else a band's change: kept)
-            self._left_of = (view, frame, picked, (w3, H))
+        if last is None or last[0] is not view or last[1] is not frame or last[2:] != (picked, state.panel, (w3, H)):
+            self._left = self._plot3d(view, (w3, H), picked, model, frame, state.panel)  # (else a band's: kept)
+            self._left_of = (view, frame, picked, state.panel, (w3, H))
         left = self._left
         fig, artists, background = self._curves(state, series, (W - w3, H), quick=quality == "first")
         fig.canvas.restore_region(background)

@@ -37,6 +37,8 @@ OBSERVERS = {
     "Paranal": "site:-24.6272,-70.4042,2635m",  # ESO VLT
     "550 km polar orbit": "orbit:550,97.6,0,0",
 }
+#: what the lower right panel may show (:attr:`ExploreState.panel`)
+PANELS = ("brdf", "earth")
 #: the most keys a slider may hold (each is a task the background pass may compute)
 MAX_KEYS = 2000
 
@@ -67,6 +69,9 @@ class ExploreState:
     instrument : str or None
         An instrument (``salex``, ``bbso`` or a TOML file): its frame in counts, at its default
         exposure, with the measurement pipeline's patches, takes the lower right panel.
+    panel : str
+        The lower right panel otherwise: ``brdf`` (the Moon's BRDF map) or ``earth`` (the Earth seen
+        from the Moon); a picked facet's own BRDF map, then an instrument's frame, take it first.
     """
 
     options: dict = field(default_factory=dict)
@@ -78,6 +83,7 @@ class ExploreState:
     size: tuple = DEFAULT_SIZE
     picked: int | None = None
     instrument: str | None = None
+    panel: str = "brdf"
 
     def __post_init__(self):
         extra = sorted(set(self.options) - set(SCENE_DEFAULTS))
@@ -100,6 +106,8 @@ class ExploreState:
         w, h = self.size
         if not (320 <= w <= 4096 and 240 <= h <= 4096):
             raise LunarvizError(f"size {short_repr(self.size)}: width 320-4096 and height 240-4096 pixels")
+        if self.panel not in PANELS:
+            raise unknown_choice("panel", self.panel, PANELS)
         if self.instrument is not None:
             from lunarviz.instrument.spec import load_instrument
             if not isinstance(self.instrument, str):
@@ -170,7 +178,7 @@ class ExploreState:
                 "phases": None if self.phases is None else list(self.phases),
                 "times": None if self.times is None else list(self.times),
                 "key": self.key, "brdf": self.brdf, "band": self.band, "size": list(self.size),
-                "picked": self.picked, "instrument": self.instrument}
+                "picked": self.picked, "instrument": self.instrument, "panel": self.panel}
 
     def save(self, path) -> Path:
         """Write the state as JSON (atomically)."""
@@ -186,7 +194,7 @@ class ExploreState:
         if type(d.get("version")) is not int or d.get("version") != VERSION:
             raise LunarvizError(f"explorer state version {short_repr(d.get('version'))}: this lunarviz reads {VERSION}")
         extra = sorted(set(d) - {"lunarviz", "version", "options", "phases", "times", "key", "brdf", "band", "size",
-                            "picked", "instrument"})
+                            "picked", "instrument", "panel"})
         if extra:
             raise LunarvizError(f"explorer state: unknown entry {extra[0]!r}")
         options = d.get("options") or {}
@@ -213,7 +221,7 @@ class ExploreState:
             raise LunarvizError(f"explorer state: size {short_repr(size)} is not [width, height]")
         state = cls(options=options, phases=None if times is not None else phases, times=times, key=key,
                     brdf=str(d.get("brdf", "dhg")), band=d.get("band"), size=size, picked=d.get("picked"),
-                    instrument=d.get("instrument"))
+                    instrument=d.get("instrument"), panel=d.get("panel", "brdf"))
         state.range_scene()  # every option and every slider value checked now, by the Scene itself
         state.scene()
         return state

@@ -458,7 +458,8 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
                 lighting=False, scalar_bar_args=bar)
     moon = np.array(fr.info["moon_centre_m"]) - np.array(fr.info["earth_m"])
     view = moon / np.linalg.norm(moon)
-    up = np.array([1.0, 0.0, 0.0]) if abs(view[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    up = _in_image_plane(_sky_north(fr), view)  # (the sky's north up, as every picture)
+    up = up if up is not None else _in_image_plane(np.array([0.0, 1.0, 0.0]), view)
     R = float(np.max(np.linalg.norm(v, axis=1)))
     pl.camera_position = [tuple(view * 8 * R), (0.0, 0.0, 0.0), tuple(up)]
     pl.enable_parallel_projection()
@@ -466,22 +467,25 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
 
 
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True,
-                  picked: int | None = None, brdf_model=None, frame: dict | None = None) -> pv.Plotter:
+                  picked: int | None = None, brdf_model=None, frame: dict | None = None,
+                  lower: str = "brdf") -> pv.Plotter:
     """A plotter showing ``view`` of ``data`` (``picked``: a facet marked); call ``show()`` or ``screenshot()``."""
     if view not in VIEWS + (EXPLORE_VIEW,):
         raise unknown_choice("view", view, VIEWS)
     choose_render_window()
     pl = pv.Plotter(off_screen=off_screen, window_size=size, shape=SHAPES[view])
-    populate(pl, data, view, picked, brdf_model, frame)
+    populate(pl, data, view, picked, brdf_model, frame, lower)
     return pl
 
 
 def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: int | None = None,
-             brdf_model=None, frame: dict | None = None) -> pv.Plotter:
+             brdf_model=None, frame: dict | None = None, lower: str = "brdf") -> pv.Plotter:
     """Draw ``view`` of ``data`` into an existing plotter of shape ``SHAPES[view]``; ``picked``: a
     lunar facet marked on the Moon panels, its paths drawn in the schematic (composite views) and,
     in the explorer's view with its ``brdf_model``, its own BRDF map in place of the Moon's; ``frame``
-    (the explorer's view): an instrument's frame in counts with its patches, there instead."""
+    (the explorer's view): an instrument's frame in counts with its patches, there instead; else
+    ``lower`` (the explorer's view): ``brdf`` the Moon's BRDF map, ``earth`` the Earth seen from the
+    Moon (its radiance toward the Moon)."""
     fr = data.facets
     poly = facet_polydata(fr)
     rot = fr.info.get("moon_rotation_body_to_scene")
@@ -564,6 +568,12 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: in
         return pl
     if view == EXPLORE_VIEW and frame is not None:  # the instrument's frame
         _frame_panel(pl, frame)
+        return pl
+    if view == EXPLORE_VIEW and lower == "earth":  # what the Earth sends toward the Moon
+        # (a bar title of its own: PyVista shares one bar between panels whose titles agree)
+        _earth_panel(pl, fr, "radiance_toward_moon_W_m2_sr", "Earth\nW m-2 sr-1", "inferno", log=True)
+        pl.add_text("Earth seen from the Moon: its radiance toward it (log)", font_size=11, position="upper_left",
+                    color="white")
         return pl
     lit = (poly.cell_data["emission_deg"] < 90) & (poly.cell_data["incidence_deg"] < 90)
     _moon_panel(pl, poly, "reflectance_factor", "pi*BRDF\nsunlight", "viridis", log=False,
