@@ -172,7 +172,7 @@ def _orientation_key(pl, fr: FacetResult, view, up, R):
     observer is named in the panel's bottom line."""
     screen_up = np.asarray(up, dtype=float)
     screen_right = -np.cross(view, screen_up)  # the image's right
-    base = (-1.05 * screen_right - 1.0 * screen_up) * R + view * 1.2 * R  # in front of the disc
+    base = (-0.92 * screen_right - 1.0 * screen_up) * R + view * 1.2 * R  # (labels inside the panel)
     for vec, label, color in ((_sun_direction(fr), "Sun", "gold"), (_lunar_north(fr), "lunar N", "white")):
         d = _in_image_plane(vec, view)
         if d is None:  # along the line of sight: say so instead of drawing a dot
