@@ -728,9 +728,14 @@ def cmd_render(a, interactive=False):
         gif = _check_out(a.gif, (".gif",)) if a.gif else None
         if a.state is not None:
             _state_alone(a, "render", (("gif", "--gif"),))
+            if a.view != "composite":
+                raise UsageError("render --state draws the explorer's picture: drop --view")
             from lunarviz.explore.engine import state_picture
             from lunarviz.outputs.writers import write_picture
-            write_picture(out, state_picture(_load_state(a.state)))
+            state = _load_state(a.state)
+            if a.size != "1600x900":  # (a size asked for: the state's picture at that size)
+                state = state.with_(size=_size(a.size))
+            write_picture(out, state_picture(state))
             if not a.quiet:
                 print(f"wrote {out}")
             return
@@ -1125,10 +1130,10 @@ def cmd_explore(a):
 def _size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(x) for x in text.lower().split("x"))
-        if not (320 <= w <= 4096 and 240 <= h <= 4096):
+        if not (960 <= w <= 4096 and 600 <= h <= 4096):
             raise ValueError
     except ValueError:
-        raise UsageError(f"malformed --size {text!r}: use WxH, width 320-4096 and height 240-4096") from None
+        raise UsageError(f"malformed --size {text!r}: use WxH, width 960-4096 and height 600-4096") from None
     return w, h
 
 

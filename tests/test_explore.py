@@ -28,7 +28,7 @@ PHASES = (30.0, 60.0, 90.0, 120.0, 150.0)
 
 
 def _state(**kw) -> ExploreState:
-    base = {"options": {"moon_level": 3}, "phases": PHASES, "key": 120.0, "size": (800, 500)}
+    base = {"options": {"moon_level": 3}, "phases": PHASES, "key": 120.0, "size": (960, 600)}
     return ExploreState(**{**base, **kw})
 
 
@@ -89,7 +89,7 @@ def test_first_then_converged_frames_and_the_cache():
     assert [f.quality for f in made] == ["first", "converged"]
     first, conv = made
     assert first.error is None and conv.error is None
-    assert first.image.shape == conv.image.shape == (500, 800, 3)
+    assert first.image.shape == conv.image.shape == (600, 960, 3)
     # the first frame's numbers are the paper's point sources; the converged one's the tracer's row with its bound
     assert first.row["method"] == "analytic" and conv.row["method"] == "raytrace"
     # (level-3 facets asked for: the rows' bound for that level, 5e-4; the default level meets 1e-4)
@@ -175,7 +175,7 @@ def test_numbers_agree_with_the_sweep_row():
 def saved(tmp_path_factory):
     """A state saved by ``explore --save-state`` with its ``--screenshot``."""
     tmp = tmp_path_factory.mktemp("state")
-    r = _cli("explore", "--phases", "30:150:30", "--phase", "120", "--mesh-level", "3", "--size", "800x500",
+    r = _cli("explore", "--phases", "30:150:30", "--phase", "120", "--mesh-level", "3", "--size", "960x600",
              "--save-state", str(tmp / "view.json"), "--screenshot", str(tmp / "view.png"))
     if r.returncode:  # (--phases and --phase are one option: the last given wins)
         raise AssertionError(r.stderr)
@@ -188,7 +188,7 @@ def test_render_state_makes_the_explorers_picture(saved):
     assert r.returncode == 0, r.stderr
     a = np.asarray(Image.open(saved / "view.png")).astype(int)
     b = np.asarray(Image.open(saved / "again.png")).astype(int)
-    assert a.shape == b.shape == (500, 800, 3)
+    assert a.shape == b.shape == (600, 960, 3)
     assert np.abs(a - b).max() <= 2  # (the same code and data: identical, but for GPU-free rasteriser noise)
 
 
@@ -285,7 +285,7 @@ from lunarviz.explore.desktop import DesktopExplorer
 from lunarviz.explore.controls import BY_CONTROL
 root = tk.Tk()
 app = DesktopExplorer(root, ExploreState(options={{"moon_level": 3}}, phases={PHASES!r}, key=120.0,
-                                          size=(800, 500)), background=False)
+                                          size=(960, 600)), background=False)
 def pump(cond, sec=60):
     end = time.time() + sec
     while time.time() < end and not cond():
@@ -350,3 +350,52 @@ def test_the_lower_right_panel_shows_the_earth_seen_from_the_moon():
     diff = np.abs(a - b).mean(axis=2)
     assert diff[h // 2:, w3 // 2:w3].mean() > 5
     assert diff[:h // 2, :w3].max() == 0 and diff[h // 2:, :w3 // 2].max() == 0 and diff[:, w3:].max() == 0
+
+
+def test_an_instrument_at_full_moon_says_why_it_has_no_frame():
+    """The pipeline refuses a Moon too full for its patches before imaging it: the picture keeps its
+    Moon and curves and says why the instrument has no frame (``render --state`` draws it too)."""
+    from lunarviz.explore.engine import instrument_frame
+    from lunarviz.explore.picture import instrument_lines
+    s = _state(key=10.0, phases=(10.0, 30.0), instrument="salex")  # (salex: no patches for θ < ~30°)
+    f = Engine(background=False, start=False).frame(s)
+    assert f.error is None and f.row["moonshine_W_m2"] > 0
+    lines = instrument_lines(s, instrument_frame(s))
+    assert "no frame" in lines[0] and "patch" in lines[0]
+
+
+def test_a_state_whose_instrument_file_is_gone_is_refused_in_one_line(tmp_path):
+    """The menus' changes re-check the state: an instrument file removed meanwhile leaves the state
+    as it was and says why (no exception reaches the window)."""
+    import shutil as sh
+    from pathlib import Path
+
+    from lunarviz.explore.controls import Explorer
+    src = Path(__file__).resolve().parents[1] / "lunarviz" / "data" / "instruments" / "salex.toml"
+    mine = tmp_path / "mine.toml"
+    sh.copy(src, mine)
+    ex = Explorer(_state(instrument=str(mine)), background=False)
+    ex.engine.close()
+    mine.unlink()
+    assert not ex.show(1) and "mine.toml" in ex.message
+    assert not ex.set("clouds", "zonal") and ex.state.instrument == str(mine)
+
+
+def test_curves_completed_while_the_worker_is_busy_are_repainted():
+    """The background pass finishes the curves while the worker paints: the state on show is
+    painted again with every row once the worker is free (its last frame holds them all)."""
+    from lunarviz.explore.controls import Explorer
+    made = []
+    ex = Explorer(_state(phases=(60.0, 90.0, 120.0, 150.0)), on_frame=made.append, background=True)
+    for band in (None, "V", "B", "R"):
+        ex.set("band", band)
+        time.sleep(0.3)
+    t0 = time.time()
+    while time.time() - t0 < 120:
+        last = ex.frame
+        if last is not None and last.state.band == "R" and last.quality == "converged" \
+                and all(r is not None for r in last.series):
+            break
+        time.sleep(0.3)
+    assert ex.frame.state.band == "R" and all(r is not None for r in ex.frame.series)
+    ex.close()

@@ -95,8 +95,11 @@ class Explorer:
             self.frame = frame
         self._on_frame(frame)
 
-    def _go(self, state: ExploreState) -> bool:
+    def _go(self, make) -> bool:
+        """Show the state ``make()`` returns, once the scene's own checks pass (else its one line in
+        :attr:`message`, the state unchanged)."""
         try:
+            state = make()
             state.scene()  # the scene's own checks, before anything is computed
         except LunarvizError as exc:
             self.message = str(exc)
@@ -110,28 +113,19 @@ class Explorer:
     def set(self, name: str, value) -> bool:
         """Set control ``name`` (a state field or scene option) to ``value``; False (and
         :attr:`message`) where the scene refuses it."""
-        if name in ("brdf", "band", "picked", "instrument", "panel"):
-            if name == "instrument" and value in ("", "none"):
-                value = None
-            try:
-                new = self.state.with_(**{name: value})
-            except LunarvizError as exc:
-                self.message = str(exc)
-                return False
-        elif name == "observer" and (self.state.times is None) != (value == "geocentre"):
+        if name == "instrument" and value in ("", "none"):
+            value = None
+        if name == "observer" and self.state.times is None and value != "geocentre":
             self.message = ("an observer other than the geocentre needs dates: start the explorer with --time-range, "
-                            "--nights or --lunation" if self.state.times is None else "")
-            if self.message:
-                return False
-            new = self.state.with_(observer=value)
-        else:
-            new = self.state.with_(**{name: value})
-        return self._go(new.with_(picked=None) if name != "picked" else new)
+                            "--nights or --lunation")
+            return False
+        keep_pick = name in ("picked", "instrument", "panel", "band")  # (these leave the facets as they are)
+        return self._go(lambda: self.state.with_(**{name: value, **({} if keep_pick else {"picked": None})}))
 
     def show(self, index: int) -> bool:
         keys = self.state.keys
         index = max(0, min(len(keys) - 1, int(index)))
-        return self._go(self.state.with_(key=keys[index]))
+        return self._go(lambda: self.state.with_(key=keys[index]))
 
     def step(self, k: int = 1) -> bool:
         return self.show(self.state.index + k)
@@ -141,7 +135,7 @@ class Explorer:
         elsewhere: the pick is cleared)."""
         from lunarviz.explore.picture import facet_at
         frame = self.frame
-        if frame is None or frame.view is None or frame.quality != "converged":
+        if frame is None or frame.view is None or frame.quality != "converged" or frame.state != self.state:
             # (a first picture's Moon is a coarser mesh: its facets are not the scene's)
             self.message = "the picture is converging: pick again in a moment"
             return False

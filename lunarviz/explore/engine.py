@@ -9,10 +9,10 @@ makes, for the newest request only (a newer one supersedes it between steps):
    call as ``lunarviz sweep``, its ``rtol`` bound shown) and the picture on the scene's own mesh.
 
 Frames already made return at once from a bounded cache (:data:`CACHE_FRAMES`). A second thread,
-the **background pass**, computes the rows of every slider value (the curves) and then the
-converged frames of the slider's neighbours, only while no request is in flight, so scrubbing
-over a computed range is instant. Every frame goes to the ``on_frame`` callback (from the worker's
-thread: a window posts it to its own loop).
+the **background pass**, has the rows of every slider value (the curves) computed, nearest first,
+in a process of its own at the lowest priority, so the worker never waits for it and scrubbing over
+a computed range shows its curves at once; the state on show is repainted as they complete. Every
+frame goes to the ``on_frame`` callback (from the worker's thread: a window posts it to its own loop).
 """
 
 from __future__ import annotations
@@ -110,14 +110,19 @@ class Engine:
             self._generation += 1
             self._lock.notify_all()
 
-    def _repaint(self, state: ExploreState) -> None:
+    def _repaint(self, state: ExploreState) -> bool:
         """Make ``state``'s frames again (its curves now complete), unless a newer state was asked
-        for meanwhile or work is in flight: decided under the lock, so it never supersedes a newer request."""
+        for meanwhile (True: done, or no longer wanted) or work is in flight (False: the caller
+        tries again): decided under the lock, so it never supersedes a newer request."""
         with self._lock:
-            if self._shown is state and self._wanted is None and not self._busy:
+            if self._shown is not state:
+                return True
+            if self._wanted is None and not self._busy:
                 self._wanted = state
                 self._generation += 1
                 self._lock.notify_all()
+                return True
+            return False
 
     def wait_idle(self, timeout: float = 600.0) -> bool:
         """Block until the newest request's converged frame is made (tests, benchmarks, screenshots)."""
@@ -165,7 +170,7 @@ class Engine:
             model = None if state.picked is None or quality != "converged" else \
                 state.scene().settings("raytrace").brdf_models()[state.brdf]
             frame = None
-            if state.instrument is not None and quality == "converged":
+            if state.instrument is not None and quality == "converged" and state.picked is None:
                 frame = self._instrument_frames.get((state.task_key(band=None), state.instrument))
                 if frame is None:
                     frame = instrument_frame(state)
@@ -264,10 +269,6 @@ class Engine:
                     self._busy = False
                     self._lock.notify_all()
 
-    def _idle(self) -> bool:
-        with self._lock:
-            return self._wanted is None and not self._busy
-
     def _background(self) -> None:
         """Rows of every slider value of the state on show, nearest first, computed in a process of
         its own at the lowest priority (:func:`_background_row`): the window's worker never waits
@@ -280,6 +281,7 @@ class Engine:
         except ImportError:
             pass
         done: set = set()
+        pending = None  # a state whose curves filled in while the worker was busy: repainted when it is not
         # (spawned, not forked: this process holds threads and OpenGL contexts)
         spawn = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(1, mp_context=spawn, initializer=_lowest_priority) as pool:
@@ -287,8 +289,13 @@ class Engine:
                 with self._lock:
                     if self._closed:
                         return
+                if pending is not None and self._repaint(pending):
+                    pending = None
                 state = self._shown
-                todo = None if state is None else self._next_task(state, done)
+                try:
+                    todo = None if state is None else self._next_task(state, done)
+                except LunarvizError:  # (a state its own checks refuse now, e.g. its instrument file gone)
+                    todo = None
                 if todo is None:
                     time.sleep(0.05)
                     continue
@@ -298,8 +305,8 @@ class Engine:
                 except Exception:  # noqa: BLE001,S112 (a value that fails here fails again, shown, when asked for)
                     continue
                 self._rows[(todo.task_key(), "converged")] = row
-                if self.series_done(state) == len(state.keys):
-                    self._repaint(state)  # its curves complete: paint it again
+                if self.series_done(state) == len(state.keys) and not self._repaint(state):
+                    pending = state  # its curves complete: painted again once the worker is free
 
     def _next_task(self, state: ExploreState, done: set):
         """The next slider value of ``state`` whose converged row is not yet known, nearest first."""
@@ -352,9 +359,14 @@ def instrument_frame(state: ExploreState) -> dict:
     inst = load_instrument(state.instrument)
     scene = state.with_(band=None, picked=None).scene()
     settings, key = scene.settings("raytrace"), scene.keys[0]
-    obs = observation(settings, key, inst, None)
-    out = {"name": inst.name, "band": inst.band, "exposure_s": obs.exposure_s, "counts": obs.expected_counts,
-           "full_well_adu": inst.bias_adu + inst.full_well_e / inst.gain_e_per_adu, "patches": None, "note": ""}
+    out = {"name": inst.name, "band": inst.band, "exposure_s": None, "counts": None, "patches": None, "note": "",
+           "full_well_adu": inst.bias_adu + inst.full_well_e / inst.gain_e_per_adu, "saturate_adu": inst.saturate_adu}
+    try:  # (the pipeline refuses a Moon too full or too thin for its patches before tracing: said, not shown)
+        obs = observation(settings, key, inst, None)
+    except LunarvizError as exc:
+        out["note"] = str(exc)
+        return out
+    out.update(exposure_s=obs.exposure_s, counts=obs.expected_counts)
     geom, _, masked = masked_pixels(instrument_scene(settings, inst).geometry(key), instrument_camera(inst),
                                     inst.bright_side_nd, inst.margin_px())
     try:

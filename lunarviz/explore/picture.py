@@ -10,6 +10,7 @@ pictures and ``lunarviz render --state``'s, so the two agree pixel for pixel.
 
 from __future__ import annotations
 
+import textwrap
 from datetime import datetime
 
 import numpy as np
@@ -18,6 +19,8 @@ import numpy as np
 SPLIT = 0.62
 #: the figure's resolution [dots per inch]: 10-point text is ~14 pixels high
 DPI = 100
+#: the numbers' lines are wrapped at this many characters (9-point monospace in the right panel)
+TEXT_COLUMNS = 60
 
 
 def _x(state, keys) -> tuple[np.ndarray, str]:
@@ -105,7 +108,7 @@ def draw_curves(fig, state, series: list) -> dict:
     return {"x": x,
             "lines": [a.axvline(x[0], color="0.3", lw=0.9, ls=":", animated=True) for a in (ax1, ax2)],
             "points": [ax1.plot([], [], "o", ms=8, mfc="none", mec="k", animated=True)[0] for _ in range(2)],
-            "text": fig.text(0.03, ax2.get_position().y0 - 0.065, "", fontsize=9.5, family="monospace", va="top",
+            "text": fig.text(0.03, ax2.get_position().y0 - 0.065, "", fontsize=9, family="monospace", va="top",
                              ha="left", animated=True)}
 
 
@@ -121,7 +124,9 @@ def mark(fig, artists: dict, state, quality: str, row: dict, extra: list = ()) -
         point.set_data(([here], [v]) if v is not None and np.isfinite(v) and v > 0 else ([], []))
         fig.draw_artist(point)
     text = artists["text"]
-    text.set_text("\n".join(numbers_lines(state, quality, row) + list(extra)))
+    lines = [w for line in numbers_lines(state, quality, row) + list(extra)
+             for w in textwrap.wrap(line, TEXT_COLUMNS, subsequent_indent="    ") or [""]]
+    text.set_text("\n".join(lines))
     text.set_color("darkred" if quality == "first" else "black")
     fig.draw_artist(text)
 
@@ -149,11 +154,17 @@ def instrument_lines(state, frame) -> list[str]:
     if frame is None:
         return [f"instrument {state.instrument}: its frame comes with the converged picture"]
     c = frame["counts"]
+    if c is None:
+        return [f"instrument {frame['name']}: no frame: {frame['note']}"]
     lines = [f"instrument {frame['name']} ({frame['band']}): exposure {frame['exposure_s']:g} s",
              f"  counts {c.min():.0f}-{c.max():.0f} ADU (full well {frame['full_well_adu']:.0f})"]
     p = frame["patches"]
     lines.append("  patches: " + (f"earthlit {int(p.earthlit.sum())}, sunlit {int(p.sunlit.sum())}, "
-                                  f"sky {int(p.sky.sum())} px" if p is not None else frame["note"][:60]))
+                                  f"sky {int(p.sky.sum())} px" if p is not None else frame["note"]))
+    if p is not None:
+        full = sum(int((c[getattr(p, n)] >= frame["saturate_adu"]).sum()) for n in ("earthlit", "sunlit", "sky"))
+        if full:
+            lines.append(f"  {full} patch pixels saturated: the pipeline refuses this exposure")
     return lines
 
 

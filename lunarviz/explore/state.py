@@ -25,6 +25,8 @@ VERSION = 1
 DEFAULT_PHASES = tuple(float(t) for t in range(0, 181, 5))
 #: the picture's default size [pixels]: readable at 1280 px wide
 DEFAULT_SIZE = (1280, 800)
+#: the smallest picture whose panels and numbers keep their layout [pixels]
+MIN_SIZE = (960, 600)
 #: options the state holds apart (the BRDF and band on show; the slider's range)
 OWN = ("brdfs", "bands", "wavelengths")
 #: a small list of observatories by name (geodetic latitude, east longitude [deg], height [m]) and a
@@ -104,8 +106,9 @@ class ExploreState:
         if self.key not in keys:
             raise LunarvizError(f"key {short_repr(self.key)} is not among the slider's {short_repr(keys)}")
         w, h = self.size
-        if not (320 <= w <= 4096 and 240 <= h <= 4096):
-            raise LunarvizError(f"size {short_repr(self.size)}: width 320-4096 and height 240-4096 pixels")
+        if not (MIN_SIZE[0] <= w <= 4096 and MIN_SIZE[1] <= h <= 4096):
+            raise LunarvizError(f"size {short_repr(self.size)}: width {MIN_SIZE[0]}-4096 and height "
+                                f"{MIN_SIZE[1]}-4096 pixels")
         if self.panel not in PANELS:
             raise unknown_choice("panel", self.panel, PANELS)
         if self.instrument is not None:
@@ -240,6 +243,10 @@ class ExploreState:
             d = json.loads(text)
         except (ValueError, RecursionError):
             raise LunarvizError(f"state file {str(path)!r} is not JSON") from None
+        inst = d.get("instrument") if isinstance(d, dict) else None
+        if isinstance(inst, str) and inst.lower().endswith(".toml") and not Path(inst).is_absolute() \
+                and (p.parent / inst).is_file():
+            d["instrument"] = str(p.parent / inst)  # (a file named beside the state: found from anywhere)
         try:
             return cls.from_dict(d)
         except LunarvizError as exc:

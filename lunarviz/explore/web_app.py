@@ -91,7 +91,7 @@ def build_app(state: ExploreState, server=None, background: bool = True):
                     st.frames_shown += 1
                     st.shown = {"key": frame.state.key, "brdf": frame.state.brdf, "band": frame.state.band or NONE,
                                 "picked": frame.state.picked, "quality": frame.quality,
-                                "instrument": frame.state.instrument or NONE,
+                                "instrument": frame.state.instrument or NONE, "panel": frame.state.panel,
                                 "rows": sum(r is not None for r in frame.series), **frame.state.options}
                     for c in CONTROLS:  # the menus follow the state (a refused change put back)
                         v = state_value(explorer.state, c.name)

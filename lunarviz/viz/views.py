@@ -345,6 +345,11 @@ def _frame_panel(pl, frame: dict) -> None:
     """An instrument's frame in counts [ADU] (row 0 at the bottom: north up, east left, as
     ``lunarviz image``), on a square-root grey scale, with the measurement pipeline's patches
     outlined: earthlit (blue), sunlit (orange), sky (green)."""
+    if frame.get("counts") is None:  # the pipeline refused the task before imaging it: say why
+        pl.add_text(f"{frame['name']}: no frame\n" + "\n".join(
+            frame["note"][i:i + 44] for i in range(0, len(frame["note"]), 44)), font_size=10,
+            position="upper_left", color="orange")
+        return
     counts = np.asarray(frame["counts"], dtype=float)
     H, W = counts.shape
     grid = pv.ImageData(dimensions=(W + 1, H + 1, 1))

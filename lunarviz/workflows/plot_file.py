@@ -129,10 +129,12 @@ def plot_budget(res: dict, path) -> None:
         def rel(k, rs=rs):
             v = np.array([(r.get(k) if r.get(k) is not None else np.nan) / r["p_star"] for r in rs], dtype=float)
             return np.where(np.isfinite(v) & (v > 0), v, np.nan)
-        for k, style in (("p_star_sigma_total", "k-"), ("p_star_sigma", "b-"), ("p_star_sigma_systematic", "r-")):
-            ax.semilogy(x, rel(k), style, lw=2, label=k.replace("p_star_", ""))
+        for k, style, label, width in (("p_star_sigma_systematic", "r-", "systematic (quadrature sum)", 2.5),
+                                       ("p_star_sigma", "b-", "random", 2.0),
+                                       ("p_star_sigma_total", "k:", "total (drawn last, dotted)", 2.0)):
+            ax.semilogy(x, rel(k), style, lw=width, label=label)
         for k in BUDGET_ROW_TERMS:
-            ax.semilogy(x, rel(k), ".--", lw=0.8, label=k.replace("sigma_", ""))
+            ax.semilogy(x, rel(k), ".--", lw=0.8, label=k.replace("sigma_", "").replace("_", " "))
         inf = [r["phase_angle_deg"] for r in rs if not np.isfinite(r.get("p_star_sigma_total", np.nan))]
         for xi in inf:
             ax.axvline(xi, color="gray", lw=6, alpha=0.25)
@@ -180,7 +182,11 @@ def plot_measurement(res: dict, path) -> None:
     bx.set_title("error budget, largest term on top" + (f"\n(zero: {', '.join(zero)})" if zero else ""), fontsize=9)
     bx.grid(alpha=0.3, axis="x", which="both")
     key = res.get("key")
-    fig.suptitle(f"{len(rows)} measurements" + (f" of task {key}" if key else "")
+    try:
+        where = f" at θ = {float(key):g}°"
+    except (TypeError, ValueError):
+        where = f" at {key}" if key else ""
+    fig.suptitle(f"{len(rows)} measurements{where}"
                  + (f", {res['instrument']['name']}" if isinstance(res.get("instrument"), dict) else ""), fontsize=10)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
