@@ -280,6 +280,10 @@ def _parser_explore(sub):
                            "(a desktop window, or --web in a browser)", brdfs="dhg")
     _add_theta(p, many=True, default=None, help=f"{THETA_WORDS} [deg]: the slider's values (default 0:180:5)")
     p.add_argument("--band", dest="explore_band", default=None, help="a band shown first (B, V, R, S2A-B4, ...)")
+    p.add_argument("--instrument", dest="explore_instrument", default=None, metavar="salex|bbso|FILE.toml",
+                   help="an instrument shown first: its frame in counts with the pipeline's patches")
+    p.add_argument("--panel", dest="explore_panel", default="brdf", choices=("brdf", "earth"),
+                   help="the lower right panel: the Moon's BRDF map or the Earth seen from the Moon")
     p.add_argument("--state", default=None, metavar="FILE.json", help="start from a saved state")
     p.add_argument("--web", action="store_true",
                    help="serve the explorer to a browser through trame (no display needed)")
@@ -1085,7 +1089,9 @@ def cmd_explore(a):
     if not a.web and (a.port is not None or a.host is not None):
         raise UsageError("--port and --host go with --web")
     if a.state is not None:
-        _state_alone(a, "explore", (("explore_band", "--band"),))
+        _state_alone(a, "explore", (("explore_band", "--band"), ("explore_instrument", "--instrument")))
+        if a.explore_panel != "brdf":
+            raise UsageError("explore --state takes the scene from the state file: drop --panel")
         state = _load_state(a.state)
         if a.size != "1280x800":  # (a size asked for: the state's picture at that size)
             state = state.with_(size=size)
@@ -1100,6 +1106,10 @@ def cmd_explore(a):
         scene = _scene(a, phases, times)
         key = phases[0] if times is None and a.phases is not None else None
         state = state_from_scene(scene, key=key, brdf=brdf[0], band=a.explore_band, size=size)
+        try:
+            state = state.with_(instrument=a.explore_instrument, panel=a.explore_panel)
+        except LunarvizError as exc:
+            raise UsageError(str(exc)) from None
         state.scene()  # the band and the rest checked now
     if shot is not None:  # the picture first: a state that cannot be drawn leaves no file behind
         from lunarviz.explore.engine import state_picture
