@@ -549,6 +549,13 @@ def populate(pl: pv.Plotter, data: ViewData, view: str = "composite", picked: in
             pl.add_text("Moon: " + long_title, font_size=11, position="upper_left", color="white")
             _camera_from_detector(pl, fr)
         return pl
+    return _composite(pl, data, view, poly, text, picked, brdf_model, frame, lower)
+
+
+def _composite(pl, data: ViewData, view: str, poly, text: str, picked, brdf_model, frame, lower):
+    """The composite view's four panels (and the explorer's, :data:`EXPLORE_VIEW`): see :func:`populate`."""
+    fr = data.facets
+    sun_dir = _sun_direction(fr)
     zoom = EXPLORE_ZOOM if view == EXPLORE_VIEW else 1.0
     pl.subplot(0, 0)
     pl.set_background("black")
