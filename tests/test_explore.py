@@ -399,3 +399,19 @@ def test_curves_completed_while_the_worker_is_busy_are_repainted():
         time.sleep(0.3)
     assert ex.frame.state.band == "R" and all(r is not None for r in ex.frame.series)
     ex.close()
+
+
+def test_a_reused_painter_draws_a_new_panel_scene_whole():
+    """The window's painter keeps its plotter: a panel whose scene moves (the Moon's BRDF map in
+    metres, then a picked facet's unit dome, then the Earth) is drawn, not clipped away by the last
+    scene's depth range. An earthlit facet (the Sun below its horizon) has its dome drawn too."""
+    engine = Engine(background=False, start=False)
+    s = _state()
+    f = engine.frame(s)
+    W, H = s.size
+    w3 = int(W * 0.62) // 2 * 2
+    cd = f.view.facets.cell_data
+    earthlit = int(np.flatnonzero((cd["incidence_deg"] > 100) & (cd["emission_deg"] < 40))[0])
+    for nxt in (s.with_(picked=earthlit), s.with_(panel="earth")):
+        img = engine.frame(nxt).image[H // 2 + 60:, w3 // 2:w3 - 80].astype(float)  # below the title, left of the bar
+        assert (img.max(axis=2) > 40).mean() > 0.15, nxt

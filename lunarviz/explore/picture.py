@@ -218,6 +218,8 @@ class Painter:
                 for r in pl.renderers:
                     r.clear_actors()
                 views.populate(pl, view, views.EXPLORE_VIEW, picked, model, frame, lower)
+                for r in pl.renderers:  # (a panel's new scene may lie far from its last: a dome of radius 1
+                    r.reset_camera_clipping_range()  # where the Moon was, in metres, would be clipped away)
             finally:
                 pl.suppress_rendering = False
         self._plotter.render()

@@ -318,7 +318,9 @@ def facet_brdf_dome(fr: FacetResult, picked: int, model):
 def _facet_brdf_panel(pl, fr: FacetResult, picked: int, model) -> None:
     """:func:`facet_brdf_dome` drawn, with arrows toward the Sun, the detector and the Earth."""
     dome, n, towards = facet_brdf_dome(fr, picked, model)
-    pl.add_mesh(dome, scalars="pi*BRDF", cmap="viridis", lighting=False, n_colors=N_COLORS,
+    lit = bool(np.any(dome.point_data["pi*BRDF"] > 0))  # (unlit: zeros on a 0-1 bar, not a bar of one value)
+    pl.add_mesh(dome, scalars="pi*BRDF", cmap="viridis", clim=None if lit else (0.0, 1.0),
+                lighting=False, n_colors=N_COLORS,
                 scalar_bar_args={"title": "pi*BRDF\n", "vertical": True, "color": "white", "position_x": 0.82,
                                  "position_y": 0.06, "height": 0.66, "width": 0.045, "fmt": "%.3f",
                                  "title_font_size": 12, "label_font_size": 11})
@@ -466,9 +468,10 @@ def _earth_panel(pl, fr: FacetResult, field: str, title: str, cmap: str, log: bo
     up = _in_image_plane(_sky_north(fr), view)  # (the sky's north up, as every picture)
     up = up if up is not None else _in_image_plane(np.array([0.0, 1.0, 0.0]), view)
     R = float(np.max(np.linalg.norm(v, axis=1)))
-    pl.camera_position = [tuple(view * 8 * R), (0.0, 0.0, 0.0), tuple(up)]
+    focal = -np.cross(view, up) / np.linalg.norm(np.cross(view, up)) * 0.15 * R  # (the disc left of the colour bar)
+    pl.camera_position = [tuple(focal + view * 8 * R), tuple(focal), tuple(up)]
     pl.enable_parallel_projection()
-    pl.camera.parallel_scale = 1.25 * R
+    pl.camera.parallel_scale = 1.3 * R
 
 
 def build_plotter(data: ViewData, view: str = "composite", size=(1600, 900), off_screen=True,
