@@ -124,7 +124,7 @@ def mark(fig, artists: dict, state, quality: str, row: dict, extra: list = ()) -
         point.set_data(([here], [v]) if v is not None and np.isfinite(v) and v > 0 else ([], []))
         fig.draw_artist(point)
     text = artists["text"]
-    lines = [w for line in numbers_lines(state, quality, row) + list(extra)
+    lines = [w for block in numbers_lines(state, quality, row) + list(extra) for line in block.split("\n")
              for w in textwrap.wrap(line, TEXT_COLUMNS, subsequent_indent="    ") or [""]]
     text.set_text("\n".join(lines))
     text.set_color("darkred" if quality == "first" else "black")
