@@ -14,16 +14,12 @@ import asyncio
 import base64
 import io
 import os
-import re
-import socket
 import subprocess
 import sys
-import time
-import urllib.request
 
 import numpy as np
 import pytest
-from web_browser import Browser, chromium_path
+from web_browser import Browser, chromium_path, lunarviz_server
 
 pytestmark = [pytest.mark.skipif(chromium_path() is None and not os.environ.get("CI"),
                                  reason="no chromium here (CI installs it: scripts/install.sh test)"),
@@ -33,45 +29,12 @@ SIZE = (1000, 640)
 KEYS = (30.0, 60.0, 90.0, 120.0, 150.0)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def explore_server(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("explore")
-    port = _free_port()
-    log = open(tmp / "server.log", "w")  # noqa: SIM115 (closed at teardown)
-    proc = subprocess.Popen([sys.executable, "-m", "lunarviz.cli", "explore", "--web", "--port", str(port),
-                             "--phases", "30:150:30", "--mesh-level", "3", "--size", f"{SIZE[0]}x{SIZE[1]}"],
-                            stdout=log, stderr=subprocess.STDOUT, text=True, cwd=tmp)
-    base = f"http://127.0.0.1:{port}/"
-    t0 = time.time()
-    while True:
-        text = (tmp / "server.log").read_text()
-        found = re.search(r"serving on (http://\S+/\?secret=\S+)", text)
-        if found:
-            try:
-                with urllib.request.urlopen(base, timeout=2) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                pass
-        if proc.poll() is not None or time.time() - t0 > 120:
-            proc.kill()
-            log.close()
-            raise RuntimeError(f"lunarviz explore --web did not serve: {text}")
-        time.sleep(0.5)
-    yield found.group(1), tmp
-    proc.terminate()
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(10)
-    log.close()
+    for url in lunarviz_server(["explore", "--web", "--phases", "30:150:30", "--mesh-level", "3", "--size",
+                                f"{SIZE[0]}x{SIZE[1]}"], tmp, cwd=tmp):
+        yield url, tmp
 
 
 async def _picture(b, condition: str) -> np.ndarray:

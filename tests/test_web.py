@@ -11,16 +11,10 @@ from __future__ import annotations
 import asyncio
 import io
 import os
-import re
-import socket
-import subprocess
-import sys
-import time
-import urllib.request
 
 import numpy as np
 import pytest
-from web_browser import Browser, chromium_path
+from web_browser import Browser, chromium_path, lunarviz_server
 
 pytestmark = [pytest.mark.skipif(chromium_path() is None and not os.environ.get("CI"),
                                  reason="no chromium here (CI installs it: scripts/install.sh test)"),
@@ -28,48 +22,10 @@ pytestmark = [pytest.mark.skipif(chromium_path() is None and not os.environ.get(
               pytest.mark.xdist_group("web_server")]
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def web_server(tmp_path_factory):
-    tmp_path = tmp_path_factory.mktemp("web")
-    port = _free_port()
-    log = open(tmp_path / "server.log", "w")  # noqa: SIM115 (closed at teardown)
-    proc = subprocess.Popen([sys.executable, "-m", "lunarviz.cli", "view", "--web", "--port", str(port),
-                             "--phase", "90", "--mesh-level", "3", "--size", "1200x700"],
-                            stdout=log, stderr=subprocess.STDOUT, text=True)
-    base = f"http://127.0.0.1:{port}/"
-    t0 = time.time()
-    url = None
-    while True:
-        text = (tmp_path / "server.log").read_text()
-        found = re.search(r"serving on (http://\S+/\?secret=\S+)", text)
-        if found:
-            url = found.group(1)
-            try:
-                with urllib.request.urlopen(base, timeout=2) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                pass
-        if proc.poll() is not None or time.time() - t0 > 120:
-            proc.kill()
-            log.close()
-            raise RuntimeError(f"lunarviz view --web did not serve: {text}")
-        time.sleep(0.5)
-    assert url.startswith(base) and "wslink-secret" not in url
-    yield url
-    proc.terminate()
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(10)
-    log.close()
+    yield from lunarviz_server(["view", "--web", "--phase", "90", "--mesh-level", "3", "--size", "1200x700"],
+                               tmp_path_factory.mktemp("web"))
 
 
 def _moon_panel(png: bytes) -> np.ndarray:

@@ -107,3 +107,51 @@ class Browser:
     async def screenshot(self) -> bytes:
         res = await self.send("Page.captureScreenshot", format="png")
         return base64.b64decode(res["data"])
+
+
+def lunarviz_server(args: list, folder, cwd=None):
+    """Start ``python -m lunarviz.cli ARGS --port P`` (a ``--web`` command) on a free port of
+    127.0.0.1, its output logged in ``folder``; yield the URL it prints (with its secret) once the
+    page answers, and stop it at the end (a generator for a pytest fixture)."""
+    import re
+    import socket
+    import sys
+    import urllib.request
+    from pathlib import Path
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    log_path = Path(folder) / "server.log"
+    log = open(log_path, "w")  # noqa: SIM115 (closed at the end)
+    proc = subprocess.Popen([sys.executable, "-m", "lunarviz.cli", *args, "--port", str(port)], stdout=log,
+                            stderr=subprocess.STDOUT, text=True, cwd=cwd)
+    base = f"http://127.0.0.1:{port}/"
+    t0 = time.time()
+    while True:
+        text = log_path.read_text()
+        found = re.search(r"serving on (http://\S+/\?secret=\S+)", text)
+        if found:
+            try:
+                with urllib.request.urlopen(base, timeout=2) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                pass
+        if proc.poll() is not None or time.time() - t0 > 120:
+            proc.kill()
+            log.close()
+            raise RuntimeError(f"lunarviz {args[0]} --web did not serve: {text}")
+        time.sleep(0.5)
+    url = found.group(1)
+    assert url.startswith(base) and "wslink-secret" not in url
+    try:
+        yield url
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10)
+        log.close()

@@ -147,26 +147,11 @@ def _layout(server, state: ExploreState) -> None:
 
 
 def serve(state: ExploreState, host: str = "127.0.0.1", port: int = 0) -> None:
-    """Serve the explorer until interrupted (port 0: a free port, printed at start), with a random
-    secret in its URL, as ``lunarviz view --web`` (:func:`lunarviz.viz.web.serve`)."""
-    import secrets
-    import warnings
-
-    from lunarviz.errors import LunarvizWarning
-    from lunarviz.viz.web import cap_client_messages
+    """Serve the explorer until interrupted, with a random secret in its URL, as ``lunarviz view
+    --web`` (:func:`lunarviz.viz.web.serve_app`)."""
+    from lunarviz.viz.web import serve_app
     server, explorer = build_app(state)
-    cap_client_messages()
-    secret = secrets.token_urlsafe(24)
-    server.cli.set_defaults(authKey=secret, authKeyFile=None)
-    if host not in ("127.0.0.1", "localhost", "::1"):
-        warnings.warn(f"lunarviz explore --web is listening on {host}: anyone who can reach it and has the URL "
-                      f"(with its secret) can drive the explorer", LunarvizWarning, stacklevel=2)
-
-    def announce(**_):
-        print(f"lunarviz explore --web: serving on http://{host}:{server.port}/?secret={secret} (Ctrl-C stops)",
-              flush=True)
-    server.controller.on_server_ready.add(announce)
     try:
-        server.start(host=host, port=port, open_browser=False, show_connection_info=False)
+        serve_app(server, "lunarviz explore --web", "the explorer", host, port)
     finally:
         explorer.close()

@@ -96,27 +96,31 @@ def cap_client_messages() -> None:
     chunking.UnChunker.set_max_message_size = capped
 
 
-def serve(compute: ComputeView, key, brdf: str, times: tuple | None = None, host: str = "127.0.0.1", port: int = 0,
-          size=(1600, 900)):
-    """Serve the viewer until interrupted (port 0: a free port, printed at start).
+def serve_app(server, command: str, what: str, host: str = "127.0.0.1", port: int = 0) -> None:
+    """Serve a trame ``server`` until interrupted (port 0: a free port, printed at start).
 
     Each run has its own random secret, printed in the URL it serves (``?secret=...``); a
     client that presents any other, wslink's public default ``wslink-secret`` included, is
     refused. Binding to an interface other than the loopback prints a warning: anyone who can
-    reach it and has the URL drives the viewer."""
+    reach it and has the URL drives ``what``. ``command`` names the command in what is printed."""
     import secrets
     import warnings
 
-    server, _ = build_app(compute, key, brdf, times, size=size)
     cap_client_messages()
     secret = secrets.token_urlsafe(24)
     server.cli.set_defaults(authKey=secret, authKeyFile=None)  # trame configures wslink from these
     if host not in ("127.0.0.1", "localhost", "::1"):
-        warnings.warn(f"lunarviz view --web is listening on {host}: anyone who can reach it and has the URL "
-                      f"(with its secret) can drive the viewer", LunarvizWarning, stacklevel=2)
+        warnings.warn(f"{command} is listening on {host}: anyone who can reach it and has the URL "
+                      f"(with its secret) can drive {what}", LunarvizWarning, stacklevel=3)
 
     def announce(**_):
-        print(f"lunarviz view --web: serving on http://{host}:{server.port}/?secret={secret} (Ctrl-C stops)",
-              flush=True)
+        print(f"{command}: serving on http://{host}:{server.port}/?secret={secret} (Ctrl-C stops)", flush=True)
     server.controller.on_server_ready.add(announce)
     server.start(host=host, port=port, open_browser=False, show_connection_info=False)
+
+
+def serve(compute: ComputeView, key, brdf: str, times: tuple | None = None, host: str = "127.0.0.1", port: int = 0,
+          size=(1600, 900)):
+    """Serve the viewer until interrupted (:func:`serve_app`)."""
+    server, _ = build_app(compute, key, brdf, times, size=size)
+    serve_app(server, "lunarviz view --web", "the viewer", host, port)
