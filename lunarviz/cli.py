@@ -595,17 +595,28 @@ def cmd_sweep(a):
         plot_sweep(res, plot)
     if not a.quiet and not to_stdout:
         print("\n".join(row_table(res["rows"])))
-        for b, m in res["bond_albedo"].items():
-            for meth, v in m.items():
-                if isinstance(v, dict):  # a spectral run: one per wavelength or band
-                    shown = "  ".join(f"{lab}: {x:.4f}" for lab, x in v.items() if x is not None and math.isfinite(x))
-                    print(f"Bond albedo  {b:8s} {meth:10s} {shown or 'undefined (sweep θ across 0-180°)'}")
-                elif v is not None and math.isfinite(v):
-                    print(f"Bond albedo  {b:8s} {meth:10s} {v:.4f}")
-                else:
-                    print(f"Bond albedo  {b:8s} {meth:10s} undefined: Eq. 17 integrates p* over the Earth's "
-                          f"phases (sweep θ across 0-180°, or dates that span them)")
+        print("\n".join(albedo_lines(res)))
         print(f"wrote {out}" + (f" and {plot}" if plot is not None else ""))
+
+
+def albedo_lines(res: dict) -> list[str]:
+    """The run's Eq. 17 estimates of the Bond albedo (over the sampled phases, per BRDF and
+    method) and the model Earth's own spherical and geometric albedo and phase integral."""
+    def shown(v):
+        if isinstance(v, dict):  # a spectral run: one per wavelength or band
+            return "  ".join(f"{lab}: {x:.4f}" for lab, x in v.items() if x is not None and math.isfinite(x))
+        return f"{v:.4f}" if v is not None and math.isfinite(v) else ""
+    lines = []
+    for b, m in res["bond_albedo"].items():
+        for meth, v in m.items():
+            lines.append(f"Bond albedo, Eq. 17 over the sampled phases  {b:8s} {meth:10s} " + (
+                shown(v) or "undefined: Eq. 17 integrates p* over the Earth's phases (sweep θ across 0-180°, or "
+                            "dates that span them)"))
+    if "earth_spherical_albedo" in res:
+        lines.append(f"the model Earth's own: spherical albedo {shown(res['earth_spherical_albedo'])}   geometric "
+                     f"albedo {shown(res['earth_geometric_albedo'])}   phase integral "
+                     f"{shown(res['earth_phase_integral'])}")
+    return lines
 
 
 def row_table(rows: list[dict], most: int = 12) -> list[str]:

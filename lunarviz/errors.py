@@ -67,6 +67,12 @@ class UnboundedRowsWarning(LunarvizWarning):
     """Rows of a run carry no error bound (their ``rtol`` is NaN; ``no_bound_reason`` says why)."""
 
 
+class ApparentAlbedoWarning(LunarvizWarning):
+    """Rows' apparent albedo p* lies outside 0-1, which no Lambert sphere gives (its p* is its
+    albedo at every phase): the Earth's phase law is not Lambert's there, or the ratio is
+    ill-conditioned (near full Moon the earthlit Moon is a thin, faint crescent)."""
+
+
 class LooseRowsWarning(LunarvizWarning):
     """Rows of a run carry a bound above the tolerance (their ``rtol`` column) that the run could
     not foresee (a mapped Earth's, which depends on each row's own albedos and light)."""

@@ -11,25 +11,30 @@ Stamnes et al. 1988), plane-parallel, scalar. Writes into ``lunarviz/data/earth_
   side) on Gauss nodes mu' (``tables.sky_nodes``), the total
   (direct + diffuse) transmittance ``trans`` (tau, mu) and the spherical albedo ``sph`` (tau),
   on zenith angles ``theta_deg`` 0 … 89°;
-* ``cloud.npz``: a plane-parallel water cloud (optical depth 10, single-scattering albedo
-  0.99999, Henyey–Greenstein g = 0.85; Hansen & Travis 1974's typical droplet cloud in the
-  visible) over a surface of albedo 0.06, as a surface: its reflectance factor ``rf`` (mu0, mu,
-  phi) with azimuth 0 = viewer on the Sun's side, 36 streams, delta-M with the Nakajima–Tanaka
-  intensity correction.
+* ``cloud.npz``: a plane-parallel liquid water cloud of droplets (Hansen & Travis 1974's gamma size
+  distribution, effective radius 10 µm, effective variance 0.1; Mie theory by ``miepython`` at
+  550 nm, its full phase function with the glory, the rainbow and the forward peak as 1000
+  Legendre moments) over a surface of albedo 0.06, as a surface: its reflectance factor ``rf``
+  (tau, mu0, mu, phi) at optical depths ``tau`` with azimuth 0 = viewer on the Sun's side, 36
+  streams, delta-M with the Nakajima–Tanaka intensity correction (which takes every moment);
+  also the moments, the single-scattering albedo and the phase function on 3601 points in cos Θ.
 
-Run ``python scripts/make_earth_tables.py`` (``pip install nanodisort``; about a minute).
+Run ``python scripts/make_earth_tables.py`` (``pip install -e ".[earth-tables]"``: nanodisort and
+miepython; about ten minutes, most of it the cloud's DISORT solutions).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 
 import numpy as np
 
 from lunarviz.earth_optics import rayleigh
-from lunarviz.earth_optics.disort_tables import CLOUD, CLOUD_PHI_DEG, RAYLEIGH_TAU, TABLE_DIR, THETA_DEG, sky_nodes
+from lunarviz.earth_optics.disort_tables import (CLOUD, CLOUD_PHI_DEG, CLOUD_TAU, RAYLEIGH_TAU, TABLE_DIR, THETA_DEG,
+                                                 sky_nodes)
 
 #: streams: 36 puts no computational angle on a table node (32 has one at 36°, 34 at 60°)
 NSTR = 36
@@ -106,29 +111,75 @@ def rayleigh_tables() -> dict:
             "depolarisation": np.array(rayleigh.DEPOLARISATION)}
 
 
+def droplet_size_grid() -> tuple[np.ndarray, np.ndarray]:
+    """Radii [µm] and trapezoid weights of the droplets' size distribution: Hansen & Travis (1974,
+    Eq. 2.56) gamma n(r) ∝ r^((1 − 3b)/b) e^(−r/(ab)) with a = r_eff, b = v_eff, normalised."""
+    a, b = CLOUD["r_eff_um"], CLOUD["v_eff"]
+    r = np.arange(0.25, 60.0 + 1e-9, 0.02)
+    n = r ** ((1.0 - 3.0 * b) / b) * np.exp(-r / (a * b))
+    w = n * np.gradient(r)
+    return r, w / w.sum()
+
+
+def droplet_phase_function(nodes: int = 6000) -> dict:
+    """The droplets' phase function P(Θ) (∫ P dΩ = 4π) on Gauss–Legendre nodes in cos Θ, its
+    Legendre moments χ_l = ½ ∫ P P_l dμ (DISORT's normalisation), the single-scattering albedo
+    and the asymmetry parameter: Mie theory (``miepython``, Wiscombe 1980's algorithm) over the
+    size distribution at the table's wavelength, refractive index of water from Hale & Querry
+    (1973, Appl. Opt. 12, 555) at 550 nm."""
+    os.environ.setdefault("MIEPYTHON_USE_JIT", "1")  # (compiled: ~50x faster at size parameters of ~100)
+    import miepython as mp
+    mu, wmu = np.polynomial.legendre.leggauss(nodes)
+    lam = CLOUD["wavelength_um"]
+    m = complex(CLOUD["n_real"], -CLOUD["n_imag"])  # miepython: absorption as a negative imaginary part
+    r, w = droplet_size_grid()
+    pf = np.zeros(nodes)
+    c_sca = c_ext = 0.0  # the distribution's cross sections [µm²]
+    for ri, wi in zip(r, w):
+        x = 2.0 * np.pi * ri / lam
+        qext, qsca, _, _ = mp.efficiencies_mx(m, x)
+        s1, s2 = mp.S1_S2(m, x, mu, norm="bohren")  # C_sca = (1/k²) ∫ (|S1|² + |S2|²)/2 dΩ
+        k2 = (2.0 * np.pi / lam) ** 2
+        pf += wi * 0.5 * (np.abs(s1) ** 2 + np.abs(s2) ** 2) / k2
+        c_sca += wi * qsca * np.pi * ri**2
+        c_ext += wi * qext * np.pi * ri**2
+    pf /= 0.5 * wmu @ pf  # ∫ P dΩ = 4π (the weights above are each size's own scattered power)
+    leg = np.polynomial.legendre.legvander(mu, CLOUD["moments"])  # (nodes, L + 1)
+    moments = 0.5 * (wmu * pf) @ leg
+    return {"mu": mu, "phase_function": pf, "moments": moments, "ssalb": c_sca / c_ext,
+            "asymmetry": float(moments[1])}
+
+
 def cloud_table() -> dict:
     mu = np.cos(np.radians(THETA_DEG))
-    nmom = 4 * NSTR
-    g = CLOUD["g"]
-    pm = (g ** np.arange(nmom + 1))[:, None]
+    drop = droplet_phase_function()
+    pm = drop["moments"][:, None]
     phi_d = 180.0 - CLOUD_PHI_DEG
-    rf = np.zeros((len(mu), len(mu), len(CLOUD_PHI_DEG)))
-    for i, mu0 in enumerate(mu):
-        s = _state(nmom, mu, phi_d, [CLOUD["tau"]], [CLOUD["ssalb"]], pm, mu0, CLOUD["surface_albedo"],
-                   correction=True)
-        rf[i] = _uu_top(s, mu) * np.pi / mu0
-    return {"theta_deg": THETA_DEG, "phi_deg": CLOUD_PHI_DEG, "rf": rf, "setup": np.array(json.dumps(CLOUD))}
+    rf = np.zeros((len(CLOUD_TAU), len(mu), len(mu), len(CLOUD_PHI_DEG)), dtype=np.float32)
+    for k, tau in enumerate(CLOUD_TAU):
+        for i, mu0 in enumerate(mu):
+            s = _state(CLOUD["moments"], mu, phi_d, [tau], [drop["ssalb"]], pm, mu0, CLOUD["surface_albedo"],
+                       correction=True)
+            rf[k, i] = _uu_top(s, mu) * np.pi / mu0
+        print(f"cloud τ = {tau:g}: done", flush=True)
+    keep = np.linspace(-1.0, 1.0, 3601)  # the phase function, for documentation and figures
+    return {"theta_deg": THETA_DEG, "phi_deg": CLOUD_PHI_DEG, "tau": CLOUD_TAU, "rf": rf,
+            "moments": drop["moments"], "ssalb": np.array(drop["ssalb"]),
+            "phase_mu": keep, "phase_function": np.interp(keep, drop["mu"], drop["phase_function"]),
+            "setup": np.array(json.dumps({**CLOUD, "ssalb": drop["ssalb"], "asymmetry": drop["asymmetry"]}))}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(TABLE_DIR), help="folder for rayleigh.npz and cloud.npz")
+    ap.add_argument("--only", choices=("rayleigh", "cloud"), help="make one table only")
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out / "rayleigh.npz", **rayleigh_tables())
-    np.savez_compressed(out / "cloud.npz", **cloud_table())
-    print(f"wrote {out / 'rayleigh.npz'} and {out / 'cloud.npz'}")
+    for name, make in (("rayleigh", rayleigh_tables), ("cloud", cloud_table)):
+        if a.only in (None, name):
+            np.savez_compressed(out / f"{name}.npz", **make())
+            print(f"wrote {out / name}.npz")
     return 0
 
 

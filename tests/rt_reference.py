@@ -8,18 +8,21 @@ from __future__ import annotations
 import numpy as np
 
 
-def disortpp_toa(tau, mu0, mus, phis_deg, *, albedo=0.0, moments=None, hg_g=None, ssalb=1.0, nstr=32):
+def disortpp_toa(tau, mu0, mus, phis_deg, *, albedo=0.0, moments=None, hg_g=None, ssalb=1.0, nstr=32,
+                 nakajima=None):
     """TOA reflectance factor πI/(μ₀F) at cos θ = ``mus`` (rows) and azimuths ``phis_deg``
     (columns; 0 = viewer on the Sun's side, lunarviz's convention) of one layer over a Lambert
-    surface: Legendre ``moments`` (DISORT's normalisation) or a Henyey–Greenstein ``hg_g``."""
+    surface: Legendre ``moments`` (DISORT's normalisation; all of them are kept for the intensity
+    correction) or a Henyey–Greenstein ``hg_g``; ``nakajima``: Nakajima–Tanaka's intensity
+    correction (default: with a Henyey–Greenstein phase function)."""
     import disortpp as dp
     mus = np.asarray(mus, float)
     order = np.argsort(mus)
-    nmom = nstr if hg_g is None else 4 * nstr
+    nmom = (max(nstr, len(moments) - 1) if hg_g is None else 4 * nstr)
     c = dp.DisortConfig(1, nstr, nmom)
     c.num_user_mu, c.num_phi, c.num_user_tau = len(mus), len(phis_deg), 1
     c.flags.use_user_mu = c.flags.use_user_tau = c.flags.use_lambertian_surface = True
-    if hg_g is not None:
+    if (hg_g is not None) if nakajima is None else nakajima:
         c.flags.intensity_corr_nakajima = True
     c.allocate()
     c.delta_tau, c.single_scat_albedo = [float(tau)], [float(ssalb)]

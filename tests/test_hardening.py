@@ -320,7 +320,7 @@ def test_a_repeated_warning_is_printed_once(tmp_path):
     """The TLE-age warning came three times for one date (the settings are checked more than once)."""
     tle = os.path.join(os.path.dirname(__file__), "data", "leo_2027.tle")
     r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--method", "analytic", "--brdf", "lambert",
-                        "--time", "2027-03-15T00:00Z", "--observer", f"tle:{tle}", "--quiet", "--out",
-                        str(tmp_path / "t.json")], capture_output=True, text=True)
+                        "--moon-model", "paper", "--time", "2027-03-15T00:00Z", "--observer", f"tle:{tle}",
+                        "--quiet", "--out", str(tmp_path / "t.json")], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stderr.count("lunarviz: warning:") == 1, r.stderr

@@ -74,7 +74,7 @@ def test_irradiance_matches_independent_quadrature(iso):
     surf = ind.ellipsoid_surface(C.R_MOON_M, C.R_MOON_M, C.R_MOON_M, n=160)
     want = ind.detector_irradiance(None, surf, models, positions=(g["sun"], g["moon"], np.zeros(3)))
     for method in ("reference", "raytrace"):
-        rows = run_phase(ResolvedScene(times=(iso,), brdfs=tuple(models), method=method), iso)
+        rows = run_phase(ResolvedScene(moon_model="paper", times=(iso,), brdfs=tuple(models), method=method), iso)
         assert 25 < rows[0]["phase_angle_deg"] < 155
         for r in rows:
             ms, es = want[r["brdf"]]
@@ -122,7 +122,7 @@ def test_site_altitude_matches_astropy(iso):
 @pytest.mark.parametrize("method", ["analytic", "reference", "raytrace"])
 def test_moon_below_horizon_is_dark_and_flagged(method):
     iso = "2027-07-18T15:45:00Z"  # altitude -35° at the site (previous test)
-    rows = run_phase(ResolvedScene(times=(iso,), observer=SITE, brdfs=("dhg",), method=method), iso)
+    rows = run_phase(ResolvedScene(moon_model="paper", times=(iso,), observer=SITE, brdfs=("dhg",), method=method), iso)
     r = rows[0]
     assert r["moon_occulted"] and r["moon_altitude_deg"] < 0
     assert r["moonshine_W_m2"] == 0.0 and r["earthshine_W_m2"] == 0.0
@@ -140,8 +140,9 @@ def test_moon_above_horizon_is_seen_from_the_site():
     models = {"lambert": make_brdf("lambert")}
     surf = ind.ellipsoid_surface(C.R_MOON_M, C.R_MOON_M, C.R_MOON_M, n=120)
     want = ind.detector_irradiance(None, surf, models, positions=(g["sun"], g["moon"], p), earthshine=False)
-    site = run_phase(ResolvedScene(times=(iso,), observer=SITE, brdfs=("lambert",), method="reference"), iso)[0]
-    geo = run_phase(ResolvedScene(times=(iso,), brdfs=("lambert",), method="reference"), iso)[0]
+    site = run_phase(ResolvedScene(moon_model="paper",
+                                   times=(iso,), observer=SITE, brdfs=("lambert",), method="reference"), iso)[0]
+    geo = run_phase(ResolvedScene(moon_model="paper", times=(iso,), brdfs=("lambert",), method="reference"), iso)[0]
     assert not site["moon_occulted"] and site["moon_altitude_deg"] > 20
     assert site["moonshine_W_m2"] == pytest.approx(want["lambert"][0], rel=5e-4)
     assert abs(site["moonshine_W_m2"] / geo["moonshine_W_m2"] - 1) > 5e-3  # the parallax matters
@@ -167,7 +168,8 @@ def test_tle_observer_behind_the_earth_sees_nothing():
     _, f = sky_scene(iso, obs)
     assert f["moon_occulted"]
     for method in ("analytic", "raytrace"):
-        r = run_phase(ResolvedScene(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method=method), iso)[0]
+        r = run_phase(ResolvedScene(moon_model="paper",
+                                    times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method=method), iso)[0]
         assert r["moonshine_W_m2"] == 0.0 and r["earthshine_W_m2"] == 0.0, method
 
 
@@ -180,7 +182,8 @@ def test_tle_occultation_is_traced_by_embree(monkeypatch):
     from lunarviz.methods.reference import reference_irradiance
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     iso = "2027-01-01T00:20:00Z"
-    s = ResolvedScene(times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method="raytrace", occlusion=False)
+    s = ResolvedScene(moon_model="paper",
+                      times=(iso,), observer=f"tle:{TLE}", brdfs=("lambert",), method="raytrace", occlusion=False)
     models = s.brdf_models()
     for occ in (True, False):  # the observer's own Earth hides the Moon with or without shadows
         ts = TraceScene(s.geometry(iso), replace(s.trace_settings(), occlusion=occ))
@@ -212,7 +215,8 @@ def test_circular_orbit_is_a_circle():
 
 
 def test_orbit_epoch_defaults_to_first_time():
-    s = ResolvedScene(times=("2026-06-01T00:00Z", "2026-06-01T01:00Z"), observer="orbit:500,97,0,45")
+    s = ResolvedScene(moon_model="paper",
+                      times=("2026-06-01T00:00Z", "2026-06-01T01:00Z"), observer="orbit:500,97,0,45")
     assert s.observer_model().epoch_utc == "2026-06-01T00:00:00Z"
 
 
@@ -226,7 +230,7 @@ def test_moon_mesh_is_turned_into_moon_me(tmp_path):
     mesh = shapes.ellipsoid(C.R_MOON_M * 1.001, C.R_MOON_M, C.R_MOON_M * 0.999, level=5)
     path = str(tmp_path / "ell.ply")
     shapes.write_mesh(mesh, path)
-    s = ResolvedScene(times=(iso,), brdfs=("lambert",), method="raytrace", moon_mesh=path)
+    s = ResolvedScene(moon_model="paper", times=(iso,), brdfs=("lambert",), method="raytrace", moon_mesh=path)
     fr = trace_facets(s, iso)
     # per-facet output is in the Moon's body frame (MOON_ME), lined up with the user's mesh
     assert np.allclose(fr.vertices, mesh.vertices, rtol=0, atol=1e-3)
@@ -245,15 +249,16 @@ def test_moon_mesh_is_turned_into_moon_me(tmp_path):
 def test_total_lunar_eclipse_2025_03_14():
     # Totality 06:26-07:31 UTC (NASA eclipse catalogue). No atmosphere: umbra is black.
     iso = "2025-03-14T06:58:00Z"
-    on = run_phase(ResolvedScene(times=(iso,), brdfs=("dhg",), method="raytrace"), iso)[0]
-    off = run_phase(ResolvedScene(times=(iso,), brdfs=("dhg",), method="raytrace", occlusion=False), iso)[0]
-    exact = run_phase(ResolvedScene(times=(iso,), brdfs=("dhg",), method="reference"), iso)[0]
+    on = run_phase(ResolvedScene(moon_model="paper", times=(iso,), brdfs=("dhg",), method="raytrace"), iso)[0]
+    off = run_phase(ResolvedScene(moon_model="paper",
+                                  times=(iso,), brdfs=("dhg",), method="raytrace", occlusion=False), iso)[0]
+    exact = run_phase(ResolvedScene(moon_model="paper", times=(iso,), brdfs=("dhg",), method="reference"), iso)[0]
     assert on["moonshine_W_m2"] == 0.0
     assert off["moonshine_W_m2"] == pytest.approx(exact["moonshine_W_m2"], rel=1e-3)
     # the penumbral phase dims gradually: partly eclipsed at 05:00 (umbral first contact 05:09)
-    pen = run_phase(ResolvedScene(times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace"),
+    pen = run_phase(ResolvedScene(moon_model="paper", times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace"),
                     "2025-03-14T05:00:00Z")[0]
-    full = run_phase(ResolvedScene(times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace",
+    full = run_phase(ResolvedScene(moon_model="paper", times=("2025-03-14T05:00Z",), brdfs=("dhg",), method="raytrace",
                                    occlusion=False), "2025-03-14T05:00:00Z")[0]
     assert 0.2 < pen["moonshine_W_m2"] / full["moonshine_W_m2"] < 0.95
 
@@ -269,8 +274,9 @@ def test_eclipse_penumbra_matches_disc_overlap(iso):
     g = ref.geometry(iso)
     surf = ind.ellipsoid_surface(C.R_MOON_M, C.R_MOON_M, C.R_MOON_M, n=120)
     eclipsed, free = ind.eclipse_moonshine(surf, make_brdf("lambert"), g["sun"], g["moon"])
-    on = run_phase(ResolvedScene(times=(iso,), brdfs=("lambert",), method="raytrace"), iso)[0]
-    off = run_phase(ResolvedScene(times=(iso,), brdfs=("lambert",), method="raytrace", occlusion=False), iso)[0]
+    on = run_phase(ResolvedScene(moon_model="paper", times=(iso,), brdfs=("lambert",), method="raytrace"), iso)[0]
+    off = run_phase(ResolvedScene(moon_model="paper",
+                                  times=(iso,), brdfs=("lambert",), method="raytrace", occlusion=False), iso)[0]
     assert on["moonshine_W_m2"] / off["moonshine_W_m2"] == pytest.approx(eclipsed / free, abs=3e-4)
 
 
@@ -291,7 +297,8 @@ def test_time_range_and_executor():
         "2026-01-01T00:00:00Z", "2026-01-01T06:00:00Z", "2026-01-01T12:00:00Z", "2026-01-01T18:00:00Z",
         "2026-01-02T00:00:00Z")
     assert time_list(time_range="2026-01-01T00:00,2026-01-01T00:25,10min")[-1] == "2026-01-01T00:20:00Z"
-    s = ResolvedScene(times=time_list(time_range="2026-06-03,2026-06-05,1d"), brdfs=("lambert", "dhg"),
+    s = ResolvedScene(moon_model="paper",
+                      times=time_list(time_range="2026-06-03,2026-06-05,1d"), brdfs=("lambert", "dhg"),
                       method="raytrace", observer="orbit:600,97.8,10,0")
     serial = run_sweep(s, workers=1)["rows"]
     pooled = run_sweep(s, workers=2)["rows"]

@@ -39,6 +39,8 @@ class Surface:
     albedo: float = 0.0
     land_class: str = ""
     wind_speed: float = EARTH_PARAMETER_DEFAULTS["wind_speed"]
+    #: a cloud's optical depth at 550 nm
+    optical_depth: float = EARTH_PARAMETER_DEFAULTS["cloud_optical_depth"]
 
     @property
     def lambertian(self) -> bool:
@@ -49,7 +51,7 @@ class Surface:
         wavelength-free parts at these angles are kept between calls (the glint, the land's shape,
         the cloud)."""
         if geometry is not None:
-            key = (self.kind, self.wind_speed)
+            key = (self.kind, self.wind_speed, self.optical_depth)
             if key not in geometry:
                 geometry[key] = self._wavelength_free(mu0, mu, phi_deg)
             return self._at_wavelength(wavelength_nm, geometry[key])
@@ -59,7 +61,7 @@ class Surface:
             from lunarviz.earth_optics.ocean import ocean_reflectance
             return ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, self.wind_speed)
         if self.kind == "cloud":
-            return cloud_reflectance(mu0, mu, phi_deg)
+            return cloud_reflectance(mu0, mu, phi_deg, self.optical_depth)
         return land_reflectance(self.land_albedo(wavelength_nm), mu0, mu, phi_deg)
 
     def _wavelength_free(self, mu0, mu, phi_deg):
@@ -84,8 +86,7 @@ class Surface:
 
     def _albedos(self, wavelength_nm) -> tuple[np.ndarray, float]:
         # a cloud is grey: its albedos do not depend on λ
-        return _albedos(self.kind, self.albedo, self.land_class, self.wind_speed,
-                        None if self.kind == "cloud" else float(wavelength_nm))
+        return _albedos(self, None if self.kind == "cloud" else float(wavelength_nm))
 
     @staticmethod
     def _interp(nodes_values, mu) -> np.ndarray:
@@ -101,8 +102,7 @@ class Surface:
     def fourier(self, wavelength_nm, mu) -> np.ndarray:
         """(..., K, 3) c_m(μ'_k, μ) = ∫₀^{2π} cos(mψ) ρ(μ'_k, μ, ψ) dψ, m = 0, 1, 2, at the sky's
         Gauss nodes μ'_k (:func:`~lunarviz.earth_optics.disort_tables.sky_nodes`)."""
-        c = _fourier(self.kind, self.albedo, self.land_class, self.wind_speed,
-                     None if self.kind in ("cloud", "lambert") else float(wavelength_nm))
+        c = _fourier(self, None if self.kind in ("cloud", "lambert") else float(wavelength_nm))
         i, w = cubic_weights(THETA_DEG, theta_of(np.asarray(mu, float)))
         return np.einsum("...a,k...am->...km", w, c[:, i])
 
@@ -112,11 +112,10 @@ class Surface:
 
 
 @memoize(maxsize=4096)
-def _albedos(kind, albedo, land_class, wind_speed, wavelength_nm) -> tuple[np.ndarray, float]:
+def _albedos(surface: Surface, wavelength_nm) -> tuple[np.ndarray, float]:
     """(directional albedo on the zenith nodes, bi-hemispherical albedo) of a class (module docstring)."""
-    surface = Surface(kind, albedo, land_class, wind_speed)
     lam = 550.0 if wavelength_nm is None else wavelength_nm
-    if kind == "land":  # linear in the kernels' shape: closed form
+    if surface.kind == "land":  # linear in the kernels' shape: closed form
         return land_directional(surface.land_albedo(lam))
     x, w = np.polynomial.legendre.leggauss(ALBEDO_ORDER)
     mup, wmu = 0.5 * (x + 1.0), 0.5 * w
@@ -132,17 +131,16 @@ def _albedos(kind, albedo, land_class, wind_speed, wavelength_nm) -> tuple[np.nd
 
 
 @memoize(maxsize=4096)
-def _fourier(kind, albedo, land_class, wind_speed, wavelength_nm) -> np.ndarray:
+def _fourier(surface: Surface, wavelength_nm) -> np.ndarray:
     """(K, N, 3) azimuthal Fourier coefficients of a class's reflectance factor at the sky's Gauss
     nodes μ'_k and the tables' zenith nodes: c_m = 2 ∫₀^π cos(mψ) ρ dψ (ρ even in ψ; midpoint rule,
     1° steps: the 1 m s⁻¹ glint lobe is ~10° wide)."""
     mu_k = sky_nodes()[0]
     mu_n = np.cos(np.radians(THETA_DEG))
-    if kind == "lambert":
+    if surface.kind == "lambert":
         out = np.zeros((len(mu_k), len(mu_n), 3))
-        out[..., 0] = 2 * np.pi * albedo
+        out[..., 0] = 2 * np.pi * surface.albedo
         return out
-    surface = Surface(kind, albedo, land_class, wind_speed)
     psi = np.arange(180) + 0.5
     r = surface.reflectance(550.0 if wavelength_nm is None else wavelength_nm,
                             mu_k[:, None, None], mu_n[None, :, None], psi[None, None, :])
@@ -152,9 +150,11 @@ def _fourier(kind, albedo, land_class, wind_speed, wavelength_nm) -> np.ndarray:
     return out
 
 
-def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["wind_speed"]) -> Surface:
+def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["wind_speed"],
+                      cloud_optical_depth: float = EARTH_PARAMETER_DEFAULTS["cloud_optical_depth"]) -> Surface:
     """A :class:`Surface` from ``black``, ``lambert:A``, ``ocean``, ``land``, ``vegetation``,
-    ``desert``, ``snow`` or ``cloud``; a bad name or albedo raises one line naming it."""
+    ``desert``, ``snow`` or ``cloud`` (of optical depth ``cloud_optical_depth``); a bad name or
+    albedo raises one line naming it."""
     if not isinstance(text, str):
         raise LunarvizError(f"earth surface {text!r} must be a name such as 'ocean' or 'lambert:0.3'")
     name = text.strip().lower()
@@ -173,7 +173,7 @@ def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["w
     if name in ("land",) + LAND_CLASSES:
         return Surface("land", land_class="vegetation" if name == "land" else name)
     if name == "cloud":
-        return Surface("cloud")
+        return Surface("cloud", optical_depth=float(cloud_optical_depth))
     raise LunarvizError(f"earth surface {text!r} is not one of {', '.join(SURFACE_NAMES)}")
 
 

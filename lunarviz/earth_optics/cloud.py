@@ -1,25 +1,47 @@
-"""A cloud: the reflectance factor of a plane-parallel water cloud, from the packaged DISORT table.
+"""A cloud: the reflectance factor of a plane-parallel liquid water cloud, from the packaged DISORT table.
 
-The cloud of :data:`~lunarviz.earth_optics.disort_tables.CLOUD` (optical depth 10, single-scattering
-albedo 0.99999, Henyey–Greenstein g = 0.85, over a surface of albedo 0.06), solved by DISORT when
-the tables were made (docs: the Earth as it reflects); here interpolated cubically in the zenith
-angles and linearly in azimuth (5° nodes). Grey: a thick water cloud's albedo changes by ~3 % from
-450 to 865 nm (King 1997), neglected. The Rayleigh layer above the cloud top is :mod:`.atmosphere`'s
-job (the cloud class takes the optical depth above ``cloud_top_hpa``). Neglected: the droplets'
-glory and rainbow (a Henyey–Greenstein phase function has neither), ice clouds, broken clouds' 3-D
-effects.
+The cloud of :data:`~lunarviz.earth_optics.disort_tables.CLOUD`: droplets with Hansen & Travis
+(1974)'s gamma size distribution (effective radius 10 µm, effective variance 0.1), their Mie phase
+function at 550 nm (forward peak, rainbow near 138°, glory at 180°: 1000 Legendre moments), over
+a surface of albedo 0.06, at the optical depths of
+:data:`~lunarviz.earth_optics.disort_tables.CLOUD_TAU`, solved by DISORT when the tables were made
+(docs: the Earth as it reflects); here cubic in log τ, cubic in the zenith angles and linear in
+azimuth (5° nodes: the glory, ~2° wide, is smoothed). Grey: a thick water cloud's albedo changes
+by ~3 % from 450 to 865 nm (King 1997), neglected, and so is the phase function's change with λ.
+The Rayleigh layer above the cloud top is :mod:`.atmosphere`'s job (the cloud class takes the
+optical depth above ``cloud_top_hpa``). Neglected: ice clouds, the ground under the cloud (its
+albedo is held at 0.06), broken clouds' 3-D effects.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.earth_optics.disort_tables import CLOUD_PHI_DEG, THETA_DEG, cubic_weights, load, theta_of
+from lunarviz.caches import memoize
+from lunarviz.earth_optics.disort_tables import CLOUD_PHI_DEG, CLOUD_TAU, THETA_DEG, cubic_weights, load, theta_of
+from lunarviz.errors import LunarvizError
 
 
-def cloud_reflectance(mu0, mu, phi_deg) -> np.ndarray:
-    """The cloud's reflectance factor (azimuth 0 = viewer on the Sun's side)."""
-    rf = load("cloud")["rf"]
+@memoize(maxsize=8)
+def _table_at(tau: float) -> np.ndarray:
+    """The table (mu0, mu, phi) at optical depth τ (the nodes' own where τ is one)."""
+    table = load("cloud")["rf"]
+    hit = np.flatnonzero(np.isclose(CLOUD_TAU, tau, rtol=1e-12, atol=0.0))
+    if len(hit):
+        out = table[hit[0]].astype(float)
+    else:
+        ti, tw = cubic_weights(np.log(CLOUD_TAU), np.log(np.array([tau])))
+        out = np.tensordot(tw[0], table[ti[0]].astype(float), axes=1)
+    out.setflags(write=False)
+    return out
+
+
+def cloud_reflectance(mu0, mu, phi_deg, optical_depth: float = 10.0) -> np.ndarray:
+    """The cloud's reflectance factor (azimuth 0 = viewer on the Sun's side) at ``optical_depth``."""
+    tau = float(optical_depth)
+    if not CLOUD_TAU[0] * (1 - 1e-12) <= tau <= CLOUD_TAU[-1] * (1 + 1e-12):
+        raise LunarvizError(f"cloud optical depth {tau:g} is outside the tables' {CLOUD_TAU[0]:g}-{CLOUD_TAU[-1]:g}")
+    rf = _table_at(tau)
     mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
     i0, w0 = cubic_weights(THETA_DEG, theta_of(mu0))
     i1, w1 = cubic_weights(THETA_DEG, theta_of(mu))

@@ -20,8 +20,14 @@ THETA_DEG = np.r_[np.arange(0.0, 86.5, 2.0), 87.0, 88.0, 89.0]
 RAYLEIGH_TAU = np.geomspace(1e-4, 2.0, 44)
 #: azimuth nodes of the cloud table [deg]; 0 = viewer on the Sun's side
 CLOUD_PHI_DEG = np.arange(0.0, 181.0, 5.0)
-#: the plane-parallel cloud tabulated
-CLOUD = {"tau": 10.0, "ssalb": 0.99999, "g": 0.85, "surface_albedo": 0.06}
+#: the plane-parallel liquid water cloud tabulated: droplets of Hansen & Travis (1974)'s gamma size
+#: distribution (effective radius and variance), water's refractive index at 550 nm (Hale & Querry
+#: 1973), Legendre moments of its Mie phase function kept, over a dark surface (a sea's albedo)
+CLOUD = {"r_eff_um": 10.0, "v_eff": 0.1, "wavelength_um": 0.55, "n_real": 1.333, "n_imag": 1.96e-9,
+         "moments": 1000, "surface_albedo": 0.06}
+#: the cloud's optical depths tabulated (at 550 nm), from thin cirrus-like to deep convective cloud
+#: (ISCCP's classes span 0.3-379); cubic in log τ between them
+CLOUD_TAU = np.array([0.5, 1.0, 2.0, 3.6, 6.0, 10.0, 15.0, 23.0, 40.0, 60.0, 100.0, 150.0])
 MAX_THETA_DEG = float(THETA_DEG[-1])
 #: Gauss–Legendre nodes in cos θ' on (0, 1) of the tabulated sky (the coupling's quadrature)
 SKY_ORDER = 48

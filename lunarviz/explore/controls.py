@@ -64,8 +64,7 @@ def state_value(state: ExploreState, name: str):
     """The current value of control ``name`` in ``state``."""
     if name in ("brdf", "band", "instrument", "panel"):
         return getattr(state, name)
-    from lunarviz.api import SCENE_DEFAULTS
-    return state.options.get(name, SCENE_DEFAULTS[name])
+    return state.option(name)
 
 
 class Explorer:

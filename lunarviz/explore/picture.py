@@ -59,10 +59,10 @@ def numbers_lines(state, quality: str, row: dict) -> list[str]:
     unit = "W m⁻²"
     lines = [head, where,
              f"phase angle α = {f(row.get('alpha_deg'), '.2f')}°   β = {f(row.get('beta_deg'), '.2f')}°",
-             f"BRDF {state.brdf}   Moon {state.options.get('moon_model', 'paper')}   "
+             f"BRDF {state.brdf}   Moon {state.option('moon_model')}   "
              f"{'band ' + state.band if state.band else 'grey'}",
-             f"Earth {state.options.get('earth_brdf', 'lambert')}, {state.options.get('earth_surface', 'uniform')}, "
-             f"clouds {state.options.get('clouds', 'none')}",
+             f"Earth {state.option('earth_brdf')}, {state.option('earth_surface')}, "
+             f"clouds {state.option('clouds')}",
              f"moonshine  E = {f(row.get('moonshine_W_m2'), '.5e')} {unit}",
              f"earthshine E = {f(row.get('earthshine_W_m2'), '.5e')} {unit}",
              f"earthshine / moonshine = {f(row.get('ratio_earthshine_moonshine'), '.5e')}",

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from lunarviz.api import SCENE_DEFAULTS, Scene
 from lunarviz.errors import LunarvizError, short_repr, unknown_choice
-from lunarviz.options import BRDF_NAMES
+from lunarviz.options import BRDF_NAMES, DATED_MOON_MODEL, THETA_MOON_MODEL
 
 #: the state file's format: ``{"lunarviz": FORMAT, "version": VERSION, ...}``
 FORMAT = "explore-state"
@@ -119,6 +119,14 @@ class ExploreState:
         if self.picked is not None and (isinstance(self.picked, bool) or not isinstance(self.picked, int)
                                         or self.picked < 0):
             raise LunarvizError(f"picked facet {short_repr(self.picked)} is not a facet number (0, 1, 2, ...)")
+
+    def option(self, name: str):
+        """Scene option ``name`` as this state runs it (its value, or the scene's default; the Moon's
+        preset as the scene resolves it: the paper's in the θ scene, the fitted one on dates)."""
+        value = self.options.get(name, SCENE_DEFAULTS[name])
+        if name == "moon_model" and value is None:
+            return DATED_MOON_MODEL if self.times is not None else THETA_MOON_MODEL
+        return value
 
     @property
     def keys(self) -> tuple:

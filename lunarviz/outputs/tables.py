@@ -236,6 +236,26 @@ def _global_attrs(ds, result) -> None:
         "settings_json": json.dumps(settings),
         "wall_seconds": float(result.get("wall_seconds", np.nan)),
     })
+    for k in EARTH_OWN_KEYS:  # the model Earth's own (grey: one value; spectral: in the labels' order)
+        v = result.get(k)
+        if isinstance(v, dict):
+            v = np.array([float(v.get(str(lab), np.nan)) for lab in _labels_of(ds)])
+        if v is not None:
+            ds.attrs[k] = v
+    if isinstance(result.get("earth_albedo_at"), (str, list)):
+        at = result["earth_albedo_at"]
+        ds.attrs["earth_albedo_at"] = at if isinstance(at, str) else ",".join(at)
+
+
+#: the model Earth's own albedos (:mod:`lunarviz.workflows.earth_own_albedos`), global attributes
+EARTH_OWN_KEYS = ("earth_spherical_albedo", "earth_geometric_albedo", "earth_phase_integral")
+
+
+def _labels_of(ds) -> list[str]:
+    """A spectral Dataset's labels as the result's keys (wavelengths as their text, band names)."""
+    if "wavelength" in ds.coords:
+        return [wavelength_label(float(x)) for x in ds["wavelength"].values]
+    return [str(x) for x in ds["band"].values] if "band" in ds.coords else []
 
 
 def write_netcdf(path, result: dict) -> None:

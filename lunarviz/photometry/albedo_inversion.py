@@ -16,11 +16,13 @@ paper's inversion and its bias (``table5_point_source_inversion`` of ``lunarviz 
 
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from lunarviz.errors import LunarvizError
+from lunarviz.errors import ApparentAlbedoWarning, LunarvizError
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.photometry.earth_phase import lambert_phase_function
 
@@ -128,3 +130,19 @@ def bond_albedo(beta_deg, p_star) -> float:
     _, idx = np.unique(beta_deg[ok], return_index=True)
     bd, ps = beta_deg[ok][idx], p_star[ok][idx]
     return float(4.0 / 3.0 * np.dot(bond_weights(bd), ps))
+
+
+def warn_non_lambert_apparent_albedo(rows: list[dict]) -> None:
+    """Warn once, after a run, when some rows' p* leaves 0-1, the range of a Lambert sphere's
+    (its p* is its albedo at every β): Eq. 16 reads the Earth as a Lambert sphere, so such a p*
+    is not an albedo (a physical Earth's crescent is brighter than a Lambert sphere's; near full
+    Moon, β → 180°, f_L(β) → 0 and the earthlit Moon is a thin crescent)."""
+    out = [r for r in rows if isinstance(r.get("apparent_albedo"), float) and math.isfinite(r["apparent_albedo"])
+           and not 0.0 <= r["apparent_albedo"] <= 1.0]
+    if out:
+        worst = max(out, key=lambda r: abs(r["apparent_albedo"] - 0.5))
+        at = worst.get("time_utc") or f"θ = {worst.get('theta_deg', float('nan')):g}°"
+        warnings.warn(f"{len(out)} of {len(rows)} rows have an apparent albedo p* outside 0-1, which no Lambert "
+                      f"sphere gives (its p* is its albedo at every phase): p* = {worst['apparent_albedo']:.3g} at "
+                      f"{at} (Earth phase β = {worst.get('beta_deg', float('nan')):.1f}°); such a p* is not an "
+                      "albedo: the Earth's phase law is not Lambert's there", ApparentAlbedoWarning, stacklevel=3)

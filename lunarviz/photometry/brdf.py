@@ -31,7 +31,7 @@ import numpy as np
 import lunarviz.constants as C
 from lunarviz.caches import memoize
 from lunarviz.errors import LunarvizError, unknown_choice
-from lunarviz.options import BRDF_NAMES, BY_NAME, DHG_CONVENTIONS, H_FUNCTIONS
+from lunarviz.options import BRDF_NAMES, BY_NAME, DHG_CONVENTIONS, H_FUNCTIONS, THETA_MOON_MODEL
 from lunarviz.photometry.presets import moon_model_params
 from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
 
@@ -396,7 +396,7 @@ def brdf_from_angles(model, i, e, azimuth):
 
 def make_brdf(name: str, *, dhg_convention: str = BY_NAME["dhg_convention"].default,
               h_function: str = BY_NAME["h_function"].default, params: dict | None = None,
-              moon_model: str = BY_NAME["moon_model"].default):
+              moon_model: str | None = THETA_MOON_MODEL):
     """Build a named BRDF, with the parameters of preset ``moon_model`` (``paper`` or a fitted
     set, :mod:`lunarviz.photometry.presets`) and optional overrides ``params`` on top.
 
@@ -405,7 +405,8 @@ def make_brdf(name: str, *, dhg_convention: str = BY_NAME["dhg_convention"].defa
     750 nm): w = 0.33, h = 0.017, B0 = 1, ξ = -0.075 / b = 0.308, c = 0.425.
     """
     key = str(name).strip().lower()
-    if key in BRDF_NAMES and moon_model != "paper":
+    moon_model = THETA_MOON_MODEL if moon_model is None else moon_model  # (a table has no date)
+    if key in BRDF_NAMES and moon_model != THETA_MOON_MODEL:
         params = {**moon_model_params(moon_model, key), **(params or {})}
     if params is not None and not isinstance(params, dict):
         raise LunarvizError(f"params {params!r} must be a mapping {{name: value}}")

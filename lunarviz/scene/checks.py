@@ -16,7 +16,8 @@ import warnings
 from lunarviz.errors import LunarvizError, LunarvizWarning, unknown_choice
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.tracer.settings import body_mesh_m
-from lunarviz.options import BY_NAME, METHODS, earth_params, validate
+from lunarviz.options import (BY_NAME, DATED_MOON_MODEL, DATED_UNIFORM_MOON_MODEL, METHODS, THETA_MOON_MODEL,
+                              earth_params, validate)
 from lunarviz.photometry.presets import moon_model_map
 from lunarviz.sky.ephemeris import time_list
 from lunarviz.spectral.moon import parameters_at
@@ -40,6 +41,9 @@ def resolve(scene) -> None:
     validate(scene)
     if scene.params is None:
         object.__setattr__(scene, "params", {})
+    if scene.moon_model is None:  # the paper's Moon in the paper's scene; on dates the observed Moon
+        dated = DATED_MOON_MODEL if scene.method != "reference" else DATED_UNIFORM_MOON_MODEL
+        object.__setattr__(scene, "moon_model", dated if scene.times is not None else THETA_MOON_MODEL)
     _check_tasks(scene)
     check_physical_earth(scene)
     for b in scene.params:
@@ -209,6 +213,10 @@ def check_physical_earth(scene) -> None:
         if "wavelength_nm" in scene.params["earth"] and (scene.wavelengths or scene.bands):
             raise LunarvizError("earth.wavelength_nm is a grey run's wavelength: a spectral run takes each "
                                 "of its own")
+    if scene.earth_brdf == "physical" and scene.earth_albedo != BY_NAME["earth_albedo"].default:
+        raise LunarvizError(f"--earth-albedo {scene.earth_albedo:g} is the Lambert Earth's albedo: the physical "
+                            "Earth's comes from its air, clouds and ground; set the ground under the air with "
+                            "--earth-surface landocean|FILE (a clear-sky albedo map, which may hold one value)")
     if scene.earth_brdf == "physical" and scene.earth_spectra != BY_NAME["earth_spectra"].default:
         raise LunarvizError("--earth-spectra is the Lambert Earth's: --earth-brdf physical takes its classes' own")
     EarthSurface.from_options(scene)  # the Lambert Earth's albedos refused with the physical one

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from lunarviz.options import BY_NAME
+from lunarviz.options import BY_NAME, THETA_MOON_MODEL
 from lunarviz.spectral.request import SpectralRequest
 
 
@@ -27,6 +27,6 @@ class SpectralInputs:
     """
 
     request: SpectralRequest
-    moon_model: str = BY_NAME["moon_model"].default
+    moon_model: str = THETA_MOON_MODEL
     params: dict = field(default_factory=dict)
     earth_spectra: str = BY_NAME["earth_spectra"].default

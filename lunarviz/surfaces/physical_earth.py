@@ -54,7 +54,8 @@ def class_models(surface) -> dict[str, Surface]:
         elif name == "clear":
             out[name] = None if surface.earth_surface != "uniform" else Surface("lambert", float(surface.earth_albedo))
         else:
-            out[name] = surface_from_name(name, wind_speed=p["wind_speed"])
+            out[name] = surface_from_name(name, wind_speed=p["wind_speed"],
+                                          cloud_optical_depth=p["cloud_optical_depth"])
     return out
 
 

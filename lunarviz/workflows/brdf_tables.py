@@ -54,7 +54,7 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
         raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
     p = earth_params(params)
     grid, phase = _geometry(inc, emi, azi, len(wavelengths))
-    s = surface_from_name(surface, wind_speed=p["wind_speed"])
+    s = surface_from_name(surface, wind_speed=p["wind_speed"], cloud_optical_depth=p["cloud_optical_depth"])
     mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
     rows = []
     for lam in wavelengths:

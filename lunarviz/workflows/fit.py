@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from lunarviz.errors import LunarvizError
-from lunarviz.options import BY_NAME
+from lunarviz.options import BY_NAME, THETA_MOON_MODEL
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.analytic import AnalyticSettings, moonshine_transport
 from lunarviz.outputs.writers import save_figure
@@ -339,7 +339,7 @@ def plot_fit(res: FitResult, path, title: str = "") -> None:
 
 
 def run_fit(brdf: str, source: str = "rolo", band: str = "400-750", phases: str = "2:96:2", free=None,
-            start_model: str = BY_NAME["moon_model"].default,
+            start_model: str = THETA_MOON_MODEL,
             dhg_convention: str = BY_NAME["dhg_convention"].default, h_function: str = BY_NAME["h_function"].default,
             moon_map: str | None = None, order: int = 24) -> FitResult:
     """The ``lunarviz fit`` pipeline: target from ROLO (both branches) or a CSV table."""

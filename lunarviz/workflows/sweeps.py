@@ -25,6 +25,7 @@ from lunarviz.parsing import wavelength_label
 from lunarviz.photometry import albedo_inversion as alb
 from lunarviz.scene import ResolvedScene
 from lunarviz.scene.tolerance import warn_loose_rows, warn_unbounded_rows
+from lunarviz.workflows.earth_own_albedos import run_earth_albedos
 from lunarviz.surfaces.earth_spectra import components, grey_albedos
 from lunarviz.workflows.skips import skip_reason, skipped_rows
 from lunarviz.workflows.spectral_phase import spectral_rows
@@ -359,8 +360,9 @@ def _assemble(settings: ResolvedScene, results: list, t0: float) -> dict:
     rows = [r for res in results for r in res]
     warn_unbounded_rows(rows)
     warn_loose_rows(settings, rows)
+    alb.warn_non_lambert_apparent_albedo(rows)
     out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
-           "wall_seconds": time.perf_counter() - t0}
+           **run_earth_albedos(settings), "wall_seconds": time.perf_counter() - t0}
     if any("apparent_albedo_point_source_inversion" in r for r in rows):
         out["bond_albedo_point_source_inversion"] = bond_table(rows, "apparent_albedo_point_source_inversion")
     return out

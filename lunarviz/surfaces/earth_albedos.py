@@ -1,0 +1,148 @@
+"""The model Earth's own albedos: spherical (Bond) albedo, geometric albedo and phase integral.
+
+For a planet lit by a distant Sun (Russell 1916, ApJ 43, 173; Sobolev 1975, *Light Scattering in
+Planetary Atmospheres*, ch. 9), with R(μ₀, μ, φ) each place's reflectance factor (radiance
+``E μ₀ R / π``) and ρ_h(μ₀) = (1/π) ∫ R μ dΩ its directional–hemispherical reflectance::
+
+    A_s = ∫_lit ρ_h(μ₀) μ₀ dA / ∫_lit μ₀ dA           (the reflected over the intercepted power)
+    p   = (2/3) ∫_disc R(μ₀ = μ, φ = 0) μ² dA / ∫_disc μ² dA   (full phase, over a Lambert disc's)
+    q   = A_s / p                                      (the phase integral)
+
+A Lambert sphere of albedo A gives A, 2A/3 and 3/2. These are the model's exact values, over every
+direction: Eq. 17 (``bond_albedo`` of a sweep) estimates A_s from the phases a run samples and
+reads each p* as a Lambert sphere's, so the two differ wherever the Earth is not Lambert or the
+sampled phases miss part of the phase curve.
+
+Quadrature: places on a 1° latitude–longitude grid (midpoints, each weighted by its area); per
+class of the physical Earth, ρ_h on 26 incidence nodes (every 4° to 84°, then 86-89°; cubic
+between them), each a 16-node Gauss rule in μ times a 48-node midpoint rule in φ over 0-180°
+(the plane of the Sun is a mirror); a Lambert class's ρ_h is its albedo. Geometry: the Sun's
+direction from each place (the Sun's 0.5° disc and its 1/r² across the Earth are neglected).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunarviz.earth_optics.classes import Surface, toa_reflectance
+from lunarviz.caches import memoize
+from lunarviz.earth_optics.disort_tables import cubic_weights
+from lunarviz.options import earth_params
+from lunarviz.surfaces.earth_spectra import albedo_spectra, components, grey_albedos, weights_at
+from lunarviz.surfaces.maps import sample_map
+from lunarviz.surfaces.physical_earth import class_models
+
+#: latitude rows of the place grid (1°); longitudes twice as many
+PLACE_ROWS = 180
+#: the hemispherical rule of ρ_h: Gauss nodes in μ, midpoints in φ over 0-180° (A_s of the land-ocean
+#: Earth with zonal clouds at 550 nm: 1.4e-5 from a 64 × 128 rule)
+MU_NODES, PHI_NODES = 16, 48
+#: incidence angles [deg] at which ρ_h is tabulated (cubic between them)
+INCIDENCE_DEG = np.r_[np.arange(0.0, 84.5, 4.0), 86.0, 87.0, 88.0, 89.0]
+#: albedos at which a clear-sky map's Lambert ground under the air is tabulated (linear between)
+GROUND_ALBEDOS = np.linspace(0.0, 1.0, 41)
+
+
+def _places(scene, frame):
+    """Unit place directions in the map frame and the scene frame, the cosine of the Sun's zenith
+    angle at each (negative: night) and each place's area weight."""
+    rows = PLACE_ROWS
+    lat = np.radians(90.0 - (np.arange(rows) + 0.5) * 180.0 / rows)
+    lon = np.radians(-180.0 + (np.arange(2 * rows) + 0.5) * 180.0 / rows)
+    la, lo = np.meshgrid(lat, lon, indexing="ij")
+    d = np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], -1).reshape(-1, 3)
+    ds = d @ frame.T
+    y = scene.earth + scene.radii["earth"] * ds
+    vs = scene.sun - y
+    vs /= np.linalg.norm(vs, axis=1, keepdims=True)
+    return d, np.einsum("ij,ij->i", ds, vs), np.cos(la).ravel()
+
+
+@memoize(maxsize=1024)
+def _rho_h_table(model: Surface, wavelength_nm: float, pressures: tuple) -> np.ndarray:
+    """ρ_h of a class at :data:`INCIDENCE_DEG` under the air above ``pressures`` (the cloud tops',
+    the ground's [hPa]); kept: a run's dates share it."""
+    params = dict(zip(("cloud_top_hpa", "surface_hpa"), pressures))
+    out = hemispherical_reflectance(model, wavelength_nm, np.cos(np.radians(INCIDENCE_DEG)), params)
+    out.setflags(write=False)
+    return out
+
+
+def hemispherical_reflectance(model: Surface, wavelength_nm: float, mu0, params: dict | None = None) -> np.ndarray:
+    """ρ_h(μ₀) = (1/π) ∫ R(μ₀, μ, φ) μ dΩ of a physical class under the air at λ, at ``mu0``."""
+    x, w = np.polynomial.legendre.leggauss(MU_NODES)
+    mu, wmu = 0.5 * (x + 1.0), 0.5 * w
+    phi = (np.arange(PHI_NODES) + 0.5) * 180.0 / PHI_NODES
+    mu0 = np.atleast_1d(np.asarray(mu0, float))
+    r = toa_reflectance(model, wavelength_nm, mu0[:, None, None], mu[None, :, None], phi[None, None, :],
+                        params=params)
+    # (1/π) ∫_0^{2π} ∫_0^1 R μ dμ dφ = (2/π) · π · Σ_μ w μ mean_φ(R) over the mirror half
+    return 2.0 * np.einsum("abc,b->a", r, wmu * mu) / PHI_NODES
+
+
+def _class_rho_h(surface, model, lam, mu0, p, ground):
+    """(n, L) ρ_h of one class at the places' μ₀ (cubic in the zenith angle between table nodes);
+    ``model`` None: a clear-sky map's Lambert ground, per place albedo ``ground``."""
+    i, wt = cubic_weights(INCIDENCE_DEG, np.degrees(np.arccos(np.clip(mu0, 0.0, 1.0))))
+    key = (p["cloud_top_hpa"], p["surface_hpa"])  # (the class carries its wind and optical depth)
+    if model is not None:
+        table = np.stack([_rho_h_table(model, float(lj), key) for lj in lam], -1)  # (nodes, L)
+        return np.einsum("na,nal->nl", wt, table[i])
+    out = np.empty((len(mu0), len(lam)))
+    k = np.clip(np.searchsorted(GROUND_ALBEDOS, ground) - 1, 0, len(GROUND_ALBEDOS) - 2)
+    f = (ground - GROUND_ALBEDOS[k]) / (GROUND_ALBEDOS[1] - GROUND_ALBEDOS[0])
+    rows = np.arange(len(mu0))
+    for j, lj in enumerate(lam):
+        table = np.stack([_rho_h_table(Surface("lambert", float(a)), float(lj), key) for a in GROUND_ALBEDOS])
+        per = np.einsum("na,gna->ng", wt, table[:, i])  # (n, albedos)
+        out[:, j] = (1.0 - f) * per[rows, k] + f * per[rows, k + 1]
+    return out
+
+
+def _full_phase_reflectance(surface, model, lam, mu0, p, ground):
+    """(n, L) R(μ₀, μ₀, φ = 0) of one class at the places' μ₀ (the backscatter direction)."""
+    if model is None:
+        model_of = [Surface("lambert", float(a)) for a in ground]
+        return np.array([[toa_reflectance(m, lj, m0, m0, 0.0, params=p) for lj in lam]
+                         for m, m0 in zip(model_of, mu0)]).reshape(len(mu0), len(lam))
+    return np.stack([toa_reflectance(model, lj, mu0, mu0, 0.0, params=p) for lj in lam], -1)
+
+
+def earth_albedos(surface, scene, frame, wavelengths=None, spectra: str = "surface") -> dict[str, np.ndarray]:
+    """``{"spherical", "geometric", "phase_integral"}``, each (L,), of the model Earth
+    ``surface`` (an :class:`~lunarviz.surfaces.earth_surface.EarthSurface`) lit as in ``scene``
+    (its map in ``frame``) at ``wavelengths`` [nm]; ``None``: the grey run's (a physical Earth's
+    ``earth.wavelength_nm``, a Lambert Earth's grey albedos); ``spectra``: a spectral Lambert
+    Earth's classes (``--earth-spectra``: packaged spectra, or grey)."""
+    d, mu0, area = _places(scene, frame)
+    lit = mu0 > 0
+    d, mu0, area = d[lit], mu0[lit], area[lit]
+    names = components(surface)
+    weights = weights_at(surface, d)  # (n, C)
+    if surface.physical:
+        lam = np.atleast_1d(surface.wavelength_nm if wavelengths is None else np.asarray(wavelengths, float))
+        p = earth_params(dict(surface.earth_params))
+        ground = sample_map(surface.clear_map(), d) if "clear" in names and surface.clear_map() is not None else None
+        rho_h = np.zeros((len(mu0), len(lam)))
+        back = np.zeros((len(mu0), len(lam)))
+        cloud = weights[:, -1] if "cloud" in names else np.zeros(len(mu0))
+        for c, (name, model) in enumerate(class_models(surface).items()):
+            # a clear-sky map's column holds (1 - cloud) · albedo: its places are its clear share,
+            # each with its own ground (black ground too: the air above it still reflects)
+            share = weights[:, c] if model is not None else 1.0 - cloud
+            rows = np.flatnonzero(share > 0)
+            if not len(rows):
+                continue
+            g = None if model is not None else ground[rows]
+            share = share[rows, None]
+            rho_h[rows] += share * _class_rho_h(surface, model, lam, mu0[rows], p, g)
+            back[rows] += share * _full_phase_reflectance(surface, model, lam, mu0[rows], p, g)
+    else:  # Lambert places: ρ_h = R = each component's albedo
+        lam = None if wavelengths is None else np.atleast_1d(np.asarray(wavelengths, float))
+        grey = grey_albedos(surface)
+        alb = np.array([[grey[n]] for n in names]) if lam is None else \
+            albedo_spectra(surface, names, lam, spectra)  # (C, L)
+        rho_h = back = weights @ alb
+    spherical = (area * mu0) @ rho_h / np.sum(area * mu0)
+    geometric = 2.0 / 3.0 * ((area * mu0**2) @ back) / np.sum(area * mu0**2)
+    return {"spherical": spherical, "geometric": geometric, "phase_integral": spherical / geometric}

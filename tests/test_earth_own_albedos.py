@@ -1,0 +1,129 @@
+"""The model Earth's own albedos (spherical, geometric, phase integral), the clouds' optical depth,
+the dated runs' default Moon and the Earth options that a physical Earth refuses."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from lunarviz.geometry.scene_geometry import SceneGeometry
+from lunarviz.surfaces.earth_albedos import earth_albedos
+from lunarviz.surfaces.earth_surface import EarthSurface
+from lunarviz.surfaces.maps import map_frame
+
+
+def _scene():
+    sc = SceneGeometry(90.0)
+    return sc, map_frame(sc, "earth", 0.0)
+
+
+def test_a_lambert_sphere_has_its_closed_form_albedos():
+    # a Lambert sphere of albedo A: A_s = A, p = 2A/3, q = 3/2 (Russell 1916), for any lighting;
+    # the place grid and its weights are what is checked (a 1° grid: ~1e-5 of the closed form)
+    sc, frame = _scene()
+    got = earth_albedos(EarthSurface(earth_albedo=0.37), sc, frame)
+    assert got["spherical"][0] == pytest.approx(0.37, rel=1e-4)
+    assert got["geometric"][0] == pytest.approx(2 * 0.37 / 3, rel=1e-4)
+    assert got["phase_integral"][0] == pytest.approx(1.5, rel=1e-4)
+
+
+def test_the_physical_earth_conserves_energy():
+    # a white ground under the conservative Rayleigh layer returns all the light (A_s = 1) and a
+    # black one the layer's spherical albedo S, from the tables' own flux solution (a different
+    # quantity than the reflectance factors integrated here): 1e-4 (the μ, φ and incidence rules)
+    from lunarviz.earth_optics import rayleigh
+    from lunarviz.earth_optics.atmosphere import spherical_albedo
+    sc, frame = _scene()
+    white = earth_albedos(EarthSurface(earth_brdf="physical", earth_albedo=1.0), sc, frame)["spherical"][0]
+    black = earth_albedos(EarthSurface(earth_brdf="physical", earth_albedo=0.0), sc, frame)["spherical"][0]
+    assert white == pytest.approx(1.0, abs=1e-4)
+    assert black == pytest.approx(spherical_albedo(float(rayleigh.optical_depth(550.0))), rel=1e-3)
+
+
+@pytest.mark.slow
+def test_the_spherical_albedo_is_the_same_by_places_and_by_directions():
+    # two routes to the same power: per place, ρ_h(μ₀) integrated over the lit hemisphere (here),
+    # against the disc's reflectance toward 16 × 8 directions integrated over the sphere of
+    # directions (physical_earth.bond_albedo): land, sea, snow and clouds at 550 nm. The clouds'
+    # glory and forward peak make the direction rule converge slowly (0.4137, 0.4076, 0.4095 at
+    # 12 × 6, 16 × 8, 24 × 12 on a 1° disc grid, 0.4099 on a 1.5° one; this rule 0.4095 at 16 × 48
+    # and 48 × 128 nodes): 24 × 12 on the 1° grid, bar 5e-4 (measured 1.5e-4). Geometric albedo: the disc at β = 0 here, 0.5° there: 2e-3
+    from lunarviz.surfaces.physical_earth import bond_albedo
+    sc, frame = _scene()
+    s = EarthSurface(earth_brdf="physical", earth_surface="landocean", clouds="zonal")
+    mine = earth_albedos(s, sc, frame)
+    bond, geometric = bond_albedo(s, sc, frame, 550.0, order=24, azimuths=12, rows=90)
+    assert mine["spherical"][0] == pytest.approx(bond, rel=5e-4)
+    assert mine["geometric"][0] == pytest.approx(geometric, rel=2e-3)
+
+
+def test_thicker_clouds_reflect_more_and_the_range_is_refused_beyond_the_tables():
+    from lunarviz.earth_optics.classes import surface_from_name
+    from lunarviz.errors import LunarvizError
+    from lunarviz.surfaces.earth_albedos import hemispherical_reflectance
+    rho = [hemispherical_reflectance(surface_from_name("cloud", cloud_optical_depth=t), 550.0, 0.6)[0]
+           for t in (0.5, 2.0, 7.0, 10.0, 40.0, 150.0)]
+    assert np.all(np.diff(rho) > 0) and 0.0 < rho[0] and rho[-1] < 1.0
+    with pytest.raises(LunarvizError, match="cloud_optical_depth=200"):
+        EarthSurface(earth_brdf="physical", earth_params=(("cloud_optical_depth", 200.0),))
+
+
+def test_a_sweep_reports_the_earths_own_albedos_beside_eq17(tmp_path):
+    out = tmp_path / "s.json"
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--phases", "30,90,150", "--brdf", "lambert",
+                        "--earth-albedo", "0.25", "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    res = json.loads(out.read_text())
+    assert res["earth_spherical_albedo"] == pytest.approx(0.25, rel=1e-4)
+    assert res["earth_geometric_albedo"] == pytest.approx(0.25 * 2 / 3, rel=1e-4)
+    assert res["earth_phase_integral"] == pytest.approx(1.5, rel=1e-4)
+    assert "Eq. 17 over the sampled phases" in r.stdout and "the model Earth's own" in r.stdout
+
+
+def test_a_dated_spectral_run_reports_them_per_band_and_in_netcdf(tmp_path):
+    import xarray as xr
+    out = tmp_path / "s.nc"
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--time-range",
+                        "2026-03-01T00:00Z,2026-03-02T00:00Z,12h", "--brdf", "lambert", "--band", "B,V",
+                        "--earth-surface", "landocean", "--clouds", "zonal", "--quiet", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    ds = xr.open_dataset(out)
+    assert list(ds["band"].values) == ["B", "V"]
+    a = np.asarray(ds.attrs["earth_spherical_albedo"])
+    assert a.shape == (2,) and np.all((a > 0.2) & (a < 0.5))
+    assert ds.attrs["earth_albedo_at"].count("2026-03-0") == 3  # the run's three dates
+
+
+def test_dated_runs_default_to_the_observed_moon():
+    from lunarviz.scene import ResolvedScene
+    assert ResolvedScene(phases_deg=(90.0,)).moon_model == "paper"
+    dated = ResolvedScene(times=("2026-03-01T00:00Z",), method="raytrace")
+    assert dated.moon_model == "rolo-fit-map" and dated.moon_albedo_map is not None
+    assert ResolvedScene(times=("2026-03-01T00:00Z",), method="reference").moon_model == "rolo-fit"
+    assert ResolvedScene(times=("2026-03-01T00:00Z",), moon_model="paper").moon_model == "paper"
+
+
+def test_a_physical_earth_refuses_the_lambert_earths_albedo(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--earth-brdf", "physical", "--earth-albedo", "0.2",
+                        "--phases", "90", "--out", str(tmp_path / "x.json")], capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "--earth-albedo 0.2" in r.stderr and "--earth-surface" in r.stderr
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_an_apparent_albedo_no_lambert_sphere_gives_warns():
+    from lunarviz.errors import ApparentAlbedoWarning
+    from lunarviz.photometry.albedo_inversion import warn_non_lambert_apparent_albedo
+    rows = [{"theta_deg": 20.0, "beta_deg": 160.0, "apparent_albedo": 3.2},
+            {"theta_deg": 90.0, "beta_deg": 90.0, "apparent_albedo": 0.31}]
+    with pytest.warns(ApparentAlbedoWarning, match=r"1 of 2 rows .* p\* = 3\.2 at θ = 20°"):
+        warn_non_lambert_apparent_albedo(rows)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_non_lambert_apparent_albedo(rows[1:])  # within 0-1: silent
