@@ -14,8 +14,8 @@ reads each p* as a Lambert sphere's, so the two differ wherever the Earth is not
 sampled phases miss part of the phase curve.
 
 Quadrature: places on a 1° latitude–longitude grid (midpoints, each weighted by its area); per
-class of the physical Earth, ρ_h on 26 incidence nodes (every 4° to 84°, then 86-89°; cubic
-between them), each a 16-node Gauss rule in μ times a 48-node midpoint rule in φ over 0-180°
+class of the physical Earth, ρ_h at the DISORT tables' 47 zenith angles (cubic between them), each
+a 12-node Gauss rule in μ times a 32-node midpoint rule in φ over 0-180°
 (the plane of the Sun is a mirror); a Lambert class's ρ_h is its albedo. Geometry: the Sun's
 direction from each place (the Sun's 0.5° disc and its 1/r² across the Earth are neglected).
 """
@@ -26,7 +26,7 @@ import numpy as np
 
 from lunarviz.earth_optics.classes import Surface, toa_reflectance
 from lunarviz.caches import memoize
-from lunarviz.earth_optics.disort_tables import cubic_weights
+from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights
 from lunarviz.options import earth_params
 from lunarviz.surfaces.earth_spectra import albedo_spectra, components, grey_albedos, weights_at
 from lunarviz.surfaces.maps import sample_map
@@ -34,11 +34,12 @@ from lunarviz.surfaces.physical_earth import class_models
 
 #: latitude rows of the place grid (1°); longitudes twice as many
 PLACE_ROWS = 180
-#: the hemispherical rule of ρ_h: Gauss nodes in μ, midpoints in φ over 0-180° (A_s of the land-ocean
-#: Earth with zonal clouds at 550 nm: 1.4e-5 from a 64 × 128 rule)
-MU_NODES, PHI_NODES = 16, 48
-#: incidence angles [deg] at which ρ_h is tabulated (cubic between them)
-INCIDENCE_DEG = np.r_[np.arange(0.0, 84.5, 4.0), 86.0, 87.0, 88.0, 89.0]
+#: the hemispherical rule of ρ_h: Gauss nodes in μ, midpoints in φ over 0-180°, tabulated at the
+#: DISORT tables' zenith angles (cubic between them). A_s of the land-ocean Earth with zonal clouds:
+#: within 3e-5 (450 nm) and 2e-4 (650 nm) of a 48 × 128 rule; a black ground's, 3e-5 of the layer's
+#: spherical albedo (coarser incidence nodes: 2e-3 there, the path radiance is steep near grazing)
+MU_NODES, PHI_NODES = 12, 32
+INCIDENCE_DEG = THETA_DEG
 #: albedos at which a clear-sky map's Lambert ground under the air is tabulated (linear between)
 GROUND_ALBEDOS = np.linspace(0.0, 1.0, 41)
 
