@@ -47,11 +47,13 @@ def test_the_physical_earth_conserves_energy():
 @pytest.mark.slow
 def test_the_spherical_albedo_is_the_same_by_places_and_by_directions():
     # two routes to the same power: per place, ρ_h(μ₀) integrated over the lit hemisphere (here),
-    # against the disc's reflectance toward 16 × 8 directions integrated over the sphere of
+    # against the disc's reflectance toward order × azimuth directions integrated over the sphere of
     # directions (physical_earth.bond_albedo): land, sea, snow and clouds at 550 nm. The clouds'
     # glory and forward peak make the direction rule converge slowly (0.4137, 0.4076, 0.4095 at
-    # 12 × 6, 16 × 8, 24 × 12 on a 1° disc grid, 0.4099 on a 1.5° one; this rule 0.4095 at 16 × 48
-    # and 48 × 128 nodes): 24 × 12 on the 1° grid, bar 5e-4 (measured 1.5e-4). Geometric albedo: the disc at β = 0 here, 0.5° there: 2e-3
+    # 12 × 6, 16 × 8, 24 × 12 on a 1° disc grid, 0.4099 on a 1.5° one; this rule 0.4095): 24 × 12
+    # on the 1° grid, bar 5e-4 (measured ≤ 2e-4). Geometric albedo: the disc at β = 0 toward a
+    # distant viewer (each place's own directions), 2e-3; bond_albedo's own is at β = 0.5°, 1.6 %
+    # lower: the clouds' glory (which the tables smooth over their 2° and 5° nodes)
     from lunarviz.surfaces.physical_earth import apparent_albedo, bond_albedo
     sc, frame = _scene()
     s = EarthSurface(earth_brdf="physical", earth_surface="landocean", clouds="zonal")
