@@ -9,6 +9,7 @@ albedo and phase function of Earth*). Model: ``lunarviz.surfaces.earth_albedos``
 direction; not Eq. 17) of the physical Earth (``--earth-brdf physical``, land–ocean map, zonal
 clouds) in the θ scene (an equinox), V band (Bessell; solar- and response-weighted), at the
 default cloud optical depth and, as a sensitivity (not a fit), at others; and with no clouds.
+Also the Earth's B − V from its B and V albedos, against Thejll et al. (2014)'s 0.44 ± 0.02.
 Writes ``phase_curve.json`` and ``phase_curve.md``.
 """
 
@@ -16,25 +17,34 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 OBSERVED = {"geometric_albedo": 0.242, "spherical_albedo": 0.294, "phase_integral": 1.22,
             "source": "Robinson 2025, Inferring and interpreting the visual geometric albedo and phase function "
-                      "of Earth (ground-based earthshine and spacecraft phase curves)"}
+                      "of Earth (ground-based earthshine and spacecraft phase curves)",
+            "earth_b_minus_v": 0.44, "earth_b_minus_v_sigma": 0.02,
+            "colour_source": "Thejll et al. 2014, A&A 563, A38 (earthshine, Mauna Loa)"}
+#: the Sun's B − V (Ramírez et al. 2012, ApJ 752, 5: 0.653 ± 0.003): the Earth's colour is the Sun's
+#: reddened or blued by the ratio of its B and V albedos
+SUN_B_MINUS_V = 0.653
 TAUS = (2.0, 3.6, 6.0, 10.0, 23.0)
 
 
-def model(clouds: str, tau: float | None, band: str) -> dict:
+def model(clouds: str, tau: float | None, band: str = "V") -> dict:
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.earth_own_albedos import run_earth_albedos
     params = {"earth": {} if tau is None else {"cloud_optical_depth": tau}}
-    s = ResolvedScene(phases_deg=(90.0,), bands=(band,), earth_brdf="physical", earth_surface="landocean",
+    s = ResolvedScene(phases_deg=(90.0,), bands=("B", band), earth_brdf="physical", earth_surface="landocean",
                       clouds=clouds, params=params)
     t = time.perf_counter()
     a = run_earth_albedos(s)
-    return {"clouds": clouds, "cloud_optical_depth": tau, "band": band,
+    colour = {f"earth_b_minus_v_{k}": SUN_B_MINUS_V - 2.5 * math.log10(a[f"earth_{k}_albedo"]["B"]
+                                                                        / a[f"earth_{k}_albedo"][band])
+              for k in ("spherical", "geometric")}
+    return {"clouds": clouds, "cloud_optical_depth": tau, "band": band, **colour,
             "geometric_albedo": a["earth_geometric_albedo"][band],
             "spherical_albedo": a["earth_spherical_albedo"][band],
             "phase_integral": a["earth_phase_integral"][band], "seconds": time.perf_counter() - t}
@@ -52,7 +62,8 @@ def main(argv=None) -> int:
     rows.append(model("none", None, "V"))
     for r in rows:
         print(f"{r['clouds']:6s} τ={r['cloud_optical_depth'] or default_tau:5g}: p {r['geometric_albedo']:.4f}  "
-              f"A_s {r['spherical_albedo']:.4f}  q {r['phase_integral']:.4f}  ({r['seconds']:.0f} s)", flush=True)
+              f"A_s {r['spherical_albedo']:.4f}  q {r['phase_integral']:.4f}  B−V {r['earth_b_minus_v_spherical']:.3f} "
+              f"({r['seconds']:.0f} s)", flush=True)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "phase_curve.json").write_text(json.dumps({"observed": OBSERVED, "model": rows}, indent=1))
@@ -62,15 +73,19 @@ def main(argv=None) -> int:
              "(`lunarviz.surfaces.earth_albedos`), not Eq. 17.", "",
              f"Observed: p = {OBSERVED['geometric_albedo']}, A_s = {OBSERVED['spherical_albedo']}, "
              f"q = {OBSERVED['phase_integral']} ({OBSERVED['source']}).", "",
-             "| clouds | optical depth | p | A_s | q | p/obs − 1 | A_s/obs − 1 | q/obs − 1 |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+             f"The Earth's B − V: the Sun's ({SUN_B_MINUS_V}, Ramírez et al. 2012) − 2.5 log₁₀ of the ratio of its "
+             "B and V albedos (spherical: the reflected light of every phase; geometric: the full Earth); observed "
+             f"{OBSERVED['earth_b_minus_v']} ± {OBSERVED['earth_b_minus_v_sigma']} ({OBSERVED['colour_source']}).", "",
+             "| clouds | optical depth | p | A_s | q | p/obs − 1 | A_s/obs − 1 | q/obs − 1 | B − V (A_s) | B − V (p) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         tau = "—" if r["clouds"] == "none" else f"{r['cloud_optical_depth'] or default_tau:g}" + (
             " (default)" if r["cloud_optical_depth"] is None else "")
         lines.append(f"| {r['clouds']} | {tau} | {r['geometric_albedo']:.4f} | {r['spherical_albedo']:.4f} | "
                      f"{r['phase_integral']:.4f} | {r['geometric_albedo'] / OBSERVED['geometric_albedo'] - 1:+.1%} | "
                      f"{r['spherical_albedo'] / OBSERVED['spherical_albedo'] - 1:+.1%} | "
-                     f"{r['phase_integral'] / OBSERVED['phase_integral'] - 1:+.1%} |")
+                     f"{r['phase_integral'] / OBSERVED['phase_integral'] - 1:+.1%} | "
+                     f"{r['earth_b_minus_v_spherical']:.3f} | {r['earth_b_minus_v_geometric']:.3f} |")
     lines += ["", "The other optical depths are a sensitivity, not a fit: every place's cloud has one optical depth "
               "here, where the observed clouds have a distribution of them (a climatology is not shipped)."]
     (out / "phase_curve.md").write_text("\n".join(lines) + "\n")

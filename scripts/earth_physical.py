@@ -83,7 +83,8 @@ def validation(quick: bool) -> list[dict]:
 
 
 def phase_function(quick: bool) -> dict:
-    from lunarviz.surfaces.physical_earth import apparent_albedo, bond_albedo
+    from lunarviz.surfaces.earth_albedos import earth_albedos
+    from lunarviz.surfaces.physical_earth import apparent_albedo
     from lunarviz.surfaces.earth_surface import EarthSurface
     from lunarviz.surfaces.maps import map_frame
     from lunarviz.surfaces.point_values import Surfaces
@@ -98,7 +99,8 @@ def phase_function(quick: bool) -> dict:
     from lunarviz.surfaces.physical_earth import _direction
     far = 1e3 * np.linalg.norm(sc.moon - sc.earth)
     a_lamb = np.array([lamb.earth_albedo_toward(sc, sc.earth + far * _direction(sc, b, 0.0)) for b in betas])
-    bond, geometric = bond_albedo(phys, sc, frame, 550.0, order=8 if quick else 16, azimuths=4 if quick else 8)
+    own = earth_albedos(phys, sc, frame, [550.0])  # (exact over every direction: not the sampled β)
+    bond, geometric = float(own["spherical"][0]), float(own["geometric"][0])
     # Eq. 17 from p*(β) in the Moon's plane: every 5° (all of a lunation), and 30–150° only
     full = np.arange(0.0, 181.0, 30.0 if quick else 5.0)
     p_full = np.array([apparent_albedo(phys, sc, frame, max(b, 0.5), 0.0, 550.0) for b in full])
@@ -123,7 +125,8 @@ def year(quick: bool) -> list[dict]:
     """Per month of 2026 (geocentric): the Bond albedo on the 15th, and p* on every day whose Earth
     phase angle is in the range where earthshine is measured (β 40–140°)."""
     import lunarviz
-    from lunarviz.surfaces.physical_earth import albedo_toward_moon, bond_albedo
+    from lunarviz.surfaces.earth_albedos import earth_albedos
+    from lunarviz.surfaces.physical_earth import albedo_toward_moon
     from lunarviz.surfaces.earth_surface import EarthSurface
     from lunarviz.surfaces.maps import map_frame
     from lunarviz.surfaces.point_values import Surfaces
@@ -132,8 +135,7 @@ def year(quick: bool) -> list[dict]:
     rows = []
     for m in ((1, 7) if quick else range(1, 13)):
         sc, _ = lunarviz.Scene(time=f"2026-{m:02d}-15T00:00Z").geometry()
-        bond, _ = bond_albedo(phys, sc, map_frame(sc, "earth", 0.0), 550.0, order=8 if quick else 12,
-                              azimuths=4 if quick else 6)
+        bond = float(earth_albedos(phys, sc, map_frame(sc, "earth", 0.0), [550.0])["spherical"][0])
         bias = []
         for day in ((5, 20) if quick else range(1, 29)):
             sc, _ = lunarviz.Scene(time=f"2026-{m:02d}-{day:02d}T00:00Z").geometry()
