@@ -130,3 +130,20 @@ def test_an_apparent_albedo_no_lambert_sphere_gives_warns():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warn_non_lambert_apparent_albedo(rows[1:])  # within 0-1: silent
+
+
+def test_a_clear_sky_map_of_one_value_is_the_uniform_ground(tmp_path):
+    # a map FILE's ground takes the exact Lambert form under the layer, R = ρ_R + T T A / (1 − S A)
+    # integrated in closed form over the view hemisphere; the uniform ground takes the numerical
+    # hemispherical rule over the same coupling: a map holding 0.3 everywhere is the uniform
+    # Earth of 0.3 (to the rule's 1e-6), with and without clouds, at two wavelengths
+    path = tmp_path / "ground.npy"
+    np.save(path, np.full((90, 180), 0.3))
+    sc, frame = _scene()
+    for clouds in ("none", "zonal"):
+        mapped = earth_albedos(EarthSurface(earth_brdf="physical", earth_surface=str(path), clouds=clouds), sc,
+                               frame, [450.0, 650.0])
+        uniform = earth_albedos(EarthSurface(earth_brdf="physical", earth_albedo=0.3, clouds=clouds), sc, frame,
+                                [450.0, 650.0])
+        for k in ("spherical", "geometric"):
+            assert np.allclose(mapped[k], uniform[k], rtol=1e-6)

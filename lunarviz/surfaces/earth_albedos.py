@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.earth_optics import rayleigh
+from lunarviz.earth_optics.atmosphere import lambert_toa, spherical_albedo, transmittance
 from lunarviz.earth_optics.classes import Surface, toa_reflectance
 from lunarviz.caches import memoize
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights
@@ -40,8 +42,6 @@ PLACE_ROWS = 180
 #: spherical albedo (coarser incidence nodes: 2e-3 there, the path radiance is steep near grazing)
 MU_NODES, PHI_NODES = 12, 32
 INCIDENCE_DEG = THETA_DEG
-#: albedos at which a clear-sky map's Lambert ground under the air is tabulated (linear between)
-GROUND_ALBEDOS = np.linspace(0.0, 1.0, 41)
 
 
 def _places(scene, frame):
@@ -89,23 +89,25 @@ def _class_rho_h(surface, model, lam, mu0, p, ground):
     if model is not None:
         table = np.stack([_rho_h_table(model, float(lj), key) for lj in lam], -1)  # (nodes, L)
         return np.einsum("na,nal->nl", wt, table[i])
+    # a clear-sky map's Lambert ground of albedo A under the layer, exactly (atmosphere.lambert_toa
+    # integrated over the view hemisphere): ρ_h(μ₀; A) = ρ_h(μ₀; 0) + T(μ₀) T̄ A / (1 − S A), with
+    # T̄ = 2 ∫ T(μ) μ dμ the layer's transmittance for isotropic light
+    x, w = np.polynomial.legendre.leggauss(MU_NODES)
+    mu, wmu = 0.5 * (x + 1.0), 0.5 * w
     out = np.empty((len(mu0), len(lam)))
-    k = np.clip(np.searchsorted(GROUND_ALBEDOS, ground) - 1, 0, len(GROUND_ALBEDOS) - 2)
-    f = (ground - GROUND_ALBEDOS[k]) / (GROUND_ALBEDOS[1] - GROUND_ALBEDOS[0])
-    rows = np.arange(len(mu0))
     for j, lj in enumerate(lam):
-        table = np.stack([_rho_h_table(Surface("lambert", float(a)), float(lj), key) for a in GROUND_ALBEDOS])
-        per = np.einsum("na,gna->ng", wt, table[:, i])  # (n, albedos)
-        out[:, j] = (1.0 - f) * per[rows, k] + f * per[rows, k + 1]
+        black = np.einsum("na,na->n", wt, _rho_h_table(Surface("lambert", 0.0), float(lj), key)[i])
+        tau = float(rayleigh.optical_depth(float(lj), p["surface_hpa"]))
+        t_bar = 2.0 * np.sum(wmu * mu * transmittance(tau, mu))
+        out[:, j] = black + transmittance(tau, mu0) * t_bar * ground / (1.0 - spherical_albedo(tau) * ground)
     return out
 
 
 def _full_phase_reflectance(surface, model, lam, mu0, p, ground):
     """(n, L) R(μ₀, μ₀, φ = 0) of one class at the places' μ₀ (the backscatter direction)."""
-    if model is None:
-        model_of = [Surface("lambert", float(a)) for a in ground]
-        return np.array([[toa_reflectance(m, lj, m0, m0, 0.0, params=p) for lj in lam]
-                         for m, m0 in zip(model_of, mu0)]).reshape(len(mu0), len(lam))
+    if model is None:  # a clear-sky map's Lambert ground, per place (atmosphere.lambert_toa)
+        return np.stack([lambert_toa(float(rayleigh.optical_depth(float(lj), p["surface_hpa"])), ground, mu0, mu0,
+                                     0.0) for lj in lam], -1)
     return np.stack([toa_reflectance(model, lj, mu0, mu0, 0.0, params=p) for lj in lam], -1)
 
 
