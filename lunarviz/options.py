@@ -61,7 +61,8 @@ SOLAR_SPECTRA = ("tsis1-hsrs", "grey")
 EARTH_SPECTRA = ("surface", "grey")
 #: the lunar BRDF preset of the θ scene (the paper's Table 2) and of dated runs (fitted to the Moon's
 #: observed phase law, with its albedo map; the exact reference, which integrates uniform bodies,
-#: takes the same fit without the map), where ``moon_model`` is not given
+#: and ``h_function="exact"``, which takes one w, take the same fit without the map), where
+#: ``moon_model`` is not given
 THETA_MOON_MODEL = "paper"
 DATED_MOON_MODEL = "rolo-fit-map"
 DATED_UNIFORM_MOON_MODEL = "rolo-fit"
@@ -268,6 +269,8 @@ def _o(name, kind, default, doc, group, **kw) -> Option:
 EARTH_PARAMETERS: tuple[Option, ...] = (
     _o("wind_speed", "float", 7.0, "the sea surface's wind speed (Cox-Munk glint)", "earth", unit="m s-1",
        lo=0.0, hi=30.0),
+    _o("ground_albedo", "float", C.EARTH_ALBEDO, "the uniform Earth's ground under the air (Lambert; "
+       "--earth-surface uniform)", "earth", unit="1", lo=0.0, hi=1.0),
     _o("cloud_optical_depth", "float", 10.0, "the clouds' optical depth at 550 nm (liquid droplets, Mie phase "
        "function; tabulated 0.5-150)", "earth", unit="1", lo=0.5, hi=150.0),
     _o("cloud_top_hpa", "float", 700.0, "the cloud tops' pressure (the Rayleigh optical depth above them)",
@@ -315,8 +318,8 @@ OPTIONS: tuple[Option, ...] = (
        "400-750 nm) or rolo-fit-map (fitted on the synthetic lunar albedo map, which it brings); in spectral runs "
        f"the rolo-fit presets take their band-by-band fits (350-2383.6 nm). Default: {THETA_MOON_MODEL} in the θ "
        f"scene (it reproduces the paper), {DATED_MOON_MODEL} on dates ({DATED_UNIFORM_MOON_MODEL} for --method "
-       "reference; --time: the paper's Moon is 0.6 mag too faint near full Moon and 3-6x too bright at crescents "
-       "against the Moon's observed phase law)",
+       "reference and --h-function exact; on dates the paper's Moon is 0.6 mag too faint near full Moon and 3-6x "
+       "too bright at crescents against the Moon's observed phase law)",
        "photometry", label="moon model", metavar="paper|rolo-fit|rolo-fit-map"),
     _o("params", "params", None, "BRDF parameter overrides {brdf: {name: value}}: w, h, B0, xi, b, c, albedo; "
        "Hapke: theta_bar [deg], Bc0, hc (command line: --param [BRDF.]NAME=VALUE, repeated)", "photometry",

@@ -2,7 +2,7 @@
 
 The cloud of :data:`~lunarviz.earth_optics.disort_tables.CLOUD`: droplets with Hansen & Travis
 (1974)'s gamma size distribution (effective radius 10 µm, effective variance 0.1), their Mie phase
-function at 550 nm (forward peak, rainbow near 138°, glory at 180°: 1000 Legendre moments), over
+function at 550 nm (forward peak, the rainbow near 141°, the glory at 180°: 1000 Legendre moments), over
 a surface of albedo 0.06, at the optical depths of
 :data:`~lunarviz.earth_optics.disort_tables.CLOUD_TAU`, solved by DISORT when the tables were made
 (docs: the Earth as it reflects); here cubic in log τ, cubic in the zenith angles and linear in

@@ -20,7 +20,10 @@ from lunarviz.options import BRDF_NAMES, DATED_MOON_MODEL, THETA_MOON_MODEL
 
 #: the state file's format: ``{"lunarviz": FORMAT, "version": VERSION, ...}``
 FORMAT = "explore-state"
-VERSION = 1
+VERSION = 2
+#: versions read: 1 (before dated runs took the fitted Moon by default: a dated state without a
+#: ``moon_model`` meant the paper's, and is read so)
+READS = (1, 2)
 #: the default slider range of the θ scene [deg] (the sweep's default)
 DEFAULT_PHASES = tuple(float(t) for t in range(0, 181, 5))
 #: the picture's default size [pixels]: readable at 1280 px wide
@@ -202,8 +205,9 @@ class ExploreState:
     def from_dict(cls, d) -> "ExploreState":
         if not isinstance(d, dict) or d.get("lunarviz") != FORMAT:
             raise LunarvizError(f"not an explorer state (no \"lunarviz\": \"{FORMAT}\" entry)")
-        if type(d.get("version")) is not int or d.get("version") != VERSION:
-            raise LunarvizError(f"explorer state version {short_repr(d.get('version'))}: this lunarviz reads {VERSION}")
+        if type(d.get("version")) is not int or d.get("version") not in READS:
+            raise LunarvizError(f"explorer state version {short_repr(d.get('version'))}: this lunarviz reads "
+                                f"{', '.join(map(str, READS))}")
         extra = sorted(set(d) - {"lunarviz", "version", "options", "phases", "times", "key", "brdf", "band", "size",
                             "picked", "instrument", "panel"})
         if extra:
@@ -212,9 +216,11 @@ class ExploreState:
         if not isinstance(options, dict):
             raise LunarvizError(f"explorer state: options must be an object, got {short_repr(options)}")
         phases, times = d.get("phases"), d.get("times")
+        if d["version"] == 1 and times is not None and "moon_model" not in options:
+            options = {**options, "moon_model": THETA_MOON_MODEL}  # (version 1's default on dates)
         if phases is not None and times is not None:
             raise LunarvizError("explorer state: give phases (the θ scene) or times (dates), not both")
-        for name, v in (("phases", phases), ("times", times), ("size", d.get("size", DEFAULT_SIZE))):
+        for name, v in (("phases", phases), ("times", times), ("size", d.get("size", list(DEFAULT_SIZE)))):
             if v is not None and not isinstance(v, list):
                 raise LunarvizError(f"explorer state: {name} must be a list, got {short_repr(v)}")
         if isinstance(d.get("key"), bool) or any(isinstance(v, bool) for v in (phases or []) + list(d.get("size", []))):

@@ -42,7 +42,8 @@ def resolve(scene) -> None:
     if scene.params is None:
         object.__setattr__(scene, "params", {})
     if scene.moon_model is None:  # the paper's Moon in the paper's scene; on dates the observed Moon
-        dated = DATED_MOON_MODEL if scene.method != "reference" else DATED_UNIFORM_MOON_MODEL
+        uniform = scene.method == "reference" or scene.h_function == "exact"  # (they take one w, no map)
+        dated = DATED_UNIFORM_MOON_MODEL if uniform else DATED_MOON_MODEL
         object.__setattr__(scene, "moon_model", dated if scene.times is not None else THETA_MOON_MODEL)
     _check_tasks(scene)
     check_physical_earth(scene)
@@ -216,7 +217,7 @@ def check_physical_earth(scene) -> None:
     if scene.earth_brdf == "physical" and scene.earth_albedo != BY_NAME["earth_albedo"].default:
         raise LunarvizError(f"--earth-albedo {scene.earth_albedo:g} is the Lambert Earth's albedo: the physical "
                             "Earth's comes from its air, clouds and ground; set the ground under the air with "
-                            "--earth-surface landocean|FILE (a clear-sky albedo map, which may hold one value)")
+                            "--param earth.ground_albedo=A or --earth-surface landocean|FILE")
     if scene.earth_brdf == "physical" and scene.earth_spectra != BY_NAME["earth_spectra"].default:
         raise LunarvizError("--earth-spectra is the Lambert Earth's: --earth-brdf physical takes its classes' own")
     EarthSurface.from_options(scene)  # the Lambert Earth's albedos refused with the physical one

@@ -60,11 +60,16 @@ def _places(scene, frame):
 
 
 @memoize(maxsize=1024)
-def _rho_h_table(model: Surface, wavelength_nm: float, pressures: tuple) -> np.ndarray:
-    """ρ_h of a class at :data:`INCIDENCE_DEG` under the air above ``pressures`` (the cloud tops',
-    the ground's [hPa]); kept: a run's dates share it."""
+def _class_tables(model: Surface, wavelength_nm: float, pressures: tuple) -> np.ndarray:
+    """(2, nodes): ρ_h and the backscatter R(μ₀, μ₀, φ = 0) of a class at :data:`INCIDENCE_DEG`
+    under the air above ``pressures`` (the cloud tops', the ground's [hPa]); kept: a run's dates
+    share them. The backscatter is taken at the nodes, where the cloud table holds exact
+    backscatter (its glory); between them the table's own interpolation mixes in neighbouring
+    directions and ripples with their 2° period (2 % on a cloudy Earth's p)."""
     params = dict(zip(("cloud_top_hpa", "surface_hpa"), pressures))
-    out = hemispherical_reflectance(model, wavelength_nm, np.cos(np.radians(INCIDENCE_DEG)), params)
+    mu0 = np.cos(np.radians(INCIDENCE_DEG))
+    out = np.stack([hemispherical_reflectance(model, wavelength_nm, mu0, params),
+                    toa_reflectance(model, wavelength_nm, mu0, mu0, 0.0, params=params)])
     out.setflags(write=False)
     return out
 
@@ -81,34 +86,29 @@ def hemispherical_reflectance(model: Surface, wavelength_nm: float, mu0, params:
     return 2.0 * np.einsum("abc,b->a", r, wmu * mu) / PHI_NODES
 
 
-def _class_rho_h(surface, model, lam, mu0, p, ground):
-    """(n, L) ρ_h of one class at the places' μ₀ (cubic in the zenith angle between table nodes);
-    ``model`` None: a clear-sky map's Lambert ground, per place albedo ``ground``."""
+def _class_values(model, lam, mu0, p, ground) -> tuple[np.ndarray, np.ndarray]:
+    """(ρ_h, backscatter R(μ₀, μ₀, 0)), each (n, L), of one class at the places' μ₀ (cubic in the
+    zenith angle between the nodes); ``model`` None: a clear-sky map's Lambert ground, per place
+    albedo ``ground``."""
     i, wt = cubic_weights(INCIDENCE_DEG, np.degrees(np.arccos(np.clip(mu0, 0.0, 1.0))))
     key = (p["cloud_top_hpa"], p["surface_hpa"])  # (the class carries its wind and optical depth)
     if model is not None:
-        table = np.stack([_rho_h_table(model, float(lj), key) for lj in lam], -1)  # (nodes, L)
-        return np.einsum("na,nal->nl", wt, table[i])
+        table = np.stack([_class_tables(model, float(lj), key) for lj in lam], -1)  # (2, nodes, L)
+        both = np.einsum("na,knal->knl", wt, table[:, i])
+        return both[0], both[1]
     # a clear-sky map's Lambert ground of albedo A under the layer, exactly (atmosphere.lambert_toa
     # integrated over the view hemisphere): ρ_h(μ₀; A) = ρ_h(μ₀; 0) + T(μ₀) T̄ A / (1 − S A), with
     # T̄ = 2 ∫ T(μ) μ dμ the layer's transmittance for isotropic light
     x, w = np.polynomial.legendre.leggauss(MU_NODES)
     mu, wmu = 0.5 * (x + 1.0), 0.5 * w
-    out = np.empty((len(mu0), len(lam)))
+    rho_h, back = np.empty((len(mu0), len(lam))), np.empty((len(mu0), len(lam)))
     for j, lj in enumerate(lam):
-        black = np.einsum("na,na->n", wt, _rho_h_table(Surface("lambert", 0.0), float(lj), key)[i])
+        black = np.einsum("na,na->n", wt, _class_tables(Surface("lambert", 0.0), float(lj), key)[0][i])
         tau = float(rayleigh.optical_depth(float(lj), p["surface_hpa"]))
         t_bar = 2.0 * np.sum(wmu * mu * transmittance(tau, mu))
-        out[:, j] = black + transmittance(tau, mu0) * t_bar * ground / (1.0 - spherical_albedo(tau) * ground)
-    return out
-
-
-def _full_phase_reflectance(surface, model, lam, mu0, p, ground):
-    """(n, L) R(μ₀, μ₀, φ = 0) of one class at the places' μ₀ (the backscatter direction)."""
-    if model is None:  # a clear-sky map's Lambert ground, per place (atmosphere.lambert_toa)
-        return np.stack([lambert_toa(float(rayleigh.optical_depth(float(lj), p["surface_hpa"])), ground, mu0, mu0,
-                                     0.0) for lj in lam], -1)
-    return np.stack([toa_reflectance(model, lj, mu0, mu0, 0.0, params=p) for lj in lam], -1)
+        rho_h[:, j] = black + transmittance(tau, mu0) * t_bar * ground / (1.0 - spherical_albedo(tau) * ground)
+        back[:, j] = lambert_toa(tau, ground, mu0, mu0, 0.0)
+    return rho_h, back
 
 
 def earth_albedos(surface, scene, frame, wavelengths=None, spectra: str = "surface") -> dict[str, np.ndarray]:
@@ -137,9 +137,9 @@ def earth_albedos(surface, scene, frame, wavelengths=None, spectra: str = "surfa
             if not len(rows):
                 continue
             g = None if model is not None else ground[rows]
-            share = share[rows, None]
-            rho_h[rows] += share * _class_rho_h(surface, model, lam, mu0[rows], p, g)
-            back[rows] += share * _full_phase_reflectance(surface, model, lam, mu0[rows], p, g)
+            mine, mine_back = _class_values(model, lam, mu0[rows], p, g)
+            rho_h[rows] += share[rows, None] * mine
+            back[rows] += share[rows, None] * mine_back
     else:  # Lambert places: ρ_h = R = each component's albedo
         lam = None if wavelengths is None else np.atleast_1d(np.asarray(wavelengths, float))
         grey = grey_albedos(surface)

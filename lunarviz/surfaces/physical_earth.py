@@ -50,9 +50,9 @@ def class_models(surface) -> dict[str, Surface]:
     out = {}
     for name in components(surface):
         if name == "uniform":
-            out[name] = Surface("lambert", float(surface.earth_albedo))
+            out[name] = Surface("lambert", float(p["ground_albedo"]))
         elif name == "clear":
-            out[name] = None if surface.earth_surface != "uniform" else Surface("lambert", float(surface.earth_albedo))
+            out[name] = None if surface.earth_surface != "uniform" else Surface("lambert", float(p["ground_albedo"]))
         else:
             out[name] = surface_from_name(name, wind_speed=p["wind_speed"],
                                           cloud_optical_depth=p["cloud_optical_depth"])

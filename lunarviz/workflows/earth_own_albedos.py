@@ -9,7 +9,8 @@ The θ scene's Earth is lit the same way at every θ (the Sun and the Earth are 
 longitude is ``earth_rotation_deg``): one geometry. Dated runs: the mean over up to
 :data:`MAX_DATES` of their dates, evenly spread (the sub-solar point moves with the hour and the
 season); the dates used are listed. Spectral runs: per wavelength, or per band the solar- and
-response-weighted means of the node values (the power ratios of the band).
+response-weighted means of the node values (the power ratios of the band). The analytic method with
+``earth_law="paper_eq8"`` (the printed Eq. 8) reports that law's Earth, 3/2 as bright.
 """
 
 from __future__ import annotations
@@ -44,6 +45,10 @@ def run_earth_albedos(settings) -> dict:
                           settings.earth_spectra)
         for name in sums:
             sums[name] = sums[name] + a[name] / len(keys)
+    if settings.method == "analytic" and settings.earth_law == "paper_eq8":
+        # the paper's printed Eq. 8: 3/2 the Lambert sphere's intensity at every phase (docs: paper
+        # notes, item 1): its Earth sends out 3/2 of the power a Lambert sphere of its albedo would
+        sums = {name: 1.5 * v for name, v in sums.items()}
     if request is not None:
         sums = {name: request.averages(v) for name, v in sums.items()}
     values = {"earth_spherical_albedo": sums["spherical"], "earth_geometric_albedo": sums["geometric"],
