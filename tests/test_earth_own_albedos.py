@@ -188,3 +188,18 @@ def test_a_clear_sky_map_of_one_value_is_the_uniform_ground(tmp_path):
                                              earth_params=(("ground_albedo", 0.3),)), sc, frame, [450.0, 650.0])
         assert np.allclose(mapped["spherical"], uniform["spherical"], rtol=1e-6)
         assert np.allclose(mapped["geometric"], uniform["geometric"], rtol=2e-4)
+
+
+def test_the_ground_albedo_is_the_uniform_earths_alone_and_exact_h_takes_a_uniform_moon_only_where_it_must():
+    from lunarviz.errors import LunarvizError
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.brdf_tables import earth_rows
+    with pytest.raises(LunarvizError, match="ground_albedo is the uniform Earth's ground: earth_surface landocean"):
+        ResolvedScene(phases_deg=(90.0,), earth_brdf="physical", earth_surface="landocean",
+                      params={"earth": {"ground_albedo": 0.5}})
+    with pytest.raises(LunarvizError, match="surface lambert:A"):
+        earth_rows("lambert:0.3", [550.0], [30.0], [30.0], [0.0], params={"ground_albedo": 0.5})
+    # --h-function exact takes one w: a Hapke run on dates gets the uniform fit, a Lambert one keeps the map
+    t = ("2026-03-05T00:00Z",)
+    assert ResolvedScene(times=t, brdfs=("dhg",), h_function="exact").moon_model == "rolo-fit"
+    assert ResolvedScene(times=t, brdfs=("lambert",), h_function="exact").moon_model == "rolo-fit-map"

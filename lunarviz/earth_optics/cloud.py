@@ -25,7 +25,11 @@ from lunarviz.errors import LunarvizError
 @memoize(maxsize=8)
 def _table_at(tau: float) -> np.ndarray:
     """The table (mu0, mu, phi) at optical depth τ (the nodes' own where τ is one)."""
-    table = load("cloud")["rf"]
+    tables = load("cloud")
+    if not np.array_equal(tables["tau"], CLOUD_TAU):
+        raise LunarvizError("the packaged cloud table's optical depths are not CLOUD_TAU's: remake it with "
+                            "scripts/make_earth_tables.py --only cloud")
+    table = tables["rf"]
     hit = np.flatnonzero(np.isclose(CLOUD_TAU, tau, rtol=1e-12, atol=0.0))
     if len(hit):
         out = table[hit[0]].astype(float)

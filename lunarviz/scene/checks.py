@@ -42,7 +42,8 @@ def resolve(scene) -> None:
     if scene.params is None:
         object.__setattr__(scene, "params", {})
     if scene.moon_model is None:  # the paper's Moon in the paper's scene; on dates the observed Moon
-        uniform = scene.method == "reference" or scene.h_function == "exact"  # (they take one w, no map)
+        uniform = scene.method == "reference" or (  # (they take one w: no map)
+            scene.h_function == "exact" and any(b != "lambert" for b in scene.brdfs))
         dated = DATED_UNIFORM_MOON_MODEL if uniform else DATED_MOON_MODEL
         object.__setattr__(scene, "moon_model", dated if scene.times is not None else THETA_MOON_MODEL)
     _check_tasks(scene)
@@ -211,6 +212,9 @@ def check_physical_earth(scene) -> None:
         earth_params(scene.params["earth"])
         if scene.earth_brdf != "physical":
             raise LunarvizError("earth parameters (--param earth.NAME=VALUE) need --earth-brdf physical")
+        if "ground_albedo" in scene.params["earth"] and scene.earth_surface != "uniform":
+            raise LunarvizError(f"earth.ground_albedo is the uniform Earth's ground: --earth-surface "
+                                f"{scene.earth_surface} brings its own")
         if "wavelength_nm" in scene.params["earth"] and (scene.wavelengths or scene.bands):
             raise LunarvizError("earth.wavelength_nm is a grey run's wavelength: a spectral run takes each "
                                 "of its own")

@@ -59,13 +59,14 @@ def _places(scene, frame):
     return d, np.einsum("ij,ij->i", ds, vs), np.cos(la).ravel()
 
 
-@memoize(maxsize=1024)
+@memoize(maxsize=16384)
 def _class_tables(model: Surface, wavelength_nm: float, pressures: tuple) -> np.ndarray:
     """(2, nodes): ρ_h and the backscatter R(μ₀, μ₀, φ = 0) of a class at :data:`INCIDENCE_DEG`
     under the air above ``pressures`` (the cloud tops', the ground's [hPa]); kept: a run's dates
-    share them. The backscatter is taken at the nodes, where the cloud table holds exact
-    backscatter (its glory); between them the table's own interpolation mixes in neighbouring
-    directions and ripples with their 2° period (2 % on a cloudy Earth's p)."""
+    share them (each entry is 2 × 47 numbers: room for every class at 2000 wavelengths). The
+    backscatter is taken at the nodes, where the cloud table holds exact backscatter (its glory);
+    between them the table's own interpolation mixes in neighbouring directions and ripples with
+    their 2° period (2 % on a cloudy Earth's p)."""
     params = dict(zip(("cloud_top_hpa", "surface_hpa"), pressures))
     mu0 = np.cos(np.radians(INCIDENCE_DEG))
     out = np.stack([hemispherical_reflectance(model, wavelength_nm, mu0, params),

@@ -52,7 +52,11 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     at each wavelength [nm], and the settings that made them."""
     if "wavelength_nm" in (params or {}):
         raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
+    if "ground_albedo" in (params or {}):
+        raise LunarvizError("earth.ground_albedo is a sweep's uniform Earth's ground: the Earth's table takes "
+                            "--surface lambert:A")
     p = earth_params(params)
+    p.pop("ground_albedo")  # (not this table's: --surface names its class)
     grid, phase = _geometry(inc, emi, azi, len(wavelengths))
     s = surface_from_name(surface, wind_speed=p["wind_speed"], cloud_optical_depth=p["cloud_optical_depth"])
     mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
