@@ -35,7 +35,7 @@ def test_a_moon_below_the_horizon_is_skipped_marked_and_exact(monkeypatch, metho
         if method == "reference" and extra:
             continue  # (the reference has no spectral path)
         s = ResolvedScene(method=method, brdfs=("lambert", "dhg"), observer=BBSO, times=("2026-02-17T03:00:00Z",),
-                          **extra)
+                          moon_model="paper", **extra)
         rows = sweeps.run_phase(s, s.times[0], threads=1)
         assert rows[0]["moon_altitude_deg"] < -20
         assert all(r["skip_reason"] == skips.BELOW_HORIZON and r["rtol"] == 0.0 for r in rows)
@@ -198,7 +198,7 @@ def test_a_dates_mapped_earth_averages_only_the_facets_it_needs(monkeypatch):
         return a, None if parts is None else parts[faces]
     for extra in ({}, {"bands": "V"}):
         s = ResolvedScene(method="raytrace", brdfs=("lambert",), times=("2026-02-22T03:00:00Z",),
-                          earth_surface="landocean", clouds="zonal", **extra)
+                          earth_surface="landocean", clouds="zonal", moon_model="paper", **extra)
         from lunarviz.caches import release_caches
         release_caches()
         got = sweeps.run_phase(s, s.times[0], threads=1)
