@@ -66,6 +66,17 @@ EARTH_SPECTRA = ("surface", "grey")
 THETA_MOON_MODEL = "paper"
 DATED_MOON_MODEL = "rolo-fit-map"
 DATED_UNIFORM_MOON_MODEL = "rolo-fit"
+
+
+def default_moon_model(dated: bool, method: str = "raytrace", h_function: str = "hapke1981",
+                       brdfs: tuple = ("dhg",)) -> str:
+    """The lunar preset of a run that names none: the paper's in the θ scene; on dates the fitted
+    one with its map, or without it where the run takes one w (the exact reference; the exact
+    H-function with a Hapke BRDF)."""
+    if not dated:
+        return THETA_MOON_MODEL
+    uniform = method == "reference" or (h_function == "exact" and any(b != "lambert" for b in brdfs))
+    return DATED_UNIFORM_MOON_MODEL if uniform else DATED_MOON_MODEL
 #: how the Earth reflects: Lambert facets, or the physical classes of :mod:`lunarviz.earth_optics`
 EARTH_BRDFS = ("lambert", "physical")
 #: Default Lambert albedos of the ``landocean`` Earth (broadband, visible):

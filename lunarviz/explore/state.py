@@ -16,7 +16,7 @@ from pathlib import Path
 
 from lunarviz.api import SCENE_DEFAULTS, Scene
 from lunarviz.errors import LunarvizError, short_repr, unknown_choice
-from lunarviz.options import BRDF_NAMES, DATED_MOON_MODEL, THETA_MOON_MODEL
+from lunarviz.options import BRDF_NAMES, THETA_MOON_MODEL, default_moon_model
 
 #: the state file's format: ``{"lunarviz": FORMAT, "version": VERSION, ...}``
 FORMAT = "explore-state"
@@ -127,8 +127,8 @@ class ExploreState:
         """Scene option ``name`` as this state runs it (its value, or the scene's default; the Moon's
         preset as the scene resolves it: the paper's in the θ scene, the fitted one on dates)."""
         value = self.options.get(name, SCENE_DEFAULTS[name])
-        if name == "moon_model" and value is None:
-            return DATED_MOON_MODEL if self.times is not None else THETA_MOON_MODEL
+        if name == "moon_model" and value is None:  # (the explorer traces: the ray tracer's rule)
+            return default_moon_model(self.times is not None, "raytrace", self.option("h_function"), (self.brdf,))
         return value
 
     @property

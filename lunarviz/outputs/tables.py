@@ -219,11 +219,12 @@ def _spectral_dataset(result, rows, brdfs, keys, timed, dim, spec):
     key = wavelength_label if spec == "wavelength" else str
     ds["bond_albedo"] = (("brdf", spec), np.array([[_num(bond.get(b, {}).get(method, {}).get(key(lab)))
                                                     for lab in labels] for b in brdfs], dtype=float), BOND_ATTRS)
-    _global_attrs(ds, result)
+    _global_attrs(ds, result, [key(lab) for lab in labels])
     return ds
 
 
-def _global_attrs(ds, result) -> None:
+def _global_attrs(ds, result, labels=()) -> None:
+    """The run's own attributes; ``labels``: a spectral run's keys in its coordinate's order."""
     settings = result["settings"]
     method = settings.get("method")
     ds.attrs.update({
@@ -239,7 +240,7 @@ def _global_attrs(ds, result) -> None:
     for k in EARTH_OWN_KEYS:  # the model Earth's own (grey: one value; spectral: in the labels' order)
         v = result.get(k)
         if isinstance(v, dict):
-            v = np.array([float(v.get(str(lab), np.nan)) for lab in _labels_of(ds)])
+            v = np.array([_num(v.get(lab)) for lab in labels], dtype=float)
         if v is not None:
             ds.attrs[k] = v
     if isinstance(result.get("earth_albedo_at"), (str, list)):
@@ -249,13 +250,6 @@ def _global_attrs(ds, result) -> None:
 
 #: the model Earth's own albedos (:mod:`lunarviz.workflows.earth_own_albedos`), global attributes
 EARTH_OWN_KEYS = ("earth_spherical_albedo", "earth_geometric_albedo", "earth_phase_integral")
-
-
-def _labels_of(ds) -> list[str]:
-    """A spectral Dataset's labels as the result's keys (wavelengths as their text, band names)."""
-    if "wavelength" in ds.coords:
-        return [wavelength_label(float(x)) for x in ds["wavelength"].values]
-    return [str(x) for x in ds["band"].values] if "band" in ds.coords else []
 
 
 def write_netcdf(path, result: dict) -> None:

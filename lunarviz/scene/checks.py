@@ -16,8 +16,7 @@ import warnings
 from lunarviz.errors import LunarvizError, LunarvizWarning, unknown_choice
 from lunarviz.geometry.scene_geometry import SceneGeometry
 from lunarviz.methods.tracer.settings import body_mesh_m
-from lunarviz.options import (BY_NAME, DATED_MOON_MODEL, DATED_UNIFORM_MOON_MODEL, METHODS, THETA_MOON_MODEL,
-                              earth_params, validate)
+from lunarviz.options import BY_NAME, METHODS, default_moon_model, earth_params, validate
 from lunarviz.photometry.presets import moon_model_map
 from lunarviz.sky.ephemeris import time_list
 from lunarviz.spectral.moon import parameters_at
@@ -42,10 +41,8 @@ def resolve(scene) -> None:
     if scene.params is None:
         object.__setattr__(scene, "params", {})
     if scene.moon_model is None:  # the paper's Moon in the paper's scene; on dates the observed Moon
-        uniform = scene.method == "reference" or (  # (they take one w: no map)
-            scene.h_function == "exact" and any(b != "lambert" for b in scene.brdfs))
-        dated = DATED_UNIFORM_MOON_MODEL if uniform else DATED_MOON_MODEL
-        object.__setattr__(scene, "moon_model", dated if scene.times is not None else THETA_MOON_MODEL)
+        object.__setattr__(scene, "moon_model", default_moon_model(scene.times is not None, scene.method,
+                                                                   scene.h_function, scene.brdfs))
     _check_tasks(scene)
     check_physical_earth(scene)
     for b in scene.params:

@@ -24,15 +24,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.caches import memoize
 from lunarviz.earth_optics import rayleigh
 from lunarviz.earth_optics.atmosphere import lambert_toa, spherical_albedo, transmittance
 from lunarviz.earth_optics.classes import Surface, toa_reflectance
-from lunarviz.caches import memoize
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights
+from lunarviz.geometry.sphere_quadrature import gauss_legendre
 from lunarviz.options import earth_params
 from lunarviz.surfaces.earth_spectra import albedo_spectra, components, grey_albedos, weights_at
 from lunarviz.surfaces.maps import sample_map
-from lunarviz.surfaces.physical_earth import class_models
+from lunarviz.surfaces.physical_earth import class_models, place_grid
 
 #: latitude rows of the place grid (1°); longitudes twice as many
 PLACE_ROWS = 180
@@ -47,10 +48,7 @@ INCIDENCE_DEG = THETA_DEG
 def _places(scene, frame):
     """Unit place directions in the map frame and the scene frame, the cosine of the Sun's zenith
     angle at each (negative: night) and each place's area weight."""
-    rows = PLACE_ROWS
-    lat = np.radians(90.0 - (np.arange(rows) + 0.5) * 180.0 / rows)
-    lon = np.radians(-180.0 + (np.arange(2 * rows) + 0.5) * 180.0 / rows)
-    la, lo = np.meshgrid(lat, lon, indexing="ij")
+    la, lo = np.meshgrid(*place_grid(PLACE_ROWS), indexing="ij")
     d = np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], -1).reshape(-1, 3)
     ds = d @ frame.T
     y = scene.earth + scene.radii["earth"] * ds
@@ -77,8 +75,7 @@ def _class_tables(model: Surface, wavelength_nm: float, pressures: tuple) -> np.
 
 def hemispherical_reflectance(model: Surface, wavelength_nm: float, mu0, params: dict | None = None) -> np.ndarray:
     """ρ_h(μ₀) = (1/π) ∫ R(μ₀, μ, φ) μ dΩ of a physical class under the air at λ, at ``mu0``."""
-    x, w = np.polynomial.legendre.leggauss(MU_NODES)
-    mu, wmu = 0.5 * (x + 1.0), 0.5 * w
+    mu, wmu = gauss_legendre(MU_NODES)
     phi = (np.arange(PHI_NODES) + 0.5) * 180.0 / PHI_NODES
     mu0 = np.atleast_1d(np.asarray(mu0, float))
     r = toa_reflectance(model, wavelength_nm, mu0[:, None, None], mu[None, :, None], phi[None, None, :],
@@ -100,8 +97,7 @@ def _class_values(model, lam, mu0, p, ground) -> tuple[np.ndarray, np.ndarray]:
     # a clear-sky map's Lambert ground of albedo A under the layer, exactly (atmosphere.lambert_toa
     # integrated over the view hemisphere): ρ_h(μ₀; A) = ρ_h(μ₀; 0) + T(μ₀) T̄ A / (1 − S A), with
     # T̄ = 2 ∫ T(μ) μ dμ the layer's transmittance for isotropic light
-    x, w = np.polynomial.legendre.leggauss(MU_NODES)
-    mu, wmu = 0.5 * (x + 1.0), 0.5 * w
+    mu, wmu = gauss_legendre(MU_NODES)
     rho_h, back = np.empty((len(mu0), len(lam))), np.empty((len(mu0), len(lam)))
     for j, lj in enumerate(lam):
         black = np.einsum("na,na->n", wt, _class_tables(Surface("lambert", 0.0), float(lj), key)[0][i])
@@ -126,7 +122,8 @@ def earth_albedos(surface, scene, frame, wavelengths=None, spectra: str = "surfa
     if surface.physical:
         lam = np.atleast_1d(surface.wavelength_nm if wavelengths is None else np.asarray(wavelengths, float))
         p = earth_params(dict(surface.earth_params))
-        ground = sample_map(surface.clear_map(), d) if "clear" in names and surface.clear_map() is not None else None
+        clear = surface.clear_map() if "clear" in names else None
+        ground = None if clear is None else sample_map(clear, d)
         rho_h = np.zeros((len(mu0), len(lam)))
         back = np.zeros((len(mu0), len(lam)))
         cloud = weights[:, -1] if "cloud" in names else np.zeros(len(mu0))

@@ -109,13 +109,20 @@ def facet_reflectance(surface, body, frame, sun, target, wavelengths, only=None)
     return reflectance(surface, w, n @ frame, n, to_sun, to_t, wavelengths)
 
 
-def albedo_toward(surface, scene, frame, target, wavelengths, rows: int = 180) -> np.ndarray:
-    """(L,) the point Earth's albedo toward a distant ``target``: ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA``
-    on a grid of ``rows`` latitudes × 2 ``rows`` longitudes (midpoints), μ_s, μ_t and R from each
-    place's own directions to the Sun and the target."""
-    radius = scene.radii["earth"]
+def place_grid(rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Latitudes (rows,) and longitudes (2 rows,) [rad] of the places on which the Earth's disc
+    and sphere integrals are taken: cell midpoints, north to south and from −180° east."""
     lat = np.radians(90.0 - (np.arange(rows) + 0.5) * 180.0 / rows)
     lon = np.radians(-180.0 + (np.arange(2 * rows) + 0.5) * 180.0 / rows)
+    return lat, lon
+
+
+def albedo_toward(surface, scene, frame, target, wavelengths, rows: int = 180) -> np.ndarray:
+    """(L,) the point Earth's albedo toward a distant ``target``: ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA``
+    on a grid of ``rows`` latitudes × 2 ``rows`` longitudes (:func:`place_grid`), μ_s, μ_t and R
+    from each place's own directions to the Sun and the target."""
+    radius = scene.radii["earth"]
+    lat, lon = place_grid(rows)
     lam = np.atleast_1d(np.asarray(wavelengths, float))
     num, den = np.zeros(len(lam)), 0.0
     for a in range(0, rows, 45):
