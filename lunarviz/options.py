@@ -286,6 +286,8 @@ EARTH_PARAMETERS: tuple[Option, ...] = (
        "function; tabulated 0.5-150)", "earth", unit="1", lo=0.5, hi=150.0),
     _o("cloud_top_hpa", "float", 700.0, "the cloud tops' pressure (the Rayleigh optical depth above them)",
        "earth", unit="hPa", lo=100.0, hi=1100.0),
+    _o("ozone_du", "float", 300.0, "the ozone column above the air (Huggins and Chappuis bands; 0: none). Default: "
+       "the global mean, ~300 DU (Fioletov et al. 2002)", "earth", unit="DU", lo=0.0, hi=700.0),
     _o("surface_hpa", "float", C.SEA_LEVEL_HPA, "the surface's pressure (the Rayleigh optical depth above it)",
        "earth", unit="hPa", lo=100.0, hi=1100.0),
     _o("wavelength_nm", "float", 550.0, "the wavelength at which a grey (not spectral) run evaluates the Earth",

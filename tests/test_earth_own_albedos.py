@@ -39,12 +39,38 @@ def test_the_physical_earth_conserves_energy():
     from lunarviz.earth_optics import rayleigh
     from lunarviz.earth_optics.atmosphere import spherical_albedo
     sc, frame = _scene()
-    def ground(a):
-        return EarthSurface(earth_brdf="physical", earth_params=(("ground_albedo", a),))
+    def ground(a):  # no ozone: it absorbs (the next test)
+        return EarthSurface(earth_brdf="physical", earth_params=(("ground_albedo", a), ("ozone_du", 0.0)))
     white = earth_albedos(ground(1.0), sc, frame)["spherical"][0]
     black = earth_albedos(ground(0.0), sc, frame)["spherical"][0]
     assert white == pytest.approx(1.0, abs=1e-4)
     assert black == pytest.approx(spherical_albedo(float(rayleigh.optical_depth(550.0))), rel=1e-3)
+
+
+def test_the_ozone_layer_absorbs_along_its_slant_paths():
+    # a white ground under 300 DU of ozone with (almost) no air above it (100 hPa: Rayleigh optical
+    # depth 0.007 at 600 nm): every photon crosses the ozone down at μ₀ and up at a Lambert angle,
+    # so A_s = (2 ∫₀¹ μ e^{−τ m(μ)} dμ)² over the sphere (the lit hemisphere's μ₀ weight is the
+    # ground's own 2μ dμ), with τ = σ N and the Dobson shell's air mass m, written here from
+    # Komhyr (1980) apart from the package. σ(600 nm): Serdyuchenko et al. (2014) at 233 K, 10 nm
+    # bin 600-610 nm, 5.02e-21 cm² (the package's table; the peak of the Chappuis band is ~5.1e-21
+    # near 602 nm); the bar, 1e-3, holds the air's 0.007 (scattering moves the photons' angles, not
+    # their number: ~τ_R τ_O3 ≈ 3e-4) and the 12-node μ rule (measured 2e-6)
+    from scipy.integrate import quad
+    sc, frame = _scene()
+    tau = 300 * 2.687e16 * 4.857e-21  # the table's 600 nm value, between its 595 and 605 nm bins
+    k = 6.378e6 / (6.378e6 + 22e3)
+    def m(mu):
+        return 1.0 / np.sqrt(1.0 - k * k * (1.0 - mu * mu))
+    expected = (2.0 * quad(lambda mu: mu * np.exp(-tau * m(mu)), 0.0, 1.0)[0]) ** 2
+    s = EarthSurface(earth_brdf="physical", earth_params=(("ground_albedo", 1.0), ("surface_hpa", 100.0),
+                                                            ("wavelength_nm", 600.0)))
+    got = earth_albedos(s, sc, frame)["spherical"][0]
+    assert expected == pytest.approx(0.867, abs=0.005)  # two crossings of τ ≈ 0.039 at a mean m ≈ 1.8
+    assert got == pytest.approx(expected, rel=1e-3)
+    none = EarthSurface(earth_brdf="physical", earth_params=(("ground_albedo", 1.0), ("wavelength_nm", 600.0),
+                                                               ("ozone_du", 0.0)))
+    assert earth_albedos(none, sc, frame)["spherical"][0] == pytest.approx(1.0, abs=1e-4)
 
 
 @pytest.mark.slow

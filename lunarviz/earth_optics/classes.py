@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.caches import memoize
-from lunarviz.earth_optics import rayleigh
+from lunarviz.earth_optics import ozone, rayleigh
 from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
 from lunarviz.earth_optics.cloud import cloud_reflectance
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, sky_nodes, theta_of
@@ -180,11 +180,12 @@ def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["w
 def toa_reflectance(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosphere: bool = True,
                     params: dict | None = None, geometry: dict | None = None) -> np.ndarray:
     """Top-of-atmosphere reflectance factor πL/(μ₀E₀) of ``surface`` at λ; ``atmosphere=False``
-    gives the bare surface. A cloud sits under the Rayleigh layer above ``cloud_top_hpa``."""
+    gives the bare surface. A cloud sits under the Rayleigh layer above ``cloud_top_hpa``; the ozone
+    column absorbs above them all (:mod:`.ozone`)."""
     p = earth_params(params)
     if not atmosphere:
-        tau = 0.0
-    else:
-        top = p["cloud_top_hpa"] if surface.kind == "cloud" else p["surface_hpa"]
-        tau = float(rayleigh.optical_depth(wavelength_nm, top))
-    return couple(tau, surface, wavelength_nm, mu0, mu, phi_deg, geometry)
+        return couple(0.0, surface, wavelength_nm, mu0, mu, phi_deg, geometry)
+    top = p["cloud_top_hpa"] if surface.kind == "cloud" else p["surface_hpa"]
+    tau = float(rayleigh.optical_depth(wavelength_nm, top))
+    return couple(tau, surface, wavelength_nm, mu0, mu, phi_deg, geometry) \
+        * ozone.transmittance(wavelength_nm, p["ozone_du"], mu0, mu)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.caches import memoize
-from lunarviz.earth_optics import rayleigh
+from lunarviz.earth_optics import ozone, rayleigh
 from lunarviz.earth_optics.atmosphere import lambert_toa, spherical_albedo, transmittance
 from lunarviz.earth_optics.classes import Surface, toa_reflectance
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights
@@ -43,6 +43,8 @@ PLACE_ROWS = 180
 #: spherical albedo (coarser incidence nodes: 2e-3 there, the path radiance is steep near grazing)
 MU_NODES, PHI_NODES = 12, 32
 INCIDENCE_DEG = THETA_DEG
+#: the physical Earth's parameters of the air over every class (their values key the class tables)
+AIR_PARAMETERS = ("cloud_top_hpa", "surface_hpa", "ozone_du")
 
 
 def _places(scene, frame):
@@ -58,14 +60,15 @@ def _places(scene, frame):
 
 
 @memoize(maxsize=16384)
-def _class_tables(model: Surface, wavelength_nm: float, pressures: tuple) -> np.ndarray:
+def _class_tables(model: Surface, wavelength_nm: float, air: tuple) -> np.ndarray:
     """(2, nodes): ρ_h and the backscatter R(μ₀, μ₀, φ = 0) of a class at :data:`INCIDENCE_DEG`
-    under the air above ``pressures`` (the cloud tops', the ground's [hPa]); kept: a run's dates
+    under the air of :data:`AIR_PARAMETERS` ``air`` (the cloud tops' and the ground's pressures
+    [hPa], the ozone column [DU]); kept: a run's dates
     share them (each entry is 2 × 47 numbers: room for every class at 2000 wavelengths). The
     backscatter is taken at the nodes, where the cloud table holds exact backscatter (its glory);
     between them the table's own interpolation mixes in neighbouring directions and ripples with
     their 2° period (2 % on a cloudy Earth's p)."""
-    params = dict(zip(("cloud_top_hpa", "surface_hpa"), pressures))
+    params = dict(zip(AIR_PARAMETERS, air))
     mu0 = np.cos(np.radians(INCIDENCE_DEG))
     out = np.stack([hemispherical_reflectance(model, wavelength_nm, mu0, params),
                     toa_reflectance(model, wavelength_nm, mu0, mu0, 0.0, params=params)])
@@ -89,22 +92,24 @@ def _class_values(model, lam, mu0, p, ground) -> tuple[np.ndarray, np.ndarray]:
     zenith angle between the nodes); ``model`` None: a clear-sky map's Lambert ground, per place
     albedo ``ground``."""
     i, wt = cubic_weights(INCIDENCE_DEG, np.degrees(np.arccos(np.clip(mu0, 0.0, 1.0))))
-    key = (p["cloud_top_hpa"], p["surface_hpa"])  # (the class carries its wind and optical depth)
+    key = tuple(p[k] for k in AIR_PARAMETERS)  # (the class carries its wind and optical depth)
     if model is not None:
         table = np.stack([_class_tables(model, float(lj), key) for lj in lam], -1)  # (2, nodes, L)
         both = np.einsum("na,knal->knl", wt, table[:, i])
         return both[0], both[1]
     # a clear-sky map's Lambert ground of albedo A under the layer, exactly (atmosphere.lambert_toa
-    # integrated over the view hemisphere): ρ_h(μ₀; A) = ρ_h(μ₀; 0) + T(μ₀) T̄ A / (1 − S A), with
-    # T̄ = 2 ∫ T(μ) μ dμ the layer's transmittance for isotropic light
+    # times the ozone's T_O3 integrated over the view hemisphere): ρ_h(μ₀; A) = ρ_h(μ₀; 0)
+    # + T(μ₀) T̄ A / (1 − S A), with T̄ = 2 ∫ T(μ) T_O3(μ₀, μ) μ dμ the layer's and the ozone's
+    # transmittance for isotropic light
     mu, wmu = gauss_legendre(MU_NODES)
     rho_h, back = np.empty((len(mu0), len(lam))), np.empty((len(mu0), len(lam)))
     for j, lj in enumerate(lam):
         black = np.einsum("na,na->n", wt, _class_tables(Surface("lambert", 0.0), float(lj), key)[0][i])
         tau = float(rayleigh.optical_depth(float(lj), p["surface_hpa"]))
-        t_bar = 2.0 * np.sum(wmu * mu * transmittance(tau, mu))
+        t_o3 = ozone.transmittance(float(lj), p["ozone_du"], mu0[:, None], mu[None, :])
+        t_bar = 2.0 * (t_o3 * transmittance(tau, mu)) @ (wmu * mu)
         rho_h[:, j] = black + transmittance(tau, mu0) * t_bar * ground / (1.0 - spherical_albedo(tau) * ground)
-        back[:, j] = lambert_toa(tau, ground, mu0, mu0, 0.0)
+        back[:, j] = lambert_toa(tau, ground, mu0, mu0, 0.0) * ozone.transmittance(float(lj), p["ozone_du"], mu0, mu0)
     return rho_h, back
 
 

@@ -14,15 +14,15 @@ place of albedo R. So a traced Earth takes, per facet, R toward the Moon's centr
 centre (its classes' area-averaged weights) as the facet's albedo, and the point-Earth methods
 take ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA`` as the Earth's albedo. Neglected: R's change across a
 facet (~0.9° on the packaged Earth; the glint lobe is ~10° wide) and across the Moon as seen from
-the Earth (0.26°), the Earth's curvature in the atmosphere (plane-parallel: beyond 89° zenith
-angles are held there).
+the Earth (0.26°), the Earth's curvature in the scattering atmosphere (plane-parallel: beyond 89° zenith angles are
+held there; the ozone above it takes the slant path of a spherical shell).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.earth_optics import rayleigh
+from lunarviz.earth_optics import ozone, rayleigh
 from lunarviz.earth_optics.atmosphere import lambert_toa
 from lunarviz.earth_optics.classes import Surface, surface_from_name, toa_reflectance
 from lunarviz.options import earth_params
@@ -91,8 +91,10 @@ def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, waveleng
 
 
 def _lambert_map(wavelength, albedo, ms, mt, phi, params):
-    """A clear-sky map's places: Lambert at their own albedo under the layer above the surface."""
-    return lambert_toa(float(rayleigh.optical_depth(wavelength, params["surface_hpa"])), albedo, ms, mt, phi)
+    """A clear-sky map's places: Lambert at their own albedo under the layer above the surface and
+    the ozone above it."""
+    return lambert_toa(float(rayleigh.optical_depth(wavelength, params["surface_hpa"])), albedo, ms, mt, phi) \
+        * ozone.transmittance(wavelength, params["ozone_du"], ms, mt)
 
 
 def facet_reflectance(surface, body, frame, sun, target, wavelengths, only=None) -> np.ndarray:
