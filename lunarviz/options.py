@@ -280,6 +280,8 @@ def _o(name, kind, default, doc, group, **kw) -> Option:
 EARTH_PARAMETERS: tuple[Option, ...] = (
     _o("wind_speed", "float", 7.0, "the sea surface's wind speed (Cox-Munk glint)", "earth", unit="m s-1",
        lo=0.0, hi=30.0),
+    _o("chlorophyll", "float", 0.1, "the open ocean's chlorophyll concentration (case-1 water: its colour, black in "
+       "the near infrared)", "earth", unit="mg m-3", lo=0.02, hi=20.0),
     _o("ground_albedo", "float", C.EARTH_ALBEDO, "the uniform Earth's ground under the air (Lambert; "
        "--earth-surface uniform)", "earth", unit="1", lo=0.0, hi=1.0),
     _o("cloud_optical_depth", "float", 10.0, "the clouds' optical depth at 550 nm (liquid droplets, Mie phase "

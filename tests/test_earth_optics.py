@@ -143,6 +143,33 @@ def test_glint_matches_the_coxmunk_package():
                 assert got == pytest.approx(ref, rel=1e-6, abs=1e-12)
 
 
+@pytest.mark.parametrize("chlorophyll", [0.05, 0.1, 0.3, 1.0])
+def test_the_oceans_colour_gives_back_its_chlorophyll_by_the_satellite_algorithm(chlorophyll):
+    # OC2v4 (O'Reilly et al. 2000, SeaWiFS Postlaunch Technical Report Series 11: the blue-green
+    # ratio Rrs(490)/Rrs(555) fitted to in situ chlorophyll at 919 stations) applied to the model's
+    # water-leaving reflectance: an observation-based check of the bio-optical model's colour.
+    # OC2v4's own scatter about the in situ values is ~0.15 in log₁₀ (a factor 1.4); the bar is a
+    # factor 1.6. Measured: 0.05 → 0.06, 0.1 → 0.105, 0.3 → 0.24, 1 → 0.69
+    from lunarviz.earth_optics.ocean import water_leaving
+    ratio = np.log10(water_leaving(490.0, chlorophyll) / water_leaving(555.0, chlorophyll))
+    oc2 = 10 ** (0.319 - 2.336 * ratio + 0.879 * ratio**2 - 0.135 * ratio**3) - 0.071
+    assert abs(np.log10(oc2 / chlorophyll)) < np.log10(1.6)
+
+
+def test_the_ocean_is_black_in_the_near_infrared_and_clear_water_blue():
+    # beyond 700 nm pure water absorbs metres⁻¹ (Kou et al. 1993: 4.6 m⁻¹ at 865 nm) while sea water
+    # backscatters 7e-5 m⁻¹ and the particles ~4e-4 (0.1 mg m⁻³) to 3e-3 (1 mg m⁻³), so ρ_w =
+    # 0.529 · 0.33 b_b/a is below 3e-5 in clear water and 2e-4 at 1 mg m⁻³ (the old USGS-derived
+    # level was 2e-3). Clear water (0.1 mg m⁻³) in the blue: Morel & Maritorena (2001)'s case-1
+    # clear ocean reflects ~0.024 at 450 nm as ρ_w; bar 0.018-0.032
+    from lunarviz.earth_optics.ocean import water_leaving
+    for chl, bar in ((0.02, 3e-5), (0.1, 3e-5), (1.0, 2e-4)):
+        assert water_leaving(865.0, chl) < bar
+    assert 0.018 < water_leaving(450.0, 0.1) < 0.032
+    assert water_leaving(450.0, 0.03) > water_leaving(450.0, 1.0)  # chlorophyll absorbs the blue
+    assert water_leaving(555.0, 0.03) < water_leaving(555.0, 1.0)  # and its particles scatter the green
+
+
 def test_ross_li_kernels_integrate_to_lucht_table():
     # white-sky integrals (2/π)∫∫∫ K μ₀ μ dμ₀ dμ dφ of Lucht et al. (2000), Table 1, to their 6 digits
     x, w = np.polynomial.legendre.leggauss(64)

@@ -41,6 +41,8 @@ class Surface:
     wind_speed: float = EARTH_PARAMETER_DEFAULTS["wind_speed"]
     #: a cloud's optical depth at 550 nm
     optical_depth: float = EARTH_PARAMETER_DEFAULTS["cloud_optical_depth"]
+    #: the ocean's chlorophyll concentration [mg m⁻³]
+    chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]
 
     @property
     def lambertian(self) -> bool:
@@ -59,7 +61,7 @@ class Surface:
             return np.full(np.broadcast(np.asarray(mu0), np.asarray(mu), np.asarray(phi_deg)).shape, self.albedo)
         if self.kind == "ocean":
             from lunarviz.earth_optics.ocean import ocean_reflectance
-            return ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, self.wind_speed)
+            return ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, self.wind_speed, self.chlorophyll)
         if self.kind == "cloud":
             return cloud_reflectance(mu0, mu, phi_deg, self.optical_depth)
         return land_reflectance(self.land_albedo(wavelength_nm), mu0, mu, phi_deg)
@@ -75,7 +77,7 @@ class Surface:
     def _at_wavelength(self, wavelength_nm, part):
         if self.kind == "ocean":
             from lunarviz.earth_optics.ocean import ocean_from_glint
-            return ocean_from_glint(part, wavelength_nm, self.wind_speed)
+            return ocean_from_glint(part, wavelength_nm, self.wind_speed, self.chlorophyll)
         if self.kind == "land":
             return land_reflectance(self.land_albedo(wavelength_nm), None, None, None, shape=part)
         return part
@@ -151,10 +153,11 @@ def _fourier(surface: Surface, wavelength_nm) -> np.ndarray:
 
 
 def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["wind_speed"],
-                      cloud_optical_depth: float = EARTH_PARAMETER_DEFAULTS["cloud_optical_depth"]) -> Surface:
-    """A :class:`Surface` from ``black``, ``lambert:A``, ``ocean``, ``land``, ``vegetation``,
-    ``desert``, ``snow`` or ``cloud`` (of optical depth ``cloud_optical_depth``); a bad name or
-    albedo raises one line naming it."""
+                      cloud_optical_depth: float = EARTH_PARAMETER_DEFAULTS["cloud_optical_depth"],
+                      chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]) -> Surface:
+    """A :class:`Surface` from ``black``, ``lambert:A``, ``ocean`` (of ``chlorophyll`` mg m⁻³),
+    ``land``, ``vegetation``, ``desert``, ``snow`` or ``cloud`` (of optical depth
+    ``cloud_optical_depth``); a bad name or albedo raises one line naming it."""
     if not isinstance(text, str):
         raise LunarvizError(f"earth surface {text!r} must be a name such as 'ocean' or 'lambert:0.3'")
     name = text.strip().lower()
@@ -169,7 +172,7 @@ def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["w
             raise LunarvizError(f"earth surface {text!r}: lambert:A needs an albedo A in 0…1")
         return Surface("lambert", a)
     if name == "ocean":
-        return Surface("ocean", wind_speed=float(wind_speed))
+        return Surface("ocean", wind_speed=float(wind_speed), chlorophyll=float(chlorophyll))
     if name in ("land",) + LAND_CLASSES:
         return Surface("land", land_class="vegetation" if name == "land" else name)
     if name == "cloud":

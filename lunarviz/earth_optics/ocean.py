@@ -15,14 +15,33 @@ of Smith's function for Gaussian slopes, G = 1 / (1 + Λ(μ₀) + Λ(μ)) (Mishc
     Λ(μ) = ½ [σ tanθ e^{−cot²θ/σ²} / √π − erfc(cot θ / σ)]
 
 Whitecaps (Lambertian): fraction W = 2.95e-6 U^3.52 (Monahan & O'Muircheartaigh 1980, *J. Phys.
-Oceanogr.* 10, 2094) of reflectance 0.22 (Koepke 1984, *Appl. Opt.* 23, 1816). Light leaving the
-water (Lambertian): the packaged open-ocean spectrum (USGS splib07 sea water, a directional-
-hemispherical reflectance that includes the surface's Fresnel reflection) less its Fresnel level,
-the spectrum's mean beyond 800 nm where water absorbs nearly all that enters: 0.026 at 450 nm,
-0.008 at 550 nm, 0.002 at 865 nm (Morel & Maritorena 2001's clear ocean gives ~0.024 and ~0.006
-at chlorophyll 0.1 mg m⁻³). The total is W ρ_wc + (1 − W)(ρ_g + ρ_w). Neglected: the slopes' anisotropy with
-wind direction (Cox & Munk's σ_u², σ_c²), polarisation, whitecaps' spectral fall in the near
-infrared (Frouin et al. 1996), the interface's effect on the angular shape of the water's light.
+Oceanogr.* 10, 2094) of reflectance 0.22 (Koepke 1984, *Appl. Opt.* 23, 1816).
+
+Light leaving the water (Lambertian), from the water's inherent optical properties for open-ocean
+(case 1) water of chlorophyll concentration Chl (``earth.chlorophyll``, mg m⁻³): the irradiance
+reflectance just below the surface R = f b_b / a with f = 0.33 (Morel & Prieur 1977, *Limnol.
+Oceanogr.* 22, 709), carried through the surface as ρ_w = ℜ R with ℜ = 0.529 (Morel & Gentili
+1996, *Appl. Opt.* 35, 4850; the upwelling radiance below the surface taken isotropic, Q = π)::
+
+    a   = a_w(λ) + A_p(λ) Chl^E_p(λ) + a_y(440) e^{−0.014 (λ − 440)}
+    b_b = b_w(λ)/2 + b_p(λ) [0.002 + 0.01 (0.5 − 0.25 log₁₀ Chl) (λ/550)^ν]
+
+with a_w the pure water's absorption (``lunarviz/data/spectra/water_absorption.csv``: IOCCG 2018's
+spectrum, Pope & Fry 1997 in the visible, Kou et al. 1993 in the near infrared), A_p and E_p the
+particles' absorption (Bricaud et al. 1998, ``ocean_particle_absorption.csv``; held below 400 nm,
+zero beyond 700 nm), the yellow substance a_y(440) = 0.2 A_p(440) Chl^E_p(440) covarying with the
+particles (Prieur & Sathyendranath 1981, *Limnol. Oceanogr.* 26, 671; slope: Bricaud, Morel & Prieur
+1981, *Limnol. Oceanogr.* 26, 43), sea water's scattering b_w = 0.00288 (λ/500)^−4.32 m⁻¹ (Morel
+1974), and the particles' scattering b_p = 0.416 Chl^0.766 (λ/550)^ν with ν = 0.5 (log₁₀ Chl − 0.3)
+below 2 mg m⁻³ and 0 above (Morel & Maritorena 2001, *J. Geophys. Res.* 106, 7163). Clear water
+(Chl 0.1) gives 0.026 at 450 nm, 0.005 at 550 nm, and below 1e-5 at 865 nm, where the water absorbs
+4.6 m⁻¹: the ocean is black in the near infrared but for its glint and whitecaps.
+
+The total is W ρ_wc + (1 − W)(ρ_g + ρ_w). Neglected: the slopes' anisotropy with wind direction
+(Cox & Munk's σ_u², σ_c²), polarisation, whitecaps' spectral fall in the near infrared (Frouin et
+al. 1996), the angular shape of the water's light (Q is 3-5 sr, not π: the nadir radiance is
+~20-35 % lower and the grazing one higher; Morel & Gentili 1996), coastal (case 2) water,
+Raman scattering and fluorescence.
 """
 
 from __future__ import annotations
@@ -30,7 +49,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import erfc
 
-from lunarviz.earth_optics.spectra import class_spectrum
+from lunarviz.caches import memoize
+from lunarviz.options import EARTH_PARAMETER_DEFAULTS
+from lunarviz.resources import DATA_DIR, read_table
 
 #: refractive index of sea water in the visible (Hale & Querry 1973 ~1.33, salt +0.006)
 WATER_INDEX = 1.34
@@ -38,8 +59,14 @@ WATER_INDEX = 1.34
 WHITECAP_REFLECTANCE = 0.22
 #: cos θ below which a direction is taken as the horizon (no glint: 90° to 1e-6 rad)
 GRAZING_MU = 1e-6
-#: wavelengths [nm] beyond which the packaged ocean spectrum is all Fresnel reflection
-FRESNEL_LEVEL_FROM_NM = 800.0
+#: R = f b_b / a just below the surface (Morel & Prieur 1977)
+F_FACTOR = 0.33
+#: ℜ: the surface's transmission of the upwelling light with its n² law (Morel & Gentili 1996)
+SURFACE_TRANSMISSION = 0.529
+#: the yellow substance's absorption at 440 nm over the particles' (Prieur & Sathyendranath 1981)
+CDOM_FRACTION = 0.2
+#: the yellow substance's spectral slope [nm⁻¹] (Bricaud, Morel & Prieur 1981)
+CDOM_SLOPE_PER_NM = 0.014
 
 
 def slope_variance(wind_speed: float) -> float:
@@ -89,19 +116,46 @@ def glint(mu0, mu, phi_deg, wind_speed: float, shadowing: bool = True) -> np.nda
     return np.where((mu0 > GRAZING_MU) & (mu > GRAZING_MU), out, 0.0)
 
 
-def water_leaving(wavelength_nm) -> np.ndarray:
-    """ρ_w(λ): the Lambertian reflectance of the light leaving the water (module docstring)."""
-    lam, a = class_spectrum("ocean")
-    level = float(np.mean(a[lam >= FRESNEL_LEVEL_FROM_NM]))
-    return np.clip(np.interp(np.asarray(wavelength_nm, float), lam, a) - level, 0.0, None)
+@memoize(maxsize=1)
+def _water_tables() -> tuple[np.ndarray, ...]:
+    lam_w, a_w, _ = read_table(DATA_DIR / "spectra" / "water_absorption.csv", "water absorption")
+    rows = [line for line in (DATA_DIR / "spectra" / "ocean_particle_absorption.csv").read_text().splitlines()
+            if line.strip() and not line.startswith("#")]
+    lam_p, amp, expo = np.loadtxt(rows[1:], delimiter=",", unpack=True)  # after its header line
+    return lam_w, a_w, lam_p, amp, expo
 
 
-def ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, wind_speed: float) -> np.ndarray:
+def inherent_optics(wavelength_nm, chlorophyll: float) -> tuple[np.ndarray, np.ndarray]:
+    """(a, b_b) [m⁻¹]: case-1 water's absorption and backscattering coefficients at λ for
+    chlorophyll ``chlorophyll`` [mg m⁻³] (module docstring)."""
+    lam = np.asarray(wavelength_nm, dtype=float)
+    chl = float(chlorophyll)
+    lam_w, a_w, lam_p, amp, expo = _water_tables()
+    a_p = np.interp(lam, lam_p, amp, right=0.0) * chl ** np.interp(lam, lam_p, expo)
+    a_y = CDOM_FRACTION * float(np.interp(440.0, lam_p, amp)) * chl ** float(np.interp(440.0, lam_p, expo)) \
+        * np.exp(-CDOM_SLOPE_PER_NM * (lam - 440.0))
+    nu = 0.5 * (np.log10(chl) - 0.3) if chl < 2.0 else 0.0
+    b_p = 0.416 * chl**0.766 * (lam / 550.0) ** nu
+    b_bp = b_p * (0.002 + 0.01 * (0.5 - 0.25 * np.log10(chl)) * (lam / 550.0) ** nu)
+    b_w = 0.00288 * (lam / 500.0) ** -4.32
+    return np.interp(lam, lam_w, a_w) + a_p + a_y, 0.5 * b_w + b_bp
+
+
+def water_leaving(wavelength_nm, chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]) -> np.ndarray:
+    """ρ_w(λ) = ℜ f b_b / a: the Lambertian reflectance of the light leaving the water (module
+    docstring)."""
+    a, b_b = inherent_optics(wavelength_nm, chlorophyll)
+    return SURFACE_TRANSMISSION * F_FACTOR * b_b / a
+
+
+def ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, wind_speed: float,
+                      chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]) -> np.ndarray:
     """The ocean's reflectance factor W ρ_wc + (1 − W)(ρ_g + ρ_w)."""
-    return ocean_from_glint(glint(mu0, mu, phi_deg, wind_speed), wavelength_nm, wind_speed)
+    return ocean_from_glint(glint(mu0, mu, phi_deg, wind_speed), wavelength_nm, wind_speed, chlorophyll)
 
 
-def ocean_from_glint(glint_rf, wavelength_nm, wind_speed: float) -> np.ndarray:
+def ocean_from_glint(glint_rf, wavelength_nm, wind_speed: float,
+                     chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]) -> np.ndarray:
     """W ρ_wc + (1 − W)(ρ_g + ρ_w) from the glint ρ_g already at hand."""
     w = whitecap_fraction(wind_speed)
-    return w * WHITECAP_REFLECTANCE + (1.0 - w) * (glint_rf + water_leaving(wavelength_nm))
+    return w * WHITECAP_REFLECTANCE + (1.0 - w) * (glint_rf + water_leaving(wavelength_nm, chlorophyll))

@@ -55,7 +55,8 @@ def class_models(surface) -> dict[str, Surface]:
             out[name] = None if surface.earth_surface != "uniform" else Surface("lambert", float(p["ground_albedo"]))
         else:
             out[name] = surface_from_name(name, wind_speed=p["wind_speed"],
-                                          cloud_optical_depth=p["cloud_optical_depth"])
+                                          cloud_optical_depth=p["cloud_optical_depth"],
+                                          chlorophyll=p["chlorophyll"])
     return out
 
 

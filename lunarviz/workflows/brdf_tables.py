@@ -58,7 +58,8 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     p = earth_params(params)
     p.pop("ground_albedo")  # (not this table's: --surface names its class)
     grid, phase = _geometry(inc, emi, azi, len(wavelengths))
-    s = surface_from_name(surface, wind_speed=p["wind_speed"], cloud_optical_depth=p["cloud_optical_depth"])
+    s = surface_from_name(surface, wind_speed=p["wind_speed"], cloud_optical_depth=p["cloud_optical_depth"],
+                          chlorophyll=p["chlorophyll"])
     mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
     rows = []
     for lam in wavelengths:
