@@ -708,7 +708,8 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
     Parameters
     ----------
     body : {"moon", "earth"}
-        A lunar BRDF (``model``) or an Earth surface class under the Rayleigh atmosphere (``surface``).
+        A lunar BRDF (``model``) or an Earth surface class under the Rayleigh atmosphere and the ozone
+        (``surface``).
     model : str, optional
         The Moon: ``lambert``, ``shg`` or ``dhg``.
     surface : str, optional

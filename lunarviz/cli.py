@@ -307,10 +307,11 @@ def _parser_brdf(sub):
     p = sub.add_parser("brdf", help="tabulate a lunar BRDF or the Earth's top-of-atmosphere reflectance")
     p.add_argument("--body", default="moon", choices=("moon", "earth"),
                    help="moon: a lunar BRDF (--model); earth: a surface class under the Rayleigh atmosphere "
-                   "(--surface)")
+                   "and the ozone (--surface)")
     p.add_argument("--model", default=None, help=" | ".join(BRDF_NAMES) + " (the Moon)")
     p.add_argument("--surface", default=None, help=" | ".join(SURFACE_NAMES) + " (the Earth)")
-    p.add_argument("--no-atmosphere", action="store_true", help="the Earth: the bare surface, no Rayleigh layer")
+    p.add_argument("--no-atmosphere", action="store_true",
+                   help="the Earth: the bare surface, no Rayleigh layer and no ozone")
     p.add_argument("--incidence", required=True, help="incidence angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--emission", required=True, help="emission angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")

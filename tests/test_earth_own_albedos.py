@@ -52,10 +52,11 @@ def test_the_ozone_layer_absorbs_along_its_slant_paths():
     # depth 0.007 at 600 nm): every photon crosses the ozone down at μ₀ and up at a Lambert angle,
     # so A_s = (2 ∫₀¹ μ e^{−τ m(μ)} dμ)² over the sphere (the lit hemisphere's μ₀ weight is the
     # ground's own 2μ dμ), with τ = σ N and the Dobson shell's air mass m, written here from
-    # Komhyr (1980) apart from the package. σ(600 nm): Serdyuchenko et al. (2014) at 233 K, 10 nm
-    # bin 600-610 nm, 5.02e-21 cm² (the package's table; the peak of the Chappuis band is ~5.1e-21
-    # near 602 nm); the bar, 1e-3, holds the air's 0.007 (scattering moves the photons' angles, not
-    # their number: ~τ_R τ_O3 ≈ 3e-4) and the 12-node μ rule (measured 2e-6)
+    # Komhyr (1980) apart from the package. σ(600 nm): Serdyuchenko et al. (2014) at 233 K, the
+    # package's 10 nm bin means (5.02e-21 cm² for 600-610 nm, the Chappuis band's peak) read
+    # between their centres, 4.857e-21 at 600 nm; the bar, 1e-3, holds the air's 0.007 (scattering
+    # moves the photons' angles, not their number: ~τ_R τ_O3 ≈ 3e-4) and the 12-node μ rule
+    # (measured 2e-6)
     from scipy.integrate import quad
     sc, frame = _scene()
     tau = 300 * 2.687e16 * 4.857e-21  # the table's 600 nm value, between its 595 and 605 nm bins
@@ -107,6 +108,38 @@ def test_thicker_clouds_reflect_more_and_the_range_is_refused_beyond_the_tables(
     assert np.all(np.diff(rho) > 0) and 0.0 < rho[0] and rho[-1] < 1.0
     with pytest.raises(LunarvizError, match="cloud_optical_depth=200"):
         EarthSurface(earth_brdf="physical", earth_params=(("cloud_optical_depth", 200.0),))
+
+
+@pytest.mark.parametrize("name, value", [("ozone_du", -1.0), ("ozone_du", 1e9), ("chlorophyll", 0.0),
+                                         ("chlorophyll", float("nan"))])
+def test_the_air_and_sea_parameters_are_refused_outside_their_range(name, value):
+    from lunarviz.errors import LunarvizError
+    with pytest.raises(LunarvizError, match=f"earth.{name}="):
+        EarthSurface(earth_brdf="physical", earth_params=((name, value),))
+
+
+def test_the_seas_chlorophyll_and_the_ozone_reach_the_earthshine_and_the_reflectance_table():
+    # each parameter through each door: the traced sweep (its class models) and the Earth's
+    # reflectance table (brdf --body earth). A greener sea (3 mg m⁻³) is darker in the blue (the
+    # pigments absorb) and brighter in the green (the particles scatter): at 443 nm its water
+    # reflects 0.011 against clear water's 0.027; ozone takes light from the V band, not the B
+    import lunarviz
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.workflows.sweeps import run_phase
+    def earthshine(**params):
+        s = ResolvedScene(brdfs=("lambert",), phases_deg=(90.0,), earth_brdf="physical", earth_surface="landocean",
+                          params={"earth": {"wavelength_nm": 443.0, **params}})
+        return run_phase(s, 90.0)[0]["earthshine_W_m2"]
+    assert earthshine(chlorophyll=3.0) < earthshine(chlorophyll=0.03)
+    assert earthshine(ozone_du=0.0) > earthshine()
+    def table(**params):
+        rows = lunarviz.brdf(body="earth", surface="ocean", wavelengths=[443.0, 600.0], incidence=30,
+                             emission=[10], azimuth=[90], params=params)
+        return np.array([r["reflectance_factor"] for r in rows])
+    green, clear = table(chlorophyll=3.0), table(chlorophyll=0.03)
+    assert green[0] < clear[0] and green[1] > clear[1]
+    no_ozone = table(ozone_du=0.0)
+    assert table()[1] / no_ozone[1] < 0.95  # 600 nm: the Chappuis band's peak, two crossings
 
 
 def test_a_sweep_reports_the_earths_own_albedos_beside_eq17(tmp_path):

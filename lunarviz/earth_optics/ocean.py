@@ -34,7 +34,7 @@ particles (Prieur & Sathyendranath 1981, *Limnol. Oceanogr.* 26, 671; slope: Bri
 1981, *Limnol. Oceanogr.* 26, 43), sea water's scattering b_w = 0.00288 (λ/500)^−4.32 m⁻¹ (Morel
 1974), and the particles' scattering b_p = 0.416 Chl^0.766 (λ/550)^ν with ν = 0.5 (log₁₀ Chl − 0.3)
 below 2 mg m⁻³ and 0 above (Morel & Maritorena 2001, *J. Geophys. Res.* 106, 7163). Clear water
-(Chl 0.1) gives 0.026 at 450 nm, 0.005 at 550 nm, and below 1e-5 at 865 nm, where the water absorbs
+(Chl 0.1) gives 0.024 at 450 nm, 0.005 at 550 nm, and 2e-5 at 865 nm, where the water absorbs
 4.6 m⁻¹: the ocean is black in the near infrared but for its glint and whitecaps.
 
 The total is W ρ_wc + (1 − W)(ρ_g + ρ_w). Neglected: the slopes' anisotropy with wind direction

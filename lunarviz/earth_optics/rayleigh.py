@@ -11,7 +11,7 @@ normalised to ∫P dΩ/4π = 1, whose Legendre expansion ends at order 2: χ₀ 
 χ₂ = (1 − γ) / (2 (1 + 2γ)) (DISORT's moment ``pmom[2] = χ₂/5``). Neglected: polarisation
 (the scalar equation: a few per cent on the Rayleigh radiance, largest near 90° scattering;
 Mishchenko et al. 1994), the King factor's small change with λ in ρₙ (ρₙ fixed at 0.0279,
-Young 1980), absorption by ozone and water vapour, aerosols.
+Young 1980), aerosols. (Ozone absorbs above the layer: :mod:`.ozone`.)
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 direction, per facet of a traced Earth and integrated over the disc for the point-Earth methods.
 
 Each place is a mix of the classes of :mod:`lunarviz.surfaces.earth_spectra` (``--earth-surface`` and
-``--clouds``), each class reflecting as its model under the Rayleigh atmosphere
+``--clouds``), each class reflecting as its model under the Rayleigh atmosphere and the ozone
 (:func:`lunarviz.earth_optics.classes.toa_reflectance`): the uniform Earth and a clear-sky map
 FILE as Lambert surfaces of their albedo, ``ocean`` as Cox–Munk glint with whitecaps and water,
 ``vegetation``/``desert``/``snow`` with the Ross–Li shape and their USGS spectra, ``cloud`` as

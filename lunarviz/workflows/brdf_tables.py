@@ -65,6 +65,8 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     for lam in wavelengths:
         rf = toa_reflectance(s, float(lam), mu0, mu, grid[:, 2], atmosphere=atmosphere, params=p)
         rows += [{"wavelength_nm": float(lam), **_row(g, ph, f)} for g, ph, f in zip(grid, phase, rf)]
-    settings = {"body": "earth", "surface": surface, "atmosphere": "rayleigh" if atmosphere else "none",
+    if not atmosphere:  # the bare surface: no air, no ozone above it
+        p = {k: v for k, v in p.items() if k not in ("ozone_du", "cloud_top_hpa", "surface_hpa")}
+    settings = {"body": "earth", "surface": surface, "atmosphere": "rayleigh+ozone" if atmosphere else "none",
                 "params": p, "model": "lunarviz.earth_optics (packaged DISORT tables)"}
     return rows, settings
