@@ -219,10 +219,11 @@ class RpvSurface:
     def bihemispherical(self, wavelength_nm):
         return float(2 * np.sum(self.directional(wavelength_nm, self.mu) * self.w * self.mu))
 
-    def fourier(self, wavelength_nm, mu):
-        from lunarviz.earth_optics.disort_tables import sky_nodes
+    def fourier_nodes(self, wavelength_nm):
+        """(K, N, 3) at the sky's nodes and the tables' zenith nodes (the coupling interpolates)."""
+        from lunarviz.earth_optics.disort_tables import THETA_DEG, sky_nodes
         mk = sky_nodes()[0]
-        mu = np.asarray(mu, float)
-        r = rpv(*self.p, mk[None, :, None], mu.reshape(-1)[:, None, None], self.psi[None, None, :])
+        mu = np.cos(np.radians(THETA_DEG))
+        r = rpv(*self.p, mk[:, None, None], mu[None, :, None], self.psi[None, None, :])
         cos_m = np.cos(np.outer(np.arange(3), np.radians(self.psi)))
-        return (2 * np.einsum("nkp,mp->nkm", r, cos_m) * np.radians(1.0)).reshape(mu.shape + (len(mk), 3))
+        return 2 * np.einsum("knp,mp->knm", r, cos_m) * np.radians(1.0)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.caches import memoize
 from lunarviz.earth_optics.disort_tables import RAYLEIGH_TAU, THETA_DEG, cubic_weights, load, sky_nodes, theta_of
 from lunarviz.errors import LunarvizError
 
@@ -73,22 +74,44 @@ def spherical_albedo(tau: float) -> float:
     return float(np.dot(tw[0], t["sph"][ti[0]] / RAYLEIGH_TAU[ti[0]]) * tau)
 
 
+@memoize(maxsize=256)
+def _sky_at_nodes(tau: float) -> np.ndarray:
+    """(N, K, 3) :func:`sky_modes` at the tables' zenith nodes."""
+    t = load("rayleigh")
+    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    out = np.tensordot(tw[0], t["sky_m"][ti[0]] / RAYLEIGH_TAU[ti[0], None, None, None], axes=1) * tau
+    out.setflags(write=False)
+    return out
+
+
 def sky_modes(tau: float, mu0) -> np.ndarray:
     """(..., K, 3) the diffuse sky at the bottom for a beam at cos θ = μ₀: Fourier modes of
     π I↓(μ'_k, φ')/(μ₀ F) in the source azimuth φ' (0: the Sun's side), at the Gauss nodes μ'_k of
     :func:`~lunarviz.earth_optics.disort_tables.sky_nodes`."""
-    t = load("rayleigh")
-    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
-    per_tau = np.tensordot(tw[0], t["sky_m"][ti[0]] / RAYLEIGH_TAU[ti[0], None, None, None], axes=1) * tau
     i0, w0 = cubic_weights(THETA_DEG, theta_of(mu0))
-    return np.einsum("...a,...akm->...km", w0, per_tau[i0])
+    return np.einsum("...a,...akm->...km", w0, _sky_at_nodes(float(tau))[i0])
 
 
-def _sky_reflected(e_out, sky, fourier, phi_deg) -> np.ndarray:
-    """e_out/π Σ_m cos(mφ) Σ_k w_k μ'_k sky_m(μ'_k) c_m(μ'_k): light of a tabulated sky reflected
-    once by a surface of azimuthal Fourier coefficients ``fourier`` (..., K, 3), then direct."""
+@memoize(maxsize=1024)
+def _coupling(surface, wavelength_nm: float, tau: float) -> np.ndarray:
+    """(N, N, 3) the sky reflected once, at the tables' zenith nodes: M_m[a, b] = Σ_k w_k μ'_k
+    sky_m(θ_a; μ'_k) c_m(μ'_k, θ_b), with the sky of a beam at θ_a and the surface's azimuthal
+    Fourier coefficients toward θ_b (:meth:`Surface.fourier_nodes`). Both factors are cubic in
+    their zenith angle between the nodes, so the bicubic interpolation of M is the sum over the
+    sky's nodes of the two interpolated factors, exactly; kept per class, wavelength and layer
+    (each 47 × 47 × 3 numbers: 53 kB)."""
     mu_k, w_k = sky_nodes()
-    per_m = np.einsum("...km,...km,k->...m", sky, fourier, w_k * mu_k)
+    out = np.einsum("akm,kbm,k->abm", _sky_at_nodes(tau), surface.fourier_nodes(wavelength_nm), w_k * mu_k)
+    out.setflags(write=False)
+    return out
+
+
+def _sky_reflected(e_out, coupling, beam, view, phi_deg) -> np.ndarray:
+    """e_out/π Σ_m cos(mφ) M_m(θ_beam, θ_view): light of the tabulated sky of a beam reflected once
+    toward the viewer by the surface, then direct; ``beam`` and ``view``: the cubic stencils
+    (indices, weights) of their zenith angles."""
+    (ia, wa), (ib, wb) = beam, view
+    per_m = np.einsum("...a,...b,...abm->...m", wa, wb, coupling[ia[..., :, None], ib[..., None, :]])
     ph = np.radians(phi_deg)
     return e_out / np.pi * (per_m[..., 0] + per_m[..., 1] * np.cos(ph) + per_m[..., 2] * np.cos(2 * ph))
 
@@ -125,7 +148,9 @@ def toa_reflectance(tau: float, surface, wavelength_nm: float, mu0, mu, phi_deg,
     t0, t1 = T0 - e0, T1 - e1
     # the sky reflected toward the viewer, and the Sun's reflection scattered toward it (by
     # reciprocity the same integral with the roles of μ₀ and μ exchanged), with the sky's own shape
-    sky_down = _sky_reflected(e1, sky_modes(tau, mu0), surface.fourier(wavelength_nm, mu), phi)
-    sun_up = _sky_reflected(e0, sky_modes(tau, mu), surface.fourier(wavelength_nm, mu0), phi)
+    coupling = _coupling(surface, float(wavelength_nm), float(tau))
+    sun, view = cubic_weights(THETA_DEG, theta_of(mu0)), cubic_weights(THETA_DEG, theta_of(mu))
+    sky_down = _sky_reflected(e1, coupling, sun, view, phi)
+    sun_up = _sky_reflected(e0, coupling, view, sun, phi)
     return (rr + e0 * e1 * rs + sky_down + sun_up + t0 * t1 * bhr
             + T0 * T1 * S * bhr * bhr / (1.0 - S * bhr))

@@ -101,12 +101,11 @@ class Surface:
             return np.full(np.shape(mu), self.albedo)
         return self._interp(self._albedos(wavelength_nm)[0], np.asarray(mu, float))
 
-    def fourier(self, wavelength_nm, mu) -> np.ndarray:
-        """(..., K, 3) c_m(μ'_k, μ) = ∫₀^{2π} cos(mψ) ρ(μ'_k, μ, ψ) dψ, m = 0, 1, 2, at the sky's
-        Gauss nodes μ'_k (:func:`~lunarviz.earth_optics.disort_tables.sky_nodes`)."""
-        c = _fourier(self, None if self.kind in ("cloud", "lambert") else float(wavelength_nm))
-        i, w = cubic_weights(THETA_DEG, theta_of(np.asarray(mu, float)))
-        return np.einsum("...a,k...am->...km", w, c[:, i])
+    def fourier_nodes(self, wavelength_nm) -> np.ndarray:
+        """(K, N, 3) c_m(μ'_k, μ_n) = ∫₀^{2π} cos(mψ) ρ(μ'_k, μ_n, ψ) dψ, m = 0, 1, 2, at the sky's
+        Gauss nodes μ'_k (:func:`~lunarviz.earth_optics.disort_tables.sky_nodes`) and the tables'
+        zenith nodes μ_n (cubic between them)."""
+        return _fourier(self, None if self.kind in ("cloud", "lambert") else float(wavelength_nm))
 
     def bihemispherical(self, wavelength_nm) -> float:
         """ρ̿: the albedo under isotropic light."""

@@ -34,10 +34,14 @@ MAX_THETA_DEG = float(THETA_DEG[-1])
 SKY_ORDER = 48
 
 
+@memoize(maxsize=1)
 def sky_nodes() -> tuple[np.ndarray, np.ndarray]:
-    """(μ', weight) of the Gauss–Legendre rule on (0, 1) on which the sky is tabulated."""
+    """(μ', weight) of the Gauss–Legendre rule on (0, 1) on which the sky is tabulated (read-only)."""
     x, w = np.polynomial.legendre.leggauss(SKY_ORDER)
-    return 0.5 * (x + 1.0), 0.5 * w
+    mu, wt = 0.5 * (x + 1.0), 0.5 * w
+    mu.setflags(write=False)
+    wt.setflags(write=False)
+    return mu, wt
 
 
 @memoize(maxsize=2)
