@@ -279,6 +279,31 @@ def test_physical_earth_trace_matches_an_independent_quadrature():
         assert 0.27 < rows[k]["earth_visible_lit_albedo"] < 0.3
 
 
+def test_the_kept_coupling_matrix_is_the_sum_over_the_skys_nodes():
+    # the once-reflected sky is kept as M_m[a, b] on the zenith nodes and interpolated bicubically;
+    # written out here the long way, per direction: the sky's modes and the surface's Fourier
+    # coefficients each interpolated cubically to the direction, then summed over the sky's Gauss
+    # nodes. The two are the same sum in another order: equal to rounding (bar 1e-12), for the
+    # glinting sea at off-node angles and both roles (sky toward the viewer, the Sun's reflection up)
+    from lunarviz.earth_optics.atmosphere import _coupling, _sky_at_nodes
+    from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, sky_nodes, theta_of
+    s = surface_from_name("ocean")
+    tau = float(rayleigh.optical_depth(550.0))
+    mu_k, w_k = sky_nodes()
+    rng = np.random.default_rng(3)
+    mu0, mu = rng.uniform(0.02, 1.0, 50), rng.uniform(0.02, 1.0, 50)
+    def interp(nodes_first, x):  # cubic in the zenith angle along the nodes' axis 0
+        i, w = cubic_weights(THETA_DEG, theta_of(x))
+        return np.einsum("na,na...->n...", w, nodes_first[i])
+    sky = interp(_sky_at_nodes(tau), mu0)  # (n, K, 3)
+    c = interp(np.moveaxis(s.fourier_nodes(550.0), 1, 0), mu)  # (n, K, 3)
+    long_way = np.einsum("nkm,nkm,k->nm", sky, c, w_k * mu_k)
+    i0, wt0 = cubic_weights(THETA_DEG, theta_of(mu0))
+    i1, wt1 = cubic_weights(THETA_DEG, theta_of(mu))
+    kept = np.einsum("na,nb,nabm->nm", wt0, wt1, _coupling(s, 550.0, tau)[i0[:, :, None], i1[:, None, :]])
+    assert np.allclose(kept, long_way, rtol=1e-12, atol=1e-15)
+
+
 @pytest.mark.parametrize("params", [(0.1, 0.8, -0.2), (0.05, 0.6, 0.3)])
 def test_coupling_over_a_non_lambert_surface_matches_disortpp(params):
     # lunarviz's coupling (direct beam by the full BRDF, the tabulated sky reflected once with its
