@@ -44,6 +44,8 @@ AZIMUTHS = np.array([0.0, 90.0, 180.0])
 MAUNA_LOA = "site:19.536,-155.576,3397"
 #: the Moon's lowest altitude kept [deg]
 MIN_ALTITUDE_DEG = 15.0
+#: the Sun's B − V (Ramírez et al. 2012, ApJ 752, 5: 0.653 ± 0.003)
+SUN_B_MINUS_V = 0.653
 THEJLL_2014 = {"delta_b_minus_v": -0.150, "sigma": 0.005,
                "source": "Thejll et al. 2014, A&A 563, A38 (Mauna Loa, B and V CCD images)"}
 
@@ -166,8 +168,15 @@ def colour(quick: bool) -> dict:
                 continue  # the Moon below the site's horizon (or too low to observe)
             es = d["B"]["earthshine_W_m2"] / d["V"]["earthshine_W_m2"]
             ms = d["B"]["moonshine_W_m2"] / d["V"]["moonshine_W_m2"]
+            # the Earth's own colour toward the Moon that night (its B over V albedo toward it) and
+            # what is left of Δ(B−V): the Moon's reddening of the earthshine (lunar phase ~0°) less
+            # its reddening of the moonshine (at α)
+            earth = SUN_B_MINUS_V - 2.5 * math.log10(d["B"]["earth_visible_lit_albedo"]
+                                                     / d["V"]["earth_visible_lit_albedo"])
+            delta = -2.5 * math.log10(es / ms)
             rows.append({"time": t, "alpha_deg": d["V"]["alpha_deg"], "beta_deg": d["V"]["beta_deg"],
-                         "delta_b_minus_v": -2.5 * math.log10(es / ms)})
+                         "delta_b_minus_v": delta, "earth_b_minus_v": earth,
+                         "moon_term": delta - (earth - SUN_B_MINUS_V)})
         out[brdf_earth] = rows
     return out
 
@@ -237,10 +246,14 @@ def _report(r: dict) -> str:
     lines += ["", "## Colour of the earthshine (Mauna Loa)", "",
               f"Observed: Δ(B−V) = {THEJLL_2014['delta_b_minus_v']} ± {THEJLL_2014['sigma']} mag "
               f"({THEJLL_2014['source']}).",
-              "", "| time | lunar phase angle | Δ(B−V) physical | Δ(B−V) Lambert |", "| --- | --- | --- | --- |"]
+              f"The Earth's own B − V toward the Moon (the Sun's {SUN_B_MINUS_V} less 2.5 log₁₀ of its B over V "
+              "albedo toward it): observed 0.44 ± 0.02 (the same paper). Δ(B−V) = (Earth − Sun) + the Moon's term "
+              "(its reddening of the earthshine, seen near a lunar phase of 0°, less that of the moonshine).",
+              "", "| time | lunar phase angle | Earth phase | Δ(B−V) physical | Earth B − V | the Moon's term | "
+              "Δ(B−V) Lambert |", "| --- | --- | --- | --- | --- | --- | --- |"]
     for p, q in zip(r["colour"]["physical"], r["colour"]["lambert"]):
-        lines.append(f"| {p['time']} | {p['alpha_deg']:.1f}° | {p['delta_b_minus_v']:+.3f} | "
-                     f"{q['delta_b_minus_v']:+.3f} |")
+        lines.append(f"| {p['time']} | {p['alpha_deg']:.1f}° | {p['beta_deg']:.1f}° | {p['delta_b_minus_v']:+.3f} | "
+                     f"{p['earth_b_minus_v']:.3f} | {p['moon_term']:+.3f} | {q['delta_b_minus_v']:+.3f} |")
     return "\n".join(lines) + "\n"
 
 
