@@ -208,6 +208,12 @@ class RpvSurface:
         self.mu, self.w = 0.5 * (x + 1), 0.5 * w
         self.psi = np.arange(180) + 0.5  # 1° midpoints over 0 … 180 (RPV is even in the azimuth)
 
+    def __eq__(self, other):  # keyed by content where the package keeps per-surface tables
+        return isinstance(other, RpvSurface) and other.p == self.p
+
+    def __hash__(self):
+        return hash(("rpv", self.p))
+
     def reflectance(self, wavelength_nm, mu0, mu, phi_deg, geometry=None):
         return rpv(*self.p, mu0, mu, phi_deg)
 

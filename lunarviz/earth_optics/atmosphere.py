@@ -99,7 +99,8 @@ def _coupling(surface, wavelength_nm: float, tau: float) -> np.ndarray:
     Fourier coefficients toward θ_b (:meth:`Surface.fourier_nodes`). Both factors are cubic in
     their zenith angle between the nodes, so the bicubic interpolation of M is the sum over the
     sky's nodes of the two interpolated factors, exactly; kept per class, wavelength and layer
-    (each 47 × 47 × 3 numbers: 53 kB)."""
+    (each 47 × 47 × 3 numbers: 53 kB), keyed by the surface's value (a frozen
+    :class:`~lunarviz.earth_optics.classes.Surface`; another surface must hash by its content)."""
     mu_k, w_k = sky_nodes()
     out = np.einsum("akm,kbm,k->abm", _sky_at_nodes(tau), surface.fourier_nodes(wavelength_nm), w_k * mu_k)
     out.setflags(write=False)

@@ -22,7 +22,7 @@ from lunarviz.earth_optics import ozone, rayleigh
 from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
 from lunarviz.earth_optics.cloud import cloud_reflectance
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, sky_nodes, theta_of
-from lunarviz.earth_optics.land import land_directional, land_reflectance, land_shape
+from lunarviz.earth_optics.land import land_directional, land_parts, land_reflectance, land_shape
 from lunarviz.earth_optics.spectra import class_spectrum
 from lunarviz.errors import LunarvizError
 from lunarviz.options import EARTH_PARAMETER_DEFAULTS, earth_params
@@ -34,7 +34,8 @@ LAND_CLASSES = ("vegetation", "desert", "snow")
 SURFACE_NAMES = ("black", "lambert:A", "ocean", "land", *LAND_CLASSES, "cloud")
 @dataclass(frozen=True)
 class Surface:
-    """One class: ``kind`` (lambert, ocean, land, cloud), its albedo (lambert), land class, wind."""
+    """One class: ``kind`` (lambert, ocean, land, cloud; internally also glint and shape, the sea's
+    and the land's wavelength-free shapes), its albedo (lambert), land class, wind."""
     kind: str
     albedo: float = 0.0
     land_class: str = ""
@@ -64,23 +65,34 @@ class Surface:
             return ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, self.wind_speed, self.chlorophyll)
         if self.kind == "cloud":
             return cloud_reflectance(mu0, mu, phi_deg, self.optical_depth)
+        if self.kind in ("glint", "shape"):  # the sea's and the land's wavelength-free shapes alone
+            return self._wavelength_free(mu0, mu, phi_deg)
         return land_reflectance(self.land_albedo(wavelength_nm), mu0, mu, phi_deg)
 
     def _wavelength_free(self, mu0, mu, phi_deg):
-        if self.kind == "ocean":
+        if self.kind in ("ocean", "glint"):
             from lunarviz.earth_optics.ocean import glint
             return glint(mu0, mu, phi_deg, self.wind_speed)
-        if self.kind == "land":
+        if self.kind in ("land", "shape"):
             return land_shape(mu0, mu, phi_deg)
         return self.reflectance(550.0, mu0, mu, phi_deg)  # Lambert, cloud: grey
 
     def _at_wavelength(self, wavelength_nm, part):
-        if self.kind == "ocean":
-            from lunarviz.earth_optics.ocean import ocean_from_glint
-            return ocean_from_glint(part, wavelength_nm, self.wind_speed, self.chlorophyll)
-        if self.kind == "land":
-            return land_reflectance(self.land_albedo(wavelength_nm), None, None, None, shape=part)
+        if self.kind in ("ocean", "land"):
+            constant, scale = self._parts(wavelength_nm)
+            return constant + scale * part
         return part
+
+    def _parts(self, wavelength_nm) -> tuple[float, float]:
+        """(constant, scale): the sea and the land reflect ρ = constant + scale × their wavelength-free
+        shape (:meth:`_wavelength_free`: the glint, the Ross–Li shape) at λ, so that what is
+        linear in ρ (its albedos, its Fourier coefficients) is the shape's, once, rescaled."""
+        if self.kind == "ocean":
+            from lunarviz.earth_optics.ocean import ocean_parts
+            constant, scale = ocean_parts(wavelength_nm, self.wind_speed, self.chlorophyll)
+        else:
+            constant, scale = land_parts(self.land_albedo(wavelength_nm))
+        return float(constant), float(scale)
 
     def land_albedo(self, wavelength_nm) -> float:
         lam, a = class_spectrum(self.land_class)
@@ -118,6 +130,12 @@ def _albedos(surface: Surface, wavelength_nm) -> tuple[np.ndarray, float]:
     lam = 550.0 if wavelength_nm is None else wavelength_nm
     if surface.kind == "land":  # linear in the kernels' shape: closed form
         return land_directional(surface.land_albedo(lam))
+    if surface.kind == "ocean":  # linear in the glint: its albedos, once, rescaled
+        constant, scale = surface._parts(lam)
+        dhr, bhr = _albedos(Surface("glint", wind_speed=surface.wind_speed), None)
+        out = constant + scale * dhr
+        out.setflags(write=False)
+        return out, constant + scale * bhr
     x, w = np.polynomial.legendre.leggauss(ALBEDO_ORDER)
     mup, wmu = 0.5 * (x + 1.0), 0.5 * w
     nphi = 72  # over 0 … 180 (symmetric)
@@ -138,9 +156,15 @@ def _fourier(surface: Surface, wavelength_nm) -> np.ndarray:
     1° steps: the 1 m s⁻¹ glint lobe is ~10° wide)."""
     mu_k = sky_nodes()[0]
     mu_n = np.cos(np.radians(THETA_DEG))
-    if surface.kind == "lambert":
+    if surface.kind in ("lambert", "ocean", "land"):
+        # a constant's modes, plus the wavelength-free shape's (the glint, the Ross–Li shape) rescaled
+        constant, scale = (surface.albedo, 0.0) if surface.kind == "lambert" else surface._parts(wavelength_nm)
         out = np.zeros((len(mu_k), len(mu_n), 3))
-        out[..., 0] = 2 * np.pi * surface.albedo
+        if scale:
+            shape = Surface("glint" if surface.kind == "ocean" else "shape", wind_speed=surface.wind_speed)
+            out += scale * _fourier(shape, None)
+        out[..., 0] += 2 * np.pi * constant
+        out.setflags(write=False)
         return out
     psi = np.arange(180) + 0.5
     r = surface.reflectance(550.0 if wavelength_nm is None else wavelength_nm,

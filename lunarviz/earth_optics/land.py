@@ -91,19 +91,25 @@ def _anisotropy(albedo):
     return white, np.clip((1.0 - a) / np.maximum(a * (peak - 1.0), 1e-300), 0.0, 1.0)
 
 
-def land_reflectance(albedo, mu0, mu, phi_deg, shape=None) -> np.ndarray:
-    """ρ of the module's equation for a class of white-sky albedo ``albedo``: the shape (held ≥ 0;
-    ``shape``: :func:`land_shape` at these angles, if already at hand) scaled to the albedo, its
-    anisotropy reduced where the directional albedo would pass 1."""
+def land_parts(albedo) -> tuple[np.ndarray, np.ndarray]:
+    """(constant, scale): the class of white-sky albedo ``albedo`` reflects ρ = constant + scale ×
+    :func:`land_shape` (the module's equation: the shape scaled to the albedo, its anisotropy
+    reduced where the directional albedo would pass 1)."""
     a = np.asarray(albedo, float)
     white, keep = _anisotropy(a)
+    return a * (1.0 - keep), keep * a / white
+
+
+def land_reflectance(albedo, mu0, mu, phi_deg, shape=None) -> np.ndarray:
+    """ρ of the module's equation for a class of white-sky albedo ``albedo`` (:func:`land_parts`;
+    ``shape``: :func:`land_shape` at these angles, if already at hand)."""
+    constant, scale = land_parts(albedo)
     shape = land_shape(mu0, mu, phi_deg) if shape is None else shape
-    return a + keep * (shape * (a / white) - a)
+    return constant + scale * shape
 
 
 def land_directional(albedo) -> tuple[np.ndarray, float]:
     """(directional albedo on the tables' zenith nodes, white-sky albedo) of a class: linear in
     the shape's, so in closed form from :func:`_shape_albedos`."""
-    a = float(albedo)
-    white, keep = _anisotropy(a)
-    return a + keep * (_shape_albedos()[1] * (a / white) - a), a
+    constant, scale = land_parts(float(albedo))
+    return constant + scale * _shape_albedos()[1], float(albedo)

@@ -154,8 +154,16 @@ def ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, wind_speed: float,
     return ocean_from_glint(glint(mu0, mu, phi_deg, wind_speed), wavelength_nm, wind_speed, chlorophyll)
 
 
+def ocean_parts(wavelength_nm, wind_speed: float,
+                chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]) -> tuple[np.ndarray, float]:
+    """(constant, scale): the ocean reflects W ρ_wc + (1 − W)(ρ_g + ρ_w) = constant + scale × ρ_g,
+    the glint ρ_g being the only part with a shape and the only part free of λ."""
+    w = whitecap_fraction(wind_speed)
+    return w * WHITECAP_REFLECTANCE + (1.0 - w) * water_leaving(wavelength_nm, chlorophyll), 1.0 - w
+
+
 def ocean_from_glint(glint_rf, wavelength_nm, wind_speed: float,
                      chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]) -> np.ndarray:
     """W ρ_wc + (1 − W)(ρ_g + ρ_w) from the glint ρ_g already at hand."""
-    w = whitecap_fraction(wind_speed)
-    return w * WHITECAP_REFLECTANCE + (1.0 - w) * (glint_rf + water_leaving(wavelength_nm, chlorophyll))
+    constant, scale = ocean_parts(wavelength_nm, wind_speed, chlorophyll)
+    return constant + scale * glint_rf
