@@ -321,3 +321,32 @@ def test_rough_kernel_shades_each_samples_own_albedo_as_numpy(name, kw):
         scale = sum(np.sum(np.abs(r) * e, axis=1) for r in rf) / len(rf)
         assert rough_kernels.handles(m) and np.all(np.abs(got - want) <= 1e-12 * scale + 1e-300)
         assert np.all(np.abs(got_u - 2 * want) <= 2e-12 * scale + 1e-300)
+
+
+@pytest.mark.parametrize("thin", [False, True])
+def test_cap_rule_nodes_kernel_matches_numpy(thin, monkeypatch):
+    """cap_rule's nodes and weights written by the compiled kernel against its numpy expression:
+    the same arithmetic in the same order (measured: equal to the bit, here and on a date's Earth
+    beams); bar 1e-15 (numba's sin/cos may differ from numpy's by an ulp). Two caps, one a
+    split-only cut, crossings; and one axis with the thin blocks' padded orders."""
+    from lunarviz.geometry import quadrature_kernels
+    from lunarviz.geometry.sphere_quadrature import cap_rule
+    if not quadrature_kernels.available():
+        pytest.skip("numba not in use")
+    rng = np.random.default_rng(11)
+    B = 1 if thin else 40
+    axis = rng.normal(size=(B, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    caps = axis[:, None, :] + 0.3 * rng.normal(size=(B, 2, 3))
+    caps /= np.linalg.norm(caps, axis=2, keepdims=True)
+    cos_max = np.cos(rng.uniform(0.5, 1.0, B))
+    kw = dict(caps_u=caps, caps_c=np.cos(rng.uniform(0.3, 0.8, (B, 2))), split_only=np.array([[False, True]] * B),
+              n_t=8, n_phi=8, crossings=True)
+    if thin:
+        kw.update(structured=True, thin=(0.05, 4, 0.01))
+    got = cap_rule(axis, cos_max, **kw)
+    monkeypatch.setattr(quadrature_kernels, "_NUMBA", False)
+    ref = cap_rule(axis, cos_max, **kw)
+    assert got[1].sum() > 0
+    np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(got[1], ref[1], rtol=1e-15, atol=0)

@@ -6,7 +6,10 @@ locates ~10⁵ map points per path and date and sums them into each block's weig
   midpoint test), so the same blocks and coordinates to rounding;
 * :func:`block_design`: a block's Lagrange rows in u_t and u_φ (barycentric form, as
   :func:`lunarviz.geometry.mapped_lune.lagrange_matrix`) and their product with the points'
-  albedo-node factors, written once (the numpy path builds three temporaries of that size).
+  albedo-node factors, written once (the numpy path builds three temporaries of that size);
+* :func:`cap_nodes`: :func:`lunarviz.geometry.sphere_quadrature.cap_rule`'s nodes and weights,
+  each written once in the numpy path's arithmetic order (it builds five temporaries of the
+  output's size: ~10⁶ nodes for a date's Earth beams).
 
 Both agree with their numpy paths to rounding (docs: accuracy)."""
 
@@ -137,6 +140,37 @@ def _block_design(u_t, u_p, ell, gt, bt, gp, bp, A, Lp):
         _lagrange_row(u_p[k], gp, bp, Lp[k])
 
 
+def _cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside, fx, fw, nodes, w):
+    B, R, n_iv, n = fx.shape
+    for b in range(B):
+        for r in range(R):
+            s_t, c_t = st[b, r], ct[b, r]
+            for i in range(n_iv):
+                lo = p_lo[b, r, i]
+                d = p_hi[b, r, i] - lo
+                dw = d * inside[b, r, i]
+                for j in range(n):
+                    phi = lo + d * fx[b, r, i, j]
+                    cp, sp = np.cos(phi), np.sin(phi)
+                    for c in range(3):
+                        nodes[b, r, i, j, c] = c_t * axis[b, c] + s_t * (cp * e1[b, c] + sp * e2[b, c])
+                    w[b, r, i, j] = wt[b, r] * (dw * fw[b, r, i, j])
+
+
+def cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside, fx, fw) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes (B, R, I, n, 3) and solid-angle weights (B, R, I, n) of the rings (``st``, ``ct``,
+    ``wt`` (B, R)) and φ-intervals (``p_lo``, ``p_hi``, ``inside`` (B, R, I)) about ``axis`` with
+    the polar basis ``e1``, ``e2`` (B, 3), at the Gauss variables ``fx`` and weights ``fw`` on
+    [0, 1] ((n,), or (B, R, I, n) for padded orders)."""
+    B, R, n_iv = p_lo.shape
+    n = np.shape(fx)[-1]
+    fx4 = np.broadcast_to(np.asarray(fx, dtype=np.float64), (B, R, n_iv, n))
+    fw4 = np.broadcast_to(np.asarray(fw, dtype=np.float64), (B, R, n_iv, n))
+    nodes, w = np.empty((B, R, n_iv, n, 3)), np.empty((B, R, n_iv, n))
+    _cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside.astype(np.float64), fx4, fw4, nodes, w)
+    return nodes, w
+
+
 def barycentric_weights(nodes: np.ndarray) -> np.ndarray:
     """``1/Π_{j≠i}(x_i - x_j)``: the barycentric weights of Lagrange interpolation on ``nodes``."""
     diff = nodes[:, None] - nodes[None, :]
@@ -162,5 +196,6 @@ if _NUMBA:
         _locate = compiled.jit(_locate, nogil=True)
         _lagrange_row = compiled.jit(_lagrange_row, nogil=True)
         _block_design = compiled.jit(_block_design, nogil=True)
+        _cap_nodes = compiled.jit(_cap_nodes, nogil=True)
     except Exception:  # noqa: BLE001 (a numba that cannot compile: the numpy path)
         _NUMBA = False

@@ -134,14 +134,17 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     fx, fw = gauss_legendre(n_phi)
     if thin is not None:
         fx, fw = _padded_gauss(n_phi, np.repeat(phi_orders, n_t, axis=1))  # (B, R, I, n_phi)
-    phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
-    wphi = ((p_hi - p_lo) * inside)[..., None] * fw
-    w = wt[:, :, None, None] * wphi
-    sphi, cphi = np.sin(phi), np.cos(phi)
-    stt = st[:, :, None, None]
-    nodes = (ct[:, :, None, None, None] * axis[:, None, None, None, :]
-             + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
-                                 + sphi[..., None] * e2[:, None, None, None, :]))
+    if quadrature_kernels.available():  # the same arithmetic, each node written once
+        nodes, w = quadrature_kernels.cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside, fx, fw)
+    else:
+        phi = p_lo[..., None] + (p_hi - p_lo)[..., None] * fx  # (B, R, I, n_phi)
+        wphi = ((p_hi - p_lo) * inside)[..., None] * fw
+        w = wt[:, :, None, None] * wphi
+        sphi, cphi = np.sin(phi), np.cos(phi)
+        stt = st[:, :, None, None]
+        nodes = (ct[:, :, None, None, None] * axis[:, None, None, None, :]
+                 + stt[..., None] * (cphi[..., None] * e1[:, None, None, None, :]
+                                     + sphi[..., None] * e2[:, None, None, None, :]))
     if thin is not None:
         return nodes, w, (t_orders, phi_orders)
     if structured:
