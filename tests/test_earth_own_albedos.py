@@ -142,6 +142,22 @@ def test_the_seas_chlorophyll_and_the_ozone_reach_the_earthshine_and_the_reflect
     assert table()[1] / no_ozone[1] < 0.95  # 600 nm: the Chappuis band's peak, two crossings
 
 
+def test_a_physical_run_records_every_earth_parameter_it_ran_with():
+    # the settings hold only the parameters given; a default changed between versions (the ozone
+    # column, the sea's chlorophyll) must still be readable from the output: all of them, defaults
+    # included, in the result and in the NetCDF attributes
+    import lunarviz
+    from lunarviz.options import EARTH_PARAMETER_DEFAULTS
+    from lunarviz.outputs.tables import to_dataset
+    with pytest.warns(lunarviz.errors.UnboundedRowsWarning):
+        res = lunarviz.run(phases=[90], brdfs=("lambert",), earth_brdf="physical", earth_surface="landocean",
+                           params={"earth": {"ozone_du": 250}})
+    assert res["earth_parameters"] == {**EARTH_PARAMETER_DEFAULTS, "ozone_du": 250.0}
+    attrs = to_dataset(res).attrs["earth_parameters"]
+    assert "ozone_du=250" in attrs and "chlorophyll=0.1" in attrs
+    assert "earth_parameters" not in lunarviz.run(phases=[90], brdfs=("lambert",))
+
+
 def test_a_sweep_reports_the_earths_own_albedos_beside_eq17(tmp_path):
     out = tmp_path / "s.json"
     r = subprocess.run([sys.executable, "-m", "lunarviz", "sweep", "--phases", "30,90,150", "--brdf", "lambert",

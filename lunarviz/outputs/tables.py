@@ -246,6 +246,8 @@ def _global_attrs(ds, result, labels=()) -> None:
     if isinstance(result.get("earth_albedo_at"), (str, list)):
         at = result["earth_albedo_at"]
         ds.attrs["earth_albedo_at"] = at if isinstance(at, str) else ",".join(at)
+    if isinstance(result.get("earth_parameters"), dict):
+        ds.attrs["earth_parameters"] = ", ".join(f"{k}={v:g}" for k, v in result["earth_parameters"].items())
 
 
 #: the model Earth's own albedos (:mod:`lunarviz.workflows.earth_own_albedos`), global attributes

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from lunarviz.options import earth_params
 from lunarviz.parsing import wavelength_label
 from lunarviz.surfaces.earth_albedos import earth_albedos
 from lunarviz.surfaces.maps import map_frame
@@ -28,7 +29,8 @@ MAX_DATES = 12
 def run_earth_albedos(settings) -> dict:
     """``{earth_spherical_albedo, earth_geometric_albedo, earth_phase_integral, earth_albedo_at}``
     of a :class:`~lunarviz.scene.ResolvedScene`: floats for a grey run, ``{label: value}`` for a
-    spectral one (labels as the rows' ``wavelength_nm`` text or ``band``)."""
+    spectral one (labels as the rows' ``wavelength_nm`` text or ``band``); with a physical Earth
+    also ``earth_parameters``, all of them with their defaults (the settings hold only those given)."""
     surface = settings.earth_model()
     request = settings.spectral_request()
     keys = settings.tasks()
@@ -60,4 +62,6 @@ def run_earth_albedos(settings) -> dict:
         out = {k: {label(lab): float(x) for lab, x in zip(request.labels, v)} for k, v in values.items()}
     out["earth_albedo_at"] = list(keys) if settings.times is not None else \
         f"the θ scene (sub-solar longitude {settings.earth_rotation_deg or 0.0:g}°)"
+    if surface.physical:  # every parameter the physical Earth ran with, defaults included
+        out["earth_parameters"] = earth_params(dict(surface.earth_params))
     return out
