@@ -38,14 +38,14 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))  # the independent references live with the tests
+sys.path.insert(0, str(ROOT / "scripts"))
+from earth_phase_curve import SUN_B_MINUS_V  # noqa: E402 (the Sun's B − V both colour figures take)
 
 VIEW_ZENITH = np.arange(0.0, 71.0, 10.0)
 AZIMUTHS = np.array([0.0, 90.0, 180.0])
 MAUNA_LOA = "site:19.536,-155.576,3397"
 #: the Moon's lowest altitude kept [deg]
 MIN_ALTITUDE_DEG = 15.0
-#: the Sun's B − V (Ramírez et al. 2012, ApJ 752, 5: 0.653 ± 0.003)
-SUN_B_MINUS_V = 0.653
 THEJLL_2014 = {"delta_b_minus_v": -0.150, "sigma": 0.005,
                "source": "Thejll et al. 2014, A&A 563, A38 (Mauna Loa, B and V CCD images)"}
 

@@ -19,10 +19,11 @@ import numpy as np
 
 from lunarviz.caches import memoize
 from lunarviz.earth_optics import ozone, rayleigh
+from lunarviz.earth_optics.atmosphere import lambert_toa
 from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
 from lunarviz.earth_optics.cloud import cloud_reflectance
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights, sky_nodes, theta_of
-from lunarviz.earth_optics.land import land_directional, land_parts, land_reflectance, land_shape
+from lunarviz.earth_optics.land import land_directional, land_parts, land_shape
 from lunarviz.earth_optics.spectra import class_spectrum
 from lunarviz.errors import LunarvizError
 from lunarviz.options import EARTH_PARAMETER_DEFAULTS, earth_params
@@ -60,14 +61,10 @@ class Surface:
             return self._at_wavelength(wavelength_nm, geometry[key])
         if self.kind == "lambert":
             return np.full(np.broadcast(np.asarray(mu0), np.asarray(mu), np.asarray(phi_deg)).shape, self.albedo)
-        if self.kind == "ocean":
-            from lunarviz.earth_optics.ocean import ocean_reflectance
-            return ocean_reflectance(wavelength_nm, mu0, mu, phi_deg, self.wind_speed, self.chlorophyll)
         if self.kind == "cloud":
             return cloud_reflectance(mu0, mu, phi_deg, self.optical_depth)
-        if self.kind in ("glint", "shape"):  # the sea's and the land's wavelength-free shapes alone
-            return self._wavelength_free(mu0, mu, phi_deg)
-        return land_reflectance(self.land_albedo(wavelength_nm), mu0, mu, phi_deg)
+        # the sea and the land: their shape at λ; glint and shape: the shapes alone
+        return self._at_wavelength(wavelength_nm, self._wavelength_free(mu0, mu, phi_deg))
 
     def _wavelength_free(self, mu0, mu, phi_deg):
         if self.kind in ("ocean", "glint"):
@@ -201,6 +198,16 @@ def surface_from_name(text: str, wind_speed: float = EARTH_PARAMETER_DEFAULTS["w
     if name == "cloud":
         return Surface("cloud", optical_depth=float(cloud_optical_depth))
     raise LunarvizError(f"earth surface {text!r} is not one of {', '.join(SURFACE_NAMES)}")
+
+
+def lambert_ground_toa(albedo, wavelength_nm: float, mu0, mu, phi_deg, params: dict | None = None) -> np.ndarray:
+    """Top-of-atmosphere reflectance factor of a Lambert ground of ``albedo`` (a scalar, or an
+    array broadcast with the angles: a map's places) under the air above ``surface_hpa`` and the
+    ozone, exactly (:func:`~lunarviz.earth_optics.atmosphere.lambert_toa`): what
+    :func:`toa_reflectance` gives a ``lambert:A`` class, for albedos that vary place by place."""
+    p = earth_params(params)
+    tau = float(rayleigh.optical_depth(wavelength_nm, p["surface_hpa"]))
+    return lambert_toa(tau, albedo, mu0, mu, phi_deg) * ozone.transmittance(wavelength_nm, p["ozone_du"], mu0, mu)
 
 
 def toa_reflectance(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosphere: bool = True,

@@ -100,14 +100,6 @@ def land_parts(albedo) -> tuple[np.ndarray, np.ndarray]:
     return a * (1.0 - keep), keep * a / white
 
 
-def land_reflectance(albedo, mu0, mu, phi_deg, shape=None) -> np.ndarray:
-    """ρ of the module's equation for a class of white-sky albedo ``albedo`` (:func:`land_parts`;
-    ``shape``: :func:`land_shape` at these angles, if already at hand)."""
-    constant, scale = land_parts(albedo)
-    shape = land_shape(mu0, mu, phi_deg) if shape is None else shape
-    return constant + scale * shape
-
-
 def land_directional(albedo) -> tuple[np.ndarray, float]:
     """(directional albedo on the tables' zenith nodes, white-sky albedo) of a class: linear in
     the shape's, so in closed form from :func:`_shape_albedos`."""

@@ -131,14 +131,14 @@ def inherent_optics(wavelength_nm, chlorophyll: float) -> tuple[np.ndarray, np.n
     lam = np.asarray(wavelength_nm, dtype=float)
     chl = float(chlorophyll)
     lam_w, a_w, lam_p, amp, expo = _water_tables()
-    a_p = np.interp(lam, lam_p, amp, right=0.0) * chl ** np.interp(lam, lam_p, expo)
-    a_y = CDOM_FRACTION * float(np.interp(440.0, lam_p, amp)) * chl ** float(np.interp(440.0, lam_p, expo)) \
-        * np.exp(-CDOM_SLOPE_PER_NM * (lam - 440.0))
+    def particles(x):  # A_p Chl^E_p
+        return np.interp(x, lam_p, amp, right=0.0) * chl ** np.interp(x, lam_p, expo)
+    a_y = CDOM_FRACTION * particles(440.0) * np.exp(-CDOM_SLOPE_PER_NM * (lam - 440.0))
     nu = 0.5 * (np.log10(chl) - 0.3) if chl < 2.0 else 0.0
     b_p = 0.416 * chl**0.766 * (lam / 550.0) ** nu
     b_bp = b_p * (0.002 + 0.01 * (0.5 - 0.25 * np.log10(chl)) * (lam / 550.0) ** nu)
     b_w = 0.00288 * (lam / 500.0) ** -4.32
-    return np.interp(lam, lam_w, a_w) + a_p + a_y, 0.5 * b_w + b_bp
+    return np.interp(lam, lam_w, a_w) + particles(lam) + a_y, 0.5 * b_w + b_bp
 
 
 def water_leaving(wavelength_nm, chlorophyll: float = EARTH_PARAMETER_DEFAULTS["chlorophyll"]) -> np.ndarray:

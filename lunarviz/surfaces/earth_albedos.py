@@ -26,8 +26,8 @@ import numpy as np
 
 from lunarviz.caches import memoize
 from lunarviz.earth_optics import ozone, rayleigh
-from lunarviz.earth_optics.atmosphere import lambert_toa, spherical_albedo, transmittance
-from lunarviz.earth_optics.classes import Surface, toa_reflectance
+from lunarviz.earth_optics.atmosphere import spherical_albedo, transmittance
+from lunarviz.earth_optics.classes import Surface, lambert_ground_toa, toa_reflectance
 from lunarviz.earth_optics.disort_tables import THETA_DEG, cubic_weights
 from lunarviz.geometry.sphere_quadrature import gauss_legendre
 from lunarviz.options import earth_params
@@ -109,7 +109,7 @@ def _class_values(model, lam, mu0, p, ground) -> tuple[np.ndarray, np.ndarray]:
         t_o3 = ozone.transmittance(float(lj), p["ozone_du"], mu0[:, None], mu[None, :])
         t_bar = 2.0 * (t_o3 * transmittance(tau, mu)) @ (wmu * mu)
         rho_h[:, j] = black + transmittance(tau, mu0) * t_bar * ground / (1.0 - spherical_albedo(tau) * ground)
-        back[:, j] = lambert_toa(tau, ground, mu0, mu0, 0.0) * ozone.transmittance(float(lj), p["ozone_du"], mu0, mu0)
+        back[:, j] = lambert_ground_toa(ground, float(lj), mu0, mu0, 0.0, p)
     return rho_h, back
 
 

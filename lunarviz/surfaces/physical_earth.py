@@ -22,9 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.earth_optics import ozone, rayleigh
-from lunarviz.earth_optics.atmosphere import lambert_toa
-from lunarviz.earth_optics.classes import Surface, surface_from_name, toa_reflectance
+from lunarviz.earth_optics.classes import Surface, lambert_ground_toa, surface_from_name, toa_reflectance
 from lunarviz.options import earth_params
 from lunarviz.photometry.earth_phase import lambert_phase_function
 from lunarviz.surfaces.earth_spectra import components, facet_weights, weights_at
@@ -81,21 +79,14 @@ def reflectance(surface, weights, map_dirs, normals, to_sun, to_target, waveleng
             albedo = sample_map(surface.clear_map(), map_dirs[rows])
             frac = weights[rows, c] / np.maximum(albedo, 1e-300)  # weights_at folds the map into its weight
             for j, lj in enumerate(lam):
-                out[rows, j] += np.where(albedo > 0, frac, 0.0) * _lambert_map(lj, albedo, ms[rows], mt[rows],
-                                                                             phi[rows], p)
+                out[rows, j] += np.where(albedo > 0, frac, 0.0) * lambert_ground_toa(albedo, lj, ms[rows], mt[rows],
+                                                                                   phi[rows], p)
             continue
         geometry: dict = {}  # the class's wavelength-free parts at these places, computed once
         for j, lj in enumerate(lam):
             out[rows, j] += weights[rows, c] * toa_reflectance(model, lj, ms[rows], mt[rows], phi[rows], params=p,
                                                                geometry=geometry)
     return out
-
-
-def _lambert_map(wavelength, albedo, ms, mt, phi, params):
-    """A clear-sky map's places: Lambert at their own albedo under the layer above the surface and
-    the ozone above it."""
-    return lambert_toa(float(rayleigh.optical_depth(wavelength, params["surface_hpa"])), albedo, ms, mt, phi) \
-        * ozone.transmittance(wavelength, params["ozone_du"], ms, mt)
 
 
 def facet_reflectance(surface, body, frame, sun, target, wavelengths, only=None) -> np.ndarray:
