@@ -701,7 +701,7 @@ def _angles(values, what: str, lo: float, hi: float) -> tuple:
 
 def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = None, wavelengths=(550.0,),
          incidence, emission, azimuth=(0.0,), atmosphere: bool = True, params: dict | None = None,
-         **moon_options) -> list[dict]:
+         stokes: bool = False, **moon_options) -> list[dict]:
     """Rows of a lunar BRDF or of the Earth's top-of-atmosphere reflectance, as ``lunarviz brdf``
     writes them (:mod:`lunarviz.workflows.brdf_tables`).
 
@@ -726,6 +726,10 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
     params : dict, optional
         The Moon's model parameters ``{name: value}`` (w, b, c, …) or the Earth's
         (:data:`lunarviz.options.EARTH_PARAMETERS`: wind_speed [m s⁻¹], cloud_top_hpa, surface_hpa).
+    stokes : bool
+        The Earth, black and ``lambert:A`` grounds: the vector solution, its ``q_reflectance_factor``,
+        ``u_reflectance_factor``, ``dolp`` and ``aolp_deg`` in the meridian plane of the view
+        (:mod:`lunarviz.earth_optics.stokes`).
     **moon_options
         The Moon: ``dhg_convention``, ``h_function``, ``moon_model``.
 
@@ -742,15 +746,16 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
     if body == "earth":
         if surface is None or model is not None or moon_options:
             raise LunarvizError("brdf(body='earth') takes surface=..., not a lunar model or its options")
-        if not isinstance(atmosphere, bool):
-            raise LunarvizError(f"atmosphere={atmosphere!r} must be True or False")
+        for name, flag in (("atmosphere", atmosphere), ("stokes", stokes)):
+            if not isinstance(flag, bool):
+                raise LunarvizError(f"{name}={flag!r} must be True or False")
         lam = _angles(wavelengths, "wavelength", 300.0, 2500.0)
-        return earth_rows(surface, lam, inc, emi, azi, atmosphere=atmosphere, params=params)[0]
+        return earth_rows(surface, lam, inc, emi, azi, atmosphere=atmosphere, params=params, stokes=stokes)[0]
     if body != "moon":
         raise LunarvizError(f"body {body!r} must be 'moon' or 'earth'")
     from lunarviz.photometry.brdf import make_brdf
-    if model is None or surface is not None:
-        raise LunarvizError("brdf(body='moon') takes model=... (lambert, shg, dhg), not a surface")
+    if model is None or surface is not None or stokes is not False:
+        raise LunarvizError("brdf(body='moon') takes model=... (lambert, shg, dhg), not a surface or stokes")
     known = ("dhg_convention", "h_function", "moon_model")
     for k in moon_options:
         if k not in known:

@@ -312,6 +312,9 @@ def _parser_brdf(sub):
     p.add_argument("--surface", default=None, help=" | ".join(SURFACE_NAMES) + " (the Earth)")
     p.add_argument("--no-atmosphere", action="store_true",
                    help="the Earth: the bare surface, no Rayleigh layer and no ozone")
+    p.add_argument("--stokes", action="store_true",
+                   help="the Earth (black and lambert:A grounds): the Stokes vector's Q and U, the degree and "
+                   "angle of linear polarisation, in the meridian plane of the view")
     p.add_argument("--incidence", required=True, help="incidence angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--emission", required=True, help="emission angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")
@@ -663,13 +666,13 @@ def cmd_brdf(a):
                 raise UsageError(f"{BY_NAME[name].cli_flag} is the Moon's: --body earth does not take it")
         lam = parse_float_list(a.wavelengths, "wavelengths", 300.0, 2500.0)
         rows, settings = earth_rows(a.surface, lam, inc, emi, azi, atmosphere=not a.no_atmosphere,
-                                    params=parse_params(a.param, ["earth"]).get("earth", {}))
+                                    params=parse_params(a.param, ["earth"]).get("earth", {}), stokes=a.stokes)
     else:
         from lunarviz.photometry.brdf import make_brdf
         if a.model is None:
             raise UsageError("the Moon's table needs --model (lambert, shg, dhg or hapke-style presets)")
-        if a.surface is not None or a.no_atmosphere:
-            raise UsageError("--surface and --no-atmosphere are the Earth's: add --body earth")
+        if a.surface is not None or a.no_atmosphere or a.stokes:
+            raise UsageError("--surface, --no-atmosphere and --stokes are the Earth's: add --body earth")
         model_name = _brdf_list(a.model)
         if len(model_name) != 1:
             raise UsageError(f"--model takes one BRDF, got {a.model!r}")

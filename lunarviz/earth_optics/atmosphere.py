@@ -35,7 +35,7 @@ from lunarviz.earth_optics.disort_tables import RAYLEIGH_TAU, THETA_DEG, cubic_w
 from lunarviz.errors import LunarvizError
 
 
-def _tau_weights(tau):
+def tau_weights(tau):
     tau = np.asarray(tau, dtype=float)
     # below the first node the quantities over τ are held (single scattering: exact to O(τ))
     if np.any(tau > RAYLEIGH_TAU[-1] * (1 + 1e-12)):
@@ -48,7 +48,7 @@ def path_reflectance(tau: float, mu0, mu, phi_deg) -> np.ndarray:
     """ρ_R: the Rayleigh layer's reflectance factor over a black surface (broadcast over μ₀, μ, φ;
     φ = 0 with the viewer on the Sun's side)."""
     t = load("rayleigh")
-    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    ti, tw = tau_weights(np.asarray(tau, float).reshape(1))
     per_tau = np.tensordot(tw[0], t["rho_m"][ti[0]] / RAYLEIGH_TAU[ti[0], None, None, None], axes=1) * tau
     mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
     i0, w0 = cubic_weights(THETA_DEG, theta_of(mu0))
@@ -61,7 +61,7 @@ def path_reflectance(tau: float, mu0, mu, phi_deg) -> np.ndarray:
 def transmittance(tau: float, mu) -> np.ndarray:
     """T(μ): total (direct + diffuse) transmittance of the layer for a beam at cos θ = μ."""
     t = load("rayleigh")
-    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    ti, tw = tau_weights(np.asarray(tau, float).reshape(1))
     loss = np.tensordot(tw[0], (1.0 - t["trans"][ti[0]]) / RAYLEIGH_TAU[ti[0], None], axes=1) * tau
     i1, w1 = cubic_weights(THETA_DEG, theta_of(mu))
     return 1.0 - np.einsum("...a,...a->...", w1, loss[i1])
@@ -70,7 +70,7 @@ def transmittance(tau: float, mu) -> np.ndarray:
 def spherical_albedo(tau: float) -> float:
     """S: the layer's reflectance for isotropic light from below."""
     t = load("rayleigh")
-    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    ti, tw = tau_weights(np.asarray(tau, float).reshape(1))
     return float(np.dot(tw[0], t["sph"][ti[0]] / RAYLEIGH_TAU[ti[0]]) * tau)
 
 
@@ -78,7 +78,7 @@ def spherical_albedo(tau: float) -> float:
 def _sky_at_nodes(tau: float) -> np.ndarray:
     """(N, K, 3) :func:`sky_modes` at the tables' zenith nodes."""
     t = load("rayleigh")
-    ti, tw = _tau_weights(np.asarray(tau, float).reshape(1))
+    ti, tw = tau_weights(np.asarray(tau, float).reshape(1))
     out = np.tensordot(tw[0], t["sky_m"][ti[0]] / RAYLEIGH_TAU[ti[0], None, None, None], axes=1) * tau
     out.setflags(write=False)
     return out

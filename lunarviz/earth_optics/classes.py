@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lunarviz.caches import memoize
-from lunarviz.earth_optics import ozone, rayleigh
+from lunarviz.earth_optics import ozone, rayleigh, stokes
 from lunarviz.earth_optics.atmosphere import lambert_toa
 from lunarviz.earth_optics.atmosphere import toa_reflectance as couple
 from lunarviz.earth_optics.cloud import cloud_reflectance
@@ -222,3 +222,23 @@ def toa_reflectance(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, at
     tau = float(rayleigh.optical_depth(wavelength_nm, top))
     return couple(tau, surface, wavelength_nm, mu0, mu, phi_deg, geometry) \
         * ozone.transmittance(wavelength_nm, p["ozone_du"], mu0, mu)
+
+
+def toa_stokes(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosphere: bool = True,
+               params: dict | None = None) -> np.ndarray:
+    """(..., 3): the top-of-atmosphere reflectance factors of the Stokes vector (I, Q, U) of a
+    ``black`` or ``lambert:A`` class at λ under the air above ``surface_hpa`` and the ozone, in
+    the meridian plane of the view (:mod:`.stokes`: the vector solution; its I differs from
+    :func:`toa_reflectance`'s scalar one by up to a few per cent). A bare Lambert surface reflects
+    unpolarised light. Other classes: one line naming the class (their polarisation, the sea's
+    glint above all, is not modelled)."""
+    if not surface.lambertian:
+        raise LunarvizError(f"the polarisation of the earth surface class {surface.kind!r} is not modelled: "
+                            "Stokes vectors are for black and lambert:A grounds")
+    p = earth_params(params)
+    mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
+    if not atmosphere:
+        return np.stack([np.full(mu0.shape, surface.albedo), np.zeros(mu0.shape), np.zeros(mu0.shape)], -1)
+    tau = float(rayleigh.optical_depth(wavelength_nm, p["surface_hpa"]))
+    return stokes.lambert_stokes(tau, surface.albedo, mu0, mu, phi) \
+        * ozone.transmittance(wavelength_nm, p["ozone_du"], mu0, mu)[..., None]

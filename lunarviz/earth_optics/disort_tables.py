@@ -44,9 +44,9 @@ def sky_nodes() -> tuple[np.ndarray, np.ndarray]:
     return mu, wt
 
 
-@memoize(maxsize=2)
+@memoize(maxsize=3)
 def load(name: str) -> dict:
-    """The arrays of ``name``.npz (``rayleigh`` or ``cloud``), read-only."""
+    """The arrays of ``name``.npz (``rayleigh``, ``cloud`` or ``rayleigh_stokes``), read-only."""
     with np.load(TABLE_DIR / f"{name}.npz") as z:
         out = {k: z[k] for k in z.files}
     for v in out.values():

@@ -4,14 +4,18 @@
 Columns: ``incidence_deg``, ``emission_deg``, ``azimuth_deg`` (0 = the viewer on the source's
 side), ``phase_deg``, ``brdf_per_sr`` and ``reflectance_factor`` (π · BRDF); the Earth's rows add
 ``wavelength_nm`` and give its top-of-atmosphere reflectance factor πL/(μ₀E₀) (the bare surface's
-with ``atmosphere=False``).
+with ``atmosphere=False``); with ``stokes=True`` (black and Lambert grounds) the reflectance factor
+is the vector solution's I, and the rows add ``q_reflectance_factor`` and ``u_reflectance_factor``
+(πQ/(μ₀E₀), πU/(μ₀E₀) in the meridian plane of the view), ``dolp`` and ``aolp_deg``
+(:mod:`lunarviz.earth_optics.stokes`: the reference plane and the sign of U).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from lunarviz.earth_optics.classes import surface_from_name, toa_reflectance
+from lunarviz.earth_optics.classes import surface_from_name, toa_reflectance, toa_stokes
+from lunarviz.earth_optics.stokes import degree_and_angle
 from lunarviz.errors import LunarvizError
 from lunarviz.options import earth_params
 from lunarviz.photometry.brdf import brdf_from_angles, half_angle_from_angles
@@ -46,10 +50,17 @@ def lunar_rows(model, inc, emi, azi) -> list[dict]:
     return [_row(g, p, v) for g, p, v in zip(grid, phase, f)]
 
 
-def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True, params: dict | None = None
-               ) -> tuple[list[dict], dict]:
+def _stokes_columns(st) -> dict:
+    dolp, aolp = degree_and_angle(st)
+    return {"q_reflectance_factor": float(st[1]), "u_reflectance_factor": float(st[2]), "dolp": float(dolp),
+            "aolp_deg": float(aolp)}
+
+
+def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True, params: dict | None = None,
+               stokes: bool = False) -> tuple[list[dict], dict]:
     """Rows of the Earth's class ``surface`` (:func:`lunarviz.earth_optics.classes.surface_from_name`)
-    at each wavelength [nm], and the settings that made them."""
+    at each wavelength [nm], and the settings that made them; ``stokes``: the Stokes vector's
+    columns too (module docstring)."""
     if "wavelength_nm" in (params or {}):
         raise LunarvizError("earth.wavelength_nm is a grey sweep's wavelength: the Earth's table takes --wavelengths")
     if "ground_albedo" in (params or {}):
@@ -63,10 +74,17 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
     rows = []
     for lam in wavelengths:
+        if stokes:
+            st = toa_stokes(s, float(lam), mu0, mu, grid[:, 2], atmosphere=atmosphere, params=p)
+            rows += [{"wavelength_nm": float(lam), **_row(g, ph, v[0]), **_stokes_columns(v)}
+                     for g, ph, v in zip(grid, phase, st)]
+            continue
         rf = toa_reflectance(s, float(lam), mu0, mu, grid[:, 2], atmosphere=atmosphere, params=p)
         rows += [{"wavelength_nm": float(lam), **_row(g, ph, f)} for g, ph, f in zip(grid, phase, rf)]
     if not atmosphere:  # the bare surface: no air, no ozone above it
         p = {k: v for k, v in p.items() if k not in ("ozone_du", "cloud_top_hpa", "surface_hpa")}
     settings = {"body": "earth", "surface": surface, "atmosphere": "rayleigh+ozone" if atmosphere else "none",
-                "params": p, "model": "lunarviz.earth_optics (packaged DISORT tables)"}
+                "params": p, "model": "lunarviz.earth_optics (packaged DISORT tables)", "stokes": bool(stokes)}
+    if stokes:
+        settings["model"] = "lunarviz.earth_optics.stokes (packaged vector table, SASKTRAN2)"
     return rows, settings
