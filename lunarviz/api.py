@@ -754,8 +754,10 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
     if body != "moon":
         raise LunarvizError(f"body {body!r} must be 'moon' or 'earth'")
     from lunarviz.photometry.brdf import make_brdf
-    if model is None or surface is not None or stokes is not False:
-        raise LunarvizError("brdf(body='moon') takes model=... (lambert, shg, dhg), not a surface or stokes")
+    if model is None or surface is not None:
+        raise LunarvizError("brdf(body='moon') takes model=... (lambert, shg, dhg), not a surface")
+    if stokes is not False:
+        raise LunarvizError(f"stokes={stokes!r}: the Moon's polarisation is not modelled (stokes is the Earth's)")
     known = ("dhg_convention", "h_function", "moon_model")
     for k in moon_options:
         if k not in known:

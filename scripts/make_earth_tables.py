@@ -256,6 +256,12 @@ def rayleigh_stokes_tables() -> dict:
         q_m[:, i] = _modes(black[..., 0, 1], black[..., 2, 1], black[..., 3, 1])
         u90, u45 = black[..., 2, 2], black[..., 1, 2]
         u_m[:, i] = np.stack([u90, u45 - u90 / np.sqrt(2.0)], -1)  # U = b₁ sin φ + b₂ sin 2φ
+        # at nadir the meridian plane is undefined and SASKTRAN2 gives Q in a fixed frame (the
+        # same at every azimuth); lunarviz's is the limit of the view's meridian plane along its
+        # azimuth φ, turned by φ from that frame: Q = Q_n cos 2φ, U = −Q_n sin 2φ
+        q_nadir = q_m[:, i, 0, 0].copy()
+        q_m[:, i, 0], u_m[:, i, 0] = 0.0, 0.0
+        q_m[:, i, 0, 2], u_m[:, i, 0, 1] = q_nadir, -q_nadir
         print(f"Stokes μ₀ = {mu0:.4f}: done", flush=True)
     # a Lambert ground: X(μ₀, μ) = T(μ₀) t(μ) for I and Q; by reciprocity t = T for I, so one beam
     # gives T(μ) = X_I(μ*, μ)/√X_I(μ*, μ*) and t_Q(μ) = X_Q(μ*, μ)/T(μ*); a second beam checks it

@@ -233,8 +233,8 @@ def toa_stokes(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosph
     unpolarised light. Other classes: one line naming the class (their polarisation, the sea's
     glint above all, is not modelled)."""
     if not surface.lambertian:
-        raise LunarvizError(f"the polarisation of the earth surface class {surface.kind!r} is not modelled: "
-                            "Stokes vectors are for black and lambert:A grounds")
+        raise LunarvizError(f"the polarisation of the earth surface class {surface.land_class or surface.kind!r} "
+                            "is not modelled: Stokes vectors are for black and lambert:A grounds")
     p = earth_params(params)
     mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
     if not atmosphere:

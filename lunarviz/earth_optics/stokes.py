@@ -24,7 +24,8 @@ meridian plane, as Rayleigh light is in the principal plane) and U = I(+45°) �
 the direction (e_∥ + e_⊥)/√2 (turning from e_∥ toward e_⊥: counterclockwise as the viewer sees the
 light arrive). The azimuth φ is the viewer's azimuth less the Sun's, both seen from the place,
 counterclockwise about the local zenith (φ = 0: the viewer on the Sun's side); U is odd in φ
-(mirror images carry opposite U). The angle of linear polarisation ½ atan2(U, Q) is measured from
+(mirror images carry opposite U). At nadir, where z × k vanishes, the meridian plane is the limit
+of the view's along its azimuth φ. The angle of linear polarisation ½ atan2(U, Q) is measured from
 e_∥ toward e_⊥.
 
 Interpolation as the scalar tables (:mod:`.disort_tables`): cubic in log τ of the quantities over

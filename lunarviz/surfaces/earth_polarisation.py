@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.earth_optics.classes import Surface, toa_stokes
+from lunarviz.earth_optics.stokes import rotate
 from lunarviz.surfaces.physical_earth import place_grid
 
 #: latitude rows of the place grid (1°); longitudes twice as many
@@ -71,7 +72,5 @@ def disc_stokes(phase_deg: float, wavelength_nm: float, ground_albedo: float, pa
     e_perp = np.cross(-sun, view)
     e_perp = e_perp / np.linalg.norm(e_perp) if np.linalg.norm(e_perp) > 1e-12 else np.array([0.0, 0.0, 1.0])
     e_par = np.cross(e_perp, view)
-    c, s = e_par_m @ e_par, e_perp_m @ e_par
-    c2, s2 = c * c - s * s, 2.0 * s * c
-    turned = np.stack([st[:, 0], c2 * st[:, 1] + s2 * st[:, 2], -s2 * st[:, 1] + c2 * st[:, 2]], -1)
+    turned = rotate(st, np.degrees(np.arctan2(e_perp_m @ e_par, e_par_m @ e_par)))
     return np.einsum("i,ij->j", d["weight"], turned)

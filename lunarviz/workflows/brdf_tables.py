@@ -71,6 +71,9 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     grid, phase = _geometry(inc, emi, azi, len(wavelengths))
     s = surface_from_name(surface, wind_speed=p["wind_speed"], cloud_optical_depth=p["cloud_optical_depth"],
                           chlorophyll=p["chlorophyll"])
+    if stokes and not s.lambertian:
+        raise LunarvizError(f"--stokes: the polarisation of the earth surface {surface!r} is not modelled (Stokes "
+                            "vectors are for black and lambert:A grounds)")
     mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
     rows = []
     for lam in wavelengths:
@@ -84,7 +87,7 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     if not atmosphere:  # the bare surface: no air, no ozone above it
         p = {k: v for k, v in p.items() if k not in ("ozone_du", "cloud_top_hpa", "surface_hpa")}
     settings = {"body": "earth", "surface": surface, "atmosphere": "rayleigh+ozone" if atmosphere else "none",
-                "params": p, "model": "lunarviz.earth_optics (packaged DISORT tables)", "stokes": bool(stokes)}
+                "params": p, "model": "lunarviz.earth_optics (packaged DISORT tables)"}
     if stokes:
-        settings["model"] = "lunarviz.earth_optics.stokes (packaged vector table, SASKTRAN2)"
+        settings.update(stokes=True, model="lunarviz.earth_optics.stokes (packaged vector table, SASKTRAN2)")
     return rows, settings
