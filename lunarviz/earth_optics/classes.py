@@ -230,13 +230,22 @@ def toa_stokes(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosph
     ``black`` or ``lambert:A`` class at λ under the air above ``surface_hpa`` and the ozone, in
     the meridian plane of the view (:mod:`.stokes`: the vector solution; its I differs from
     :func:`toa_reflectance`'s scalar one by up to a few per cent). A bare Lambert surface reflects
-    unpolarised light. Other classes: one line naming the class (their polarisation, the sea's
-    glint above all, is not modelled)."""
-    if not surface.lambertian:
-        raise LunarvizError(f"the polarisation of the earth surface class {surface.land_class or surface.kind!r} "
-                            "is not modelled: Stokes vectors are for black and lambert:A grounds")
+    unpolarised light; the bare sea (``atmosphere=False``) its polarised glint
+    (:func:`~lunarviz.earth_optics.ocean.glint_stokes`) beside its unpolarised whitecaps and water.
+    Other classes, and the sea under the air: one line naming the class (not modelled)."""
+    name = surface.land_class or surface.kind
     p = earth_params(params)
     mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
+    if surface.kind == "ocean" and not atmosphere:
+        from lunarviz.earth_optics.ocean import glint_stokes
+        constant, scale = surface._parts(wavelength_nm)
+        out = scale * glint_stokes(mu0, mu, phi, surface.wind_speed)
+        out[..., 0] += constant
+        return out
+    if not surface.lambertian:
+        where = " under the air (the bare sea's glint is: no atmosphere)" if surface.kind == "ocean" else ""
+        raise LunarvizError(f"the polarisation of the earth surface {name!r} is not modelled{where}: Stokes vectors "
+                            "are for black and lambert:A grounds")
     if not atmosphere:
         return np.stack([np.full(mu0.shape, surface.albedo), np.zeros(mu0.shape), np.zeros(mu0.shape)], -1)
     tau = float(rayleigh.optical_depth(wavelength_nm, p["surface_hpa"]))

@@ -79,14 +79,21 @@ def whitecap_fraction(wind_speed: float) -> float:
     return 2.95e-6 * float(wind_speed) ** 3.52
 
 
-def fresnel(cos_incidence, n: float = WATER_INDEX) -> np.ndarray:
-    """Unpolarised Fresnel reflectance of a planar interface air → medium of index n."""
+def fresnel_parts(cos_incidence, n: float = WATER_INDEX) -> tuple[np.ndarray, np.ndarray]:
+    """(|r_s|², |r_p|²): Fresnel reflectances of a planar interface air → medium of index n for
+    light polarised across (s) and in (p) the plane of incidence."""
     ci = np.clip(np.asarray(cos_incidence, dtype=float), 0.0, 1.0)
     st2 = (1.0 - ci * ci) / (n * n)
     ct = np.sqrt(np.clip(1.0 - st2, 0.0, 1.0))
     rs = (ci - n * ct) / (ci + n * ct)
     rp = (n * ci - ct) / (n * ci + ct)
-    return 0.5 * (rs * rs + rp * rp)
+    return rs * rs, rp * rp
+
+
+def fresnel(cos_incidence, n: float = WATER_INDEX) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a planar interface air → medium of index n."""
+    rs2, rp2 = fresnel_parts(cos_incidence, n)
+    return 0.5 * (rs2 + rp2)
 
 
 def _smith_lambda(mu, sigma):
@@ -114,6 +121,32 @@ def glint(mu0, mu, phi_deg, wind_speed: float, shadowing: bool = True) -> np.nda
         sig = np.sqrt(sig2)
         out = out / (1.0 + _smith_lambda(mu0, sig) + _smith_lambda(mu, sig))
     return np.where((mu0 > GRAZING_MU) & (mu > GRAZING_MU), out, 0.0)
+
+
+def glint_stokes(mu0, mu, phi_deg, wind_speed: float) -> np.ndarray:
+    """(..., 3): the glint's reflectance factors (I, Q, U) for unpolarised sunlight, in the meridian
+    plane of the view (the conventions of :mod:`lunarviz.earth_optics.stokes`). Each facet reflects
+    specularly, so the plane of incidence is the plane of scattering (Sun, facet, viewer) and the
+    light is polarised across it by Fresnel's law: Q/I = (|r_p|² − |r_s|²)/(|r_p|² + |r_s|²) there
+    at the facets' incidence ω (cos 2ω = the Sun's direction · the viewer's), turned into the
+    meridian plane. I is :func:`glint`."""
+    mu0, mu, phi = np.broadcast_arrays(np.asarray(mu0, float), np.asarray(mu, float), np.asarray(phi_deg, float))
+    s0, s1, ph = np.sqrt(np.clip(1 - mu0 * mu0, 0, None)), np.sqrt(np.clip(1 - mu * mu, 0, None)), np.radians(phi)
+    k0 = np.stack([-s0, np.zeros_like(s0), -mu0], -1)  # sunlight (the Sun at azimuth 0)
+    k = np.stack([s1 * np.cos(ph), s1 * np.sin(ph), mu], -1)  # toward the viewer
+    cosw = np.sqrt(np.clip(0.5 * (1.0 - np.einsum("...i,...i->...", k0, k)), 0.0, 1.0))
+    rs2, rp2 = fresnel_parts(cosw)
+    i = glint(mu0, mu, phi, wind_speed)
+    e_perp = np.cross(k0, k)
+    norm = np.linalg.norm(e_perp, axis=-1, keepdims=True)
+    e_perp = np.where(norm > 1e-12, e_perp / np.maximum(norm, 1e-300), [0.0, 1.0, 0.0])  # (backscatter: any)
+    e_par = np.cross(e_perp, k)
+    m_perp = np.stack([-np.sin(ph), np.cos(ph), np.zeros_like(ph)], -1)  # z × k/|z × k| (at nadir its limit)
+    m_par = np.cross(m_perp, k)
+    eta = np.degrees(np.arctan2(np.einsum("...i,...i->...", e_perp, m_par), np.einsum("...i,...i->...", e_par, m_par)))
+    q = i * np.divide(rp2 - rs2, rp2 + rs2, out=np.zeros_like(i), where=rp2 + rs2 > 0)
+    from lunarviz.earth_optics.stokes import rotate
+    return rotate(np.stack([i, q, np.zeros_like(i)], -1), eta)
 
 
 @memoize(maxsize=1)

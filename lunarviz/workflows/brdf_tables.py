@@ -4,7 +4,7 @@
 Columns: ``incidence_deg``, ``emission_deg``, ``azimuth_deg`` (0 = the viewer on the source's
 side), ``phase_deg``, ``brdf_per_sr`` and ``reflectance_factor`` (π · BRDF); the Earth's rows add
 ``wavelength_nm`` and give its top-of-atmosphere reflectance factor πL/(μ₀E₀) (the bare surface's
-with ``atmosphere=False``); with ``stokes=True`` (black and Lambert grounds) the reflectance factor
+with ``atmosphere=False``); with ``stokes=True`` (black and Lambert grounds, the bare sea) the reflectance factor
 is the vector solution's I, and the rows add ``q_reflectance_factor`` and ``u_reflectance_factor``
 (πQ/(μ₀E₀), πU/(μ₀E₀) in the meridian plane of the view), ``dolp`` and ``aolp_deg``
 (:mod:`lunarviz.earth_optics.stokes`: the reference plane and the sign of U).
@@ -71,9 +71,6 @@ def earth_rows(surface: str, wavelengths, inc, emi, azi, atmosphere: bool = True
     grid, phase = _geometry(inc, emi, azi, len(wavelengths))
     s = surface_from_name(surface, wind_speed=p["wind_speed"], cloud_optical_depth=p["cloud_optical_depth"],
                           chlorophyll=p["chlorophyll"])
-    if stokes and not s.lambertian:
-        raise LunarvizError(f"--stokes: the polarisation of the earth surface {surface!r} is not modelled (Stokes "
-                            "vectors are for black and lambert:A grounds)")
     mu0, mu = np.cos(np.radians(grid[:, 0])), np.cos(np.radians(grid[:, 1]))
     rows = []
     for lam in wavelengths:
