@@ -1,7 +1,7 @@
 """The crescent Earth in a spherical shell: the plane-parallel tables against a spherical-shell code.
 
 lunarviz's Rayleigh layer is plane-parallel with zenith angles held at 89° beyond it; a crescent
-Earth is seen and lit at grazing angles. Here a whole Earth of Rayleigh air (550 nm, τ = 0.0973,
+Earth is seen and lit at grazing angles. Here a whole Earth of Rayleigh air (550 nm, lunarviz's τ = 0.0971,
 no ozone) over Lambert grounds of albedo 0, 0.06 and 0.3 is summed place by place
 (:func:`lunarviz.surfaces.earth_polarisation.disc_places`: the weights of the geometric albedo) with
 each place's reflectance factor from
@@ -13,9 +13,9 @@ each place's reflectance factor from
 * lunarviz's scalar tables (:func:`lunarviz.earth_optics.classes.lambert_ground_toa`).
 
 Writes ``benchmarks/earth_physical/crescent_spherical.md``. Needs ``pip install -e ".[earth-tables]"``
-(sasktran2); about 10 minutes a phase angle at the default 2° places (one solution per place).
+(sasktran2); about 10 minutes a phase angle at the default 3° places (one solution per place).
 
-Run ``python scripts/earth_crescent_spherical.py [--phases 90,120,150,165] [--rows 90]``.
+Run ``python scripts/earth_crescent_spherical.py [--phases 90,120,150,165] [--rows 60]``.
 """
 
 from __future__ import annotations
@@ -27,12 +27,14 @@ from pathlib import Path
 import numpy as np
 from make_earth_tables import rayleigh_greek
 
+from lunarviz.earth_optics import rayleigh
 from lunarviz.earth_optics.classes import lambert_ground_toa
 from lunarviz.surfaces.earth_polarisation import disc_places
 
 SCALE_HEIGHT_M, TOP_M = 8000.0, 100000.0
 ALBEDOS = np.array([0.0, 0.06, 0.3])
-WAVELENGTH_NM, TAU = 550.0, 0.0973  # Bodhaine et al. (1999) at sea level (lunarviz.earth_optics.rayleigh)
+WAVELENGTH_NM = 550.0
+TAU = float(rayleigh.optical_depth(WAVELENGTH_NM))  # lunarviz's own at sea level (Bodhaine et al. 1999)
 
 
 def place_reflectance(mu0: float, mu: float, phi_deg: float, spherical: bool, streams: int = 16) -> np.ndarray:
@@ -59,12 +61,12 @@ def place_reflectance(mu0: float, mu: float, phi_deg: float, spherical: bool, st
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--phases", default="90,120,150,165", help="phase angles [deg]")
-    ap.add_argument("--rows", type=int, default=90, help="latitude rows of the places (90: 2° cells)")
+    ap.add_argument("--rows", type=int, default=60, help="latitude rows of the places (60: 3° cells)")
     ap.add_argument("--out", default="benchmarks/earth_physical/crescent_spherical.md")
     a = ap.parse_args(argv)
     lines = ["# The crescent Earth in a spherical shell", "",
              f"Command: `python scripts/earth_crescent_spherical.py --phases {a.phases} --rows {a.rows}`. "
-             f"A whole Earth of Rayleigh air (550 nm, τ = {TAU}, scale height 8 km, no ozone) over Lambert "
+             f"A whole Earth of Rayleigh air (550 nm, τ = {TAU:.5f}, scale height 8 km, no ozone) over Lambert "
              "grounds, summed over its lit and seen places with the geometric albedo's weights; each "
              "place's reflectance by SASKTRAN2 in spherical and in plane-parallel geometry, and by "
              "lunarviz's plane-parallel tables (zenith angles held at 89° beyond it).", "",

@@ -74,7 +74,7 @@ def single_scattering(tau, mu0, mu, phi_deg):
 @pytest.mark.parametrize("mu0", [1.0, 0.8, 0.35])
 def test_single_scattering_limit(mu0):
     # at the table's thinnest layer (τ = 1e-4) the light is single scattering but for O(τ) ~ 3e-4
-    # of multiple scattering (measured: 2.7e-4-4.3e-4 of I): 1e-3 of I is the bar, on I, Q and U,
+    # of multiple scattering (measured: 2e-4-3.5e-4 of I): 1e-3 of I is the bar, on I, Q and U,
     # at azimuths on both sides of the principal plane (U's sign)
     # (and within 4° of nadir, where the table's nadir node takes the meridian plane's limit)
     tau = RAYLEIGH_TAU[0]
@@ -277,8 +277,8 @@ GLINT_GEOMETRIES = [(30.0, 30.0, 180.0), (30.0, 40.0, 150.0), (30.0, 40.0, 210.0
 
 def test_bare_sea_glint_against_the_coxmunk_package():
     # Harmel's coxmunk gives the glint's Stokes vector in the meridian plane: I and Q equal to 1e-6
-    # (the scalar glint's bar); its U has the opposite sign, its azimuth (or U) counted the other
-    # way round: lunarviz's sign is the one the vector construction below and the Rayleigh table share
+    # (the scalar glint's bar); its U has the opposite sign (the same azimuth, U of the other
+    # handedness): lunarviz's sign is the one the vector construction below and the Rayleigh table share
     cm = pytest.importorskip("coxmunk.coxmunk")
     from lunarviz.earth_optics.ocean import glint_stokes
     for sza, vza, azi in GLINT_GEOMETRIES:

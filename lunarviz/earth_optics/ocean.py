@@ -38,7 +38,8 @@ below 2 mg m⁻³ and 0 above (Morel & Maritorena 2001, *J. Geophys. Res.* 106, 
 4.6 m⁻¹: the ocean is black in the near infrared but for its glint and whitecaps.
 
 The total is W ρ_wc + (1 − W)(ρ_g + ρ_w). Neglected: the slopes' anisotropy with wind direction
-(Cox & Munk's σ_u², σ_c²), polarisation, whitecaps' spectral fall in the near infrared (Frouin et
+(Cox & Munk's σ_u², σ_c²), the polarisation of the whitecaps and the water's light (the glint's is
+:func:`glint_stokes`), whitecaps' spectral fall in the near infrared (Frouin et
 al. 1996), the angular shape of the water's light (Q is 3-5 sr, not π: the nadir radiance is
 ~20-35 % lower and the grazing one higher; Morel & Gentili 1996), coastal (case 2) water,
 Raman scattering and fluorescence.

@@ -30,9 +30,10 @@ e_∥ toward e_⊥.
 
 Interpolation as the scalar tables (:mod:`.disort_tables`): cubic in log τ of the quantities over
 τ, cubic in the zenith angles (2° nodes, 1° beyond 86°, held at 89°). Neglected: circular
-polarisation (V = 0 for Rayleigh scattering of sunlight), the polarisation of the ocean's glint,
-land and clouds (their Q and U are not modelled: only black and Lambert grounds are), ozone's
-(none: it absorbs I, Q and U alike).
+polarisation (V = 0 for Rayleigh scattering of sunlight), the polarisation of land, clouds and
+the sea under the air (only black and Lambert grounds are coupled with the layer; the bare sea's
+glint is :func:`lunarviz.earth_optics.ocean.glint_stokes`), ozone's (none: it absorbs I, Q and U
+alike).
 """
 
 from __future__ import annotations
