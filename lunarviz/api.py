@@ -727,7 +727,8 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
         The Moon's model parameters ``{name: value}`` (w, b, c, …) or the Earth's
         (:data:`lunarviz.options.EARTH_PARAMETERS`: wind_speed [m s⁻¹], cloud_top_hpa, surface_hpa).
     stokes : bool
-        The Earth, black and ``lambert:A`` grounds: the vector solution, its ``q_reflectance_factor``,
+        The Earth, black and ``lambert:A`` grounds and the bare sea (``atmosphere=False``): the
+        vector solution, its ``q_reflectance_factor``,
         ``u_reflectance_factor``, ``dolp`` and ``aolp_deg`` in the meridian plane of the view
         (:mod:`lunarviz.earth_optics.stokes`).
     **moon_options

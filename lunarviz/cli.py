@@ -313,8 +313,8 @@ def _parser_brdf(sub):
     p.add_argument("--no-atmosphere", action="store_true",
                    help="the Earth: the bare surface, no Rayleigh layer and no ozone")
     p.add_argument("--stokes", action="store_true",
-                   help="the Earth (black and lambert:A grounds): the Stokes vector's Q and U, the degree and "
-                   "angle of linear polarisation, in the meridian plane of the view")
+                   help="the Earth (black and lambert:A grounds; the sea with --no-atmosphere): the Stokes "
+                   "vector's Q and U, the degree and angle of linear polarisation, in the meridian plane of the view")
     p.add_argument("--incidence", required=True, help="incidence angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--emission", required=True, help="emission angles [deg]: a,b,c or start:stop:step")
     p.add_argument("--azimuth", default="0", help="azimuths [deg]; 0 = viewer on the source's side")

@@ -227,8 +227,8 @@ def toa_reflectance(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, at
 def toa_stokes(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosphere: bool = True,
                params: dict | None = None) -> np.ndarray:
     """(..., 3): the top-of-atmosphere reflectance factors of the Stokes vector (I, Q, U) of a
-    ``black`` or ``lambert:A`` class at λ under the air above ``surface_hpa`` and the ozone, in
-    the meridian plane of the view (:mod:`.stokes`: the vector solution; its I differs from
+    ``black`` or ``lambert:A`` class (or the bare sea) at λ under the air above ``surface_hpa`` and
+    the ozone, in the meridian plane of the view (:mod:`.stokes`: the vector solution; its I differs from
     :func:`toa_reflectance`'s scalar one by up to a few per cent). A bare Lambert surface reflects
     unpolarised light; the bare sea (``atmosphere=False``) its polarised glint
     (:func:`~lunarviz.earth_optics.ocean.glint_stokes`) beside its unpolarised whitecaps and water.
@@ -245,7 +245,7 @@ def toa_stokes(surface: Surface, wavelength_nm: float, mu0, mu, phi_deg, atmosph
     if not surface.lambertian:
         where = " under the air (the bare sea's glint is: no atmosphere)" if surface.kind == "ocean" else ""
         raise LunarvizError(f"the polarisation of the earth surface {name!r} is not modelled{where}: Stokes vectors "
-                            "are for black and lambert:A grounds")
+                            "are for black and lambert:A grounds and the bare sea")
     if not atmosphere:
         return np.stack([np.full(mu0.shape, surface.albedo), np.zeros(mu0.shape), np.zeros(mu0.shape)], -1)
     tau = float(rayleigh.optical_depth(wavelength_nm, p["surface_hpa"]))

@@ -51,6 +51,7 @@ import numpy as np
 from scipy.special import erfc
 
 from lunarviz.caches import memoize
+from lunarviz.earth_optics.stokes import frame_angle, rotate
 from lunarviz.options import EARTH_PARAMETER_DEFAULTS
 from lunarviz.resources import DATA_DIR, read_table
 
@@ -144,10 +145,8 @@ def glint_stokes(mu0, mu, phi_deg, wind_speed: float) -> np.ndarray:
     e_par = np.cross(e_perp, k)
     m_perp = np.stack([-np.sin(ph), np.cos(ph), np.zeros_like(ph)], -1)  # z × k/|z × k| (at nadir its limit)
     m_par = np.cross(m_perp, k)
-    eta = np.degrees(np.arctan2(np.einsum("...i,...i->...", e_perp, m_par), np.einsum("...i,...i->...", e_par, m_par)))
     q = i * np.divide(rp2 - rs2, rp2 + rs2, out=np.zeros_like(i), where=rp2 + rs2 > 0)
-    from lunarviz.earth_optics.stokes import rotate
-    return rotate(np.stack([i, q, np.zeros_like(i)], -1), eta)
+    return rotate(np.stack([i, q, np.zeros_like(i)], -1), frame_angle(e_par, e_perp, m_par))
 
 
 @memoize(maxsize=1)

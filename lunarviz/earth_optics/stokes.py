@@ -105,6 +105,14 @@ def degree_and_angle(stokes) -> tuple[np.ndarray, np.ndarray]:
     return dolp, 0.5 * np.degrees(np.arctan2(u, q))
 
 
+def frame_angle(e_par_from, e_perp_from, e_par_to) -> np.ndarray:
+    """The angle [deg] that turns a reference frame (e_∥, e_⊥) of light, from e_∥ toward e_⊥, onto
+    another frame of the same light whose e_∥ is ``e_par_to`` (unit vectors (..., 3)): the
+    ``angle_deg`` of :func:`rotate` from the one to the other."""
+    return np.degrees(np.arctan2(np.einsum("...i,...i->...", e_perp_from, e_par_to),
+                                 np.einsum("...i,...i->...", e_par_from, e_par_to)))
+
+
 def rotate(stokes, angle_deg) -> np.ndarray:
     """The Stokes vectors (..., 3) in a reference frame turned by ``angle_deg`` from e_∥ toward
     e_⊥: Q' = Q cos 2η + U sin 2η, U' = −Q sin 2η + U cos 2η (I unchanged)."""

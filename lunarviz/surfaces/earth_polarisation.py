@@ -24,15 +24,12 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.earth_optics.classes import Surface, toa_stokes
-from lunarviz.earth_optics.stokes import rotate
+from lunarviz.earth_optics.stokes import frame_angle, rotate
+from lunarviz.geometry.scene_geometry import unit
 from lunarviz.surfaces.physical_earth import place_grid
 
 #: latitude rows of the place grid (1°); longitudes twice as many
 PLACE_ROWS = 180
-
-
-def _unit(v):
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def disc_places(phase_deg: float, rows: int = PLACE_ROWS) -> dict:
@@ -67,10 +64,10 @@ def disc_stokes(phase_deg: float, wavelength_nm: float, ground_albedo: float, pa
     st = toa_stokes(Surface("lambert", float(ground_albedo)), wavelength_nm, d["mu0"], d["mu"], d["phi_deg"],
                     params=params)
     # from each place's meridian frame (e_⊥ = n × k) into the plane of scattering's
-    e_perp_m = _unit(np.cross(n, view))
+    e_perp_m = unit(np.cross(n, view))
     e_par_m = np.cross(e_perp_m, view)
     e_perp = np.cross(-sun, view)
     e_perp = e_perp / np.linalg.norm(e_perp) if np.linalg.norm(e_perp) > 1e-12 else np.array([0.0, 0.0, 1.0])
     e_par = np.cross(e_perp, view)
-    turned = rotate(st, np.degrees(np.arctan2(e_perp_m @ e_par, e_par_m @ e_par)))
+    turned = rotate(st, frame_angle(e_par_m, e_perp_m, e_par))
     return np.einsum("i,ij->j", d["weight"], turned)
