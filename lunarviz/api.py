@@ -758,7 +758,8 @@ def brdf(*, body: str = "moon", model: str | None = None, surface: str | None = 
     if model is None or surface is not None:
         raise LunarvizError("brdf(body='moon') takes model=... (lambert, shg, dhg), not a surface")
     if stokes is not False:
-        raise LunarvizError(f"stokes={stokes!r}: the Moon's polarisation is not modelled (stokes is the Earth's)")
+        raise LunarvizError(f"stokes={stokes!r}: the Moon's BRDF has no Stokes columns (its polarisation is its "
+                            "disc's: sweep(..., stokes=True))")
     known = ("dhg_convention", "h_function", "moon_model")
     for k in moon_options:
         if k not in known:

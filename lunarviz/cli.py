@@ -256,7 +256,7 @@ def _add_executor_options(p, workers_help="local worker processes"):
 def _parser_sweep(sub):
     from lunarviz.options import METHODS
     p = _add_scene_command(sub, "sweep", "moonshine, earthshine and albedo over phases",
-                           SCENE_GROUPS + ("analytic", "accuracy", "spectral"))
+                           SCENE_GROUPS + ("analytic", "accuracy", "spectral", "polarisation"))
     _add_theta(p, many=True, default=None,
                help=f"{THETA_WORDS} list [deg]: a,b,c or start:stop:step (default 0:180:5)")
     p.add_argument("--method", default="analytic", help=" | ".join(METHODS) + ": the paper's point-source "

@@ -78,6 +78,11 @@ class LooseRowsWarning(LunarvizWarning):
     not foresee (a mapped Earth's, which depends on each row's own albedos and light)."""
 
 
+class UnpolarisedRowsWarning(LunarvizWarning):
+    """Rows of a ``--stokes`` run carry no polarisation (NaN Stokes fields): their phase angle or
+    wavelengths lie outside the Moon's polarisation model."""
+
+
 def any_case(value, choices) -> str | None:
     """The choice ``value`` names, exactly or in another case (``DHG``: ``dhg``), where one does."""
     if value in choices:

@@ -105,6 +105,7 @@ GROUP_TITLES = {
     "trace": "the ray tracer (--method raytrace)",
     "analytic": "the analytic method",
     "spectral": "light in colour (without --wavelengths or --band a run is grey)",
+    "polarisation": "polarised light (spectral runs)",
 }
 GROUPS = tuple(GROUP_TITLES)
 
@@ -427,6 +428,10 @@ OPTIONS: tuple[Option, ...] = (
     _o("earth_spectra", "str", "surface", "spectral runs: the Earth's ocean, vegetation, desert and snow take their "
        "packaged USGS spectra (surface) or the grey ocean/land albedos (grey); clouds and the uniform Earth stay grey",
        "spectral", choices=EARTH_SPECTRA, label="Earth spectra"),
+    _o("stokes", "bool", False, "spectral runs: the moonshine's Stokes Q and U in the scattering plane's frame, its "
+       "degree and angle of linear polarisation, from the Moon's disc polarisation of ESA's LIME (phase angles 2-90 "
+       "deg, 350-1640 nm; NaN elsewhere); dated rows add the scattering plane's position angle on the sky. The "
+       "earthshine's polarisation is not modelled", "polarisation"),
     _o("earth_rotation_deg", "float", None, "θ scene only: the Earth's sub-solar longitude (default 0); dates "
        "turn the Earth themselves", "surfaces", unit="deg", label="Earth rotation"),
 )

@@ -21,7 +21,8 @@ from lunarviz.parsing import wavelength_label
 PER_TASK = ("theta_deg", "alpha_deg", "beta_deg", "phase_angle_deg", "observer_moon_distance_m",
             "sun_moon_distance_m", "sub_observer_lat_deg", "sub_observer_lon_deg", "sub_solar_lat_deg",
             "sub_solar_lon_deg", "moon_altitude_deg", "moon_occulted", "observer_in_shadow",
-            "observer_x_m", "observer_y_m", "observer_z_m", "tle_epoch_age_days", "skip_reason")
+            "observer_x_m", "observer_y_m", "observer_z_m", "tle_epoch_age_days", "skip_reason",
+            "scattering_plane_position_angle_deg")
 #: text fields (NetCDF variable-length strings, no units): empty where there is nothing to say
 TEXT = ("skip_reason", "no_bound_reason")
 #: row field → (variable name, units, long name)
@@ -66,6 +67,9 @@ DESCRIPTIONS = {
     "observer_z_m": ("observer_z", "m", "observer position, geocentric ICRF z"),
     "skip_reason": ("skip_reason", "", "why the task was not computed (its rows exact zeros); empty: computed"),
     "no_bound_reason": ("no_bound_reason", "", "why the row carries no error bound (rtol NaN); empty: bounded"),
+    "scattering_plane_position_angle_deg": ("scattering_plane_position_angle", "degree",
+                                            "position angle on the sky (north through east) of the direction from "
+                                            "the Moon toward the Sun: the scattering plane of the moonshine"),
 }
 #: spectral rows: fields that depend on the task and the wavelength or band, not on the BRDF
 PER_TASK_SPECTRAL = ("solar_irradiance_W_m2_nm", "solar_irradiance_W_m2")
@@ -82,6 +86,16 @@ SPECTRAL_DESCRIPTIONS = {
                                                "integral of E(lambda) S(lambda) dlambda"),
     "solar_irradiance_W_m2": ("solar_irradiance", "W m-2", "band-integrated solar irradiance at the Moon's "
                                                            "distance from the Sun"),
+    "moonshine_Q_W_m2_nm": ("moonshine_Q", "W m-2 nm-1", "Stokes Q of the moonshine, I(parallel) - I(perpendicular) "
+                                                         "to the scattering plane"),
+    "moonshine_U_W_m2_nm": ("moonshine_U", "W m-2 nm-1", "Stokes U of the moonshine in the scattering plane's frame"),
+    "moonshine_Q_W_m2": ("moonshine_Q", "W m-2", "band-integrated Stokes Q of the moonshine, I(parallel) - "
+                                                 "I(perpendicular) to the scattering plane"),
+    "moonshine_U_W_m2": ("moonshine_U", "W m-2", "band-integrated Stokes U of the moonshine in the scattering "
+                                                 "plane's frame"),
+    "moonshine_dolp": ("moonshine_dolp", "1", "degree of linear polarisation of the moonshine"),
+    "moonshine_aolp_deg": ("moonshine_aolp", "degree", "angle of linear polarisation of the moonshine from the "
+                                                       "scattering plane (90: perpendicular to it)"),
 }
 SKIP = ("brdf", "method", "estimator", "time_utc", "observer", "wavelength_nm", "band")
 

@@ -184,6 +184,9 @@ def check_spectral(scene, models: dict) -> None:
             if value != BY_NAME[name].default:
                 raise LunarvizError(f"{BY_NAME[name].cli_flag} {value} needs --wavelengths or --band (without them "
                                     f"the run is grey)")
+        if scene.stokes:
+            raise LunarvizError("--stokes needs --wavelengths or --band: the Moon's polarisation depends on the "
+                                "wavelength (a grey run has none)")
         return
     if scene.method == "reference":
         raise LunarvizError("--wavelengths/--band need --method analytic or raytrace (the exact reference "

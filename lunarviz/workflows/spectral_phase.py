@@ -14,12 +14,15 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 
+from lunarviz.errors import UnpolarisedRowsWarning
 from lunarviz.methods import accuracy
 from lunarviz.methods.analytic import earthshine_transport, moonshine_transport
 from lunarviz.photometry import albedo_inversion as alb
+from lunarviz.photometry import moon_polarisation
 from lunarviz.spectral.shading import SpectralShader, spectral_brdfs
 from lunarviz.surfaces.earth_spectra import spectral_components, weights_toward
 from lunarviz.surfaces.physical_earth import albedo_toward_moon
@@ -131,6 +134,7 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
     suffix = req.value_suffix
     label_field = "wavelength_nm" if req.kind == "wavelength" else "band"
     pole = settings.earth_pole_at_zero_phase()
+    polarised = moon_polarisation_nodes(req, base, sc) if settings.stokes else None
     rows = []
     for k in brdfs:
         bound, why = accuracy.row_bound(extra["rtol"], sc, method_fields["method"], method_fields.get("estimator"),
@@ -146,6 +150,7 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
             row_bounds = [settings.mapped_earth_row_bound(plan, paths, brdfs[k], albedos, es[k][-1], es_a[o],
                                                           sc.theta_deg, average=lambda v, o=o: req.averages(v)[o])
                           for o in range(len(req.labels))]
+        stokes = {} if polarised is None else moonshine_stokes(req, polarised, ms[k], ms_o, sc)
         for o, label in enumerate(req.labels):
             bound, why = row_bounds[o]
             terms = alb.lunar_terms(sc, a0 * cesu_a[o], cms_a[o], a0)
@@ -157,5 +162,41 @@ def _rows(settings, sc, base, req, brdfs, ms, es, cal_ms, cal_es, albedo, unifor
                          "ratio_earthshine_moonshine": float(es_o[o] / ms_o[o]) if measurable else float("nan"),
                          "earth_visible_lit_albedo": float(es_a[o] / esu_a[o]) if esu_a[o] > 0 else float("nan"),
                          "geometric_albedo_term": pe, "apparent_albedo": alb.apparent_albedo(sc.beta_deg, pe),
+                         **{f: v if np.ndim(v) == 0 else float(v[o]) for f, v in stokes.items()},
                          **extra, "rtol": bound, "no_bound_reason": why, "skip_reason": ""})
     return rows
+
+
+def moon_polarisation_nodes(req, base: dict, sc) -> np.ndarray:
+    """The Moon's disc polarisation P at the request's node wavelengths (:mod:`lunarviz.photometry.
+    moon_polarisation`: the task's phase angle and branch; NaN outside the model)."""
+    return moon_polarisation.disc_polarisation(base["alpha_deg"], req.nodes, moon_polarisation.scene_branch(base))
+
+
+def moonshine_stokes(req, p_nodes: np.ndarray, ms_nodes: np.ndarray, ms_out: np.ndarray, sc) -> dict:
+    """The moonshine's Stokes fields of each output (``--stokes``): Q = −P I node by node, summed over
+    a band as I is (so a band's P is its moonshine-weighted mean); NaN for an output that weighs a
+    node outside the model. Dated scenes add the scattering plane's position angle on the sky."""
+    outside = np.isnan(p_nodes)
+    q_out = req.outputs(-np.where(outside, 0.0, p_nodes) * ms_nodes, sc.phi_sun)
+    bad = (req.weights[:, outside] > 0).any(axis=1)
+    p_out = np.where(bad | (ms_out <= 0), np.nan, -q_out / np.where(ms_out > 0, ms_out, 1.0))
+    fields = moon_polarisation.stokes_fields(p_out, ms_out, req.value_suffix)
+    fields[f"moonshine_Q{req.value_suffix}"] = np.where(bad, np.nan, q_out)  # (exact zeros of a dark Moon kept)
+    fields[f"moonshine_U{req.value_suffix}"] = np.where(bad, np.nan, 0.0)
+    if sc.general:
+        fields["scattering_plane_position_angle_deg"] = moon_polarisation.scattering_plane_position_angle(sc)
+    return fields
+
+
+def warn_unpolarised_rows(rows: list[dict]) -> None:
+    """One warning for the computed rows whose Stokes fields are NaN (``--stokes`` outside the
+    Moon's polarisation model), with the model's ranges."""
+    n = sum(1 for r in rows if "moonshine_dolp" in r and not r.get("skip_reason")
+            and not np.isfinite(r["moonshine_dolp"]))
+    if n:
+        lo, hi = moon_polarisation.PHASE_RANGE_DEG
+        wl, wh = moon_polarisation.WAVELENGTH_RANGE_NM
+        warnings.warn(f"{n} of {len(rows)} rows carry no polarisation (moonshine_Q, _U, _dolp, _aolp NaN): the Moon's "
+                      f"polarisation model covers phase angles {lo:g}-{hi:g} deg and {wl:g}-{wh:g} nm",
+                      UnpolarisedRowsWarning, stacklevel=2)

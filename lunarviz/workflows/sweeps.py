@@ -28,7 +28,7 @@ from lunarviz.scene.tolerance import warn_loose_rows, warn_unbounded_rows
 from lunarviz.workflows.earth_own_albedos import run_earth_albedos
 from lunarviz.surfaces.earth_spectra import components, grey_albedos
 from lunarviz.workflows.skips import skip_reason, skipped_rows
-from lunarviz.workflows.spectral_phase import spectral_rows
+from lunarviz.workflows.spectral_phase import spectral_rows, warn_unpolarised_rows
 
 
 def run_phase(settings: ResolvedScene, key, threads: int | None = None) -> list[dict]:
@@ -360,6 +360,7 @@ def _assemble(settings: ResolvedScene, results: list, t0: float) -> dict:
     rows = [r for res in results for r in res]
     warn_unbounded_rows(rows)
     warn_loose_rows(settings, rows)
+    warn_unpolarised_rows(rows)
     alb.warn_non_lambert_apparent_albedo(rows)
     out = {"settings": settings.to_dict(), "rows": rows, "bond_albedo": bond_table(rows),
            **run_earth_albedos(settings), "wall_seconds": time.perf_counter() - t0}
