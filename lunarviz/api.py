@@ -229,6 +229,13 @@ def _grey_only(sc: Scene, what: str) -> None:
     silently ignored): per-facet arrays and the 3-D views are grey."""
     if sc.options.get("wavelengths") is not None or sc.options.get("bands") is not None:
         raise LunarvizError(f"{what} is grey: --wavelengths/--band apply to sweep and image")
+    _unpolarised(sc, what)
+
+
+def _unpolarised(sc: Scene, what: str) -> None:
+    """Refuse ``stokes`` where a function has no Stokes output (it would be silently ignored)."""
+    if sc.options.get("stokes"):
+        raise LunarvizError(f"{what} has no Stokes output: --stokes applies to sweep")
 
 
 def run(scene: Scene | None = None, method: str = "analytic", workers: int | None = None,
@@ -525,6 +532,7 @@ def measure(path=None, *, expected: bool = False, scene: Scene | None = None, si
         return measure_file(path, bool(expected), lunar_fit)
     from lunarviz.instrument.spec import load_instrument
     sc = _scene(scene, scene_options)
+    _unpolarised(sc, "measure")
     settings = sc.settings("raytrace")
     return run_simulation(settings, sc.keys[0], load_instrument(instrument), simulate,
                           settings.seed if seed is None else seed, exposure, frames,
@@ -557,6 +565,7 @@ def plan(scene: Scene | None = None, *, instrument, snr: float, key=None, per: s
     from lunarviz.instrument.spec import instrument_spec_text, load_instrument
     from lunarviz.workflows.measurement import plan as plan_exposure
     sc = _scene(scene, scene_options)
+    _unpolarised(sc, "plan")
     if key is None and len(sc.keys) > 1:
         raise LunarvizError(f"plan takes one phase or time: the scene has {len(sc.keys)} (give key=...)")
     res = plan_exposure(sc.settings("raytrace"), _check_key(sc, key), load_instrument(instrument), _number(snr, "snr"),
@@ -601,6 +610,7 @@ def image(scene: Scene | None = None, key=None, *, keys=None, camera=None, fov_d
     from lunarviz.outputs.images import write_fits, write_npy, write_png
     from lunarviz.workflows.tasks import image as task_image
     sc = _scene(scene, scene_options)
+    _unpolarised(sc, "image")
     given = [k for k, v in (("camera", camera), ("fov_deg", fov_deg), ("pixels", pixels), ("supersample", supersample),
                             ("pointing", pointing), ("gif", gif)) if v is not None] + \
         [k for k, v in (("psf", psf), ("halo", halo)) if v not in (None, "none")]

@@ -429,7 +429,8 @@ OPTIONS: tuple[Option, ...] = (
        "packaged USGS spectra (surface) or the grey ocean/land albedos (grey); clouds and the uniform Earth stay grey",
        "spectral", choices=EARTH_SPECTRA, label="Earth spectra"),
     _o("stokes", "bool", False, "spectral runs: the moonshine's Stokes Q and U in the scattering plane's frame, its "
-       "degree and angle of linear polarisation, from the Moon's disc polarisation of ESA's LIME (phase angles 2-90 "
+       "degree and angle of linear polarisation (across or along that plane), the degree from the Moon's disc "
+       "polarisation of ESA's LIME (phase angles 2-90 "
        "deg, 350-1640 nm; NaN elsewhere); dated rows add the scattering plane's position angle on the sky. The "
        "earthshine's polarisation is not modelled", "polarisation"),
     _o("earth_rotation_deg", "float", None, "θ scene only: the Earth's sub-solar longitude (default 0); dates "

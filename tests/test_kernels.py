@@ -350,3 +350,33 @@ def test_cap_rule_nodes_kernel_matches_numpy(thin, monkeypatch):
     assert got[1].sum() > 0
     np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(got[1], ref[1], rtol=1e-15, atol=0)
+
+
+def test_mapped_earth_cut_sums_kernel_matches_numpy(monkeypatch):
+    """The mapped Earth's exact per-element sums at lunar points whose horizon cuts the Earth,
+    compiled (earth_kernels.cut_sums) against the numpy path: the same beams to rounding (1e-10:
+    the order of the sums differs; an element within rounding of a point's horizon could flip,
+    which random points do not meet)."""
+    from lunarviz.geometry.scene_geometry import SceneGeometry, unit
+    from lunarviz.methods.tracer import earth_kernels
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
+    if not earth_kernels.available():
+        pytest.skip("numba not installed: the numpy path is the only one")
+    sc = SceneGeometry(60.0)
+    to_earth = unit(sc.earth - sc.moon)
+    rng = np.random.default_rng(8)
+    # normals within 1.5° of the plane normal to the Earth's direction: their horizons cut the Earth
+    n = unit(np.cross(to_earth, rng.normal(size=(40, 3))) + rng.uniform(-0.025, 0.025, (40, 1)) * to_earth)
+    x = sc.moon + sc.radii["moon"] * n
+    o = np.tile(to_earth, (40, 1))
+
+    def beams():
+        ts = TraceScene(sc, TraceSettings(moon_level=2, earth_level=4, earth_surface="landocean", clouds="zonal"))
+        tr = ts.mapped_earth.transport(x, n, o, np.ones(40), np.ones(40))
+        return tr.e_beam, tr.e_beam_unit
+    fast = beams()
+    monkeypatch.setattr(earth_kernels, "_NUMBA", False)
+    slow = beams()
+    assert slow[1].sum() > 0
+    for a, b in zip(fast, slow):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12 * b.max())

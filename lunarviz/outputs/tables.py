@@ -68,7 +68,7 @@ DESCRIPTIONS = {
     "skip_reason": ("skip_reason", "", "why the task was not computed (its rows exact zeros); empty: computed"),
     "no_bound_reason": ("no_bound_reason", "", "why the row carries no error bound (rtol NaN); empty: bounded"),
     "scattering_plane_position_angle_deg": ("scattering_plane_position_angle", "degree",
-                                            "position angle on the sky (north through east) of the direction from "
+                                            "position angle on the sky (ICRF north through east) of the direction from "
                                             "the Moon toward the Sun: the scattering plane of the moonshine"),
 }
 #: spectral rows: fields that depend on the task and the wavelength or band, not on the BRDF

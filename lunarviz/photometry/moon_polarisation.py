@@ -21,9 +21,17 @@ dark, more polarising maria fill more of the waning disc (Umov's law: darker sur
   A disc-integrated model: every lunar sample takes the disc's P, so the trace sets Q through I
   alone (a map's brighter highlands are not less polarised than its maria here).
 
+* The angle: a disc lit and seen in one plane is mirror-symmetric about it, so its polarisation
+  lies across the plane (P > 0) or along it (P < 0) and U = 0. LIME also fits an angle of
+  polarisation (``aolp_coeff``, −8° to −23° at 440 nm) whose reference direction its files do not
+  state; it is not used. LIME's toolbox calls its polarisation preliminary, and its branch choice
+  (the sign of the phase) is checked here against its own ephemeris tests and Lyot's waning Moon
+  being the more polarised (``tests/test_moon_polarisation.py``).
+
 Neglected: the polarisation of the earthshine (the Earth's polarised light and the lunar surface's
 depolarisation of it are not modelled: earthshine rows stay unpolarised, none is reported), circular
-polarisation (V ≈ 1e-5 of I for the Moon), the spread of the scattering plane over the Sun's disc (0.27°).
+polarisation, the spread of the scattering plane over the Sun's disc (0.27°), the asymmetry of the
+maria about the scattering plane (which would give U ≠ 0).
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from lunarviz.geometry.scene_geometry import unit
 from lunarviz.resources import DATA_DIR
 
 #: the phase angles LIME's polarisation covers [deg] (its toolbox's valid range)
@@ -99,15 +108,8 @@ def scattering_plane_position_angle(sc) -> float:
     """Position angle [deg, 0-360] on the observer's sky of the direction from the Moon's centre
     toward the Sun (the trace of the scattering plane; the bright limb's position angle), from the
     celestial north through east (ICRF, the dated scene's frame)."""
-    m = sc.moon - sc.det
-    m = m / np.linalg.norm(m)
-    s = sc.sun - sc.det
-    s = s / np.linalg.norm(s)
-    pole = np.array([0.0, 0.0, 1.0])
-    north = pole - pole.dot(m) * m
-    north /= np.linalg.norm(north)
-    east = np.cross(pole, m)
-    east /= np.linalg.norm(east)
+    m, s, pole = unit(sc.moon - sc.det), unit(sc.sun - sc.det), sc.sky_north
+    north, east = unit(pole - pole.dot(m) * m), unit(np.cross(pole, m))  # (the Moon never nears the pole)
     s_sky = s - s.dot(m) * m
     return float(np.degrees(np.arctan2(s_sky.dot(east), s_sky.dot(north))) % 360.0)
 

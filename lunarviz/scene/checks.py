@@ -179,14 +179,17 @@ def check_validity(scene, models: dict) -> None:
 def check_spectral(scene, models: dict) -> None:
     """Refuse what a spectral run cannot compute, before any work."""
     req = scene.spectral_request()
+    if scene.stokes and scene.method == "reference":
+        raise LunarvizError("--stokes needs --method analytic or raytrace and --wavelengths or --band (the exact "
+                            "reference is grey)")
     if req is None:
         for name, value in (("solar_spectrum", scene.solar_spectrum), ("earth_spectra", scene.earth_spectra)):
             if value != BY_NAME[name].default:
                 raise LunarvizError(f"{BY_NAME[name].cli_flag} {value} needs --wavelengths or --band (without them "
                                     f"the run is grey)")
         if scene.stokes:
-            raise LunarvizError("--stokes needs --wavelengths or --band: the Moon's polarisation depends on the "
-                                "wavelength (a grey run has none)")
+            raise LunarvizError("--stokes needs --wavelengths or --band, and --method analytic or raytrace: the Moon's "
+                                "polarisation depends on the wavelength (a grey run has none)")
         return
     if scene.method == "reference":
         raise LunarvizError("--wavelengths/--band need --method analytic or raytrace (the exact reference "

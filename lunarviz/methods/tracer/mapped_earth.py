@@ -148,6 +148,21 @@ class MappedEarthTransport:
                 out[name][c0:c0 + chunk, cell[runs]] = np.add.reduceat(f * w, runs, axis=1)
         return out
 
+    def _cut_sums(self, x, n, el, outs, rows) -> None:
+        """The exact per-element sums at lunar points x (normals n) whose horizon cuts the Earth,
+        compiled (:func:`~lunarviz.methods.tracer.earth_kernels.cut_sums`), into ``outs``' rows."""
+        x0 = self.bodies.scene.moon
+        y, m, L1A = el["y"], el["m"], el["L1A"]
+        yr = y - x0
+        my, yy = np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)
+        wts = [L1A, L1A * el["a"]]
+        if el["comp"] is not None:
+            wts += [L1A * el["comp"][:, c] for c in range(el["comp"].shape[1])]
+        cell = np.repeat(np.arange(len(el["starts"])), np.diff(np.r_[el["starts"], len(y)]))
+        sums = earth_kernels.cut_sums(x - x0, n, m, yr, my, yy, np.stack(wts), cell, len(el["starts"]))
+        for (_, out), s in zip(outs, sums):
+            out[rows] = s
+
     def transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
         """Earthshine :class:`Transport` at lunar points x from an Earth with an albedo map.
 
@@ -195,6 +210,9 @@ class MappedEarthTransport:
                 if name == "unit":
                     unit_far = out[far]
             rows = np.flatnonzero(cut)
+            if len(rows) and earth_kernels.available():  # one compiled pass over (points × elements)
+                self._cut_sums(x[rows], n[rows], el, outs, rows)
+                rows = rows[:0]
             for c0 in range(0, len(rows), chunk):
                 sel = rows[c0:c0 + chunk]
                 xs, ns = x[sel], n[sel]
