@@ -73,28 +73,41 @@ def _scene(obs, key, rot, surface="landocean", clouds="zonal", level=None):
     return ResolvedScene(times=[key], observer=obs, **kw)
 
 
-def one_case(case) -> dict | None:
+def case_points(s, key):
+    """``(scene, x, n, mu, geom, o)``: a date's geometry and the lunar points both sides take (the
+    reference's outer rule at :data:`OUTER_ORDER` over the lunar sphere the Earth lights, seen from
+    the date's detector); ``None`` for a date left out (its Moon hidden, θ outside 5-175°, the
+    Moon's shadow possibly on the Earth)."""
     from lunarviz.methods.analytic import lunar_surface_rule
-    from lunarviz.methods.map_cell_reference import cell_radiances, earth_cells
     from lunarviz.methods.tracer.estimators import TraceScene
-    from lunarviz.methods.transport import Transport, detector_geometry
-    from lunarviz.scene import ResolvedScene
-    from lunarviz.surfaces.earth_spectra import components, weights_at
-    from lunarviz.surfaces.maps import map_frame
+    from lunarviz.methods.transport import detector_geometry
     from lunarviz.workflows.skips import skip_reason
-    obs, key, rot = case
-    s = _scene(obs, key, rot)
     sc, _ = s.task(key)
     if skip_reason(s, sc) or not 5.0 <= sc.theta_deg <= 175.0 \
             or TraceScene(sc, s.trace_settings(threads=1)).sampling.moon_shadow_on_earth_possible():
         return None
-    brdfs = dict(s.brdf_models())
-    brdfs["rolo dhg"] = ResolvedScene(moon_model="rolo-fit-map", brdfs=("dhg",)).brdf_models()["dhg"]
     x, n, dA = lunar_surface_rule(sc, sc.earth, sc.radii["earth"], OUTER_ORDER)
     mu, geom, o = detector_geometry(x, n, dA, sc.det, sc.det_normal)
     geom = np.where(sc.sight_lines_clear(x), geom, 0.0)
     k = geom > 0
-    x, n, mu, geom, o = x[k], n[k], mu[k], geom[k], o[k]
+    return sc, x[k], n[k], mu[k], geom[k], o[k]
+
+
+def one_case(case) -> dict | None:
+    from lunarviz.methods.map_cell_reference import cell_radiances, earth_cells
+    from lunarviz.methods.tracer.estimators import TraceScene
+    from lunarviz.methods.transport import Transport
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.surfaces.earth_spectra import components, weights_at
+    from lunarviz.surfaces.maps import map_frame
+    obs, key, rot = case
+    s = _scene(obs, key, rot)
+    points = case_points(s, key)
+    if points is None:
+        return None
+    sc, x, n, mu, geom, o = points
+    brdfs = dict(s.brdf_models())
+    brdfs["rolo dhg"] = ResolvedScene(moon_model="rolo-fit-map", brdfs=("dhg",)).brdf_models()["dhg"]
     t0 = time.perf_counter()
     surfaces = {m: _scene(obs, key, rot, *m).earth_model() for m in MAPS}
     names = {m: components(surf) for m, surf in surfaces.items()}
@@ -151,12 +164,20 @@ def model_table(got: list) -> dict:
     return table
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--write", action="store_true", help="store the table in lunarviz/data/error_models.json")
+def model_arguments(description: str, write: bool = True) -> argparse.ArgumentParser:
+    """The command line of an Earth error model's script: ``--write`` (where it stores a model),
+    ``--quick``, ``--workers``, ``--out``."""
+    ap = argparse.ArgumentParser(description=description)
+    if write:
+        ap.add_argument("--write", action="store_true", help="store the table in lunarviz/data/error_models.json")
     ap.add_argument("--quick", action="store_true", help="a few dates (a smoke run)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
+    return ap
+
+
+def main(argv=None) -> int:
+    ap = model_arguments(__doc__.splitlines()[0])
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     with ProcessPoolExecutor(a.workers) as ex:

@@ -10,12 +10,15 @@ the DISORT cloud under the air above its top. The options ``--ocean-albedo``, ``
 and ``--cloud-albedo`` are the Lambert Earth's: the physical classes carry their own.
 
 A place's radiance toward a distant point (the Moon) is ``E μ_s R(μ_s, μ_t, φ) / π``: a Lambert
-place of albedo R. So a traced Earth takes, per facet, R toward the Moon's centre at the facet's
-centre (its classes' area-averaged weights) as the facet's albedo, and the point-Earth methods
-take ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA`` as the Earth's albedo. Neglected: R's change across a
-facet (~0.9° on the packaged Earth; the glint lobe is ~10° wide) and across the Moon as seen from
-the Earth (0.26°), the Earth's curvature in the scattering atmosphere (plane-parallel: beyond 89° zenith angles are
-held there; the ozone above it takes the slant path of a spherical shell).
+place of albedo R. So a traced Earth takes, per surface element (three a facet), R toward the
+Moon's centre at the element's point with its facet's area-averaged class weights as its albedo
+(:meth:`~lunarviz.methods.tracer.facet_surfaces.FacetSurfaces.earth_element_values`; per-facet
+arrays take R at the facet's centre, :func:`facet_reflectance`), and the point-Earth methods
+take ``∫ R μ_s μ_t dA / ∫ μ_s μ_t dA`` as the Earth's albedo. Neglected: R's change across an
+element (second order; measured with the tracer's error model, docs: accuracy, "A physical
+Earth") and across the Moon as seen from the Earth (0.26°), the Earth's curvature in the
+scattering atmosphere (plane-parallel: beyond 89° zenith angles are held there; the ozone above
+it takes the slant path of a spherical shell).
 """
 
 from __future__ import annotations

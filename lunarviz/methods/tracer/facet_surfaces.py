@@ -7,12 +7,13 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.caches import BoundedCache, file_key, mesh_digest
+from lunarviz.geometry.scene_geometry import unit
 from lunarviz.methods.tracer.traced_bodies import TracedBodies
 from lunarviz.methods.transport import Transport
 from lunarviz.surfaces.earth_spectra import components, facet_weights, grey_albedos
 from lunarviz.surfaces.maps import map_frame
 from lunarviz.surfaces.moon_map import moon_facet_values
-from lunarviz.surfaces.physical_earth import facet_reflectance
+from lunarviz.surfaces.physical_earth import facet_reflectance, reflectance
 
 #: per-facet lunar map values per (map, mesh, frame) (:meth:`FacetSurfaces.moon_map_values`)
 MOON_MAP_VALUES = BoundedCache(8)
@@ -123,6 +124,23 @@ class FacetSurfaces:
         else:
             a = surf.facet_albedo(self.bodies.earth, self._earth_frame(), only=faces)
         return a, parts
+
+    def earth_element_values(self, faces: np.ndarray, at: np.ndarray, y: np.ndarray, m: np.ndarray):
+        """(albedo (n,), component weights (n, C) or ``None``) of the mapped Earth's surface elements
+        at points y (n, 3) with normals m on the facets ``faces[at]``: their facets' values
+        (:meth:`earth_facet_values`), but for the physical Earth, whose reflectance toward the Moon
+        changes across a facet: each element's own, at its point with its facet's class weights
+        (second order in the elements, where the facet's centre alone left ~5e-4 at a thin crescent)."""
+        surf = self.bodies.settings.surface()
+        if not surf.physical:
+            fa, parts = self.earth_facet_values(faces)
+            return fa[at], None if parts is None else parts[at]
+        sc = self.bodies.scene
+        frame = self._earth_frame()
+        lam = [surf.wavelength_nm] + list(self.earth_part_wavelengths if self.earth_parts is not None else [])
+        w = facet_weights(surf, self.bodies.earth, frame, faces)[at]
+        r = reflectance(surf, w, m @ frame, m, unit(sc.sun - y), unit(sc.moon - y), lam)
+        return r[:, 0], (r[:, 1:] if self.earth_parts is not None else None)
 
     def _earth_parts_of(self, faces):
         frame = self._earth_frame()

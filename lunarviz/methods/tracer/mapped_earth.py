@@ -82,9 +82,7 @@ class MappedEarthTransport:
         # the albedo (and a spectral run's component weights) of the facets kept, alone: a date needs
         # the lit face the Moon sees, not the whole Earth's map averages
         faces, at = np.unique(owner[idx], return_inverse=True)
-        fa, parts = self.surfaces.earth_facet_values(faces)
-        a = fa[at]
-        comp = None if parts is None else parts[at]  # (n, C) weights of a spectral run's components
+        a, comp = self.surfaces.earth_element_values(faces, at, y, m)  # comp: (n, C) a spectral run's components
         axis = unit(sc.moon - sc.earth)
         e1, e2 = orthonormal_basis(axis[None, :])
         bound = E.bound if E.mode(s.shading) != "exact" else E.radius
