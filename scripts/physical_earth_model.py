@@ -177,7 +177,8 @@ def main(argv=None) -> int:
     lines = ["# The physical Earth's error model", "", f"`{res['command']}` ({len(got)} dates, "
              f"{res['wall_s']:.0f} s): the earthshine of the tracer's physical Earth (its facets at each level, "
              "each surface element at its own reflectance toward the Moon) against the map's own cells, each "
-             "at its centre's reflectance, on the same lunar points; the largest relative error over dates, the packaged maps, "
+             "at its centre's reflectance, on the same lunar points; the largest relative error over dates, the "
+             "packaged maps, "
              "443-865 nm and the lunar BRDFs of a group, made non-increasing with the level.", "",
              "| BRDFs | " + " | ".join(f"level {lv}" for lv in LEVELS) + " |", "|---|" + "---|" * len(LEVELS)]
     lines += [f"| {g} | " + " | ".join(f"{e:.1e}" for e in eps) + " |" for g, eps in table.items()]
