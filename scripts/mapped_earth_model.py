@@ -64,10 +64,11 @@ def cases(quick: bool) -> list[tuple[str, str | float, float]]:
     return out
 
 
-def _scene(obs, key, rot, surface="landocean", clouds="zonal", level=None):
+def scene_of(obs, key, rot, surface="landocean", clouds="zonal", level=None, **options):
+    """The resolved scene of a case (``options``: further scene options, e.g. ``earth_brdf``)."""
     from lunarviz.scene import ResolvedScene
     kw = dict(brdfs=("lambert", "shg", "dhg"), earth_surface=surface, clouds=clouds, earth_level=level,
-              method="raytrace")
+              method="raytrace", **options)
     if obs == "geocentre":
         return ResolvedScene(phases_deg=(float(key),), earth_rotation_deg=rot, **kw)
     return ResolvedScene(times=[key], observer=obs, **kw)
@@ -101,7 +102,7 @@ def one_case(case) -> dict | None:
     from lunarviz.surfaces.earth_spectra import components, weights_at
     from lunarviz.surfaces.maps import map_frame
     obs, key, rot = case
-    s = _scene(obs, key, rot)
+    s = scene_of(obs, key, rot)
     points = case_points(s, key)
     if points is None:
         return None
@@ -109,7 +110,7 @@ def one_case(case) -> dict | None:
     brdfs = dict(s.brdf_models())
     brdfs["rolo dhg"] = ResolvedScene(moon_model="rolo-fit-map", brdfs=("dhg",)).brdf_models()["dhg"]
     t0 = time.perf_counter()
-    surfaces = {m: _scene(obs, key, rot, *m).earth_model() for m in MAPS}
+    surfaces = {m: scene_of(obs, key, rot, *m).earth_model() for m in MAPS}
     names = {m: components(surf) for m, surf in surfaces.items()}
 
     def values(d):  # albedo 1, then every map's components
@@ -124,7 +125,7 @@ def one_case(case) -> dict | None:
         got, secs = {}, 0.0
         col = 1
         for m in MAPS:
-            ls = _scene(obs, key, rot, *m, level=level)
+            ls = scene_of(obs, key, rot, *m, level=level)
             ts = TraceScene(sc, ls.trace_settings(threads=1))
             ts.surfaces.earth_parts = names[m]
             t1 = time.perf_counter()

@@ -39,7 +39,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mapped_earth_model import GROUP, LEVELS, case_points, cases, model_arguments  # noqa: E402 (the same dates)
+from mapped_earth_model import GROUP, LEVELS, case_points, cases, model_arguments, scene_of  # noqa: E402
 
 WAVELENGTHS_NM = (443.0, 550.0, 670.0, 865.0)
 #: the packaged maps measured: (earth_surface, clouds); ``--maps uniform+none`` measures the plain
@@ -47,13 +47,7 @@ WAVELENGTHS_NM = (443.0, 550.0, 670.0, 865.0)
 MAPS = (("landocean", "zonal"), ("landocean", "none"), ("uniform", "zonal"))
 
 
-def _scene(obs, key, rot, surface="landocean", clouds="zonal", level=None):
-    from lunarviz.scene import ResolvedScene
-    kw = dict(brdfs=("lambert", "shg", "dhg"), earth_surface=surface, clouds=clouds, earth_level=level,
-              method="raytrace", earth_brdf="physical")
-    if obs == "geocentre":
-        return ResolvedScene(phases_deg=(float(key),), earth_rotation_deg=rot, **kw)
-    return ResolvedScene(times=[key], observer=obs, **kw)
+_scene = partial(scene_of, earth_brdf="physical")
 
 
 def reference_cells(sc, surface, frame) -> tuple[np.ndarray, np.ndarray]:

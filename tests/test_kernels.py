@@ -354,7 +354,7 @@ def test_cap_rule_nodes_kernel_matches_numpy(thin, monkeypatch):
 
 def test_mapped_earth_cut_sums_kernel_matches_numpy(monkeypatch):
     """The mapped Earth's exact per-element sums at lunar points whose horizon cuts the Earth,
-    compiled (earth_kernels.cut_sums) against the numpy path: the same beams to rounding (1e-10:
+    compiled (earth_kernels.element_sums with horizons) against the numpy path: the same beams to rounding (1e-10:
     the order of the sums differs; an element within rounding of a point's horizon could flip,
     which random points do not meet)."""
     from lunarviz.geometry.scene_geometry import SceneGeometry, unit

@@ -114,13 +114,17 @@ def scattering_plane_position_angle(sc) -> float:
     return float(np.degrees(np.arctan2(s_sky.dot(east), s_sky.dot(north))) % 360.0)
 
 
-def stokes_fields(p: np.ndarray, intensity: np.ndarray, suffix: str) -> dict[str, np.ndarray]:
-    """The moonshine's Stokes fields of outputs with disc polarisation ``p`` and intensities
-    ``intensity`` (the same units, ``suffix``): Q and U in the scattering plane's frame, the degree
-    of linear polarisation and its angle from the scattering plane [deg] (90: perpendicular)."""
-    p = np.asarray(p, float)
-    q = -p * intensity
-    dolp = np.where(intensity > 0, np.abs(p), np.nan)
-    aolp = np.where(np.isnan(dolp), np.nan, np.where(p > 0, 90.0, 0.0))
-    return {f"moonshine_Q{suffix}": q, f"moonshine_U{suffix}": np.where(np.isnan(p), np.nan, 0.0 * q),
-            "moonshine_dolp": dolp, "moonshine_aolp_deg": aolp}
+def stokes_fields(q, intensity, suffix: str, sc) -> dict:
+    """The moonshine's Stokes fields of outputs with Stokes Q ``q`` (NaN outside the model) and
+    intensities ``intensity`` (the same units, ``suffix``) in the scattering plane's frame: Q, U = 0
+    (the plane's mirror symmetry), the degree of linear polarisation |P| (P = −Q/I) and its angle
+    from the scattering plane [deg] (90: perpendicular; NaN without light or polarisation); a dated
+    scene ``sc`` adds the plane's position angle on the sky (:func:`scattering_plane_position_angle`)."""
+    q, i = np.asarray(q, float), np.asarray(intensity, float)
+    p = np.where(i > 0, -q / np.where(i > 0, i, 1.0), np.nan)
+    aolp = np.where(np.isnan(p), np.nan, np.where(p > 0, 90.0, 0.0))
+    fields = {f"moonshine_Q{suffix}": q, f"moonshine_U{suffix}": np.where(np.isnan(q), np.nan, 0.0),
+              "moonshine_dolp": np.abs(p), "moonshine_aolp_deg": aolp}
+    if sc.general:
+        fields["scattering_plane_position_angle_deg"] = scattering_plane_position_angle(sc)
+    return fields

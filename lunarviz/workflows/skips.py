@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 from lunarviz.geometry.scene_geometry import SceneGeometry
-from lunarviz.photometry.moon_polarisation import scattering_plane_position_angle
+from lunarviz.photometry.moon_polarisation import stokes_fields
 from lunarviz.workflows.spectral_phase import solar_at_moon
 
 #: the ``skip_reason`` values
@@ -71,9 +71,6 @@ def skipped_rows(scene, sc: SceneGeometry, base: dict, reason: str) -> list[dict
                         "geometric_albedo_term": math.nan, "apparent_albedo": math.nan,
                         "seconds": 0.0, "rtol": 0.0, "no_bound_reason": "", "skip_reason": reason})
             if scene.stokes and req is not None:  # no light: Q = U = 0, no degree or angle of polarisation
-                row.update({f"moonshine_Q{suffix}": 0.0, f"moonshine_U{suffix}": 0.0, "moonshine_dolp": math.nan,
-                            "moonshine_aolp_deg": math.nan})
-                if sc.general:
-                    row["scattering_plane_position_angle_deg"] = scattering_plane_position_angle(sc)
+                row.update({k: float(v) for k, v in stokes_fields(0.0, 0.0, suffix, sc).items()})
             rows.append(row)
     return rows

@@ -180,13 +180,7 @@ def moonshine_stokes(req, p_nodes: np.ndarray, ms_nodes: np.ndarray, ms_out: np.
     outside = np.isnan(p_nodes)
     q_out = req.outputs(-np.where(outside, 0.0, p_nodes) * ms_nodes, sc.phi_sun)
     bad = (req.weights[:, outside] > 0).any(axis=1)
-    p_out = np.where(bad | (ms_out <= 0), np.nan, -q_out / np.where(ms_out > 0, ms_out, 1.0))
-    fields = moon_polarisation.stokes_fields(p_out, ms_out, req.value_suffix)
-    fields[f"moonshine_Q{req.value_suffix}"] = np.where(bad, np.nan, q_out)  # (exact zeros of a dark Moon kept)
-    fields[f"moonshine_U{req.value_suffix}"] = np.where(bad, np.nan, 0.0)
-    if sc.general:
-        fields["scattering_plane_position_angle_deg"] = moon_polarisation.scattering_plane_position_angle(sc)
-    return fields
+    return moon_polarisation.stokes_fields(np.where(bad, np.nan, q_out), ms_out, req.value_suffix, sc)
 
 
 def warn_unpolarised_rows(rows: list[dict]) -> None:

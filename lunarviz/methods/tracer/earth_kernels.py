@@ -1,4 +1,4 @@
-"""Compiled kernels of the mapped Earth (:mod:`lunarviz.methods.tracer.mapped_earth`): the light of
+"""The compiled kernel of the mapped Earth (:mod:`lunarviz.methods.tracer.mapped_earth`): the light of
 the elements along the Earth's limb, which some lunar points see and others do not, and the light
 of every element at lunar points whose horizon cuts the Earth, summed per lunar point and cell of
 the Earth's disc in one pass (the numpy paths build (points × elements) temporaries five times
@@ -16,28 +16,11 @@ def available() -> bool:
     return _NUMBA
 
 
-def _band_sums(xr, m, yr, my, yy, w, cell, out):
+def _element_sums(xr, nx, horizon, m, yr, my, yy, w, cell, out):
     """``out[p, b, cell[e]] += w[p, e] · max(0, m_e·(x_b - y_e)) / |x_b - y_e|³`` over the
     elements e, for lunar points x_b (xr, relative to the Moon's centre, as yr; ``my`` = m·yr,
-    ``yy`` = |yr|²)."""
-    B, N, P = xr.shape[0], m.shape[0], w.shape[0]
-    for b in range(B):
-        x0, x1, x2 = xr[b, 0], xr[b, 1], xr[b, 2]
-        xx = x0 * x0 + x1 * x1 + x2 * x2
-        for e in range(N):
-            num = x0 * m[e, 0] + x1 * m[e, 1] + x2 * m[e, 2] - my[e]
-            if num <= 0.0:
-                continue
-            r2 = xx - 2.0 * (x0 * yr[e, 0] + x1 * yr[e, 1] + x2 * yr[e, 2]) + yy[e]
-            f = num / (r2 * np.sqrt(r2))
-            c = cell[e]
-            for p in range(P):
-                out[p, b, c] += f * w[p, e]
-
-
-def _cut_sums(xr, nx, m, yr, my, yy, w, cell, out):
-    """As :func:`_band_sums`, for lunar points x_b whose horizon cuts the Earth: only the elements
-    above x_b's horizon (normal ``nx[b]``: n·(x_b - y_e) < 0) count."""
+    ``yy`` = |yr|²); with ``horizon``, only the elements above x_b's horizon (normal ``nx[b]``:
+    n·(x_b - y_e) < 0) count."""
     B, N, P = xr.shape[0], m.shape[0], w.shape[0]
     for b in range(B):
         x0, x1, x2 = xr[b, 0], xr[b, 1], xr[b, 2]
@@ -48,7 +31,7 @@ def _cut_sums(xr, nx, m, yr, my, yy, w, cell, out):
             num = x0 * m[e, 0] + x1 * m[e, 1] + x2 * m[e, 2] - my[e]
             if num <= 0.0:
                 continue
-            if nxx - (n0 * yr[e, 0] + n1 * yr[e, 1] + n2 * yr[e, 2]) >= 0.0:
+            if horizon and nxx - (n0 * yr[e, 0] + n1 * yr[e, 1] + n2 * yr[e, 2]) >= 0.0:
                 continue
             r2 = xx - 2.0 * (x0 * yr[e, 0] + x1 * yr[e, 1] + x2 * yr[e, 2]) + yy[e]
             f = num / (r2 * np.sqrt(r2))
@@ -57,26 +40,20 @@ def _cut_sums(xr, nx, m, yr, my, yy, w, cell, out):
                 out[p, b, c] += f * w[p, e]
 
 
-def cut_sums(xr, nx, m, yr, my, yy, w, cell, n_cells: int) -> np.ndarray:
-    """(P, B, n_cells) sums of :func:`_cut_sums` (compiled)."""
+def element_sums(xr, m, yr, my, yy, w, cell, n_cells: int, nx=None) -> np.ndarray:
+    """(P, B, n_cells) sums of :func:`_element_sums` (compiled): the limb's band at points whose
+    horizon does not cut the Earth (``nx`` None), or every element above the horizons ``nx``."""
     out = np.zeros((w.shape[0], xr.shape[0], n_cells))
-    _cut_sums(np.ascontiguousarray(xr), np.ascontiguousarray(nx), np.ascontiguousarray(m), np.ascontiguousarray(yr),
-              my, yy, np.ascontiguousarray(w), np.ascontiguousarray(cell, dtype=np.int64), out)
-    return out
-
-
-def band_sums(xr, m, yr, my, yy, w, cell, n_cells: int) -> np.ndarray:
-    """(P, B, n_cells) sums of :func:`_band_sums` (compiled)."""
-    out = np.zeros((w.shape[0], xr.shape[0], n_cells))
-    _band_sums(np.ascontiguousarray(xr), np.ascontiguousarray(m), np.ascontiguousarray(yr), my, yy,
-               np.ascontiguousarray(w), np.ascontiguousarray(cell, dtype=np.int64), out)
+    horizon = nx is not None
+    _element_sums(np.ascontiguousarray(xr), np.ascontiguousarray(nx if horizon else np.zeros(xr.shape)), horizon,
+                  np.ascontiguousarray(m), np.ascontiguousarray(yr), my, yy, np.ascontiguousarray(w),
+                  np.ascontiguousarray(cell, dtype=np.int64), out)
     return out
 
 
 _NUMBA = compiled.available()
 if _NUMBA:
     try:
-        _band_sums = compiled.jit(_band_sums, nogil=True)
-        _cut_sums = compiled.jit(_cut_sums, nogil=True)
+        _element_sums = compiled.jit(_element_sums, nogil=True)
     except Exception:  # noqa: BLE001 (numba missing a feature: numpy path)
         _NUMBA = False

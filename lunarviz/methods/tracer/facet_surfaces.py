@@ -105,22 +105,19 @@ class FacetSurfaces:
         """(albedo (n,), component weights (n, C) or ``None``) of the mapped Earth's facets ``faces``
         (sorted, distinct) alone: the values :meth:`earth_facet_albedo` and
         :meth:`earth_facet_parts` give them, computed for those facets only (the lit face seen
-        from the Moon: what a date needs) unless the whole mesh's are at hand."""
+        from the Moon: what a date needs) unless the whole mesh's are at hand. A map's Earth only:
+        the physical Earth's elements take their own values (:meth:`earth_element_values`)."""
         surf = self.bodies.settings.surface()
         parts = None if self.earth_parts is None else \
             self._earth_parts_w[faces] if self._earth_parts_w is not None else self._earth_parts_of(faces)
         if isinstance(self._earth_albedo, np.ndarray):
             a = self._earth_albedo[faces]
-        elif parts is not None and not surf.physical:
+        elif parts is not None:
             # a spectral run's components at the facets: their grey albedos' sum is the facets'
             # albedo (the same jittered points, :func:`~lunarviz.surfaces.earth_spectra.facet_weights`),
             # so the map is sampled once, not twice
             grey = grey_albedos(surf)
             a = parts @ np.array([grey[c] for c in components(surf)])
-        elif surf.physical:
-            sc = self.bodies.scene
-            a = facet_reflectance(surf, self.bodies.earth, self._earth_frame(), sc.sun, sc.moon,
-                                  [surf.wavelength_nm], only=faces)[:, 0]
         else:
             a = surf.facet_albedo(self.bodies.earth, self._earth_frame(), only=faces)
         return a, parts

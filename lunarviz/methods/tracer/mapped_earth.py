@@ -106,60 +106,43 @@ class MappedEarthTransport:
         band_el = np.flatnonzero(band)
         cell_of = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(y)])) if len(starts) else \
             np.zeros(0, int)
-        taylor = {}
-        weights = [("unit", L1A), ("map", L1A * a)]
-        if comp is not None:
-            weights += [(("part", c), L1A * comp[:, c]) for c in range(comp.shape[1])]
-        for name, wgt in weights:
-            taylor[name] = tuple(np.add.reduceat(wgt.reshape((-1,) + (1,) * (t.ndim - 1)) * t, starts, axis=0)
-                                 if len(starts) else np.zeros((0,) + t.shape[1:]) for t in (g0, grad, hess))
+        # each element's light for the unit, the map and a spectral run's components (the order of
+        # the transport's outputs), and its position relative to the Moon's centre: m·(x - y) and
+        # |x - y|² as products there, without cancellation (the exact sums' inputs)
+        weights = np.stack([L1A, L1A * a] + ([] if comp is None else [L1A * comp[:, c] for c in range(comp.shape[1])]))
+        names = ["unit", "map"] + [("part", c) for c in range(len(weights) - 2)]
+        taylor = {name: tuple(np.add.reduceat(wgt.reshape((-1,) + (1,) * (t.ndim - 1)) * t, starts, axis=0)
+                              if len(starts) else np.zeros((0,) + t.shape[1:]) for t in (g0, grad, hess))
+                  for name, wgt in zip(names, weights)}
+        yr = y - sc.moon
         self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, taylor=taylor, comp=comp,
-                              band=band_el, band_cell=cell_of[band_el])
+                              band=band_el, cell=cell_of, weights=weights,
+                              rel=(yr, np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)))
         return self._earth_el
 
-    def _band_sums(self, x, el, n_parts: int, chunk: int = 256) -> dict:
-        """``{name: (B, C)}``: the light of the elements of the limb's band (:meth:`earth_elements`)
-        at lunar points x whose horizon does not cut the Earth, summed exactly per point and cell
-        (zero where an element is behind the limb seen from x)."""
-        idx, cell = el["band"], el["band_cell"]
-        y, m, L1A = el["y"][idx], el["m"][idx], el["L1A"][idx]
-        wts = [("unit", L1A), ("map", L1A * el["a"][idx])]
-        wts += [(("part", c), L1A * el["comp"][idx, c]) for c in range(n_parts)]
+    def _band_sums(self, x, el, chunk: int = 256) -> np.ndarray:
+        """(P, B, C): the light of the elements of the limb's band (:meth:`earth_elements`) at lunar
+        points x whose horizon does not cut the Earth, summed exactly per point and cell for each of
+        the elements' weights (zero where an element is behind the limb seen from x)."""
+        idx = el["band"]
+        w, cell, m = el["weights"][:, idx], el["cell"][idx], el["m"][idx]
+        yr, my, yy = (r[idx] for r in el["rel"])
         C = len(el["starts"])
         if idx.size == 0:
-            return {name: np.zeros((len(x), C)) for name, _ in wts}
-        # m·(x - y) and |x - y|² as products (x relative to the Moon's centre: no cancellation)
-        x0 = self.bodies.scene.moon
-        yr = y - x0
-        my, yy = np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)
+            return np.zeros((len(w), len(x), C))
+        xr = x - self.bodies.scene.moon
         if earth_kernels.available():  # one compiled pass
-            sums = earth_kernels.band_sums(x - x0, m, yr, my, yy, np.stack([w for _, w in wts]), cell, C)
-            return {name: sums[i] for i, (name, _) in enumerate(wts)}
+            return earth_kernels.element_sums(xr, m, yr, my, yy, w, cell, C)
         runs = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])  # (each cell's run of elements)
-        out = {name: np.zeros((len(x), C)) for name, _ in wts}
+        out = np.zeros((len(w), len(x), C))
         for c0 in range(0, len(x), chunk):
-            xr = x[c0:c0 + chunk] - x0
-            num = np.clip(xr @ m.T - my[None, :], 0.0, None)
-            r2 = np.einsum("ij,ij->i", xr, xr)[:, None] - 2.0 * (xr @ yr.T) + yy[None, :]
+            xc = xr[c0:c0 + chunk]
+            num = np.clip(xc @ m.T - my[None, :], 0.0, None)
+            r2 = np.einsum("ij,ij->i", xc, xc)[:, None] - 2.0 * (xc @ yr.T) + yy[None, :]
             f = num / (r2 * np.sqrt(r2))
-            for name, w in wts:
-                out[name][c0:c0 + chunk, cell[runs]] = np.add.reduceat(f * w, runs, axis=1)
+            for p, wp in enumerate(w):
+                out[p][c0:c0 + chunk, cell[runs]] = np.add.reduceat(f * wp, runs, axis=1)
         return out
-
-    def _cut_sums(self, x, n, el, outs, rows) -> None:
-        """The exact per-element sums at lunar points x (normals n) whose horizon cuts the Earth,
-        compiled (:func:`~lunarviz.methods.tracer.earth_kernels.cut_sums`), into ``outs``' rows."""
-        x0 = self.bodies.scene.moon
-        y, m, L1A = el["y"], el["m"], el["L1A"]
-        yr = y - x0
-        my, yy = np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)
-        wts = [L1A, L1A * el["a"]]
-        if el["comp"] is not None:
-            wts += [L1A * el["comp"][:, c] for c in range(el["comp"].shape[1])]
-        cell = np.repeat(np.arange(len(el["starts"])), np.diff(np.r_[el["starts"], len(y)]))
-        sums = earth_kernels.cut_sums(x - x0, n, m, yr, my, yy, np.stack(wts), cell, len(el["starts"]))
-        for (_, out), s in zip(outs, sums):
-            out[rows] = s
 
     def transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
         """Earthshine :class:`Transport` at lunar points x from an Earth with an albedo map.
@@ -196,10 +179,10 @@ class MappedEarthTransport:
             dx = x[far] - self.bodies.scene.moon
             dxx = 0.5 * (dx[:, :, None] * dx[:, None, :]).reshape(-1, 9)  # (the Hessian's term as one product)
             unit_far = None
-            band = self._band_sums(x[far], el, n_parts)
-            for name, out in outs:
+            band = self._band_sums(x[far], el)
+            for (name, out), band_p in zip(outs, band):
                 s0, s1, s2 = el["taylor"][name]
-                v = s0[None, :] + dx @ s1.T + dxx @ s2.reshape(-1, 9).T + band[name]
+                v = s0[None, :] + dx @ s1.T + dxx @ s2.reshape(-1, 9).T + band_p
                 # the unit and the map are lights: clipped at 0 where the expansion dips
                 # below it. A spectral run's components are not clipped one by one (a component's
                 # value may dip where their albedo-weighted sum, the map, does not: clipping each
@@ -209,7 +192,11 @@ class MappedEarthTransport:
                     unit_far = out[far]
             rows = np.flatnonzero(cut)
             if len(rows) and earth_kernels.available():  # one compiled pass over (points × elements)
-                self._cut_sums(x[rows], n[rows], el, outs, rows)
+                yr, my, yy = el["rel"]
+                sums = earth_kernels.element_sums(x[rows] - self.bodies.scene.moon, m, yr, my, yy, el["weights"],
+                                                  el["cell"], C, nx=n[rows])
+                for (_, out), sums_p in zip(outs, sums):
+                    out[rows] = sums_p
                 rows = rows[:0]
             for c0 in range(0, len(rows), chunk):
                 sel = rows[c0:c0 + chunk]
