@@ -117,7 +117,7 @@ def scattering_plane_position_angle(sc) -> float:
 def stokes_fields(q, intensity, suffix: str, sc) -> dict:
     """The moonshine's Stokes fields of outputs with Stokes Q ``q`` (NaN outside the model) and
     intensities ``intensity`` (the same units, ``suffix``) in the scattering plane's frame: Q, U = 0
-    (the plane's mirror symmetry), the degree of linear polarisation |P| (P = −Q/I) and its angle
+    (the plane's mirror symmetry), the degree of linear polarisation ``|P|`` (P = −Q/I) and its angle
     from the scattering plane [deg] (90: perpendicular; NaN without light or polarisation); a dated
     scene ``sc`` adds the plane's position angle on the sky (:func:`scattering_plane_position_angle`)."""
     q, i = np.asarray(q, float), np.asarray(intensity, float)
