@@ -17,7 +17,7 @@ costs three cheap evaluations of one transport (the docs' architecture page: dat
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,6 +53,10 @@ class Transport:
     #: (N, Q))``: each sample shaded at every map value, weighted by its factor (``albedo_absolute``
     #: as above); ``None``: ``albedo`` per sample or none
     albedo_nodes: tuple | None = None
+    #: the rough Hapke geometry of these beams (effective cosines and shadowing), computed once per
+    #: model's roughness by the spectral shading (:mod:`lunarviz.spectral.shading`) and kept for
+    #: the transport's other shadings (an image shades each chunk at several lunar albedo values)
+    rough_geometry: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def expanded(self) -> "Transport":
         """The same samples with :attr:`albedo_nodes` spelt out: each sample repeated at every map

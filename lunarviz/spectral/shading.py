@@ -97,11 +97,15 @@ def _effective_geometry(sb: SpectralBRDF, tr):
     g = sb.model(0)  # θ̄, B_C0 and h_C: the nodes' own (one value for all of them on this path)
     if not g.rough:
         return mu0, mu, np.ones((len(mu), 1))
-    psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
-    mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(g.theta_bar))
-    if g.Bc0 > 0.0:
-        S = S * (1.0 + g.Bc0 * coherent_backscatter(tr.sin_hg, tr.cos_hg, g.hc))
-    return mu0e, np.broadcast_to(mue, mu0.shape), np.broadcast_to(S, mu0.shape)
+    key = (g.theta_bar, g.Bc0, g.hc)  # (the transport's beams do not change: computed once per roughness)
+    if key not in tr.rough_geometry:
+        psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
+        mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(g.theta_bar))
+        if g.Bc0 > 0.0:
+            S = S * (1.0 + g.Bc0 * coherent_backscatter(tr.sin_hg, tr.cos_hg, g.hc))
+        mu0e.setflags(write=False)
+        tr.rough_geometry[key] = (mu0e, np.broadcast_to(mue, mu0.shape), np.broadcast_to(S, mu0.shape))
+    return tr.rough_geometry[key]
 
 
 def _albedo_factors(tr, sb: SpectralBRDF):
