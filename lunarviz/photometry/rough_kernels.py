@@ -24,6 +24,83 @@ from lunarviz.photometry.brdf import make_brdf
 from lunarviz.photometry.shading_kernels import h_value, surge_phase
 
 
+def _emergent(m, tb, cot_tb, chi):
+    """The emergence side of Hapke (1984)'s shadowing for cos e = ``m`` (Eqs. 46-50,
+    :func:`lunarviz.photometry.roughness.shadowing`): sin e, e, E1(e), E2(e), η(e) and μ/η(e)."""
+    se = np.sqrt(1.0 - m * m)
+    cot_e = m / se if se > 0.0 else np.inf
+    e1e = np.exp(-2.0 / np.pi * cot_tb * cot_e)
+    e2e = np.exp(-1.0 / np.pi * cot_tb * cot_tb * cot_e * cot_e)
+    eta_e = chi * (m + se * tb * e2e / (2.0 - e1e))
+    a_e = m / eta_e if eta_e > 0.0 else 0.0
+    return se, np.arccos(m), e1e, e2e, eta_e, a_e
+
+
+def _beam_rough(m0, m, s_, se, ang_e, e1e, e2e, eta_e, a_e, tb, cot_tb, chi):
+    """Hapke (1984)'s effective cosines and shadowing (μ0e, μe, S) of one beam: cos i = ``m0``,
+    cos e = ``m`` (its :func:`_emergent` terms), sin(g/2) = ``s_``. The formulas of
+    :func:`lunarviz.photometry.roughness.shadowing`, with its guards: the slope terms dropped where
+    their denominator vanishes (double grazing with ψ = π) and S = 0 where its own does."""
+    # ψ from sin²(g/2) = sin²((i - e)/2) + sin i sin e sin²(ψ/2) (roughness.azimuth_from_half_angle)
+    si = np.sqrt(1.0 - m0 * m0)
+    sisi = si * se
+    d = np.sin(0.5 * (np.arccos(m0) - ang_e))
+    s2 = min(max((s_ * s_ - d * d) / sisi, 0.0), 1.0) if sisi > 1e-300 else 0.0  # sin²(ψ/2)
+    psi = 2.0 * np.arcsin(np.sqrt(s2))
+    cpsi = 1.0 - 2.0 * s2
+    # Hapke (1984) Eqs. 46-50; f(ψ) = exp(-2 tan(ψ/2))
+    cot_i = m0 / si if si > 0.0 else np.inf
+    e1i = np.exp(-2.0 / np.pi * cot_tb * cot_i)
+    e2i = np.exp(-1.0 / np.pi * cot_tb * cot_tb * cot_i * cot_i)
+    f = np.exp(-2.0 * np.sqrt(s2 / (1.0 - s2))) if s2 < 1.0 else 0.0
+    eta_i = chi * (m0 + si * tb * e2i / (2.0 - e1i))
+    mu0e, mue = chi * m0, chi * m
+    if m0 >= m:  # i ≤ e
+        den = 2.0 - e1e - (psi / np.pi) * e1i
+        if den > 0.0:
+            mu0e = chi * (m0 + si * tb * (cpsi * e2e + s2 * e2i) / den)
+            mue = chi * (m + se * tb * (e2e - s2 * e2i) / den)
+    else:
+        den = 2.0 - e1i - (psi / np.pi) * e1e
+        if den > 0.0:
+            mu0e = chi * (m0 + si * tb * (e2i - s2 * e2e) / den)
+            mue = chi * (m + se * tb * (cpsi * e2i + s2 * e2e) / den)
+    a_i = m0 / eta_i if eta_i > 0.0 else 0.0
+    last = a_i if m0 >= m else a_e
+    b_e = mue / eta_e if eta_e > 0.0 else 0.0
+    den_s = 1.0 - f + f * chi * last
+    return mu0e, mue, (b_e * a_i * chi / den_s if den_s > 0.0 else 0.0)
+
+
+def _coherent(s_, c_, Bc0, hc):
+    """1 + B_C0 B_C(g) of Hapke (2002) Eq. 8 (:func:`lunarviz.photometry.roughness.coherent_backscatter`)
+    for sin(g/2) = ``s_``, cos(g/2) = ``c_``."""
+    if Bc0 <= 0.0:
+        return 1.0
+    y = (s_ / c_) / hc if c_ > 0.0 else np.inf
+    if not np.isfinite(y):
+        return 1.0
+    frac = -np.expm1(-y) / y if y > 1e-8 else 1.0 - 0.5 * y
+    return 1.0 + Bc0 * (1.0 + frac) / (2.0 * (1.0 + y) ** 2)
+
+
+def _rough_geometry(mu0, mu, sh, ch, theta_bar, Bc0, hc, mu0e_out, mue_out, s_out):
+    """μ0e, μe and S (1 + B_C0 B_C) per beam (N, K) of samples with cos e = ``mu`` (N,)."""
+    n, k = mu0.shape
+    tb = np.tan(theta_bar)
+    cot_tb = 1.0 / tb
+    chi = 1.0 / np.sqrt(1.0 + np.pi * tb * tb)
+    for i in range(n):
+        m = min(max(mu[i], 0.0), 1.0)
+        se, ang_e, e1e, e2e, eta_e, a_e = _emergent(m, tb, cot_tb, chi)
+        for j in range(k):
+            m0 = min(max(mu0[i, j], 0.0), 1.0)
+            mu0e, mue, S = _beam_rough(m0, m, sh[i, j], se, ang_e, e1e, e2e, eta_e, a_e, tb, cot_tb, chi)
+            mu0e_out[i, j] = mu0e
+            mue_out[i, j] = mue
+            s_out[i, j] = S * _coherent(sh[i, j], ch[i, j], Bc0, hc)
+
+
 def _rough_nodes_sum(mu0, mu, sh, ch, e, e_unit, w_nodes, factors, h, B0, pcode, p1, p2, hcode, theta_bar,
                      Bc0, hc, has_unit, out, out_unit):
     n, k = mu0.shape
@@ -37,13 +114,7 @@ def _rough_nodes_sum(mu0, mu, sh, ch, e, e_unit, w_nodes, factors, h, B0, pcode,
     for i in range(n):
         row = i if per_sample else 0
         m = min(max(mu[i], 0.0), 1.0)
-        se = np.sqrt(1.0 - m * m)
-        cot_e = m / se if se > 0.0 else np.inf
-        e1e = np.exp(-2.0 / np.pi * cot_tb * cot_e)
-        e2e = np.exp(-1.0 / np.pi * cot_tb * cot_tb * cot_e * cot_e)
-        eta_e = chi * (m + se * tb * e2e / (2.0 - e1e))
-        a_e = m / eta_e if eta_e > 0.0 else 0.0
-        ang_e = np.arccos(m)
+        se, ang_e, e1e, e2e, eta_e, a_e = _emergent(m, tb, cot_tb, chi)
         acc = 0.0
         acc_u = 0.0
         for j in range(k):
@@ -54,38 +125,9 @@ def _rough_nodes_sum(mu0, mu, sh, ch, e, e_unit, w_nodes, factors, h, B0, pcode,
             m0 = min(max(mu0[i, j], 0.0), 1.0)
             s_ = sh[i, j]
             c_ = ch[i, j]
-            # ψ from sin²(g/2) = sin²((i - e)/2) + sin i sin e sin²(ψ/2) (roughness.azimuth_from_half_angle)
-            si = np.sqrt(1.0 - m0 * m0)
-            sisi = si * se
-            d = np.sin(0.5 * (np.arccos(m0) - ang_e))
-            s2 = min(max((s_ * s_ - d * d) / sisi, 0.0), 1.0) if sisi > 1e-300 else 0.0  # sin²(ψ/2)
-            psi = 2.0 * np.arcsin(np.sqrt(s2))
-            cpsi = 1.0 - 2.0 * s2
-            # Hapke (1984) Eqs. 46-50 (roughness.shadowing); f(ψ) = exp(-2 tan(ψ/2))
-            cot_i = m0 / si if si > 0.0 else np.inf
-            e1i = np.exp(-2.0 / np.pi * cot_tb * cot_i)
-            e2i = np.exp(-1.0 / np.pi * cot_tb * cot_tb * cot_i * cot_i)
-            f = np.exp(-2.0 * np.sqrt(s2 / (1.0 - s2))) if s2 < 1.0 else 0.0
-            eta_i = chi * (m0 + si * tb * e2i / (2.0 - e1i))
-            if m0 >= m:  # i ≤ e
-                den = 2.0 - e1e - (psi / np.pi) * e1i
-                mu0e = chi * (m0 + si * tb * (cpsi * e2e + s2 * e2i) / den)
-                mue = chi * (m + se * tb * (e2e - s2 * e2i) / den)
-            else:
-                den = 2.0 - e1i - (psi / np.pi) * e1e
-                mu0e = chi * (m0 + si * tb * (e2i - s2 * e2e) / den)
-                mue = chi * (m + se * tb * (cpsi * e2i + s2 * e2e) / den)
-            a_i = m0 / eta_i if eta_i > 0.0 else 0.0
-            last = a_i if m0 >= m else a_e
-            b_e = mue / eta_e if eta_e > 0.0 else 0.0
-            S = b_e * a_i * chi / (1.0 - f + f * chi * last)
+            mu0e, mue, S = _beam_rough(m0, m, s_, se, ang_e, e1e, e2e, eta_e, a_e, tb, cot_tb, chi)
             sb = surge_phase(s_, c_, h, B0, pcode, p1, p2) - 1.0  # (brdf.Hapke)
-            cb = 1.0
-            if Bc0 > 0.0:
-                y = (s_ / c_) / hc if c_ > 0.0 else np.inf
-                if np.isfinite(y):
-                    frac = -np.expm1(-y) / y if y > 1e-8 else 1.0 - 0.5 * y
-                    cb = 1.0 + Bc0 * (1.0 + frac) / (2.0 * (1.0 + y) ** 2)
+            cb = _coherent(s_, c_, Bc0, hc)
             tot = mu0e + mue
             frac_e = mu0e / tot if tot > 0.0 else 0.0
             geo = frac_e * S * cb / four_pi
@@ -104,6 +146,11 @@ def _rough_nodes_sum(mu0, mu, sh, ch, e, e_unit, w_nodes, factors, h, B0, pcode,
             acc_u += r * eu
         out[i] = acc
         out_unit[i] = acc_u
+
+
+def available() -> bool:
+    """Whether the compiled kernels are in use."""
+    return _NUMBA
 
 
 def handles(model) -> bool:
@@ -130,6 +177,17 @@ def rough_node_radiances(model, mu0, mu, sin_hg, cos_hg, e_beam, e_unit, w_nodes
     return out, (out_u if e_unit is not None else None)
 
 
+def rough_geometry(mu0, mu, sin_hg, cos_hg, theta_bar_rad: float, Bc0: float, hc: float):
+    """``(μ0e, μe, S·(1 + B_C0 B_C))`` per beam (N, K) for cos i ``mu0`` (N, K) and cos e ``mu``
+    (N,) (compiled; :func:`handles`' models): what :func:`lunarviz.photometry.roughness.shadowing`
+    and :func:`~lunarviz.photometry.roughness.coherent_backscatter` give, to rounding."""
+    f = np.ascontiguousarray
+    mu0 = f(mu0, dtype=float)
+    out = [np.empty(mu0.shape) for _ in range(3)]
+    _rough_geometry(mu0, f(np.broadcast_to(mu, (mu0.shape[0],)), dtype=float), f(sin_hg, dtype=float),
+                    f(cos_hg, dtype=float), float(theta_bar_rad), float(Bc0), float(hc), *out)
+    return tuple(out)
+
 def warm_up() -> None:
     """Load (or compile) the kernel once on tiny inputs, e.g. before forking workers."""
     if not _NUMBA:
@@ -142,6 +200,10 @@ def warm_up() -> None:
 _NUMBA = shading_kernels.available()
 if _NUMBA:
     try:
+        _emergent = compiled.jit(_emergent, nogil=True)
+        _beam_rough = compiled.jit(_beam_rough, nogil=True)
+        _coherent = compiled.jit(_coherent, nogil=True)
         _rough_nodes_sum = compiled.jit(_rough_nodes_sum, nogil=True)
+        _rough_geometry = compiled.jit(_rough_geometry, nogil=True)
     except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
         _NUMBA = False

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lunarviz.photometry import rough_kernels
 from lunarviz.photometry import shading_kernels as sk
 from lunarviz.photometry.brdf import Hapke, Lambert
 from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
@@ -98,6 +99,11 @@ def _effective_geometry(sb: SpectralBRDF, tr):
     if not g.rough:
         return mu0, mu, np.ones((len(mu), 1))
     key = (g.theta_bar, g.Bc0, g.hc)  # (the transport's beams do not change: computed once per roughness)
+    if key not in tr.rough_geometry and rough_kernels.available():  # one compiled pass over the beams
+        mu0e, mue, S = rough_kernels.rough_geometry(mu0, mu[:, 0], tr.sin_hg, tr.cos_hg, np.radians(g.theta_bar),
+                                                    g.Bc0, g.hc)
+        mu0e.setflags(write=False)
+        tr.rough_geometry[key] = (mu0e, mue, S)
     if key not in tr.rough_geometry:
         psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
         mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(g.theta_bar))
