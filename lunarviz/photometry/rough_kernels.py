@@ -6,7 +6,9 @@ of the map and weights them: ``L_n = Σ_q F_nq Σ_k r(w_q; μ0_nk, μ_n, g_nk) E
 (``rolo-fit-map``) the numpy path builds a dozen (N, Q, K) temporaries per BRDF; here each beam's
 geometry (the azimuth ψ, Hapke's 1984 effective cosines and shadowing S, the surge, the phase
 function and the coherent backscatter) is computed once and only the H-functions, which alone
-depend on w, once per value.
+depend on w, once per value. The spectral shading (:mod:`lunarviz.spectral.shading`) takes the
+same per-beam geometry (:func:`rough_geometry`: μ0e, μe and S with the coherent backscatter) for
+its wavelengths' kernels.
 
 Same formulas as :mod:`lunarviz.photometry.roughness` and
 :meth:`lunarviz.photometry.brdf.Hapke._rough_r` (the reference implementation, compared with this
