@@ -182,6 +182,11 @@ def saved(tmp_path_factory):
     return tmp
 
 
+#: the tests that read the saved state share it on one worker (pytest-xdist's loadgroup): it costs ~10 s
+SAVED_STATE = pytest.mark.xdist_group("explore_saved_state")
+
+
+@SAVED_STATE
 def test_render_state_makes_the_explorers_picture(saved):
     from PIL import Image
     r = _cli("render", "--state", str(saved / "view.json"), "--out", str(saved / "again.png"))
@@ -192,6 +197,7 @@ def test_render_state_makes_the_explorers_picture(saved):
     assert np.abs(a - b).max() <= 2  # (the same code and data: identical, but for GPU-free rasteriser noise)
 
 
+@SAVED_STATE
 def test_sweep_state_gives_the_explorers_numbers_exactly(saved):
     r = _cli("sweep", "--state", str(saved / "view.json"), "--out", str(saved / "row.json"), "--quiet")
     assert r.returncode == 0, r.stderr
@@ -209,6 +215,7 @@ def test_sweep_state_gives_the_explorers_numbers_exactly(saved):
     (["sweep", "--out", "x.json", "--earth-albedo", "0.4"], "drop --earth-albedo"),
     (["sweep", "--out", "x.json", "--method", "reference"], "drop --method"),
 ])
+@SAVED_STATE
 def test_state_refuses_scene_options_beside_it(saved, args, words):
     r = _cli(*args[:1], "--state", str(saved / "view.json"), *args[1:], cwd=saved)
     assert r.returncode == 2 and words in r.stderr and r.stderr.count("\n") == 1

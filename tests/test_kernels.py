@@ -91,9 +91,11 @@ def test_rough_geometry_kernel_matches_numpy(theta_bar, Bc0, hc):
     """The spectral shading's compiled rough geometry (rough_kernels.rough_geometry: Hapke 1984's
     effective cosines and shadowing with Hapke 2002's coherent backscatter, per beam) against the
     numpy reference (roughness.shadowing, coherent_backscatter): to rounding (1e-12 on these O(1)
-    values) wherever ψ is not within 1e-3 rad of π, where ψ = 2 asin √q is ill-conditioned in q (the
-    two take sin i differently: 1e-16 in q moves ψ by ~1e-8 at q = 1 - 1e-16; there 1e-7); finite
-    at grazing and normal incidence and emission, i = e, g = 0, g = π and g = i + e."""
+    values) wherever ψ is not within 1e-3 rad of 0 or π, where ψ = 2 asin √q is ill-conditioned in q
+    (the two take sin i differently: 1e-16 in q moves ψ by ~1e-8 there; 1e-7 at these θ̄ ≤ 25°);
+    finite at grazing and normal incidence and emission, i = e, g = 0, g = π, g = |i - e|, g = i + e
+    and double grazing (i = e = 90°, ψ = π: no light, S = 0, where the slope terms' denominator
+    vanishes)."""
     from lunarviz.photometry import rough_kernels
     from lunarviz.photometry.roughness import azimuth_from_half_angle, coherent_backscatter, shadowing
     rng = np.random.default_rng(7)
@@ -105,17 +107,20 @@ def test_rough_geometry_kernel_matches_numpy(theta_bar, Bc0, hc):
     g[200:240], g[240:260] = 0.0, np.pi
     i, e = np.arccos(np.clip(mu0, 0, 1)), np.arccos(mu)[:, None]
     g[260:300] = np.minimum(i + e, np.pi)[260:300]  # ψ = π: the light leaves opposite the Sun's azimuth
+    g[300:340] = np.abs(i - e)[300:340]  # ψ = 0: the light leaves on the Sun's side
+    mu0[340:360, :4], mu[340:360], g[340:360, :4] = 0.0, 0.0, np.pi  # double grazing, ψ = π
     sh, ch = np.sin(g / 2), np.cos(g / 2)
     got = rough_kernels.rough_geometry(mu0, mu, sh, ch, np.radians(theta_bar), Bc0, hc)
     psi = azimuth_from_half_angle(np.clip(mu0, 0, 1), mu[:, None], sh)
     mu0e, mue, S = shadowing(mu0, mu[:, None], psi, np.radians(theta_bar))
     S = S * (1.0 + Bc0 * coherent_backscatter(sh, ch, hc))
-    near_pi = psi > np.pi - 1e-3
-    assert 0 < near_pi.sum() < near_pi.size // 2
+    ill = (psi > np.pi - 1e-3) | (psi < 1e-3)
+    assert ill.any() and (~ill).sum() > ill.size // 4  # (beams with g outside [|i - e|, i + e] have ψ = 0 or π)
     for a, b in zip(got, (mu0e, mue, S)):
         b = np.broadcast_to(b, mu0.shape)
         assert np.all(np.isfinite(a))
-        assert np.abs(a - b)[~near_pi].max() <= 1e-12 and np.abs(a - b)[near_pi].max() <= 1e-7
+        assert np.abs(a - b)[~ill].max() <= 1e-12 and np.abs(a - b)[ill].max() <= 1e-7
+    assert np.all(got[2][340:360, :4] == 0.0)
 
 def test_models_the_kernel_leaves_to_numpy():
     assert shading_kernels.hapke_codes(make_brdf("lambert")) is None

@@ -144,8 +144,9 @@ def test_mapped_earth_rows_carry_their_models_bound_or_say_why():
     # Lambert's ε are smaller than the Hapke BRDFs' (the disc cells' one direction each)
     by = {r["brdf"]: r["rtol"] for r in rows}
     assert by["lambert"] <= by["dhg"]
-    # a level the model did not measure: NaN and why
-    r = run_phase(s.replace(earth_level=8), s.times[0])[0]
+    # a level the model did not measure (it measured 4-7; a coarse level is as unmeasured as a
+    # fine one, and traces in a fraction of the time): NaN and why
+    r = run_phase(s.replace(earth_level=3), s.times[0])[0]
     assert math.isnan(r["rtol"]) and "mapped Earth at this Earth level" in r["no_bound_reason"]
 
 

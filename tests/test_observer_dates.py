@@ -188,7 +188,8 @@ def test_equal_grey_albedos_keep_a_spectral_earths_components():
 def test_a_dates_mapped_earth_averages_only_the_facets_it_needs(monkeypatch):
     """The mapped Earth's per-facet values of the facets a date needs (its lit face seen from the
     Moon) are bit for bit the whole mesh's (the same jittered points per facet): rows equal to
-    those from the whole-mesh averages, grey and spectral."""
+    those from the whole-mesh averages, grey and spectral (on a level-4 Earth: the whole mesh's
+    averages at the default level cost ~10 s a run, and the selection is the same code at any level)."""
     from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
     whole = FacetSurfaces.earth_facet_values
 
@@ -198,7 +199,7 @@ def test_a_dates_mapped_earth_averages_only_the_facets_it_needs(monkeypatch):
         return a, None if parts is None else parts[faces]
     for extra in ({}, {"bands": "V"}):
         s = ResolvedScene(method="raytrace", brdfs=("lambert",), times=("2026-02-22T03:00:00Z",),
-                          earth_surface="landocean", clouds="zonal", moon_model="paper", **extra)
+                          earth_surface="landocean", clouds="zonal", moon_model="paper", earth_level=4, **extra)
         from lunarviz.caches import release_caches
         release_caches()
         got = sweeps.run_phase(s, s.times[0], threads=1)

@@ -186,8 +186,9 @@ def rough_geometry(mu0, mu, sin_hg, cos_hg, theta_bar_rad: float, Bc0: float, hc
     f = np.ascontiguousarray
     mu0 = f(mu0, dtype=float)
     out = [np.empty(mu0.shape) for _ in range(3)]
-    _rough_geometry(mu0, f(np.broadcast_to(mu, (mu0.shape[0],)), dtype=float), f(sin_hg, dtype=float),
-                    f(cos_hg, dtype=float), float(theta_bar_rad), float(Bc0), float(hc), *out)
+    sh, ch = (f(np.broadcast_to(a, mu0.shape), dtype=float) for a in (sin_hg, cos_hg))
+    _rough_geometry(mu0, f(np.broadcast_to(mu, (mu0.shape[0],)), dtype=float), sh, ch, float(theta_bar_rad),
+                    float(Bc0), float(hc), *out)
     return tuple(out)
 
 def warm_up() -> None:

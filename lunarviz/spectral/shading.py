@@ -102,7 +102,8 @@ def _effective_geometry(sb: SpectralBRDF, tr):
     if key not in tr.rough_geometry and rough_kernels.available():  # one compiled pass over the beams
         mu0e, mue, S = rough_kernels.rough_geometry(mu0, mu[:, 0], tr.sin_hg, tr.cos_hg, np.radians(g.theta_bar),
                                                     g.Bc0, g.hc)
-        mu0e.setflags(write=False)
+        for a in (mu0e, mue, S):
+            a.setflags(write=False)
         tr.rough_geometry[key] = (mu0e, mue, S)
     if key not in tr.rough_geometry:
         psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
