@@ -417,3 +417,25 @@ def test_mapped_earth_cut_sums_kernel_matches_numpy(monkeypatch):
     assert slow[1].sum() > 0
     for a, b in zip(fast, slow):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12 * b.max())
+
+
+def test_jittered_facet_points_kernel_matches_numpy(monkeypatch):
+    """The map averages' jittered points per facet (maps.facet_points), compiled, against the numpy
+    path: the same points to rounding (1e-15 of the radius; the sums' order differs), and a date's
+    facets alone (``rows``: their random draws skipped to, PCG64's advance) bit for bit the whole
+    mesh's, with the generator left where the whole draw leaves it."""
+    import trimesh
+
+    from lunarviz.surfaces import maps
+    ico = trimesh.creation.icosphere(subdivisions=3)
+    V, F = ico.vertices * 6.371e6, ico.faces
+    rows = np.flatnonzero(ico.face_normals @ np.array([0.3, 0.5, 0.8]) > 0.2)
+    got = maps.facet_points(V, F, 5, np.random.default_rng(3))
+    rng_rows = np.random.default_rng(3)
+    part = maps.facet_points(V, F, 5, rng_rows, rows)
+    rng_whole = np.random.default_rng(3)
+    maps.facet_points(V, F, 5, rng_whole)
+    assert np.array_equal(part, got[rows]) and rng_rows.random() == rng_whole.random()
+    monkeypatch.setattr(maps, "_NUMBA", False)
+    want = maps.facet_points(V, F, 5, np.random.default_rng(3))
+    assert np.abs(got - want).max() <= 1e-15 * 6.371e6

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+import lunarviz.compiled as compiled
 from lunarviz.errors import LunarvizError
 from lunarviz.geometry.subdivision import sub_barycentric
 
@@ -187,6 +188,40 @@ def facet_sub_count(vertices, faces, m_shape, max_samples: int = MAX_SAMPLES) ->
     return int(max(min(8, cap), min(k, 16, max(cap, 1))))
 
 
+def _random_rows(rng: np.random.Generator, F: int, S: int, rows: np.ndarray) -> np.ndarray:
+    """``rng.random((F, S))[rows]``, leaving ``rng`` where that draw leaves it, drawing only the rows'
+    values where the bit generator can skip ahead (PCG64, one 64-bit step a float64: ``advance``
+    passes the others) and ``rows`` increase; else the whole draw. The same numbers either way."""
+    bg = rng.bit_generator
+    if not hasattr(bg, "advance") or len(rows) == 0 or np.any(np.diff(rows) <= 0):
+        return rng.random((F, S))[rows]
+    out = np.empty((len(rows), S))
+    first = np.flatnonzero(np.r_[True, np.diff(rows) != 1])  # runs of consecutive rows
+    pos = 0
+    for a, b in zip(first.tolist(), first[1:].tolist() + [len(rows)]):
+        bg.advance(int(rows[a]) * S - pos)
+        out[a:b] = rng.random((b - a, S))
+        pos = (int(rows[a]) + b - a) * S
+    bg.advance(F * S - pos)
+    return out
+
+
+def _jittered_points(corners, r1, r2, tri, out):
+    """``out[f, s] = Σ_k b_k tri[f, k]`` with b the barycentric point (1 - √r1) A + √r1 (1 - r2) B
+    + √r1 r2 C of sub-triangle s (corners A, B, C: ``corners[s]``) of facet f (compiled)."""
+    F, S = r1.shape
+    for f in range(F):
+        for s in range(S):
+            s1 = np.sqrt(r1[f, s])
+            w0, w1, w2 = 1.0 - s1, s1 * (1.0 - r2[f, s]), s1 * r2[f, s]
+            for j in range(3):
+                acc = 0.0
+                for k in range(3):
+                    b = w0 * corners[s, 0, k] + w1 * corners[s, 1, k] + w2 * corners[s, 2, k]
+                    acc += b * tri[f, k, j]
+                out[f, s, j] = acc
+
+
 def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None, rows=None) -> np.ndarray:
     """(F, k², 3) points, one uniform in each of the k² equal sub-triangles of each facet
     (body-centred): stratified and jittered, so a map's pattern cannot line up with the mesh's
@@ -197,9 +232,16 @@ def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None
     if rng is None:
         return np.einsum("sk,fkj->fsj", cen, vertices[faces if rows is None else faces[rows]])
     F, S = len(faces), len(cen)
-    r1, r2 = rng.random((F, S)), rng.random((F, S))
-    if rows is not None:
-        r1, r2, faces = r1[rows], r2[rows], faces[rows]
+    if rows is None:
+        r1, r2 = rng.random((F, S)), rng.random((F, S))
+    else:
+        r1, r2 = (_random_rows(rng, F, S, np.asarray(rows)) for _ in range(2))
+        faces = faces[rows]
+    if _NUMBA:  # one compiled pass (numpy builds five (F, S, 3) temporaries)
+        out = np.empty((len(faces), S, 3))
+        _jittered_points(np.ascontiguousarray(corners, dtype=float), r1, r2,
+                         np.ascontiguousarray(vertices[faces], dtype=float), out)
+        return out
     s1 = np.sqrt(r1)
     # uniform in a triangle: (1 - √r1) A + √r1 (1 - r2) B + √r1 r2 C, in barycentric coordinates
     bary = ((1 - s1)[..., None] * corners[None, :, 0] + (s1 * (1 - r2))[..., None] * corners[None, :, 1]
@@ -243,3 +285,9 @@ def facet_average(values_at, vertices, faces, k: int, chunk: int = 65536, spread
     return (out, sd) if spread else out
 
 
+_NUMBA = compiled.available()
+if _NUMBA:
+    try:
+        _jittered_points = compiled.jit(_jittered_points, nogil=True)
+    except Exception:  # noqa: BLE001 (numba unusable here: the numpy path serves)
+        _NUMBA = False
