@@ -423,19 +423,27 @@ def test_jittered_facet_points_kernel_matches_numpy(monkeypatch):
     """The map averages' jittered points per facet (maps.facet_points), compiled, against the numpy
     path: the same points to rounding (1e-15 of the radius; the sums' order differs), and a date's
     facets alone (``rows``: their random draws skipped to, PCG64's advance) bit for bit the whole
-    mesh's, with the generator left where the whole draw leaves it."""
+    mesh's, with the generator left where the whole draw leaves it (rows that neither start at the
+    first facet nor end at the last: both skips are taken); a generator that cannot skip (Philox's
+    advance counts blocks, not draws) and a 32-bit value buffered take the whole draw."""
     import trimesh
 
     from lunarviz.surfaces import maps
     ico = trimesh.creation.icosphere(subdivisions=3)
     V, F = ico.vertices * 6.371e6, ico.faces
     rows = np.flatnonzero(ico.face_normals @ np.array([0.3, 0.5, 0.8]) > 0.2)
+    rows = rows[(rows > 0) & (rows < len(F) - 1)]
+    assert rows[0] > 0 and rows[-1] < len(F) - 1
     got = maps.facet_points(V, F, 5, np.random.default_rng(3))
-    rng_rows = np.random.default_rng(3)
-    part = maps.facet_points(V, F, 5, rng_rows, rows)
-    rng_whole = np.random.default_rng(3)
-    maps.facet_points(V, F, 5, rng_whole)
-    assert np.array_equal(part, got[rows]) and rng_rows.random() == rng_whole.random()
+    for make in (lambda: np.random.default_rng(3), lambda: np.random.Generator(np.random.Philox(3))):
+        for buffered in (False, True):
+            rng_rows, rng_whole = make(), make()
+            if buffered:
+                rng_rows.integers(0, 9, dtype=np.uint32), rng_whole.integers(0, 9, dtype=np.uint32)
+            part = maps.facet_points(V, F, 5, rng_rows, rows)
+            whole = maps.facet_points(V, F, 5, rng_whole)
+            assert np.array_equal(part, whole[rows])
+            assert rng_rows.integers(0, 2**32, dtype=np.uint32) == rng_whole.integers(0, 2**32, dtype=np.uint32)
     monkeypatch.setattr(maps, "_NUMBA", False)
     want = maps.facet_points(V, F, 5, np.random.default_rng(3))
     assert np.abs(got - want).max() <= 1e-15 * 6.371e6

@@ -191,9 +191,13 @@ def facet_sub_count(vertices, faces, m_shape, max_samples: int = MAX_SAMPLES) ->
 def _random_rows(rng: np.random.Generator, F: int, S: int, rows: np.ndarray) -> np.ndarray:
     """``rng.random((F, S))[rows]``, leaving ``rng`` where that draw leaves it, drawing only the rows'
     values where the bit generator can skip ahead (PCG64, one 64-bit step a float64: ``advance``
-    passes the others) and ``rows`` increase; else the whole draw. The same numbers either way."""
+    passes the others; no 32-bit value buffered, which ``advance`` would drop) and ``rows`` are
+    increasing indices in [0, F); else the whole draw. The same numbers either way."""
     bg = rng.bit_generator
-    if not hasattr(bg, "advance") or len(rows) == 0 or np.any(np.diff(rows) <= 0):
+    skip = isinstance(bg, (np.random.PCG64, np.random.PCG64DXSM)) and not bg.state["has_uint32"] \
+        and rows.dtype.kind in "iu" and rows.ndim == 1 and len(rows) > 0 and rows[0] >= 0 and rows[-1] < F \
+        and bool(np.all(np.diff(rows) > 0))
+    if not skip:
         return rng.random((F, S))[rows]
     out = np.empty((len(rows), S))
     first = np.flatnonzero(np.r_[True, np.diff(rows) != 1])  # runs of consecutive rows
