@@ -191,6 +191,7 @@ def rough_geometry(mu0, mu, sin_hg, cos_hg, theta_bar_rad: float, Bc0: float, hc
                     float(Bc0), float(hc), *out)
     return tuple(out)
 
+
 def warm_up() -> None:
     """Load (or compile) the kernel once on tiny inputs, e.g. before forking workers."""
     if not _NUMBA:

@@ -99,19 +99,21 @@ def _effective_geometry(sb: SpectralBRDF, tr):
     if not g.rough:
         return mu0, mu, np.ones((len(mu), 1))
     key = (g.theta_bar, g.Bc0, g.hc)  # (the transport's beams do not change: computed once per roughness)
-    if key not in tr.rough_geometry and rough_kernels.available():  # one compiled pass over the beams
-        mu0e, mue, S = rough_kernels.rough_geometry(mu0, mu[:, 0], tr.sin_hg, tr.cos_hg, np.radians(g.theta_bar),
-                                                    g.Bc0, g.hc)
-        for a in (mu0e, mue, S):
-            a.setflags(write=False)
-        tr.rough_geometry[key] = (mu0e, mue, S)
     if key not in tr.rough_geometry:
-        psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
-        mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(g.theta_bar))
-        if g.Bc0 > 0.0:
-            S = S * (1.0 + g.Bc0 * coherent_backscatter(tr.sin_hg, tr.cos_hg, g.hc))
-        mu0e.setflags(write=False)
-        tr.rough_geometry[key] = (mu0e, np.broadcast_to(mue, mu0.shape), np.broadcast_to(S, mu0.shape))
+        if rough_kernels.available():  # one compiled pass over the beams
+            mu0e, mue, S = rough_kernels.rough_geometry(mu0, mu[:, 0], tr.sin_hg, tr.cos_hg,
+                                                        np.radians(g.theta_bar), g.Bc0, g.hc)
+        else:
+            psi = azimuth_from_half_angle(mu0, mu, tr.sin_hg)
+            mu0e, mue, S = shadowing(mu0, mu, psi, np.radians(g.theta_bar))
+            if g.Bc0 > 0.0:
+                S = S * (1.0 + g.Bc0 * coherent_backscatter(tr.sin_hg, tr.cos_hg, g.hc))
+            mue, S = np.broadcast_to(mue, mu0.shape), np.broadcast_to(S, mu0.shape)
+        mu0e.setflags(write=False)  # (the compiled arrays are the transport's own; broadcasts are read-only)
+        for a in (mue, S):
+            if a.flags.writeable:
+                a.setflags(write=False)
+        tr.rough_geometry[key] = (mu0e, mue, S)
     return tr.rough_geometry[key]
 
 

@@ -218,12 +218,11 @@ def _jittered_points(corners, r1, r2, tri, out):
         for s in range(S):
             s1 = np.sqrt(r1[f, s])
             w0, w1, w2 = 1.0 - s1, s1 * (1.0 - r2[f, s]), s1 * r2[f, s]
+            b0 = w0 * corners[s, 0, 0] + w1 * corners[s, 1, 0] + w2 * corners[s, 2, 0]
+            b1 = w0 * corners[s, 0, 1] + w1 * corners[s, 1, 1] + w2 * corners[s, 2, 1]
+            b2 = w0 * corners[s, 0, 2] + w1 * corners[s, 1, 2] + w2 * corners[s, 2, 2]
             for j in range(3):
-                acc = 0.0
-                for k in range(3):
-                    b = w0 * corners[s, 0, k] + w1 * corners[s, 1, k] + w2 * corners[s, 2, k]
-                    acc += b * tri[f, k, j]
-                out[f, s, j] = acc
+                out[f, s, j] = b0 * tri[f, 0, j] + b1 * tri[f, 1, j] + b2 * tri[f, 2, j]
 
 
 def facet_points(vertices, faces, k: int, rng: np.random.Generator | None = None, rows=None) -> np.ndarray:
