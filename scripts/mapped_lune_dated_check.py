@@ -9,7 +9,7 @@ and each date takes the orders its own θ needs (``accuracy.trace_choice``). Her
 seen from the issue's 550 km orbit (hourly dates spread over the year; those whose Moon is hidden,
 or whose θ is outside the model's phases, skipped) are traced at the orders and bounds their
 rows report (``--rtol 1e-4``, rolo-fit-map, lambert, shg and dhg) and again with the model's
-reference (lune order 48, finer source and cut-cell rules, ``mapped_lune_models.REFERENCE``):
+reference (lune order 128, finer source and cut-cell rules, ``mapped_lune_models.REFERENCE``):
 the moonshine's largest error over the BRDFs and the earthshine's for Lambert, against the
 model's bound at the date's θ, and the earthshine's for the Hapke BRDFs, which carry no bound
 off the Earth's centre (``accuracy.earth_source_modelled``: the opposition cusp and the i = e

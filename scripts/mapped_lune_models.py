@@ -5,11 +5,14 @@
 The lune rule on ``rolo-fit-map`` (its rough Hapke presets on the synthetic lunar map;
 :mod:`lunarviz.geometry.mapped_lune`): for each lune order, the largest relative error of the
 moonshine and of the earthshine over the paper's scene (θ = 5-175° every 5°, lambert, shg and
-dhg, no occlusion) and its time per phase (one thread), against the same rule at order 48 with
+dhg, no occlusion) and its time per phase (one thread), against the same rule at order 128 with
 finer sums over the cells that the rule's edges cut (8 lines and points), every block at the full
 order (no thin blocks: ``mapped_lune.THIN_WIDTH``), every whole cell by its own rule (no
-panels: ``mapped_lune.PANEL_CELLS``) and finer source rules (Sun order 3, Earth
-order 10). Both sides sum the whole cells outside panels by the same rectangle rule (its
+panels: ``mapped_lune.PANEL_CELLS``) and finer source rules (Sun order 4, Earth
+order 12). The reference's own error: DHG (θ̄ = 45°) converges slowest, as order^-2.5 to
+order^-3; the same reference at order 96 differs from it by 1.8e-6 at θ = 15-25°, so it errs by
+~1e-6, under the SAFETY margin of the orders up to 96 (order 48 was the reference before, and
+erred by 1.1e-5 there). Both sides sum the whole cells outside panels by the same rectangle rule (its
 error, exact for cubics: ≤ 1e-6 against the plain lune rule for a constant map, tests). Writes the
 ``raytrace_lune_mapped`` section of ``lunarviz/data/error_models.json`` (the rest is kept) and
 ``benchmarks/error_models/mapped_lune.md``. Independent checks of the rule itself (a brute-force
@@ -30,12 +33,12 @@ ROOT = Path(__file__).resolve().parents[1]
 BRDFS = ("lambert", "shg", "dhg")
 PATHS = {"moonshine": "sun", "earthshine": "earth"}
 SOURCE = {"moonshine": "sun_order", "earthshine": "earth_order"}
-ORDERS = (8, 12, 16, 20, 24, 32)
+ORDERS = (8, 12, 16, 20, 24, 32, 48, 64, 96)
 #: the source orders measured with each lune order (the Sun's 2; the Earth's 7: at 6 the
 #: earthshine erred by 5.6-8.8e-5 at lune orders 20-32 in this model, where the plain lune rule's
 #: 1.7e-5 would have left room)
 SOURCE_ORDERS = ({"sun_order": 2, "earth_order": 7},)
-REFERENCE = {"lune_order": 48, "sun_order": 3, "earth_order": 10}
+REFERENCE = {"lune_order": 128, "sun_order": 4, "earth_order": 12}
 REFERENCE_EDGE_NODES = 8
 #: the reference rule's own settings (mapped_lune_rule's keywords): finer cut-cell sums, full
 #: orders, 8 albedo nodes in γ (3e-11 in the reflectance, mapped_lune.GAMMA_NODES)

@@ -96,16 +96,15 @@ def _most_accurate(rows: list, fixed: dict, theta: float | None = None) -> dict 
     return min(ok, key=lambda r: (row_error(r, theta), r["seconds_per_phase"])) if ok else None
 
 
-def _paired(table: dict, key: str, rtol: float, fixed: dict) -> dict:
+def _paired(table: dict, key: str, rtols: dict, fixed: dict) -> dict:
     """The cheapest ``key`` value (lune order or level) with a source order per path that meets
-    ``rtol`` on both paths; the most accurate pair where none does."""
-    limit = rtol / SAFETY
+    each path's tolerance (``rtols``: {path: rtol}); the most accurate pair where none does."""
     values = sorted({r[key] for r in table["moonshine"]} & {r[key] for r in table["earthshine"]})
     if key in fixed:
         values = [v for v in values if v == fixed[key]]
     best = None
     for v in values:
-        pair = {p: _best(table[p], limit, {**_for(fixed, p), key: v}) for p in table}
+        pair = {p: _best(table[p], rtols[p] / SAFETY, {**_for(fixed, p), key: v}) for p in table}
         if all(pair.values()):
             cost = sum(r["seconds_per_phase"] for r in pair.values())
             if best is None or cost < best[0]:
@@ -122,8 +121,10 @@ def _for(fixed: dict, path: str) -> dict:
     return {k: v for k, v in fixed.items() if k != other}
 
 
-def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | None = None) -> dict:
-    """Settings for the deterministic tracer at ``rtol``: ``lune_order`` (the Sun's path, the
+def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | None = None,
+                 earthshine_rtol: float | None = None) -> dict:
+    """Settings for the deterministic tracer at ``rtol`` (the earthshine's at ``earthshine_rtol``
+    where given: the part of its tolerance left to the lunar side): ``lune_order`` (the Sun's path, the
     Earth's), ``moon_level``, ``sun_order``, ``earth_order`` (with a lunar map, those of the
     facets; the lune rule's own source orders are ``lune_source_orders``; those in ``fixed`` kept; nested: at
     least those of a looser tolerance, :data:`NEST`), and per path and sample kind the bound each
@@ -132,11 +133,12 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | Non
     phase needs, and its bounds."""
     m = error_models()
     bounds = {}
+    rtols = {"moonshine": rtol, "earthshine": rtol if earthshine_rtol is None else earthshine_rtol}
     if mapped_moon:  # the map's cells dominate: rows by level (the Earth's order is not the limit)
         table = m["raytrace_facets_mapped"]
         level = fixed.get("moon_level")
         if level is None:
-            pair = _paired(table, "moon_level", rtol, {})
+            pair = _paired(table, "moon_level", rtols, {})
             level = pair["moonshine"]["moon_level"] if pair else None
         for p in ("moonshine", "earthshine"):
             row = next((r for r in table[p] if r["moon_level"] == level), None)
@@ -146,7 +148,7 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | Non
                "sun_order": fixed.get("sun_order", row["moonshine"].get("sun_order")),
                "earth_order": fixed.get("earth_order", row["earthshine"].get("earth_order")), "bounds": bounds}
         if "moon_level" not in fixed and "raytrace_lune_mapped" in m:  # the mapped lune rule
-            lune = {p: _best(m["raytrace_lune_mapped"][p], rtol / SAFETY, _for(fixed, p), theta) or
+            lune = {p: _best(m["raytrace_lune_mapped"][p], rtols[p] / SAFETY, _for(fixed, p), theta) or
                     _most_accurate(m["raytrace_lune_mapped"][p], _for(fixed, p), theta) for p in SOURCE_ORDER}
             if all(lune.values()):
                 out["lune_order"] = (lune["moonshine"]["lune_order"], lune["earthshine"]["lune_order"])
@@ -157,19 +159,18 @@ def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | Non
                                                   for p in ("moonshine", "earthshine"))
         return out
     # the lune rule: each path its own order (one rule per path); the facets: one level for both
-    limit = rtol / SAFETY
-    lune = {p: _best(m["raytrace_lune"][p], limit, _for(fixed, p)) or
+    lune = {p: _best(m["raytrace_lune"][p], rtols[p] / SAFETY, _for(fixed, p)) or
             _most_accurate(m["raytrace_lune"][p], _for(fixed, p)) for p in ("moonshine", "earthshine")}
     lune = lune if all(lune.values()) else {}
-    facets = _paired(m["raytrace_facets"], "moon_level", rtol, fixed)
+    facets = _paired(m["raytrace_facets"], "moon_level", rtols, fixed)
     out = {"lune_order": (lune["moonshine"]["lune_order"], lune["earthshine"]["lune_order"]) if lune else None,
            "moon_level": facets["moonshine"]["moon_level"] if facets else fixed.get("moon_level")}
     for name in ("sun_order", "earth_order"):  # one order serves both sample kinds: the larger
         p = "moonshine" if name == "sun_order" else "earthshine"
         got = [t[p][name] for t in (lune, facets) if t]
         out[name] = fixed.get(name, max(got) if got else None)
-    if rtol * NEST < LOOSEST:  # nested: never fewer nodes than a looser tolerance takes
-        looser = trace_choice(rtol * NEST, fixed, False)
+    if min(rtols.values()) * NEST < LOOSEST:  # nested: never fewer nodes than a looser tolerance takes
+        looser = trace_choice(rtol * NEST, fixed, False, earthshine_rtol=rtols["earthshine"] * NEST)
         for key in ("moon_level", "sun_order", "earth_order"):
             if out[key] is not None and looser[key] is not None:
                 out[key] = max(out[key], looser[key])

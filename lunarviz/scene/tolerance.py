@@ -83,11 +83,12 @@ def trace_plan(scene, theta: float | None = None) -> dict:
             fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
             fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
     # the Earth's rule about the zero-phase point (or a mapped Earth's facets) takes half the
-    # tolerance, the lunar side the other half
+    # earthshine's tolerance, the lunar side the other half; the moonshine keeps the whole
     mapped_earth = traced_earth_mapped(scene)
     pole = earth_pole_at_zero_phase(scene) and not mapped_earth
-    lunar_rtol = scene.rtol_or_default / 2 if pole or mapped_earth else scene.rtol_or_default
-    choice = accuracy.trace_choice(lunar_rtol, fixed, scene.mapped_moon(), theta)
+    rtol = scene.rtol_or_default
+    choice = accuracy.trace_choice(rtol, fixed, scene.mapped_moon(), theta,
+                                   earthshine_rtol=rtol / 2 if pole or mapped_earth else rtol)
     settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
                 if k not in fixed and choice.get(k) is not None}
     # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
