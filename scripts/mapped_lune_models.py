@@ -9,10 +9,12 @@ dhg, no occlusion) and its time per phase (one thread), against the same rule at
 finer sums over the cells that the rule's edges cut (8 lines and points), every block at the full
 order (no thin blocks: ``mapped_lune.THIN_WIDTH``), every whole cell by its own rule (no
 panels: ``mapped_lune.PANEL_CELLS``) and finer source rules (Sun order 4, Earth
-order 12). The reference's own error: DHG (θ̄ = 45°) converges slowest, as order^-2.5 to
-order^-3; the same reference at order 96 differs from it by 1.8e-6 at θ = 15-25°, so it errs by
-~1e-6, under the SAFETY margin of the orders up to 96 (order 48 was the reference before, and
-erred by 1.1e-5 there). Both sides sum the whole cells outside panels by the same rectangle rule (its
+order 12). The reference's own error is estimated phase by phase from the same reference at
+order 96 and added to every row's error there: DHG (θ̄ = 45°) converges slowest, as order^-1.8
+near full Moon to order^-3 (a fit to the rows at θ = 10-25°), so with order^-p, p =
+:data:`SLOWEST_RATE` = 1.5, the order-128 reference errs by at most r/(1 - r) |ref₉₆ - ref₁₂₈|,
+r = (96/128)^p: 1.85 times the two references' difference (1.8e-6 at θ = 15-25°). A reference at
+order 48 errs by 1.1e-5 there. Both sides sum the whole cells outside panels by the same rectangle rule (its
 error, exact for cubics: ≤ 1e-6 against the plain lune rule for a constant map, tests). Writes the
 ``raytrace_lune_mapped`` section of ``lunarviz/data/error_models.json`` (the rest is kept) and
 ``benchmarks/error_models/mapped_lune.md``. Independent checks of the rule itself (a brute-force
@@ -39,6 +41,10 @@ ORDERS = (8, 12, 16, 20, 24, 32, 48, 64, 96)
 #: 1.7e-5 would have left room)
 SOURCE_ORDERS = ({"sun_order": 2, "earth_order": 7},)
 REFERENCE = {"lune_order": 128, "sun_order": 4, "earth_order": 12}
+#: the reference's own convergence is measured against it at this lune order (same sources and sums)
+REFERENCE_COARSE_ORDER = 96
+#: the slowest rate (error ∝ order^-p) assumed of the reference's own convergence (fits at θ = 10-25°: 1.8-2.1)
+SLOWEST_RATE = 1.5
 REFERENCE_EDGE_NODES = 8
 #: the reference rule's own settings (mapped_lune_rule's keywords): finer cut-cell sums, full
 #: orders, 8 albedo nodes in γ (3e-11 in the reflectance, mapped_lune.GAMMA_NODES)
@@ -89,6 +95,10 @@ def measure(phases, orders) -> dict:
     brdfs = st.brdf_models()
     base = replace(st.trace_settings(threads=1), occlusion=False)
     ref = _run(phases, base, brdfs, REFERENCE, REFERENCE_RULE)
+    coarse = _run(phases, base, brdfs, {**REFERENCE, "lune_order": REFERENCE_COARSE_ORDER}, REFERENCE_RULE)
+    ratio = (REFERENCE_COARSE_ORDER / REFERENCE["lune_order"]) ** SLOWEST_RATE
+    ref_error = {key: ratio / (1.0 - ratio) * max(abs(coarse[key][0][k] / ref[key][0][k] - 1.0) for k in BRDFS)
+                 for key in ref}
     rows = {p: [] for p in PATHS}
     for sources in SOURCE_ORDERS:
         for o in orders:
@@ -96,9 +106,11 @@ def measure(phases, orders) -> dict:
             for p in PATHS:
                 if any(r["lune_order"] == o and r[SOURCE[p]] == sources[SOURCE[p]] for r in rows[p]):
                     continue  # (this path's source order measured already)
-                by_phase = [max(abs(got[(p, th)][0][k] / ref[(p, th)][0][k] - 1.0) for k in BRDFS) for th in phases]
+                by_phase = [max(abs(got[(p, th)][0][k] / ref[(p, th)][0][k] - 1.0) for k in BRDFS)
+                            + ref_error[(p, th)] for th in phases]
                 rows[p].append({"lune_order": o, SOURCE[p]: sources[SOURCE[p]], "max_rel_error": max(by_phase),
                                 "phases_deg": list(phases), "errors_by_phase": by_phase,
+                                "reference_error_by_phase": [ref_error[(p, th)] for th in phases],
                                 "rays_per_phase": float(np.mean([got[(p, th)][2] for th in phases])),
                                 "seconds_per_phase": float(np.mean([got[(p, th)][1] for th in phases]))})
     return rows
@@ -106,13 +118,17 @@ def measure(phases, orders) -> dict:
 
 def _by_phase_table(rows: dict, phases) -> list:
     """The errors at each phase (the rows' ``errors_by_phase``): what a date's own θ chooses from."""
-    out = ["", "Largest relative error over the BRDFs at each phase (a date's orders come from its θ's "
-           "neighbours: accuracy.trace_choice):", ""]
+    out = ["", "Largest relative error over the BRDFs at each phase, the reference's own estimated error "
+           "included (a date's orders come from its θ's neighbours: accuracy.trace_choice); the last two "
+           "columns: that estimate, moonshine and earthshine:", ""]
     cols = [(p, r) for p, rs in rows.items() for r in rs]
-    out.append("| θ [deg] | " + " | ".join(f"{p[:5]} {r['lune_order']}" for p, r in cols) + " |")
-    out.append("| --- " * (len(cols) + 1) + "|")
+    ref_cols = [rs[0]["reference_error_by_phase"] for rs in rows.values()]
+    heads = [f"{p[:5]} {r['lune_order']}" for p, r in cols] + ["ref moons", "ref earth"]
+    out.append("| θ [deg] | " + " | ".join(heads) + " |")
+    out.append("| --- " * (len(cols) + 3) + "|")
     for i, th in enumerate(phases):
-        out.append(f"| {th:g} | " + " | ".join(f"{r['errors_by_phase'][i]:.1e}" for _, r in cols) + " |")
+        out.append(f"| {th:g} | " + " | ".join(f"{r['errors_by_phase'][i]:.1e}" for _, r in cols)
+                   + " | " + " | ".join(f"{c[i]:.1e}" for c in ref_cols) + " |")
     return out
 
 
@@ -131,7 +147,9 @@ def main(argv=None) -> int:
              f"occlusion; error against lune order {REFERENCE['lune_order']}, Sun order {REFERENCE['sun_order']}, "
              f"Earth "
              f"order {REFERENCE['earth_order']}, {REFERENCE_EDGE_NODES} lines and points a piece in cut cells, "
-             f"every block at full order (no thin blocks), cells cut at the t-rings too, 8 albedo nodes in γ.",
+             f"every block at full order (no thin blocks), cells cut at the t-rings too, 8 albedo nodes in γ; "
+             f"each error includes the reference's own, estimated from the same reference at order "
+             f"{REFERENCE_COARSE_ORDER} (error ∝ order^-{SLOWEST_RATE:g}).",
              "",
              "| path | lune order | source order | max relative error | rays per phase | seconds per phase |",
              "| --- | --- | --- | --- | --- | --- |"]

@@ -296,29 +296,31 @@ def test_dates_in_bulk_equal_dates_one_by_one(monkeypatch):
 
 
 def test_a_tolerance_beyond_the_models_is_said_once():
-    """The mapped lune rule's moonshine model bottoms out at 2.0e-6 (order 96,
-    benchmarks/error_models/mapped_lune.md; bound 4.0e-6): asking for 1e-6 on a mapped Moon warns
-    before the run (the most accurate setting runs; rows report what it meets); 1e-5 and 1e-4 are met."""
+    """The mapped lune rule's earthshine model bottoms out at 5.4e-6 (order 96, the reference's own
+    estimated error included; benchmarks/error_models/mapped_lune.md; bound 1.1e-5): asking for
+    1e-5 on a mapped Moon, over all its phases, warns before the run (the most accurate setting
+    runs; rows report what it meets); 1e-4 is met and silent."""
     from lunarviz.errors import LunarvizWarning
-    s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-6)
+    s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-5)
     with pytest.warns(LunarvizWarning, match="beyond the error models"):
         s.warn_unmet_tolerance()
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         ResolvedScene(method="raytrace", brdfs=("dhg",), rtol=1e-4).warn_unmet_tolerance()  # met: silent
-        ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-5).warn_unmet_tolerance()
+        ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=1e-4).warn_unmet_tolerance()
 
 
-@pytest.mark.parametrize("rtol", [1e-4, 1e-5])
-def test_dated_mapped_moon_rows_meet_the_tolerance_at_every_phase(rtol):
+@pytest.mark.parametrize("rtol,met", [(1e-4, 1e-4), (1e-5, 1.2e-5)])
+def test_dated_mapped_moon_rows_meet_the_tolerance_at_every_phase(rtol, met):
     """A site's dates on the default dated Moon (rolo-fit-map, DHG: the Earth's rule about the
     zero-phase point takes half the earthshine's tolerance) plan bounds within the tolerance at
-    every θ of the models (5-175°), at 1e-4 and on request at 1e-5; the moonshine, which that
+    every θ of the models (5-175°) at 1e-4, and within 1.2e-5 on request at 1e-5 (the mapped lune
+    rule's order 96 is the most its model holds: its earthshine errs by up to 5.4e-6 with the
+    reference's own error, benchmarks/error_models/mapped_lune.md); the moonshine, which that
     rule does not touch, takes the whole tolerance, so it never runs a higher order than the
     earthshine's half would ask of it. (The plan's bounds are the measured model rows times
-    SAFETY: benchmarks/error_models/mapped_lune.md, checked on held-out dates by
-    scripts/off_centre_validation.py.)"""
+    SAFETY, checked on held-out dates by scripts/off_centre_validation.py.)"""
     s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="rolo-fit-map", rtol=rtol,
                       observer="site:34.26,-116.92,2067", times=("2026-07-02T05:00:00Z",))
     table = accuracy.error_models()["raytrace_lune_mapped"]["moonshine"]
@@ -326,9 +328,10 @@ def test_dated_mapped_moon_rows_meet_the_tolerance_at_every_phase(rtol):
     for theta in np.arange(5.0, 175.1, 2.5):
         plan = s.trace_plan(theta)
         assert plan["settings"]["earth_pole"] in ("detector", "detector-cut")
-        assert max(plan["bounds"][("lune", p)] for p in ("moonshine", "earthshine")) <= rtol, theta
-        half = accuracy.trace_choice(rtol / 2, {}, True, theta)["lune_order"][0]
-        order = plan["settings"]["lune_order"][0]
+        assert max(plan["bounds"][("lune", p)] for p in ("moonshine", "earthshine")) <= met, theta
+        half_choice = accuracy.trace_choice(rtol / 2, {}, True, theta)
+        assert plan["settings"]["lune_order"][1] == half_choice["lune_order"][1]  # the earthshine: half
+        half, order = half_choice["lune_order"][0], plan["settings"]["lune_order"][0]
         assert order <= half
         cheaper += order < half
         row = next(r for r in table if r["lune_order"] == order)

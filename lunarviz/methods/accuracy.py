@@ -15,7 +15,7 @@ What the models cover, and what rows report where they do not:
   samples of an icosphere level as the fallback where the rule does not apply (an eclipse's
   penumbra or an outside detector's Earth limb across the lune); a lunar map: with a tolerance
   the mapped lune rule (the map's cells in its weights, :mod:`lunarviz.geometry.mapped_lune`;
-  against its order 48 with finer sums and sources), its
+  against its order 128 with finer sums and sources), its
   fallback and, without a tolerance, the facets on the mapped Moon (against the finest level:
   self-convergence). A user's Moon mesh, a mapped or physical Earth: no model (the rows'
   ``rtol`` is NaN; the settings are the defaults).
