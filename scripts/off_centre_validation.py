@@ -1,7 +1,8 @@
 """Rows seen from observers off the Earth's centre against high-order references: is every error
 below the bound its row reports, and every bound within the tolerance?
 
-    python scripts/off_centre_validation.py [--rtol 1e-4] [--every-hours H] [--nights N] [--out DIR]
+    python scripts/off_centre_validation.py [--rtol 1e-4] [--every-hours H] [--nights N] [--reference-order N]
+                                            [--out DIR]
 
 Dates that the error models were not built from (:mod:`scripts.off_centre_earth_model` takes
 2026 hours from 05:00 on Jan 3 in steps of 547 h, and site nights every 9 days from Jan 5): a
@@ -12,13 +13,16 @@ the paper's Moon and rolo-fit-map; grey and at 550 nm) is compared with
 
 * the paper's Moon: the exact reference (``--method reference``) at outer/inner orders 48/12
   (its rule about the zero-phase point cut along the roughness's kinks);
-* rolo-fit-map, and every spectral row: the tracer's own lune rule at order 128 with Sun order
-  12 and Earth order 10 of the rule cut along the kinks (2.1e-7 on rolo-fit-map, its model), the
-  mapped rule with the finer sums of its error model's reference
+* rolo-fit-map, and every spectral row: the tracer's own lune rule at a high order
+  (``--reference-order``: by default 64 at tolerances of 1e-4 and above, 128 below) with Sun
+  order 12 and Earth order 10 of the rule cut along the kinks (2.1e-7 on rolo-fit-map, its
+  model), the mapped rule with the finer sums of its error model's reference
   (``mapped_lune_models.REFERENCE_RULE``; a map's cells are exact in the mapped rule's weights;
-  the reference reads the map per node and would not converge). That order is above every order
-  the models hold, so the lune rule's own error is in what is checked (its orders 96 and 128
-  differ by ≤ 1.9e-6 on rolo-fit-map over θ = 5-175°). The 550 nm rows on one computed date in
+  the reference reads the map per node and would not converge). Order 128 is above every order
+  the models hold, and 64 above every order a tolerance of 1e-4 takes (at most 32), so the lune
+  rule's own error is in what is checked; the reference's own error on rolo-fit-map over
+  θ = 5-175° (``benchmarks/error_models/mapped_lune.md``): order 64 ≤ 9.8e-6, a tenth of 1e-4;
+  orders 96 and 128 differ by ≤ 1.9e-6. The 550 nm rows on one computed date in
   ``--spectral-every``.
 
 Writes ``off_centre_validation.md`` and ``.json`` to ``benchmarks/error_models`` (or ``--out``).
@@ -40,8 +44,14 @@ sys.path.insert(0, str(ROOT / "scripts"))
 import mapped_lune_models  # noqa: E402 (a script beside this one)
 import off_centre_earth_model  # noqa: E402
 
-#: the high-order reference's lune orders (moonshine, earthshine): above every order the models hold
-REFERENCE_LUNE_ORDERS = (128, 128)
+#: the high-order reference's lune order (both paths) by default: above every order the models hold,
+#: or, at tolerances of 1e-4 and above, above every order they take there (at a quarter of the cost)
+REFERENCE_LUNE_ORDER, LOOSE_REFERENCE_LUNE_ORDER = 128, 64
+
+
+def reference_lune_order(rtol: float) -> int:
+    """The high-order reference's lune order at ``rtol`` when none is given (module docstring)."""
+    return LOOSE_REFERENCE_LUNE_ORDER if rtol >= 1e-4 else REFERENCE_LUNE_ORDER
 
 BRDFS = ("lambert", "shg", "dhg")
 OBSERVERS = ("orbit:550,97.6,0,0", "site:34.26,-116.92,2067", "site:19.82,-155.47,4205")
@@ -56,10 +66,10 @@ def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
                                         observers=OBSERVERS)
 
 
-def reference(s, label: str, moon: str, spectral: bool) -> dict:
+def reference(s, label: str, moon: str, spectral: bool, lune_order: int) -> dict:
     """{(brdf, path): value} of the high-order reference for one date: the exact reference at
     48/12 (the paper's Moon, grey), else the tracer at high orders (its plan replaced: lune rule
-    at :data:`REFERENCE_LUNE_ORDERS`, Sun order 12, Earth order 10 of the Earth's rule about the
+    at ``lune_order`` for both paths, Sun order 12, Earth order 10 of the Earth's rule about the
     zero-phase point cut along the roughness's kinks)."""
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.sweeps import run_phase
@@ -68,7 +78,7 @@ def reference(s, label: str, moon: str, spectral: bool) -> dict:
         return {(r["brdf"], p): r[k] for r in run_phase(ref, label, threads=1) for k, p in PATHS.items()}
     sc = s.geometry(label)
     plan = s.trace_plan(sc.theta_deg)
-    hi = {"settings": {**plan["settings"], "lune_order": REFERENCE_LUNE_ORDERS, "sun_order": 12, "earth_order": 10,
+    hi = {"settings": {**plan["settings"], "lune_order": (lune_order, lune_order), "sun_order": 12, "earth_order": 10,
                        "lune_source_orders": (12, 10), "earth_pole": "detector-cut"}, "bounds": {}}
     real = ResolvedScene.trace_plan
     ResolvedScene.trace_plan = lambda self, theta=None: hi
@@ -91,7 +101,7 @@ def computed(obs: str, label: str) -> bool:
 
 
 def check(args) -> list[dict]:
-    obs, label, moon, spectral, rtol = args
+    obs, label, moon, spectral, rtol, lune_order = args
     from lunarviz.methods import accuracy
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.skips import skip_reason
@@ -106,7 +116,7 @@ def check(args) -> list[dict]:
     if not all(r["rtol"] is not None and math.isfinite(r["rtol"]) for r in rows):
         return [{"observer": obs, "time_utc": label, "moon_model": moon, "spectral": spectral, "brdf": r["brdf"],
                  "bound": r["rtol"], "no_bound_reason": r["no_bound_reason"]} for r in rows]
-    ref = reference(s, label, moon, spectral)
+    ref = reference(s, label, moon, spectral, lune_order)
     out = []
     for r in rows:
         for key, path in PATHS.items():
@@ -126,12 +136,15 @@ def main(argv=None) -> int:
     ap.add_argument("--every-hours", type=int, default=700)
     ap.add_argument("--nights", type=int, default=5)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--reference-order", type=int, default=None,
+                    help="the reference's lune order (default: 64 at --rtol 1e-4 and above, else 128)")
     ap.add_argument("--spectral-every", type=int, default=4, help="the 550 nm rows on one computed date in this many")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
     a = ap.parse_args(argv)
     live = [d for d in dates(a.every_hours, a.nights) if computed(*d)]
     lights = [(False, True) if i % a.spectral_every == 0 else (False,) for i in range(len(live))]
-    jobs = [(obs, t, moon, spec, a.rtol) for (obs, t), specs in zip(live, lights)
+    order = a.reference_order or reference_lune_order(a.rtol)
+    jobs = [(obs, t, moon, spec, a.rtol, order) for (obs, t), specs in zip(live, lights)
             for moon in ("paper", "rolo-fit-map") for spec in specs]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(a.workers) as ex:
@@ -146,7 +159,7 @@ def main(argv=None) -> int:
     (out / f"off_centre_validation_{tag}.json").write_text(json.dumps({"command": cmd, "rows": rows}, indent=1) + "\n")
     lines = [f"# Rows off the Earth's centre against high-order references (rtol {tag})", "",
              f"`{cmd}` ({time.perf_counter() - t0:.0f} s): {len(checked)} values checked, "
-             f"{len(unbounded)} rows without a bound.", ""]
+             f"{len(unbounded)} rows without a bound; the tracer's reference at lune order {order}.", ""]
     if worst is not None:
         lines += [f"- largest error / bound: {worst['ratio']:.2f} ({worst['observer']}, {worst['time_utc']}, "
                   f"{worst['moon_model']}, {'550 nm' if worst['spectral'] else 'grey'}, {worst['brdf']} "

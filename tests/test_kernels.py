@@ -389,6 +389,38 @@ def test_cap_rule_nodes_kernel_matches_numpy(thin, monkeypatch):
     np.testing.assert_allclose(got[1], ref[1], rtol=1e-15, atol=0)
 
 
+def test_source_sphere_beams_kernel_matches_numpy(monkeypatch):
+    """The Earth's rule about the zero-phase point as beams (sources.source_sphere_beams: the rule's
+    nonzero nodes first, then source_beams), compiled in one pass against numpy's sort, gather and
+    source_beams: the same directions to the bit, and the same solid angles but where a node
+    grazes the Earth's limb seen from the point (cos_y, a dot product near 0, summed in another
+    order than numpy's einsum: 0 against ~1e-52 sr), so bar 1e-15 of each row's largest beam; the
+    padded slots hold the rows' zero weights. Lunar points on a real orbit date, some whose
+    horizon cuts the Earth, with and without the roughness's cuts."""
+    from lunarviz.geometry import quadrature_kernels
+    from lunarviz.methods.sources import source_sphere_beams, zero_phase_points
+    from lunarviz.scene import ResolvedScene
+    if not quadrature_kernels.available():
+        pytest.skip("numba not in use")
+    sc = ResolvedScene(method="raytrace", observer="orbit:550,97.6,0,0",
+                       times=("2026-02-11T18:00Z",)).geometry("2026-02-11T18:00Z")
+    rng = np.random.default_rng(3)
+    n = rng.normal(size=(60, 3)) + 2.0 * (sc.earth - sc.moon) / np.linalg.norm(sc.earth - sc.moon)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    x = sc.moon + sc.radii["moon"] * n
+    pole = zero_phase_points(sc, x)
+    for horizon in (False, True):
+        for cuts in (False, True):
+            kw = dict(horizon=horizon, pole=pole, roughness_cuts=cuts)
+            got = source_sphere_beams(sc, x, n, "earth", 6, **kw)
+            monkeypatch.setattr(quadrature_kernels, "_NUMBA", False)
+            ref = source_sphere_beams(sc, x, n, "earth", 6, **kw)
+            monkeypatch.setattr(quadrature_kernels, "_NUMBA", True)
+            assert got[1].shape == ref[1].shape and (ref[1] > 0).sum() > 100 and (ref[1] == 0).any()
+            np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-15)
+            assert np.all(np.abs(got[1] - ref[1]) <= 1e-15 * ref[1].max(axis=1, keepdims=True))
+
+
 def test_mapped_earth_cut_sums_kernel_matches_numpy(monkeypatch):
     """The mapped Earth's exact per-element sums at lunar points whose horizon cuts the Earth,
     compiled (earth_kernels.element_sums with horizons) against the numpy path: the same beams to rounding (1e-10:

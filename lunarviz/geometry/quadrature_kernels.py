@@ -9,7 +9,12 @@ locates ~10⁵ map points per path and date and sums them into each block's weig
   albedo-node factors, written once (the numpy path builds three temporaries of that size);
 * :func:`cap_nodes`: :func:`lunarviz.geometry.sphere_quadrature.cap_rule`'s nodes and weights,
   each written once in the numpy path's arithmetic order (it builds five temporaries of the
-  output's size: ~10⁶ nodes for a date's Earth beams).
+  output's size: ~10⁶ nodes for a date's Earth beams);
+* :func:`sphere_beams`: a source sphere's rule, its zero-weight nodes moved last, as the beams
+  seen from each point (:func:`lunarviz.methods.sources.source_beams`' directions and solid
+  angles), in one pass (the numpy path sorts, gathers and builds six temporaries of that size);
+  the same directions, and the same solid angles to rounding (a node grazing the source's limb
+  sums its cos_y in another order than numpy's einsum).
 
 Both agree with their numpy paths to rounding (docs: accuracy)."""
 
@@ -171,6 +176,42 @@ def cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside, fx, fw) -> tuple[np.
     return nodes, w
 
 
+def _sphere_beams(m, w, x, c, R, om, omega):
+    B, M = w.shape
+    K = omega.shape[1]
+    for b in range(B):
+        j = 0
+        for live in (True, False):  # the nonzero weights first, then the zero ones, each in order (stable)
+            for k in range(M):
+                if j == K:
+                    break
+                if (w[b, k] > 0.0) != live:
+                    continue
+                v0 = (c[0] + R * m[b, k, 0]) - x[b, 0]
+                v1 = (c[1] + R * m[b, k, 1]) - x[b, 1]
+                v2 = (c[2] + R * m[b, k, 2]) - x[b, 2]
+                r = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+                o0, o1, o2 = v0 / r, v1 / r, v2 / r
+                cos_y = max(-(m[b, k, 0] * o0 + m[b, k, 1] * o1 + m[b, k, 2] * o2), 0.0)
+                om[b, j, 0], om[b, j, 1], om[b, j, 2] = o0, o1, o2
+                omega[b, j] = cos_y * R * R * w[b, k] / (r * r)
+                j += 1
+
+
+def sphere_beams(m, w, x, c, R: float) -> tuple[np.ndarray, np.ndarray]:
+    """Unit directions (B, K, 3) from points x (B, 3) toward the nodes m (B, M, 3) of a rule on
+    the unit sphere of a source (centre c, radius R) and their solid angles seen from x (B, K)
+    [sr], ``cos_y R² w / r²`` (:func:`lunarviz.methods.sources.source_beams`), each row's nodes of
+    positive weight ``w`` (B, M) first in their order, then its zero-weight ones: K is the most
+    nodes of positive weight in a row (at least 1, at most M)."""
+    w = np.ascontiguousarray(w, dtype=np.float64)
+    K = min(max(int((w > 0).sum(1).max(initial=0)), 1), w.shape[1])
+    om, omega = np.empty((len(w), K, 3)), np.empty((len(w), K))
+    _sphere_beams(np.ascontiguousarray(m, dtype=np.float64), w, np.ascontiguousarray(x, dtype=np.float64),
+                  np.ascontiguousarray(c, dtype=np.float64), float(R), om, omega)
+    return om, omega
+
+
 def barycentric_weights(nodes: np.ndarray) -> np.ndarray:
     """``1/Π_{j≠i}(x_i - x_j)``: the barycentric weights of Lagrange interpolation on ``nodes``."""
     diff = nodes[:, None] - nodes[None, :]
@@ -197,5 +238,6 @@ if _NUMBA:
         _lagrange_row = compiled.jit(_lagrange_row, nogil=True)
         _block_design = compiled.jit(_block_design, nogil=True)
         _cap_nodes = compiled.jit(_cap_nodes, nogil=True)
+        _sphere_beams = compiled.jit(_sphere_beams, nogil=True)
     except Exception:  # noqa: BLE001 (a numba that cannot compile: the numpy path)
         _NUMBA = False

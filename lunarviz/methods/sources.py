@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from lunarviz.geometry.scene_geometry import SceneGeometry, unit
+from lunarviz.geometry import quadrature_kernels
 from lunarviz.geometry.sphere_quadrature import cap_rule, orthonormal_basis
 
 
@@ -40,6 +41,11 @@ def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizo
     ``pole`` (B, 3) unit vectors from the source's centre, about those points: the visible cap
     is then one more cap of the rule, and the rings are cut where two caps' edges cross
     (:func:`zero_phase_points` puts the pole where a BRDF's opposition surge peaks)."""
+    return _nonzero_first(*_sphere_rule_nodes(scene, x, n, body, order, horizon, pole, roughness_cuts))
+
+
+def _sphere_rule_nodes(scene: SceneGeometry, x, n, body: str, order: int, horizon: bool, pole, roughness_cuts: bool):
+    """:func:`source_sphere_rule`'s nodes (B, M, 3) and weights (B, M), zero weights in place."""
     c, R = source_centre(scene, body)
     xc = x - c
     dxc = np.linalg.norm(xc, axis=1)
@@ -63,10 +69,28 @@ def source_sphere_rule(scene: SceneGeometry, x, n, body: str, order: int, horizo
                 caps_u.append(u)
                 caps_c.append(cut)
                 split.append(True)
-    m, w = cap_rule(axis, cos_max, np.stack(caps_u, 1) if caps_u else None,
+    return cap_rule(axis, cos_max, np.stack(caps_u, 1) if caps_u else None,
                     np.stack(caps_c, 1) if caps_c else None, n_t=order, n_phi=order, crossings=crossings,
                     graded=pole is not None,
                     split_only=np.broadcast_to(np.array(split), (len(x), len(split))) if caps_u else None)
+
+
+def source_sphere_beams(scene: SceneGeometry, x, n, body: str, order: int, horizon: bool = True, pole=None,
+                        roughness_cuts: bool = False):
+    """Unit directions (B, K, 3) and solid angles (B, K) [sr] of the beams from x toward the nodes
+    of :func:`source_sphere_rule` (same arguments): :func:`source_beams` on its nodes, in one
+    compiled pass where numba serves (:func:`lunarviz.geometry.quadrature_kernels.sphere_beams`;
+    the same beams to rounding)."""
+    m, w = _sphere_rule_nodes(scene, x, n, body, order, horizon, pole, roughness_cuts)
+    if quadrature_kernels.available():
+        c, R = source_centre(scene, body)
+        return quadrature_kernels.sphere_beams(m, w, x, c, R)
+    return source_beams(scene, x, body, *_nonzero_first(m, w))[1:]
+
+
+def _nonzero_first(m, w):
+    """A rule's nodes (B, M, 3) and weights (B, M) with each row's zero weights moved last (in
+    order), cut to the longest row of positive weights (at least 1)."""
     nz = w > 0
     kmax = max(int(nz.sum(1).max(initial=0)), 1)
     sel = np.argsort(~nz, axis=1, kind="stable")[:, :kmax]

@@ -12,8 +12,7 @@ from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.methods.sources import (
     earth_radiance,
     horizon_cuts_source,
-    source_beams,
-    source_sphere_rule,
+    source_sphere_beams,
     sun_radiance,
     zero_phase_points,
 )
@@ -67,9 +66,8 @@ class SourceRules:
             if rows.size == 0:
                 continue
             if pole is not None:
-                m, w = source_sphere_rule(sc, x[rows], n[rows], body, order, horizon=with_horizon, pole=pole[rows],
-                                          roughness_cuts=pole_kind == "detector-cut")
-                parts.append((rows, *source_beams(sc, x[rows], body, m, w)[1:]))
+                parts.append((rows, *source_sphere_beams(sc, x[rows], n[rows], body, order, horizon=with_horizon,
+                                                         pole=pole[rows], roughness_cuts=pole_kind == "detector-cut")))
                 continue
             if body == "sun" and not with_horizon:
                 xc = x[rows] - c
@@ -96,9 +94,7 @@ class SourceRules:
                 if fast is not None:
                     parts.append((rows, *fast))
                     continue
-            m, w = source_sphere_rule(sc, x[rows], n[rows], body, o_s, horizon=with_horizon)
-            _, om, omega = source_beams(sc, x[rows], body, m, w)
-            parts.append((rows, om, omega))
+            parts.append((rows, *source_sphere_beams(sc, x[rows], n[rows], body, o_s, horizon=with_horizon)))
         K = max((p[2].shape[1] for p in parts), default=1)
         om = np.zeros((len(x), K, 3))
         om[..., 2] = 1.0
