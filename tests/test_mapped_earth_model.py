@@ -88,10 +88,10 @@ def test_map_cell_weights_are_the_map_integrated_over_the_lit_earth():
 
 def test_traced_mapped_earth_of_a_thin_crescent_meets_the_exact_sphere_rule(thin_crescent):
     # the tracer's per-facet sums (level 6), their albedo-1 part, against the exact rule: Lambert
-    # within 5e-6 (measured 9e-7; 4.5e-5 before the facets along the limb were split and the
-    # elements near it summed per lunar point, 1.1e-4 with the first-order expansion about the
-    # Moon's centre); DHG carries the disc cells' one direction each (2.8e-5 measured, within the
-    # model's ε at level 6)
+    # within 5e-6 (measured 1.9e-6, 1.5e-6 along each cell's centre alone; 4.5e-5 before the facets
+    # along the limb were split and the elements near it summed per lunar point, 1.1e-4 with the
+    # first-order expansion about the Moon's centre); DHG within 5e-6 too (each cell's light along
+    # its four points; measured 1.9e-6; along each cell's centre alone it erred by 2.8e-5 here)
     s, sc, pts, exact = thin_crescent
     x, n, mu, geom, o = pts
     ts = TraceScene(sc, s.trace_settings(threads=1))
@@ -99,8 +99,28 @@ def test_traced_mapped_earth_of_a_thin_crescent_meets_the_exact_sphere_rule(thin
     brdfs = s.brdf_models()
     got = {k: float(tr.radiances(b)[1] @ geom) for k, b in brdfs.items()}
     assert got["lambert"] == pytest.approx(exact["lambert"], rel=5e-6)
+    assert got["dhg"] == pytest.approx(exact["dhg"], rel=5e-6)
     eps = accuracy.mapped_earth_epsilon(6, s.earth_model(), hapke=True, theta_deg=20.0)
     assert abs(got["dhg"] / exact["dhg"] - 1) <= eps["albedo 1"]
+
+
+def test_traced_mapped_earth_under_the_opposition_surge_meets_the_exact_sphere_rule():
+    # θ = 160° of the paper's scene: the lit Earth's disc nearest zero phase seen from the Moon,
+    # where the Hapke surge curves the BRDF most across each cell of the disc. Along each cell's
+    # centre alone, an Earth of albedo 1 erred by 8.2e-5 under DHG at every Earth level (the
+    # mapped Earth's error model); along its four points (their mean and spread the cell's light's)
+    # measured 3.5e-6 (SHG 3.5e-6, Lambert 3e-7): bar 1e-5, with room for the lunar points' spread
+    s = ResolvedScene(method="raytrace", phases_deg=(160.0,), brdfs=("lambert", "shg", "dhg"),
+                      earth_surface="landocean", clouds="zonal")
+    sc = s.geometry(160.0)
+    pts = _lunar_points(sc)
+    x, n, mu, geom, o = pts
+    brdfs = s.brdf_models()
+    exact = _exact_unit_earthshine(sc, pts, brdfs)
+    tr = TraceScene(sc, s.trace_settings(threads=1)).mapped_earth.transport(x, n, o, mu, geom)
+    got = {k: float(tr.radiances(b)[1] @ geom) for k, b in brdfs.items()}
+    for k in brdfs:
+        assert got[k] == pytest.approx(exact[k], rel=1e-5)
 
 
 def test_traced_mapped_earth_takes_embree_for_the_moons_shadow_on_the_earth():

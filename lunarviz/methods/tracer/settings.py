@@ -46,8 +46,10 @@ FACET_BLOCK = 1 << 18
 #: Facets of a mapped Earth that its terminator crosses are split this many ways per side.
 TERMINATOR_SUB = 8
 #: A mapped Earth's facets are grouped into at most this many cells per side of its disc seen
-#: from the Moon (its beams; ``mapped_earth_transport``).
-EARTH_CELLS = 24
+#: from the Moon, four beams a cell (``mapped_earth_transport``; an albedo-1 Earth under Hapke's
+#: surge at θ = 160°: 16 cells a side err by 3.5e-6, 24 by 1.1e-6 at 2.2 times the beams, 12 by
+#: 1.7e-5; one beam a cell of 24 erred by 8.2e-5, with 0.55 times the beams of 16)
+EARTH_CELLS = 16
 #: a mapped Earth's lit facets that the Earth's limb seen from some lunar point crosses (where
 #: cos_y kinks) are split LIMB_SUB² ways (:mod:`lunarviz.methods.tracer.mapped_earth`)
 LIMB_SUB = 4
