@@ -224,23 +224,7 @@ class MappedEarthTransport:
                 e_map[sel] = np.add.reduceat(f * a, st, axis=1)
                 for c in range(n_parts):
                     e_parts[c, sel] = np.add.reduceat(f * comp[:, c], st, axis=1)
-        # each cell's light along its four points (its spread across the line of sight), each light
-        # tilted across them to its own centre in the cell, scaled at x as the unit's light (so
-        # the lights stay linear: the components' beams sum to the map's). A point whose horizon
-        # cuts the Earth sums only the elements above it, whose spread is not the cell's: its four
-        # points collapse to the cell's centre, untilted (else light below its horizon is lost
-        # twice). Those points see the cells' light along one direction, and under DHG at θ = 90°
-        # err by 1.5 % of their earthshine (0.85 % with 24 cells a side, 2.0 % on four points);
-        # seen from the Earth they lie on the Moon's limb (μ ≈ 0), so a row barely moves
-        scale = np.where(cut[:, None], 0.0, e_unit / np.where(el["wsum"] > 0, el["wsum"], 1.0))  # (B, C)
-        tilts = el["tilts"]
-        e_map, e_unit = (_four_points(e, scale, tilts[k]) for e, k in ((e_map, "map"), (e_unit, "unit")))
-        e_parts = np.stack([_four_points(e_parts[c], scale, tilts[("part", c)])
-                            for c in range(n_parts)]) if n_parts else np.zeros((0, B, 4 * C))
-        points = (el["centre"][:, None, :] + el["spread"]).reshape(-1, 3)  # (4C, 3)
-        dirs = unit(points[None, :, :] - x[:, None, :])
-        if cut.any() and C:
-            dirs[cut] = np.repeat(unit(el["centre"][None, :, :] - x[cut][:, None, :]), 4, axis=1)
+        dirs, e_map, e_unit, e_parts = _four_point_beams(el, x, cut, e_map, e_unit, e_parts)
         C = 4 * C
         mu0 = np.einsum("bkj,bj->bk", dirs, n)
         e_free = e_map.copy()
@@ -256,6 +240,33 @@ class MappedEarthTransport:
         parts = None if comp is None else dict(zip(self.surfaces.earth_parts, e_parts))
         return Transport(mu0=np.clip(mu0, 0.0, 1.0), sin_hg=sh, cos_hg=ch, e_beam=e_map, mu=mu, geom=geom,
                          e_beam_free=e_free, e_beam_unit=e_unit, e_beam_parts=parts)
+
+
+def _four_point_beams(el, x, cut, e_map, e_unit, e_parts):
+    """Directions (B, 4C, 3) from lunar points x toward the cells' four points and the lights on
+    them (the map's, the unit's (B, 4C), the components' (P, B, 4C)), from each cell's lights
+    (B, C) (:meth:`MappedEarthTransport.earth_elements`' ``spread``, ``tilts``, ``wsum``;
+    ``cut``: the points whose horizon cuts the Earth)."""
+    B, C = e_map.shape
+    n_parts = len(e_parts)
+    # each cell's light along its four points (its spread across the line of sight), each light
+    # tilted across them to its own centre in the cell, scaled at x as the unit's light (so
+    # the lights stay linear: the components' beams sum to the map's). A point whose horizon
+    # cuts the Earth sums only the elements above it, whose spread is not the cell's: its four
+    # points collapse to the cell's centre, untilted (else light below its horizon is lost
+    # twice). Those points see the cells' light along one direction, and under DHG at θ = 90°
+    # err by 1.5 % of their earthshine (0.85 % with 24 cells a side, 2.0 % on four points);
+    # seen from the Earth they lie on the Moon's limb (μ ≈ 0), so a row barely moves
+    scale = np.where(cut[:, None], 0.0, e_unit / np.where(el["wsum"] > 0, el["wsum"], 1.0))  # (B, C)
+    tilts = el["tilts"]
+    e_map, e_unit = (_four_points(e, scale, tilts[k]) for e, k in ((e_map, "map"), (e_unit, "unit")))
+    e_parts = np.stack([_four_points(e_parts[c], scale, tilts[("part", c)])
+                        for c in range(n_parts)]) if n_parts else np.zeros((0, B, 4 * C))
+    points = (el["centre"][:, None, :] + el["spread"]).reshape(-1, 3)  # (4C, 3)
+    dirs = unit(points[None, :, :] - x[:, None, :])
+    if cut.any() and C:
+        dirs[cut] = np.repeat(unit(el["centre"][None, :, :] - x[cut][:, None, :]), 4, axis=1)
+    return dirs, e_map, e_unit, e_parts
 
 
 def _cell_spread(d, wt, wsum, starts, e1, e2):
