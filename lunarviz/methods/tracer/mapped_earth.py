@@ -101,26 +101,26 @@ class MappedEarthTransport:
         wt = L1A * np.clip(np.einsum("ij,ij->i", m, v) / r, 1e-12, None) / r**2
         wsum = np.add.reduceat(wt, starts) if len(starts) else np.zeros(0)
         centre = (np.add.reduceat(y * wt[:, None], starts, axis=0) / wsum[:, None]) if len(starts) else np.zeros((0, 3))
-        d = y - centre[np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(y)]))] if len(starts) else y
-        spread = _cell_spread(d, wt, wsum, starts, e1[0], e2[0])
-        band, (g0, grad, hess) = _expansion_terms(m, v, r, max(rm, self.bodies.moon.bound))
-        # the band's elements (sorted by cell, as all are) and the cell each is in (its sums go to
-        # that cell's beam)
-        band_el = np.flatnonzero(band)
+        # the cell each element is in (the band's elements' sums go to that cell's beam)
         cell_of = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(y)])) if len(starts) else \
             np.zeros(0, int)
+        d = y - centre[cell_of]
+        spread = _cell_spread(d, wt, wsum, starts, e1[0], e2[0])
+        band, (g0, grad, hess) = _expansion_terms(m, v, r, max(rm, self.bodies.moon.bound))
+        band_el = np.flatnonzero(band)  # (sorted by cell, as all are)
         # each element's light for the unit, the map and a spectral run's components (the order of
-        # the transport's outputs), and its position relative to the Moon's centre: m·(x - y) and
-        # |x - y|² as products there, without cancellation (the exact sums' inputs)
-        weights = np.stack([L1A, L1A * a] + ([] if comp is None else [L1A * comp[:, c] for c in range(comp.shape[1])]))
+        # the transport's outputs) as a share of the unit's, and its position relative to the
+        # Moon's centre: m·(x - y) and |x - y|² as products there, without cancellation (the exact
+        # sums' inputs)
+        per_unit = np.stack([np.ones_like(L1A), a] + ([] if comp is None else list(comp.T)))
+        weights = L1A * per_unit
         names = ["unit", "map"] + [("part", c) for c in range(len(weights) - 2)]
         taylor = {name: tuple(np.add.reduceat(wgt.reshape((-1,) + (1,) * (t.ndim - 1)) * t, starts, axis=0)
                               if len(starts) else np.zeros((0,) + t.shape[1:]) for t in (g0, grad, hess))
                   for name, wgt in zip(names, weights)}
         # each light's tilt across its cell's four points: their mean at the light's own centre (a
         # map's edge across a cell puts its light off the cell's centre)
-        tilts = {name: _point_tilts(d, wt * wgt / np.where(L1A > 0, L1A, 1.0), starts, spread)
-                 for name, wgt in zip(names, weights)}
+        tilts = {name: _point_tilts(d, wt * share, starts, spread) for name, share in zip(names, per_unit)}
         yr = y - sc.moon
         self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, spread=spread, tilts=tilts,
                               wsum=wsum, taylor=taylor, comp=comp, band=band_el, cell=cell_of, weights=weights,
