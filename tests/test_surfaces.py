@@ -348,3 +348,39 @@ def test_images_read_as_linear_values(tmp_path):
     Image.fromarray(np.full((10, 20), 5, dtype=np.int32)).save(tmp_path / "i32.tif")
     with pytest.raises(LunarvizError, match="32-bit"):
         read_map(tmp_path / "i32.tif")
+
+
+def test_facet_fields_keep_a_linear_map_and_the_compiled_fits_agree():
+    """A linear function of position is its own least-squares fit over each facet: value at the
+    centroid and gradient in the facet's plane to rounding (1e-12). The compiled fits of the
+    packaged Earth maps (lunarviz.surfaces.earth_field_kernels) equal numpy's to rounding."""
+    from lunarviz.methods.tracer.estimators import TraceScene
+    from lunarviz.surfaces.earth_field_kernels import available, component_fits
+    from lunarviz.surfaces.earth_spectra import weights_at
+    from lunarviz.surfaces.maps import facet_field_at, facet_linear_fit
+    s = ResolvedScene(phases_deg=(60.0,), earth_surface="landocean", clouds="zonal", method="raytrace", earth_level=4)
+    body = TraceScene(s.geometry(60.0), s.trace_settings(threads=1)).bodies.earth
+    V, F = body.vertices, body.faces
+    only = np.arange(0, len(F), 7)
+    a, R = np.array([0.3, -0.2, 0.5]) / 6.371e6, 6.371e6
+    value, grad = facet_linear_fit(lambda d: np.stack([1 + d @ a, np.full(len(d), 2.0)], 1), V, F, 8, only=only)
+    tri = V[F[only]]
+    c = tri.mean(1)
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    assert np.allclose(value[:, 0], 1 + c @ a, rtol=0, atol=1e-12)
+    assert np.allclose(grad[:, 0] * R, (a - (nrm @ a)[:, None] * nrm) * R, rtol=0, atol=1e-12)
+    assert np.allclose(value[:, 1], 2.0, rtol=0, atol=1e-12) and np.abs(grad[:, 1]).max() * R < 1e-12
+    # at a point of the sphere above the facet: the field at its radial projection onto the facet
+    y = c / np.linalg.norm(c, axis=1)[:, None] * R
+    flat = y * ((nrm * c).sum(1) / (nrm * y).sum(1))[:, None]
+    assert np.allclose(facet_field_at(value, grad, V, F[only], y)[:, 0], 1 + flat @ a, rtol=0, atol=1e-12)
+    if not available():
+        pytest.skip("numba not available: the numpy fits are the only ones")
+    frame = map_frame(s.geometry(60.0), "earth", 30.0)
+    for surface, clouds in (("landocean", "zonal"), ("uniform", "zonal"), ("landocean", "none")):
+        surf = ResolvedScene(phases_deg=(60.0,), earth_surface=surface, clouds=clouds).earth_model()
+        slow = facet_linear_fit(lambda d: weights_at(surf, d @ frame), V, F, 12, only=only)
+        fast = facet_linear_fit(None, V, F, 12, only=only, fit=component_fits(surf, frame))
+        assert np.allclose(fast[0], slow[0], rtol=0, atol=1e-12)
+        assert np.allclose(fast[1] * R, slow[1] * R, rtol=0, atol=1e-10)

@@ -33,12 +33,18 @@ from lunarviz.earth_optics.spectra import class_spectrum
 from lunarviz.parsing import wavelength_label
 from lunarviz.resources import DATA_DIR
 from lunarviz.surfaces.earth_surface import land_fraction_map
-from lunarviz.surfaces.maps import facet_average, facet_sub_count, sample_map
+from lunarviz.surfaces.earth_field_kernels import component_fits
+from lunarviz.surfaces.maps import facet_average, facet_linear_fit, facet_sub_count, lat_lon_deg, sample_map_at
 
 #: land-cover codes of ``earth_landcover.npy`` -> component
 LAND_CLASSES = {1: "vegetation", 2: "desert", 3: "snow"}
 #: components with a packaged spectrum
 TABLED = ("ocean", "vegetation", "desert", "snow")
+#: samples per facet side of the component fields (:func:`facet_weight_fields`): 2.2 a map cell's
+#: side, 24-32 (a facet's sampling noise falls as its points grow, and a finer mesh sums more
+#: facets: at a fixed density per cell, level 7's 144 points a facet left more noise than level 6's
+#: 576), and at most this many points over the whole mesh (a date reads its visible facets' alone)
+FIELD_SAMPLES = 200_000_000
 
 
 @memoize(maxsize=1)
@@ -63,23 +69,25 @@ def components(surface) -> tuple[str, ...]:
 def weights_at(surface, dirs: np.ndarray) -> np.ndarray:
     """Component weights (n, C) at directions (n, 3) in the Earth's map frame, such that
     ``Σ_c weight_c · grey_albedo_c`` is :meth:`EarthSurface.albedo_at`."""
-    c = surface.cloud_fraction_at(dirs)
+    lat_lon = lat_lon_deg(dirs)  # (once for every map read)
+    c = surface.cloud_fraction_at(dirs, lat_lon)
     clear = 1.0 - c
-    cols = []
+    out = np.zeros((len(c), len(components(surface))))
     if surface.earth_surface == "uniform":
-        cols.append(clear)
+        out[:, 0] = clear
     elif surface.earth_surface == "landocean":
-        f = sample_map(land_fraction_map(), dirs)
-        cover = sample_map(land_cover(), dirs)
-        cols.append(clear * (1.0 - f))
-        for code in LAND_CLASSES:
+        f = sample_map_at(land_fraction_map(), *lat_lon)
+        cover = sample_map_at(land_cover(), *lat_lon)
+        out[:, 0] = clear * (1.0 - f)
+        land = clear * f
+        for i, code in enumerate(LAND_CLASSES, start=1):
             mine = (cover == code) | ((cover == 0) & (code == 1))  # land the 1° map calls sea: vegetation
-            cols.append(np.where(mine, clear * f, 0.0))
+            out[mine, i] = land[mine]
     else:
-        cols.append(clear * sample_map(surface.clear_map(), dirs))
+        out[:, 0] = clear * sample_map_at(surface.clear_map(), *lat_lon)
     if surface.clouds != "none":
-        cols.append(c)
-    return np.stack(cols, axis=1)
+        out[:, -1] = c
+    return out
 
 
 def grey_albedos(surface) -> dict[str, float]:
@@ -124,6 +132,41 @@ def facet_weights(surface, body, frame: np.ndarray, only=None) -> np.ndarray:
             memo.clear()
         memo[key] = w
     return memo[key]
+
+
+def _map_shape(surface) -> tuple[int, int]:
+    """The shape of the finest map ``surface`` reads (its facets' samples are finer than its cells)."""
+    if surface.earth_surface == "landocean":
+        return (1800, 3600)
+    return surface.clear_map().shape if surface.earth_surface != "uniform" else (180, 360)
+
+
+def facet_weight_fields(surface, body, frame: np.ndarray, only) -> tuple[np.ndarray, np.ndarray]:
+    """The component weights of an Embree body's facets ``only`` (sorted indices) as linear fields
+    over each facet (:func:`lunarviz.surfaces.maps.facet_linear_fit`: (n, C) values at the
+    centroids, (n, C, 3) gradients), k² jittered points a facet (:data:`FIELD_SAMPLES`). Kept with the
+    body per frame, facet by facet: a θ sweep's Earth keeps one frame, and each θ computes only the
+    facets no earlier θ did (each facet's values are its own points', whatever else is computed)."""
+    memo = body.geometry.setdefault("surface_fields", {})
+    key = (surface, np.asarray(frame, dtype=float).tobytes())
+    if key not in memo:
+        if len(memo) > 2:
+            memo.clear()
+        memo[key] = {"k": facet_sub_count(body.vertices, body.faces, _map_shape(surface), FIELD_SAMPLES, 2.2,
+                                           most=32, least=24),
+                     "done": np.zeros(body.n_faces, bool), "value": None, "grad": None}
+    m = memo[key]
+    only = np.asarray(only, dtype=np.int64)
+    todo = only[~m["done"][only]]
+    if todo.size:
+        v, g = facet_linear_fit(lambda d: weights_at(surface, d @ frame), body.vertices, body.faces, m["k"], only=todo,
+                                fit=component_fits(surface, frame))
+        if m["value"] is None:
+            m["value"] = np.zeros((body.n_faces, v.shape[1]))
+            m["grad"] = np.zeros((body.n_faces, v.shape[1], 3))
+        m["value"][todo], m["grad"][todo] = v, g
+        m["done"][todo] = True
+    return m["value"][only], m["grad"][only]
 
 
 def weights_toward(surfaces, scene, target: np.ndarray) -> np.ndarray:

@@ -19,7 +19,15 @@ from lunarviz.caches import file_key, memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BY_NAME, EARTH_PARAMETER_DEFAULTS, compose, earth_params, group, validate
 from lunarviz.resources import DATA_DIR
-from lunarviz.surfaces.maps import check_range, facet_average, facet_sub_count, lat_lon_deg, read_map, sample_map
+from lunarviz.surfaces.maps import (
+    check_range,
+    facet_average,
+    facet_sub_count,
+    lat_lon_deg,
+    read_map,
+    sample_map,
+    sample_map_at,
+)
 
 EARTH_SURFACES = ("uniform", "landocean")
 CLOUDS = ("none", "zonal")
@@ -147,15 +155,16 @@ class EarthSurface:
         c = self.cloud_fraction_at(dirs)
         return (1.0 - c) * a + c * self.cloud_albedo
 
-    def cloud_fraction_at(self, dirs: np.ndarray) -> np.ndarray:
-        """Cloud fraction at directions (n, 3) in the Earth's map frame (0 without clouds)."""
+    def cloud_fraction_at(self, dirs: np.ndarray, lat_lon=None) -> np.ndarray:
+        """Cloud fraction at directions (n, 3) in the Earth's map frame (0 without clouds);
+        ``lat_lon``: their latitudes and longitudes [deg] (:func:`lat_lon_deg`), where known."""
         if self.clouds == "none":
             return np.zeros(len(dirs))
+        lat, lon = lat_lon_deg(dirs) if lat_lon is None else lat_lon
         if self.clouds == "zonal":
-            lat, _ = lat_lon_deg(dirs)
             la, cf = zonal_cloud_table()
             return np.interp(lat, la, cf)
-        return sample_map(self.cloud_map(), dirs)
+        return sample_map_at(self.cloud_map(), lat, lon)
 
     def varies(self, in_colour: bool) -> bool:
         """Whether the Earth's reflectance varies over its surface (so the ray tracer sums it per

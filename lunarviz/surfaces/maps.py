@@ -137,7 +137,11 @@ def lat_lon_deg(dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def sample_map(m: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """The map's cell value (nearest cell) at directions (..., 3) in the map's frame."""
-    lat, lon = lat_lon_deg(dirs)
+    return sample_map_at(m, *lat_lon_deg(dirs))
+
+
+def sample_map_at(m: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+    """The map's cell value (the cell holding it) at latitudes and east longitudes [deg]."""
     h, w = m.shape
     row = np.clip(((90.0 - lat) / 180.0 * h).astype(np.int64), 0, h - 1)
     col = np.clip(((lon + 180.0) / 360.0 * w).astype(np.int64), 0, w - 1)
@@ -177,15 +181,17 @@ def map_frame(scene, body: str, earth_rotation_deg: float = 0.0) -> np.ndarray:
     return base @ _rot_z(-lon0)
 
 
-def facet_sub_count(vertices, faces, m_shape, max_samples: int = MAX_SAMPLES) -> int:
-    """k such that k² samples per facet are finer than the map's cells (capped)."""
+def facet_sub_count(vertices, faces, m_shape, max_samples: int = MAX_SAMPLES, per_cell: float = 2.0,
+                    most: int = 16, least: int = 8) -> int:
+    """k such that k² samples per facet are finer than the map's cells (``per_cell`` a cell's side),
+    at least ``least`` and at most ``most``, and at most ``max_samples`` over the whole mesh."""
     tri = vertices[faces]
     r = np.linalg.norm(vertices, axis=1).mean()
     edge = float(np.sqrt(np.mean(np.sum((tri[:, 1] - tri[:, 0]) ** 2, axis=1)))) / r  # rad
     cell = np.pi / m_shape[0]
-    k = int(np.ceil(2.0 * edge / cell))
+    k = int(np.ceil(per_cell * edge / cell))
     cap = int(np.sqrt(max_samples / max(len(faces), 1)))
-    return int(max(min(8, cap), min(k, 16, max(cap, 1))))
+    return int(max(min(least, cap), min(k, most, max(cap, 1))))
 
 
 def _random_rows(rng: np.random.Generator, F: int, S: int, rows: np.ndarray) -> np.ndarray:
@@ -286,6 +292,77 @@ def facet_average(values_at, vertices, faces, k: int, chunk: int = 65536, spread
     if out is None:
         out = np.empty(n_out)
     return (out, sd) if spread else out
+
+
+def facet_linear_fit(values_at, vertices, faces, k: int, only=None, chunk_samples: int = 1 << 22, fit=None):
+    """Each facet's least-squares linear fit of ``values_at(dirs)`` (values (n,) or (n, C)) over the
+    k² jittered points of :func:`facet_points` (the same seed as :func:`facet_average`): the fit's
+    value at the facet's centroid (F, C) and its gradient in the facet's plane (F, C, 3) [per
+    mesh unit]. The fit keeps the map's zeroth and first moments over the facet, so a rule exact
+    for linear functions integrates the map against any linear weight (a Lambert Earth's light
+    across a facet) as the samples do; the facet's mean alone puts a coastline's light at the
+    facet's centre (first order in the facet's size). Its value at the centroid is the samples'
+    mean corrected by their offset from it (a control variate: the points' exact mean is the
+    centroid). ``only``: those facets alone (sorted indices into ``faces``), bit for bit as the
+    whole mesh's (each facet its own points). ``fit(p, c, e1, e2)``: a compiled fit of the same
+    values (points (f, S, 3), centroids (f, 3), the plane's axes (f, 3) each), else
+    :func:`linear_fits` of ``values_at``. Fewer than three points a facet: no gradient."""
+    F_all = len(faces)
+    only = np.arange(F_all) if only is None else np.asarray(only, dtype=np.int64)
+    fit = fit or (lambda p, c, e1, e2: linear_fits(values_at, p, c, e1, e2))
+    S = k * k
+    chunk = max(1, chunk_samples // S)
+    rng = np.random.default_rng(SAMPLE_SEED)
+    value = grad = None
+    for a in range(0, F_all, chunk):
+        lo, hi = np.searchsorted(only, [a, a + chunk])
+        p = facet_points(vertices, faces[a:a + chunk], k, rng, only[lo:hi] - a)  # (f, S, 3)
+        if p.shape[0] == 0:
+            continue
+        tri = vertices[faces[only[lo:hi]]]
+        e1 = tri[:, 1] - tri[:, 0]
+        e1 /= np.linalg.norm(e1, axis=1)[:, None]
+        nrm = np.cross(e1, tri[:, 2] - tri[:, 0])
+        e2 = np.cross(nrm / np.linalg.norm(nrm, axis=1)[:, None], e1)
+        v, g = fit(p, tri.mean(axis=1), e1, e2)
+        if value is None:
+            value, grad = np.empty((len(only), v.shape[1])), np.empty((len(only), v.shape[1], 3))
+        value[lo:hi], grad[lo:hi] = v, g
+    if value is None:
+        value, grad = np.zeros((0, 1)), np.zeros((0, 1, 3))
+    return value, grad
+
+
+def linear_fits(values_at, p, c, e1, e2):
+    """Least-squares linear fits of ``values_at`` over each facet's points p (f, S, 3): values at
+    the centroids c (f, C) and gradients along the plane's axes e1, e2 (f, C, 3)
+    (:func:`facet_linear_fit`)."""
+    d = p - c[:, None, :]
+    q0, q1 = np.einsum("fsj,fj->fs", d, e1), np.einsum("fsj,fj->fs", d, e2)  # (f, S): in the facet's plane
+    v = values_at(p.reshape(-1, 3))
+    v = v.reshape(p.shape[:2] + (-1,))  # (f, S, C)
+    vm = v.mean(axis=1)
+    q0 -= (m0 := q0.mean(axis=1))[:, None]
+    q1 -= (m1 := q1.mean(axis=1))[:, None]
+    s00, s01, s11 = (q0 * q0).sum(1), (q0 * q1).sum(1), (q1 * q1).sum(1)
+    x0, x1 = (q0[:, :, None] * v).sum(1), (q1[:, :, None] * v).sum(1)  # (f, C): Σ q (v - v̄)
+    det = s00 * s11 - s01**2
+    ok = det > 1e-12 * (s00 + s11) ** 2
+    det = np.where(ok, det, np.inf)[:, None]  # (no gradient where the points are too few)
+    g0, g1 = (s11[:, None] * x0 - s01[:, None] * x1) / det, (s00[:, None] * x1 - s01[:, None] * x0) / det
+    return (vm - m0[:, None] * g0 - m1[:, None] * g1,
+            g0[:, :, None] * e1[:, None, :] + g1[:, :, None] * e2[:, None, :])
+
+
+def facet_field_at(value, grad, vertices, faces, points) -> np.ndarray:
+    """The linear fields of :func:`facet_linear_fit` (``value`` (n, C), ``grad`` (n, C, 3), each
+    row's facet ``faces`` (n, 3) of ``vertices``) at ``points`` (n, 3) (mesh frame, body-centred),
+    each projected radially onto its facet's plane (points on the body's exact sphere)."""
+    tri = vertices[faces]
+    c = tri.mean(axis=1)
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    flat = points * (np.einsum("ij,ij->i", nrm, c) / np.einsum("ij,ij->i", nrm, points))[:, None]
+    return value + np.einsum("icj,ij->ic", grad, flat - c)
 
 
 _NUMBA = compiled.available()
