@@ -55,6 +55,9 @@ def timed(args: list, repeats: int, tmp: Path, name: str) -> dict:
             "max_skipped_row_seconds": max((r["seconds"] for r in skipped), default=None),
             "computed_row_seconds_sum": sum(r["seconds"] for r in rows if not r.get("skip_reason")),
             "bounded_rows": sum(1 for r in rows if r["rtol"] is not None and r["rtol"] == r["rtol"]),
+            "computed_rows_bounded": len(bounds := [r["rtol"] for r in rows if not r.get("skip_reason")
+                                                    and r["rtol"] is not None and r["rtol"] == r["rtol"]]),
+            "bounds": [min(bounds), max(bounds)] if bounds else None,
             "no_bound_reasons": sorted({r["no_bound_reason"] for r in rows if r.get("no_bound_reason")})}
 
 
@@ -78,12 +81,16 @@ def main(argv=None) -> int:
     lines = ["# Real observers' dates: run time", "",
              f"`python scripts/observer_speed.py --repeats {a.repeats}` on {res['machine']['platform']}, "
              f"{res['machine']['cpus']} CPUs (wall time of a fresh process each, imports included).", "",
-             "| run | rows | skipped | best [s] | median [s] | slowest skipped row [s] |", "|---|---|---|---|---|---|"]
+             "| run | rows | skipped | best [s] | median [s] | slowest skipped row [s] "
+             "| computed rows bounded: bounds |",
+             "|---|---|---|---|---|---|---|"]
     for key in ("bbso_nights", "bbso_lunation", "paper_rtol_1e-5"):
         r = res[key]
         slow = "" if r["max_skipped_row_seconds"] is None else f"{r['max_skipped_row_seconds']:.3f}"
+        b = r["bounds"]
+        bounds = f"{r['computed_rows_bounded']} of {r['rows'] - r['skipped_rows']}: {b[0]:.2e}-{b[1]:.2e}" if b else ""
         lines.append(f"| `{r['command']}` | {r['rows']} | {r['skipped_rows']} | {r['best_s']:.1f} | "
-                     f"{r['median_s']:.1f} | {slow} |")
+                     f"{r['median_s']:.1f} | {slow} | {bounds} |")
     lines += ["", "`--dry-run` of the nightly run printed (in "
               f"{res['dry_run']['wall_s']:.1f} s):", "", "```", *res["dry_run"]["printed"], "```", "",
               "Rows without a bound, and why: " + "; ".join(

@@ -185,30 +185,33 @@ def test_equal_grey_albedos_keep_a_spectral_earths_components():
     assert abs(a / b - 1) < 1e-5
 
 
-def test_a_dates_mapped_earth_averages_only_the_facets_it_needs(monkeypatch):
-    """The mapped Earth's per-facet values of the facets a date needs (its lit face seen from the
+def test_a_dates_mapped_earth_fits_only_the_facets_it_needs(monkeypatch):
+    """The mapped Earth's per-facet fields of the facets a date needs (its lit face seen from the
     Moon) are bit for bit the whole mesh's (the same jittered points per facet): rows equal to
-    those from the whole-mesh averages, grey and spectral (on a level-4 Earth: the whole mesh's
-    averages at the default level cost ~10 s a run, and the selection is the same code at any level)."""
-    from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
-    whole = FacetSurfaces.earth_facet_values
+    those from the whole-mesh fields, grey and spectral (on a level-4 Earth: the selection is the
+    same code at any level)."""
+    import lunarviz.methods.tracer.facet_surfaces as fs
+    from lunarviz.caches import release_caches
+    only = fs.facet_weight_fields
+    calls = []
 
-    def from_whole_mesh(self, faces):
-        a = self.earth_facet_albedo()[faces]
-        parts = self.earth_facet_parts()
-        return a, None if parts is None else parts[faces]
+    def from_whole_mesh(surface, body, frame, faces):
+        calls.append(len(faces))
+        body.geometry.pop("surface_fields", None)  # (none of the date's own fields kept)
+        value, grad = only(surface, body, frame, np.arange(body.n_faces))
+        return value[faces], grad[faces]
     for extra in ({}, {"bands": "V"}):
         s = ResolvedScene(method="raytrace", brdfs=("lambert",), times=("2026-02-22T03:00:00Z",),
                           earth_surface="landocean", clouds="zonal", moon_model="paper", earth_level=4, **extra)
-        from lunarviz.caches import release_caches
         release_caches()
         got = sweeps.run_phase(s, s.times[0], threads=1)
-        monkeypatch.setattr(FacetSurfaces, "earth_facet_values", from_whole_mesh)
+        monkeypatch.setattr(fs, "facet_weight_fields", from_whole_mesh)
         release_caches()
         ref = sweeps.run_phase(s, s.times[0], threads=1)
-        monkeypatch.setattr(FacetSurfaces, "earth_facet_values", whole)
+        monkeypatch.setattr(fs, "facet_weight_fields", only)
         for a, b in zip(got, ref):
             assert a["earthshine_W_m2"] == b["earthshine_W_m2"] and a["moonshine_W_m2"] == b["moonshine_W_m2"]
+    assert calls and 0 < min(calls) < 5120 / 2  # (the date needs under half the mesh's facets)
 
 
 def _earthshine_at(sc, x, n, m, w, brdf):

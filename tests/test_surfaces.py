@@ -355,8 +355,8 @@ def test_facet_fields_keep_a_linear_map_and_the_compiled_fits_agree():
     centroid and gradient in the facet's plane to rounding (1e-12). The compiled fits of the
     packaged Earth maps (lunarviz.surfaces.earth_field_kernels) equal numpy's to rounding."""
     from lunarviz.methods.tracer.estimators import TraceScene
-    from lunarviz.surfaces.earth_field_kernels import available, component_fits
-    from lunarviz.surfaces.earth_spectra import weights_at
+    from lunarviz.surfaces.earth_field_kernels import available
+    from lunarviz.surfaces.earth_spectra import _compiled_fits, weights_at
     from lunarviz.surfaces.maps import facet_field_at, facet_linear_fit
     s = ResolvedScene(phases_deg=(60.0,), earth_surface="landocean", clouds="zonal", method="raytrace", earth_level=4)
     body = TraceScene(s.geometry(60.0), s.trace_settings(threads=1)).bodies.earth
@@ -374,13 +374,27 @@ def test_facet_fields_keep_a_linear_map_and_the_compiled_fits_agree():
     # at a point of the sphere above the facet: the field at its radial projection onto the facet
     y = c / np.linalg.norm(c, axis=1)[:, None] * R
     flat = y * ((nrm * c).sum(1) / (nrm * y).sum(1))[:, None]
-    assert np.allclose(facet_field_at(value, grad, V, F[only], y)[:, 0], 1 + flat @ a, rtol=0, atol=1e-12)
+    assert np.allclose(facet_field_at(value, grad, V, F[only], y, radial=True)[:, 0], 1 + flat @ a, rtol=0, atol=1e-12)
     if not available():
         pytest.skip("numba not available: the numpy fits are the only ones")
     frame = map_frame(s.geometry(60.0), "earth", 30.0)
     for surface, clouds in (("landocean", "zonal"), ("uniform", "zonal"), ("landocean", "none")):
         surf = ResolvedScene(phases_deg=(60.0,), earth_surface=surface, clouds=clouds).earth_model()
         slow = facet_linear_fit(lambda d: weights_at(surf, d @ frame), V, F, 12, only=only)
-        fast = facet_linear_fit(None, V, F, 12, only=only, fit=component_fits(surf, frame))
+        fast = facet_linear_fit(None, V, F, 12, only=only, fit=_compiled_fits(surf, frame))
         assert np.allclose(fast[0], slow[0], rtol=0, atol=1e-12)
         assert np.allclose(fast[1] * R, slow[1] * R, rtol=0, atol=1e-10)
+
+
+def test_mapped_earth_fields_at_full_moon_and_on_a_facet_through_the_centre():
+    """At θ = 0 no Earth facet is both lit and seen from the Moon: the mapped Earth's earthshine is
+    0 (the fields of no facet asked for first). A user mesh's facet whose plane holds the body's
+    centre (a notch) takes its field at the element itself, on the facet: finite, as the field's
+    own linear value; the radial projection is for the exact sphere's points only."""
+    from lunarviz.surfaces.maps import facet_field_at
+    r = _rows(phases_deg=(0.0,), earth_surface="landocean", clouds="zonal", earth_level=3, moon_level=3)
+    assert all(v["earthshine_W_m2"] == 0.0 for v in r.values())
+    V = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # a plane through the centre
+    p = np.array([[0.3, 0.0, 0.1]])
+    got = facet_field_at(np.array([[2.0]]), np.array([[[1.0, 0.0, 0.5]]]), V, np.array([[0, 1, 2]]), p)
+    assert got[0, 0] == pytest.approx(2.0 + (0.3 - 1 / 3) + 0.5 * 0.1, rel=1e-14)

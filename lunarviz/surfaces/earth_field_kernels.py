@@ -5,7 +5,7 @@
 numpy, each point's weights are a row of an (n, C) array, reduced afterwards; here each facet's
 points are read and summed in one loop, so a level-6 Earth's 576 points a facet cost what its 81
 did. The same maps, the same nearest-cell reads and the same zonal interpolation as ``weights_at``:
-the fits equal the numpy path's to rounding (``tests/test_earth_spectra.py``).
+the fits equal the numpy path's to rounding (``tests/test_surfaces.py``).
 """
 
 from __future__ import annotations
@@ -82,8 +82,9 @@ def _fits(p, c, e1, e2, frame, clear_kind, clear_map, cover, cloud_kind, la, cf,
                 frac = clear_map[i, j]
                 w[0] = clear * (1.0 - frac)
                 i, j = _cell(cover.shape[0], cover.shape[1], lat, lon)
-                code = cover[i, j]
-                w[1 if code == 0 else code] = clear * frac  # (land the 1° map calls sea: vegetation)
+                code = 1 if cover[i, j] == 0 else cover[i, j]  # (land the 1° map calls sea: vegetation)
+                if code <= 3:  # (a code of no class carries no land, as in weights_at)
+                    w[code] = clear * frac
             if cloud_kind != CLOUD_NONE:
                 w[C - 1] = cloud
             for k in range(C):
@@ -126,36 +127,26 @@ def available() -> bool:
     return _NUMBA
 
 
-def component_fits(surface, frame: np.ndarray):
-    """A ``fit(p, c, e1, e2)`` for :func:`lunarviz.surfaces.maps.facet_linear_fit` of ``surface``'s
-    component weights (:func:`lunarviz.surfaces.earth_spectra.weights_at`) in map frame ``frame``,
-    compiled; ``None`` where numba is not available."""
+def component_fits(frame: np.ndarray, n_components: int, clear_kind: int, clear_map=None, cover=None,
+                   cloud_kind: int = CLOUD_NONE, zonal=None, cloud_map=None):
+    """A ``fit(p, c, e1, e2)`` for :func:`lunarviz.surfaces.maps.facet_linear_fit` of an Earth
+    map's ``n_components`` component weights (:func:`lunarviz.surfaces.earth_spectra.weights_at`)
+    in map frame ``frame``, compiled; ``None`` where numba is not available. ``clear_kind``:
+    :data:`CLEAR_ONE`, :data:`CLEAR_MAP` (``clear_map``: the clear-sky map) or
+    :data:`CLEAR_LANDOCEAN` (``clear_map``: the land fraction, ``cover``: the land-cover codes);
+    ``cloud_kind``: :data:`CLOUD_NONE`, :data:`CLOUD_ZONAL` (``zonal``: latitudes [deg] and
+    fractions) or :data:`CLOUD_MAP` (``cloud_map``)."""
     if not _NUMBA:
         return None
-    from lunarviz.surfaces.earth_spectra import components, land_cover
-    from lunarviz.surfaces.earth_surface import land_fraction_map, zonal_cloud_table
     none = np.zeros((1, 1))
-    cover = np.zeros((1, 1), np.int64)
-    if surface.earth_surface == "uniform":
-        clear_kind, clear_map = CLEAR_ONE, none
-    elif surface.earth_surface == "landocean":
-        clear_kind, clear_map = CLEAR_LANDOCEAN, np.ascontiguousarray(land_fraction_map(), dtype=float)
-        cover = np.ascontiguousarray(land_cover(), dtype=np.int64)
-    else:
-        clear_kind, clear_map = CLEAR_MAP, np.ascontiguousarray(surface.clear_map(), dtype=float)
-    la, cf, cloud_map = np.zeros(1), np.zeros(1), none
-    if surface.clouds == "none":
-        cloud_kind = CLOUD_NONE
-    elif surface.clouds == "zonal":
-        cloud_kind = CLOUD_ZONAL
-        la, cf = (np.ascontiguousarray(t, dtype=float) for t in zonal_cloud_table())
-    else:
-        cloud_kind, cloud_map = CLOUD_MAP, np.ascontiguousarray(surface.cloud_map(), dtype=float)
-    C = len(components(surface))
+    clear_map = none if clear_map is None else np.ascontiguousarray(clear_map, dtype=float)
+    cover = np.zeros((1, 1), np.int64) if cover is None else np.ascontiguousarray(cover, dtype=np.int64)
+    la, cf = (np.zeros(1), np.zeros(1)) if zonal is None else (np.ascontiguousarray(t, dtype=float) for t in zonal)
+    cloud_map = none if cloud_map is None else np.ascontiguousarray(cloud_map, dtype=float)
     frame = np.ascontiguousarray(frame, dtype=float)
 
     def fit(p, c, e1, e2):
-        value, grad = np.empty((len(p), C)), np.empty((len(p), C, 3))
+        value, grad = np.empty((len(p), n_components)), np.empty((len(p), n_components, 3))
         _fits(np.ascontiguousarray(p), np.ascontiguousarray(c), np.ascontiguousarray(e1), np.ascontiguousarray(e2),
               frame, clear_kind, clear_map, cover, cloud_kind, la, cf, cloud_map, value, grad)
         return value, grad

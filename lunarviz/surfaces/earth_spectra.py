@@ -32,8 +32,8 @@ from lunarviz.caches import memoize
 from lunarviz.earth_optics.spectra import class_spectrum
 from lunarviz.parsing import wavelength_label
 from lunarviz.resources import DATA_DIR
-from lunarviz.surfaces.earth_surface import land_fraction_map
-from lunarviz.surfaces.earth_field_kernels import component_fits
+from lunarviz.surfaces.earth_surface import land_fraction_map, zonal_cloud_table
+from lunarviz.surfaces import earth_field_kernels as K
 from lunarviz.surfaces.maps import facet_average, facet_linear_fit, facet_sub_count, lat_lon_deg, sample_map_at
 
 #: land-cover codes of ``earth_landcover.npy`` -> component
@@ -141,6 +141,25 @@ def _map_shape(surface) -> tuple[int, int]:
     return surface.clear_map().shape if surface.earth_surface != "uniform" else (180, 360)
 
 
+def _compiled_fits(surface, frame: np.ndarray):
+    """The compiled fit of ``surface``'s component weights (:func:`weights_at`'s maps and reads:
+    :func:`lunarviz.surfaces.earth_field_kernels.component_fits`), or ``None``."""
+    C = len(components(surface))
+    if surface.earth_surface == "uniform":
+        clear = {"clear_kind": K.CLEAR_ONE}
+    elif surface.earth_surface == "landocean":
+        clear = {"clear_kind": K.CLEAR_LANDOCEAN, "clear_map": land_fraction_map(), "cover": land_cover()}
+    else:
+        clear = {"clear_kind": K.CLEAR_MAP, "clear_map": surface.clear_map()}
+    if surface.clouds == "none":
+        cloud = {"cloud_kind": K.CLOUD_NONE}
+    elif surface.clouds == "zonal":
+        cloud = {"cloud_kind": K.CLOUD_ZONAL, "zonal": zonal_cloud_table()}
+    else:
+        cloud = {"cloud_kind": K.CLOUD_MAP, "cloud_map": surface.cloud_map()}
+    return K.component_fits(frame, C, **clear, **cloud)
+
+
 def facet_weight_fields(surface, body, frame: np.ndarray, only) -> tuple[np.ndarray, np.ndarray]:
     """The component weights of an Embree body's facets ``only`` (sorted indices) as linear fields
     over each facet (:func:`lunarviz.surfaces.maps.facet_linear_fit`: (n, C) values at the
@@ -160,12 +179,15 @@ def facet_weight_fields(surface, body, frame: np.ndarray, only) -> tuple[np.ndar
     todo = only[~m["done"][only]]
     if todo.size:
         v, g = facet_linear_fit(lambda d: weights_at(surface, d @ frame), body.vertices, body.faces, m["k"], only=todo,
-                                fit=component_fits(surface, frame))
+                                fit=_compiled_fits(surface, frame))
         if m["value"] is None:
             m["value"] = np.zeros((body.n_faces, v.shape[1]))
             m["grad"] = np.zeros((body.n_faces, v.shape[1], 3))
         m["value"][todo], m["grad"][todo] = v, g
         m["done"][todo] = True
+    if m["value"] is None:  # (nothing asked yet: no facet lit and seen, as at full Moon)
+        C = len(components(surface))
+        return np.zeros((len(only), C)), np.zeros((len(only), C, 3))
     return m["value"][only], m["grad"][only]
 
 

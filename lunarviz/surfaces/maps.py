@@ -13,7 +13,9 @@ lock) and the Earth's sub-solar longitude is ``earth_rotation_deg`` (:func:`map_
 
 Facet values are *area* averages: each facet is split into k² equal sub-triangles and the map is
 read (nearest cell) at a jittered point of every sub-triangle, k chosen so the samples are finer than
-the map's cells (:func:`facet_average`). Quadrature methods without facets (``analytic``,
+the map's cells (:func:`facet_average`); or, where a facet's light varies across it (the mapped
+Earth's), the map's least-squares linear fit over the same points (:func:`facet_linear_fit`), which
+keeps its first moments too. Quadrature methods without facets (``analytic``,
 ``reference``) read the map at their nodes (:func:`sample_map`).
 """
 
@@ -354,15 +356,17 @@ def linear_fits(values_at, p, c, e1, e2):
             g0[:, :, None] * e1[:, None, :] + g1[:, :, None] * e2[:, None, :])
 
 
-def facet_field_at(value, grad, vertices, faces, points) -> np.ndarray:
+def facet_field_at(value, grad, vertices, faces, points, radial: bool = False) -> np.ndarray:
     """The linear fields of :func:`facet_linear_fit` (``value`` (n, C), ``grad`` (n, C, 3), each
-    row's facet ``faces`` (n, 3) of ``vertices``) at ``points`` (n, 3) (mesh frame, body-centred),
-    each projected radially onto its facet's plane (points on the body's exact sphere)."""
+    row's facet ``faces`` (n, 3) of ``vertices``) at ``points`` (n, 3) (mesh frame, body-centred):
+    on the facets, or with ``radial`` on the body's exact sphere, each then projected radially
+    onto its facet's plane (a sphere's facets face away from its centre)."""
     tri = vertices[faces]
     c = tri.mean(axis=1)
-    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    flat = points * (np.einsum("ij,ij->i", nrm, c) / np.einsum("ij,ij->i", nrm, points))[:, None]
-    return value + np.einsum("icj,ij->ic", grad, flat - c)
+    if radial:
+        nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        points = points * (np.einsum("ij,ij->i", nrm, c) / np.einsum("ij,ij->i", nrm, points))[:, None]
+    return value + np.einsum("icj,ij->ic", grad, points - c)
 
 
 _NUMBA = compiled.available()

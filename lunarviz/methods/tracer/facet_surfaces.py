@@ -101,27 +101,6 @@ class FacetSurfaces:
             self._earth_parts_w = self._earth_parts_of(None)
         return self._earth_parts_w
 
-    def earth_facet_values(self, faces: np.ndarray):
-        """(albedo (n,), component weights (n, C) or ``None``) of the mapped Earth's facets ``faces``
-        (sorted, distinct) alone: the values :meth:`earth_facet_albedo` and
-        :meth:`earth_facet_parts` give them, computed for those facets only (the lit face seen
-        from the Moon: what a date needs) unless the whole mesh's are at hand. A map's Earth only:
-        the physical Earth's elements take their own values (:meth:`earth_element_values`)."""
-        surf = self.bodies.settings.surface()
-        parts = None if self.earth_parts is None else \
-            self._earth_parts_w[faces] if self._earth_parts_w is not None else self._earth_parts_of(faces)
-        if isinstance(self._earth_albedo, np.ndarray):
-            a = self._earth_albedo[faces]
-        elif parts is not None:
-            # a spectral run's components at the facets: their grey albedos' sum is the facets'
-            # albedo (the same jittered points, :func:`~lunarviz.surfaces.earth_spectra.facet_weights`),
-            # so the map is sampled once, not twice
-            grey = grey_albedos(surf)
-            a = parts @ np.array([grey[c] for c in components(surf)])
-        else:
-            a = surf.facet_albedo(self.bodies.earth, self._earth_frame(), only=faces)
-        return a, parts
-
     def earth_element_values(self, faces: np.ndarray, at: np.ndarray, y: np.ndarray, m: np.ndarray):
         """(albedo (n,), component weights (n, C) or ``None``) of the mapped Earth's surface elements
         at points y (n, 3) with normals m on the facets ``faces[at]``.
@@ -129,17 +108,20 @@ class FacetSurfaces:
         A map's Earth: each component's weight is its facet's linear field at the element
         (:func:`~lunarviz.surfaces.earth_spectra.facet_weight_fields`), the albedo their grey sum.
         The facets' means alone put a coastline's light at the facet's centre: at level 6 that, and
-        the means' sampling noise, erred by up to 7.4e-5 of an albedo-1 Earth's earthshine; the
-        fields (zeroth and first moments, 256 points a facet) by 1.4e-5 on the same dates (docs:
-        accuracy, "A mapped Earth"). The weights may leave [0, 1] near a facet's corners; the
-        transport is linear in them. The physical Earth, whose reflectance toward the Moon changes
-        across a facet: each element's own, at its point with its facet's mean class weights
-        (second order in the elements, where the facet's centre alone left ~5e-4 at a thin crescent)."""
+        the means' sampling noise, erred by up to 7.4e-5 of an albedo-1 Earth's earthshine on the
+        land-ocean map with zonal clouds; the fields (zeroth and first moments, 576 points a facet)
+        by 1.1e-5 on the same dates (docs: accuracy, "A mapped Earth"). The weights may leave
+        [0, 1] near a facet's corners (the transport is linear in them, but for the map's light
+        clipped at 0 per cell and lunar point, which no cell's sum reaches). The physical Earth,
+        whose reflectance toward the Moon changes across a facet: each element's own, at its point
+        with its facet's mean class weights (second order in the elements, where the facet's centre
+        alone left ~5e-4 at a thin crescent)."""
         surf = self.bodies.settings.surface()
         if not surf.physical:
             body = self.bodies.earth
             value, grad = facet_weight_fields(surf, body, self._earth_frame(), faces)
-            w = facet_field_at(value[at], grad[at], body.vertices, body.faces[faces[at]], y - body.centre)
+            w = facet_field_at(value[at], grad[at], body.vertices, body.faces[faces[at]], y - body.centre,
+                               radial=body.mode(self.bodies.settings.shading) == "exact")
             grey = grey_albedos(surf)
             return w @ np.array([grey[c] for c in components(surf)]), w if self.earth_parts is not None else None
         sc = self.bodies.scene

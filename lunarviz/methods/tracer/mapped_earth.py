@@ -38,7 +38,8 @@ class MappedEarthTransport:
     def earth_elements(self):
         """The mapped Earth as surface elements, one per facet: points y, normals m, areas
         [m²] (spherical areas on the exact sphere), radiance for albedo 1 (point Sun, the
-        Moon's shadow traced per facet) and the facet's albedo; sorted into the cells of a
+        Moon's shadow traced per facet) and the albedo there (its facet's linear field of the map:
+        :meth:`FacetSurfaces.earth_element_values`); sorted into the cells of a
         grid over the Earth's disc seen from the Moon's centre, with each cell's
         flux-weighted centre point, its four points (:func:`_cell_spread`) and each light's tilt
         across them (:func:`_point_tilts`). Elements neither lit nor possibly seen from the Moon are
@@ -80,8 +81,8 @@ class MappedEarthTransport:
             keep[idx[hid]] = False
         idx = np.flatnonzero(keep)
         y, m, L1A = y[idx], m[idx], L1[idx] * area_f[idx]
-        # the albedo (and a spectral run's component weights) of the facets kept, alone: a date needs
-        # the lit face the Moon sees, not the whole Earth's map averages
+        # the albedo (and a spectral run's component weights) at the elements kept, from the fields of
+        # their facets alone: a date needs the lit face the Moon sees, not the whole Earth's map
         faces, at = np.unique(owner[idx], return_inverse=True)
         a, comp = self.surfaces.earth_element_values(faces, at, y, m)  # comp: (n, C) a spectral run's components
         axis = unit(sc.moon - sc.earth)
@@ -158,8 +159,9 @@ class MappedEarthTransport:
         ``a_f · L1_f · A_f · cos_f(x) / r_f(x)²`` (zero below x's horizon or behind the Earth's
         limb seen from x), and gathered into the cells of the Earth's disc (:data:`EARTH_CELLS`
         × :data:`EARTH_CELLS` cells, each about 0.12° across seen from the Moon). A map's edges are
-        thus integrated by the facets' area averages (second order), not by a few Gauss beams
-        across the disc, which leave ~1 % errors (docs: surfaces). The BRDF sees each cell's
+        thus integrated by the facets' linear fields of the map (its zeroth and first moments over
+        each facet), not by a few Gauss beams across the disc, which leave ~1 % errors (docs:
+        surfaces). The BRDF sees each cell's
         light from four directions, the cell's points (:func:`_cell_spread`): their mean and
         spread across the line of sight are those of the cell's light, and each light (the unit,
         the map, a spectral run's components) is tilted across them (:func:`_point_tilts`), so
