@@ -319,9 +319,11 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool, theta_deg: float) -> 
     if table is None or surface.physical or level not in table["levels"]:
         return None
     lo, hi = table["theta_range_deg"]
-    if not lo <= theta_deg <= hi:
+    wlo, whi = table.get("wide", {}).get("theta_range_deg", (lo, hi))
+    if not wlo <= theta_deg <= whi:
         return None
-    maps = table["epsilon"]["hapke" if hapke else "lambert"]
+    # the core dates' table, or beyond their θ (a thinner crescent) the table of every date
+    maps = (table["epsilon"] if lo <= theta_deg <= hi else table["wide"]["epsilon"])["hapke" if hapke else "lambert"]
     key = f"{surface.earth_surface}+{surface.clouds}"
     if key not in maps:
         return None
@@ -332,7 +334,7 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool, theta_deg: float) -> 
 def mapped_earth_unmeasured(theta_deg: float) -> str:
     """Why a mapped Earth's row has no bound where the rest of its row has one."""
     table = error_models().get("mapped_earth") or {}
-    lo, hi = table.get("theta_range_deg", (math.nan, math.nan))
+    lo, hi = table.get("wide", table).get("theta_range_deg", (math.nan, math.nan))
     if not lo <= theta_deg <= hi:
         return f"a mapped Earth outside theta = {lo:g}-{hi:g} deg (its error model's range)"
     return "no error model for a mapped Earth at this Earth level (measured: levels 4-7 of the packaged maps)"

@@ -150,3 +150,26 @@ def cell_radiances(scene: SceneGeometry, x, n, o, mu, centres, weights, brdfs: d
             rf = b.radiance_factor(mu0, mu[:, None], sh, ch)
             out[k] += (rf * f) @ wp
     return out
+
+
+def exact_unit_earthshine(scene: SceneGeometry, x, n, o, mu, geom, brdfs: dict, order: int = 24) -> dict:
+    """``{brdf: Σ_points geom · L}`` for an Earth of albedo 1 at lunar points x (normals n, unit
+    vectors o toward the detector, μ, ``geom`` their weights toward it): the exact reference's
+    product rule about the zero-phase point, cut along the kinks
+    (:func:`lunarviz.methods.sources.source_sphere_rule`; its own tests: the closed-form area of
+    two caps). What this module's cells are checked against: their own error for an Earth of
+    albedo 1."""
+    from lunarviz.methods.sources import earth_radiance, source_beams, source_sphere_rule, zero_phase_points
+    from lunarviz.methods.transport import Transport
+    pole = zero_phase_points(scene, x)
+    out = dict.fromkeys(brdfs, 0.0)
+    for a in range(0, len(x), 8):
+        sl = slice(a, a + 8)
+        m, w = source_sphere_rule(scene, x[sl], n[sl], "earth", order, pole=pole[sl], roughness_cuts=True)
+        y, om, omega = source_beams(scene, x[sl], "earth", m, w)
+        sh, ch = half_angle_sin_cos(om, o[sl][:, None, :])
+        tr = Transport(mu0=np.clip(np.einsum("bmj,bj->bm", om, n[sl]), 0, 1), sin_hg=sh, cos_hg=ch,
+                       e_beam=earth_radiance(scene, y, m, 1.0) * omega, mu=mu[sl], geom=geom[sl])
+        for k, b in brdfs.items():
+            out[k] += float(tr.radiances(b)[0] @ geom[sl])
+    return out
