@@ -17,15 +17,17 @@ its earthshine errs by at most ``Σ_c α_c ε_c / A``, with ``A = E / I₁`` the
 
 The reference is :mod:`lunarviz.methods.map_cell_reference` (the map's own 0.1° cells, two by two, split
 near the terminator and the limb; no mesh, no facet averages, no disc cells). Its own error, its
-Earth of albedo 1 against the exact Lambert-sphere rule on each date (within 1e-6 at θ = 20-160°,
-8e-6 at θ = 10°), is added to every component's. Both sides take the same lunar points (the
+Earth of albedo 1 against the exact Lambert-sphere rule on each date (≤ 1.4e-6 at θ = 20-170°,
+8.2e-6 at θ = 10°), is added to every component's. Both sides take the same lunar points (the
 reference's outer rule at order 6 over the lunar sphere the Earth lights, seen from the date's
 detector): the error is the Earth's part alone (the lunar side has its own models). Dates: θ =
 20-160° of the paper's scene (the Earth turned 0°, 90°, 180° and 270°), four nights from Big Bear and four from
 Paranal, every 37th hour of 15 days from a 550 km orbit; dates whose Moon is hidden, whose Earth the
 Moon's shadow may touch, or outside θ = 5-175° are left out. Rows at θ = 20-160° take those
-dates' table; a second table adds θ = 10° and 170° of the paper's scene (the Earth turned four
-ways: a thinner crescent errs more) for rows at 10-20° and 160-170°. A finer level is never
+dates' table; rows at 10-20° a table that adds θ = 10° of the paper's scene (the Earth turned four
+ways: a thinner crescent errs more), rows at 160-170° one that adds θ = 170° (each side its own
+dates: θ = 10° would loosen the 160-170° rows up to 7.7-fold). ``--tables-from FILE`` rebuilds
+the tables from an earlier run's stored dates (``mapped_earth.json``) without measuring again. A finer level is never
 allowed more error than a coarser one (each table is made non-increasing). ``--write`` stores the table in
 ``lunarviz/data/error_models.json`` (key ``mapped_earth``); the report goes to
 ``benchmarks/error_models/mapped_earth.md`` and ``.json``.
@@ -48,17 +50,18 @@ LEVELS = (4, 5, 6, 7)
 #: the packaged maps: (earth_surface, clouds)
 MAPS = (("landocean", "zonal"), ("landocean", "none"), ("uniform", "zonal"))
 OUTER_ORDER = 6
-#: the θ [deg] of the core table's dates (every site and orbit date lies within); the wide table adds
-#: the paper's scene at :data:`WIDE` (a thin crescent errs more: the core's bound would not hold there)
+#: the θ [deg] of the core table's dates (every site and orbit date lies within); a band's table
+#: beyond each end adds the paper's scene at :data:`BEYOND` on that side (the Earth a thinner
+#: crescent at 10°, nearer full at 170°: each side's own dates, so neither loosens the other)
 CORE = (20.0, 160.0)
-WIDE = (10.0, 170.0)
+BEYOND = (10.0, 170.0)
 GROUP = 2  # map cells a reference cell, each way
 
 
 def cases(quick: bool) -> list[tuple[str, str | float, float]]:
     """(observer, task key, Earth rotation [deg]) of the model: θ of the paper's scene, site nights,
     orbit hours."""
-    out = [("geocentre", th, rot) for th in ((30.0, 120.0) if quick else (20.0, 60.0, 100.0, 140.0, 160.0) + WIDE)
+    out = [("geocentre", th, rot) for th in ((30.0, 120.0) if quick else (20.0, 60.0, 100.0, 140.0, 160.0) + BEYOND)
            for rot in ((0.0,) if quick else (0.0, 90.0, 180.0, 270.0))]
     nights = 2 if quick else 4
     for obs in ("site:34.26,-116.92,2067", "site:-24.63,-70.40,2635"):
@@ -126,8 +129,8 @@ def one_case(case) -> dict | None:
     ref = cell_radiances(sc, x, n, o, mu, cen, wts, brdfs)
     ref_s = time.perf_counter() - t0
     ref_e = {b: geom @ L for b, L in ref.items()}  # (P,) per BRDF
-    # the reference's own error: its Earth of albedo 1 against the exact sphere rule (≤ 1e-6 at
-    # θ = 20-160°, ~1e-5 at a thinner crescent), added to every component's measured error
+    # the reference's own error: its Earth of albedo 1 against the exact sphere rule (≤ 1.4e-6 at
+    # θ = 20-170°, 8.2e-6 at θ = 10°), added to every component's measured error
     exact = exact_unit_earthshine(sc, x, n, o, mu, geom, brdfs)
     self_err = {b: abs(ref_e[b][0] / exact[b] - 1.0) for b in brdfs}
     out = {"observer": obs, "key": key, "earth_rotation_deg": rot, "theta_deg": sc.theta_deg, "nodes": int(len(x)),
@@ -198,6 +201,7 @@ def model_arguments(description: str, write: bool = True) -> argparse.ArgumentPa
     ap.add_argument("--quick", action="store_true", help="a few dates (a smoke run)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
+    ap.add_argument("--tables-from", metavar="FILE", help="rebuild the tables from an earlier run's dates (its .json)")
     return ap
 
 
@@ -205,13 +209,24 @@ def main(argv=None) -> int:
     ap = model_arguments(__doc__.splitlines()[0])
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(a.workers) as ex:
-        got = [r for r in ex.map(one_case, cases(a.quick)) if r is not None]
+    if a.tables_from:  # the stored dates of an earlier run, their tables rebuilt
+        stored = json.loads(Path(a.tables_from).read_text())
+        got = [dict(r, levels={int(k): v for k, v in r["levels"].items()}) for r in stored["cases"]]
+    else:
+        with ProcessPoolExecutor(a.workers) as ex:
+            got = [r for r in ex.map(one_case, cases(a.quick)) if r is not None]
     core = [r for r in got if CORE[0] <= r["theta_deg"] <= CORE[1]]
-    table, wide = model_table(core), model_table(got)
+    table = model_table(core)
+    bands = [{"theta_range_deg": [round(min(th), 1), CORE[0]] if side == 0 else [CORE[1], round(max(th), 1)],
+              "epsilon": model_table(core + beyond)}
+             for side in (0, 1) if (beyond := [r for r in got if (r["theta_deg"] < CORE[0]) == (side == 0)
+                                              and not CORE[0] <= r["theta_deg"] <= CORE[1]])
+             and (th := [r["theta_deg"] for r in beyond])]
     seconds = [float(np.mean([r["levels"][lv]["transport_s"] for r in got])) for lv in LEVELS]
-    res = {"cases": got, "table": table, "wide_table": wide, "seconds": seconds, "wall_s": time.perf_counter() - t0,
-           "command": "python scripts/mapped_earth_model.py" + (" --quick" if a.quick else "")}
+    res = {"cases": got, "table": table, "bands": bands, "seconds": seconds,
+           "wall_s": stored["wall_s"] if a.tables_from else time.perf_counter() - t0,
+           "command": "python scripts/mapped_earth_model.py" + (" --quick" if a.quick else "")
+           + (f" --tables-from {a.tables_from}" if a.tables_from else "")}
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     stem = "mapped_earth_quick" if a.quick else "mapped_earth"
@@ -223,9 +238,13 @@ def main(argv=None) -> int:
              "Earth of albedo 1 (ε_c); the largest over dates and lunar BRDFs (paper Lambert, SHG, DHG; "
              "rolo-fit-map's DHG), made non-increasing with the level. A row's Earth part errs by at most "
              "Σ_c α_c ε_c / A (its components' albedos α_c, its `earth_visible_lit_albedo` A).", "",
-             f"Rows at θ = {CORE[0]:g}-{CORE[1]:g}° take the dates there:", "", *_table_lines(table), "",
-             f"Rows at θ = {WIDE[0]:g}-{CORE[0]:g}° and {CORE[1]:g}-{WIDE[1]:g}° take every date, the paper's scene at "
-             f"θ = {WIDE[0]:g}° and {WIDE[1]:g}° too (a thinner crescent errs more):", "", *_table_lines(wide)]
+             "Each value adds the reference's own error on its date (its Earth of albedo 1 against the exact "
+             "sphere rule; the per-date table below leaves it out).", "",
+             f"Rows at θ = {CORE[0]:g}-{CORE[1]:g}° take the dates there:", "", *_table_lines(table)]
+    for band in bands:
+        lo, hi = band["theta_range_deg"]
+        lines += ["", f"Rows at θ = {lo:g}-{hi:g}° take those dates and the paper's scene at "
+                  f"θ = {lo if lo < CORE[0] else hi:g}°:", "", *_table_lines(band["epsilon"])]
     lines += ["", "Transport time a date (180 lunar points, mean) [s]: "
               + ", ".join(f"level {lv} {t:.2f}" for lv, t in zip(LEVELS, seconds)), "",
               "| observer | date or θ | θ [deg] | " + " | ".join(f"level {lv}" for lv in LEVELS) + " |",
@@ -239,13 +258,13 @@ def main(argv=None) -> int:
         f = ROOT / "lunarviz" / "data" / "error_models.json"
         models = json.loads(f.read_text())
         # (rows outside the dates' θ carry no bound: thinner crescents err more)
-        th, th_all = [r["theta_deg"] for r in core], [r["theta_deg"] for r in got]
+        th = [r["theta_deg"] for r in core]
         models["mapped_earth"] = {"levels": list(LEVELS), "epsilon": table, "seconds": seconds,
                                   "theta_range_deg": [round(min(th), 1), round(max(th), 1)],
-                                  "wide": {"epsilon": wide, "theta_range_deg": [round(min(th_all), 1),
-                                                                                round(max(th_all), 1)]},
+                                  "bands": bands,
                                   "about": "per map and component: the largest |dI_c| / I_1 over dates and lunar "
-                                           "BRDFs, at each Earth level",
+                                           "BRDFs, at each Earth level, the reference's own error added; bands: "
+                                           "the tables of rows beyond the core dates' theta",
                                   "source": res["command"]}
         f.write_text(json.dumps(models, indent=1) + "\n")
     print("\n".join(lines[:8 + sum(len(c) for g in table.values() for c in g.values())]))

@@ -313,17 +313,19 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool, theta_deg: float) -> 
     over dates, observers and the lunar BRDFs of a group (Lambert; ``hapke``: those with an
     opposition surge), measured against the map's own cells
     (:mod:`lunarviz.methods.map_cell_reference`; ``mapped_earth`` in the models, docs: accuracy,
-    "A mapped Earth"). ``None`` where not measured (another level, a user's map, the physical Earth,
-    θ [deg] outside the dates' range: a thinner crescent errs more)."""
+    "A mapped Earth"): the core dates' table at θ = 20-160°, beyond it a band's table (those dates
+    and the paper's scene at θ = 10° or 170°). ``None`` where not measured (another level, a
+    user's map, the physical Earth, θ [deg] outside every table's range: a thinner crescent errs
+    more)."""
     table = error_models().get("mapped_earth")
     if table is None or surface.physical or level not in table["levels"]:
         return None
-    lo, hi = table["theta_range_deg"]
-    wlo, whi = table.get("wide", {}).get("theta_range_deg", (lo, hi))
-    if not wlo <= theta_deg <= whi:
+    # the core dates' table, or beyond their θ the band's (those dates and the paper's scene there)
+    eps = next((t["epsilon"] for t in [table] + table.get("bands", [])
+                if t["theta_range_deg"][0] <= theta_deg <= t["theta_range_deg"][1]), None)
+    if eps is None:
         return None
-    # the core dates' table, or beyond their θ (a thinner crescent) the table of every date
-    maps = (table["epsilon"] if lo <= theta_deg <= hi else table["wide"]["epsilon"])["hapke" if hapke else "lambert"]
+    maps = eps["hapke" if hapke else "lambert"]
     key = f"{surface.earth_surface}+{surface.clouds}"
     if key not in maps:
         return None
@@ -334,7 +336,8 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool, theta_deg: float) -> 
 def mapped_earth_unmeasured(theta_deg: float) -> str:
     """Why a mapped Earth's row has no bound where the rest of its row has one."""
     table = error_models().get("mapped_earth") or {}
-    lo, hi = table.get("wide", table).get("theta_range_deg", (math.nan, math.nan))
+    ranges = [t["theta_range_deg"] for t in [table] + table.get("bands", []) if "theta_range_deg" in t]
+    lo, hi = (min(r[0] for r in ranges), max(r[1] for r in ranges)) if ranges else (math.nan, math.nan)
     if not lo <= theta_deg <= hi:
         return f"a mapped Earth outside theta = {lo:g}-{hi:g} deg (its error model's range)"
     return "no error model for a mapped Earth at this Earth level (measured: levels 4-7 of the packaged maps)"
