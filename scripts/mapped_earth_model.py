@@ -217,11 +217,12 @@ def main(argv=None) -> int:
             got = [r for r in ex.map(one_case, cases(a.quick)) if r is not None]
     core = [r for r in got if CORE[0] <= r["theta_deg"] <= CORE[1]]
     table = model_table(core)
-    bands = [{"theta_range_deg": [round(min(th), 1), CORE[0]] if side == 0 else [CORE[1], round(max(th), 1)],
-              "epsilon": model_table(core + beyond)}
-             for side in (0, 1) if (beyond := [r for r in got if (r["theta_deg"] < CORE[0]) == (side == 0)
-                                              and not CORE[0] <= r["theta_deg"] <= CORE[1]])
-             and (th := [r["theta_deg"] for r in beyond])]
+    bands = []  # each side's dates beyond the core's θ, with the core's
+    for beyond in ([r for r in got if r["theta_deg"] < CORE[0]], [r for r in got if r["theta_deg"] > CORE[1]]):
+        if beyond:
+            th = [r["theta_deg"] for r in beyond]
+            span = [round(min(th), 1), CORE[0]] if th[0] < CORE[0] else [CORE[1], round(max(th), 1)]
+            bands.append({"theta_range_deg": span, "epsilon": model_table(core + beyond)})
     seconds = [float(np.mean([r["levels"][lv]["transport_s"] for r in got])) for lv in LEVELS]
     res = {"cases": got, "table": table, "bands": bands, "seconds": seconds,
            "wall_s": stored["wall_s"] if a.tables_from else time.perf_counter() - t0,

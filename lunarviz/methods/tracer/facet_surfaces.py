@@ -30,7 +30,6 @@ class FacetSurfaces:
         self.earth_parts: tuple | None = None
         #: a physical Earth's spectral run: the node wavelengths [nm] its components are
         self.earth_part_wavelengths = None
-        self._earth_parts_w = None
         self._mapped = None
 
     def moon_facet_albedo(self, spread: bool = False):
@@ -92,15 +91,6 @@ class FacetSurfaces:
                 self._earth_albedo = surf.facet_albedo(self.bodies.earth, frame)
         return None if isinstance(self._earth_albedo, float) else self._earth_albedo
 
-    def earth_facet_parts(self):
-        """(F, C) per-facet weights of :attr:`earth_parts` for a mapped Earth, or ``None`` (a grey
-        run, or a uniform Earth: its one component is the unit-albedo beams)."""
-        if self.earth_parts is None or not self.earth_mapped():
-            return None
-        if self._earth_parts_w is None:
-            self._earth_parts_w = self._earth_parts_of(None)
-        return self._earth_parts_w
-
     def earth_element_values(self, faces: np.ndarray, at: np.ndarray, y: np.ndarray, m: np.ndarray):
         """(albedo (n,), component weights (n, C) or ``None``) of the mapped Earth's surface elements
         at points y (n, 3) with normals m on the facets ``faces[at]``.
@@ -130,15 +120,6 @@ class FacetSurfaces:
         w = facet_weights(surf, self.bodies.earth, frame, faces)[at]
         r = reflectance(surf, w, m @ frame, m, unit(sc.sun - y), unit(sc.moon - y), lam)
         return r[:, 0], (r[:, 1:] if self.earth_parts is not None else None)
-
-    def _earth_parts_of(self, faces):
-        frame = self._earth_frame()
-        surf = self.bodies.settings.surface()
-        if surf.physical:  # one component per node wavelength: the facets' reflectance there
-            sc = self.bodies.scene
-            return facet_reflectance(surf, self.bodies.earth, frame, sc.sun, sc.moon, self.earth_part_wavelengths,
-                                     only=faces)
-        return facet_weights(surf, self.bodies.earth, frame, faces)
 
     def _earth_frame(self) -> np.ndarray:
         return map_frame(self.bodies.scene, "earth", self.bodies.settings.earth_rotation_deg)
