@@ -340,6 +340,40 @@ def test_compiled_and_numpy_spectral_shading_agree(monkeypatch):
         np.testing.assert_allclose(got[k][1], ref[1], rtol=1e-12, atol=1e-12 * np.abs(ref[1]).max(), err_msg=k)
 
 
+def test_a_lune_rules_map_values_shade_as_their_samples_spelt_out(monkeypatch):
+    """A mapped lune rule's transport carries its map values per node (``albedo_nodes``: values
+    (Q,), factors (N, Q)), shaded without copying its beams. The independent route: the same
+    transport spelt out here, each sample repeated at every map value with its geom times the
+    value's factor; sums equal, and per-sample radiances equal the factor-weighted sum of the
+    spelt-out samples', on the compiled and the numpy paths (rounding: 1e-12)."""
+    from lunarviz.methods.tracer.estimators import TraceScene
+    from lunarviz.methods.transport import Transport
+    from lunarviz.spectral import kernels
+    from lunarviz.spectral.shading import shade, spectral_brdfs
+    s = ResolvedScene(phases_deg=(70.0,), method="raytrace", moon_model="rolo-fit-map", wavelengths="420,555.5,870")
+    ts = TraceScene(s.geometry(70.0), s.trace_settings())
+    tr = next(t for t, _ in ts.deterministic.transport("earth") if t.albedo_nodes is not None)
+    values, factors = tr.albedo_nodes
+    Q, N = len(values), len(tr.mu)
+    assert Q > 1 and tr.e_beam_parts is None and np.ptp(factors) > 0
+
+    def rep(a):
+        return np.repeat(a, Q, axis=0)
+    spelt = Transport(mu0=rep(tr.mu0), sin_hg=rep(tr.sin_hg), cos_hg=rep(tr.cos_hg), e_beam=rep(tr.e_beam),
+                      mu=rep(tr.mu), geom=rep(tr.geom) * factors.reshape(-1), e_beam_unit=rep(tr.e_beam_unit),
+                      albedo=np.tile(np.asarray(values, dtype=float), N), albedo_absolute=tr.albedo_absolute)
+    parts, spelt_parts = np.stack([tr.e_beam, tr.e_beam_unit]), np.stack([spelt.e_beam, spelt.e_beam_unit])
+    sbs = spectral_brdfs(s.spectral_inputs(), s.brdf_models())
+    for compiled in (True, False):
+        monkeypatch.setattr(kernels, "available", lambda c=compiled: c)
+        for k, sb in sbs.items():
+            np.testing.assert_allclose(shade(tr, sb, parts), shade(spelt, sb, spelt_parts), rtol=1e-12, err_msg=k)
+            got = shade(tr, sb, parts, per_sample=True)
+            ref = np.einsum("nqpl,nq->npl", shade(spelt, sb, spelt_parts, per_sample=True).reshape(N, Q, 2, -1),
+                            factors)
+            np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max(), err_msg=k)
+
+
 def test_mapped_earth_conservation_at_small_theta():
     """The reviewer's case: near full Moon the first-order Earth cells dip below zero for some
     components; they are not clipped one by one (their albedo-weighted sum is the grey map),

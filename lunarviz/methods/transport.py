@@ -58,25 +58,6 @@ class Transport:
     #: the transport's other shadings (an image shades each chunk at several lunar albedo values)
     rough_geometry: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
-    def expanded(self) -> "Transport":
-        """The same samples with :attr:`albedo_nodes` spelt out: each sample repeated at every map
-        value ``values[q]``, its ``geom`` times ``factors[:, q]`` (for shaders that take a map value
-        per sample, e.g. :mod:`lunarviz.spectral.shading`); ``self`` without nodes."""
-        if self.albedo_nodes is None:
-            return self
-        values, factors = self.albedo_nodes
-        Q = len(values)
-
-        def rep(a):
-            return None if a is None else np.repeat(a, Q, axis=0)
-        return Transport(mu0=rep(self.mu0), sin_hg=rep(self.sin_hg), cos_hg=rep(self.cos_hg),
-                         e_beam=rep(self.e_beam), mu=rep(self.mu), geom=rep(self.geom) * factors.reshape(-1),
-                         e_beam_free=rep(self.e_beam_free), e_beam_unit=rep(self.e_beam_unit),
-                         e_beam_parts=None if self.e_beam_parts is None else
-                         {k: rep(v) for k, v in self.e_beam_parts.items()},
-                         albedo=np.tile(np.asarray(values, dtype=float), len(self.mu)),
-                         albedo_absolute=self.albedo_absolute, albedo_std=None)
-
     def _node_radiances(self, brdf):
         """:meth:`radiances` with :attr:`albedo_nodes`: the BRDF at every map value (the geometry's
         part of a rough Hapke computed once, broadcast over the values), each sample's radiance

@@ -119,8 +119,14 @@ def _effective_geometry(sb: SpectralBRDF, tr):
 
 def _albedo_factors(tr, sb: SpectralBRDF):
     """Per-sample factors on w(λ) for a lunar map: ``[(factor, weight), ...]`` (the pair w ± σ of
-    :meth:`Transport._albedo_pair` where the BRDF is not linear in w), and whether the map gives
-    the parameter itself (then w(λ) is replaced, not scaled)."""
+    :meth:`Transport._albedo_pair` where the BRDF is not linear in w, weights 1/2; a mapped lune
+    rule's map values (:attr:`Transport.albedo_nodes`), each at every sample, weighted per sample
+    by its factor (N,)), and whether the map gives the parameter itself (then w(λ) is replaced,
+    not scaled)."""
+    if tr.albedo_nodes is not None:
+        values, weights = tr.albedo_nodes
+        n = len(tr.mu)
+        return [(np.full(n, float(v)), weights[:, q]) for q, v in enumerate(values)], tr.albedo_absolute
     if tr.albedo is None:
         return [(None, 1.0)], False
     a = tr.albedo
@@ -128,6 +134,14 @@ def _albedo_factors(tr, sb: SpectralBRDF):
     if tr.albedo_std is not None and not linear and np.any(tr.albedo_std > 0):
         return [(a - tr.albedo_std, 0.5), (a + tr.albedo_std, 0.5)], tr.albedo_absolute
     return [(a, 1.0)], tr.albedo_absolute
+
+
+def _weighted(weight, sums, per_sample: bool):
+    """A factor's share of :func:`shade`'s output: its ``sums`` (from geom times ``weight``) as
+    they are, or each sample's radiances (``per_sample``) times its weight (a scalar or (N,))."""
+    if not per_sample or np.ndim(weight) == 0:
+        return sums if np.ndim(weight) else weight * sums
+    return np.asarray(weight)[:, None, None] * sums
 
 
 def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> np.ndarray:
@@ -152,9 +166,10 @@ def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> 
         zeros = np.zeros(sb.n)
         h, B0 = (zeros, zeros) if type(sb.grey) is Lambert else (pr["h"], pr["B0"])
         kc = np.ones(sb.n) if absolute else sb.contrast
-        for alb, weight in factors:
-            out += weight * kernels.spectral_sums(mu0e, mue, tr.sin_hg, tr.cos_hg, fac, parts, tr.geom, alb,
-                                                  w, kc, h, B0, p1, p2, pcode, hcode, per_sample)
+        for alb, weight in factors:  # (a per-sample weight rides on geom: the sums are linear in it)
+            geom = tr.geom * weight if np.ndim(weight) else tr.geom
+            out += _weighted(weight, kernels.spectral_sums(mu0e, mue, tr.sin_hg, tr.cos_hg, fac, parts, geom, alb,
+                                                           w, kc, h, B0, p1, p2, pcode, hcode, per_sample), per_sample)
         return out
     for ll in range(sb.n):  # numpy: one wavelength at a time, Transport's own formulas
         m = sb.model(ll)
@@ -169,7 +184,7 @@ def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> 
                 if per_sample:
                     out[:, p, ll] += weight * np.where(tr.geom != 0, L, 0.0)
                 else:
-                    out[p, ll] += weight * float(np.dot(L, tr.geom))
+                    out[p, ll] += float(np.dot(L, tr.geom * weight))
     return out
 
 

@@ -139,8 +139,8 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
         spec = {}
         for tr, owner in chunks:
             count += len(owner)
-            if spectral is not None:  # (a map value per sample: the mapped lune's nodes spelt out)
-                got = spectral.moonshine(tr.expanded()) if body == "sun" else spectral.earthshine(tr.expanded())
+            if spectral is not None:
+                got = spectral.moonshine(tr) if body == "sun" else spectral.earthshine(tr)
                 for k, v in got.items():
                     spec[k] = spec[k] + v if k in spec else v
             for k, b in brdfs.items():
