@@ -296,3 +296,41 @@ def test_a_band_gap_is_not_shaded_and_changes_nothing(tmp_path):
     two = sweeps.run_phase(s.replace(bands=f"{tmp_path / 'a.csv'},{tmp_path / 'b.csv'}"), 90.0)
     total = sum(r["moonshine_W_m2"] for r in two)
     assert row["moonshine_W_m2"] == pytest.approx(total, rel=1e-12)
+
+
+@pytest.mark.parametrize("band", ["V", None])
+def test_a_mapped_earths_expected_part_leaves_the_lunar_side_the_rest(monkeypatch, band):
+    """Beside a mapped Earth, the earthshine's lunar side takes what the map's expected part of
+    the row's bound leaves of the tolerance (its own error model, each component's light taken
+    toward the Moon's centre), not a fixed half. Big Bear at θ = 95° (V, rolo-fit-map's DHG,
+    land-ocean with zonal clouds): with half, the lunar side's 4.0e-5 and the map's 6.3e-5 made
+    1.04e-4 > 1e-4. Here: the row within 1e-4, and the expectation within MAPPED_PART_MARGIN of
+    the row's own part (measured 0.5 % under it on this date, at most 0.8 % over a Big Bear
+    lunation; the margin is 3 %), on the spectral and the grey paths."""
+    from lunarviz.methods import accuracy
+    from lunarviz.scene import resolved, tolerance
+    seen = []
+    expect, bound = tolerance.expected_mapped_part, tolerance.mapped_earth_row_bound
+
+    def spy_expect(*args, **kw):
+        seen.append(("expected", expect(*args, **kw)))
+        return seen[-1][1]
+
+    def spy_bound(scene, plan, paths, brdf, albedos, unit, earthshine, theta_deg, average=None):
+        eps = accuracy.mapped_earth_epsilon(plan["settings"]["earth_level"], scene.earth_model(), True, theta_deg)
+        seen.append(("row", accuracy.mapped_earth_error(eps, albedos, unit, earthshine, average), paths))
+        return bound(scene, plan, paths, brdf, albedos, unit, earthshine, theta_deg, average)
+    monkeypatch.setattr(resolved.ResolvedScene, "expected_mapped_part", spy_expect)
+    monkeypatch.setattr(resolved.ResolvedScene, "mapped_earth_row_bound", spy_bound)
+    s = ResolvedScene(method="raytrace", observer=BBSO, times=("2026-02-24T03:00Z",),
+                      moon_model="rolo-fit-map", brdfs=("dhg",), earth_surface="landocean", clouds="zonal",
+                      **({"bands": band} if band else {}))
+    row = sweeps.run_sweep(s, workers=1)["rows"][0]
+    (_, expected), (_, part, paths) = seen
+    assert 0 < row["rtol"] <= 1e-4 and row["rtol"] == pytest.approx(max(paths["moonshine"], paths["earthshine"] + part))
+    assert paths["earthshine"] <= 1e-4 - tolerance.MAPPED_PART_MARGIN * expected
+    assert 1 / tolerance.MAPPED_PART_MARGIN <= part / expected <= tolerance.MAPPED_PART_MARGIN
+    # the rule itself: the rest of the tolerance, or half where none is known or a quarter is all that is left
+    assert tolerance.mapped_lunar_tolerance(1e-4, None) == 5e-5
+    assert tolerance.mapped_lunar_tolerance(1e-4, 1e-5) == pytest.approx(1e-4 - tolerance.MAPPED_PART_MARGIN * 1e-5)
+    assert tolerance.mapped_lunar_tolerance(1e-4, 0.8e-4) == 5e-5

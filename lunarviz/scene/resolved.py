@@ -84,6 +84,7 @@ class ResolvedScene:
     warn_unmet_tolerance = tolerance.warn_unmet_tolerance
     traced_earth_mapped = tolerance.traced_earth_mapped
     mapped_earth_row_bound = tolerance.mapped_earth_row_bound
+    expected_mapped_part = tolerance.expected_mapped_part
 
     @property
     def earth_uniform(self) -> bool:

@@ -10,10 +10,14 @@ from __future__ import annotations
 import math
 import warnings
 
+import numpy as np
+
 from lunarviz.errors import LooseRowsWarning, LunarvizError, LunarvizWarning, UnboundedRowsWarning
 from lunarviz.methods import accuracy
 from lunarviz.options import DEFAULT_LEVELS, DEFAULT_ORDERS
 from lunarviz.photometry.presets import moon_model_map
+from lunarviz.scene import inputs
+from lunarviz.surfaces.earth_spectra import weights_toward
 from lunarviz.surfaces.earth_surface import CLOUDS, EARTH_SURFACES
 
 
@@ -52,10 +56,12 @@ def reference_earth_pole(scene) -> str:
 
 
 
-def trace_plan(scene, theta: float | None = None) -> dict:
+def trace_plan(scene, theta: float | None = None, mapped_part: float | None = None) -> dict:
     """What the tolerance chooses for the ray tracer: ``settings`` (the options left unset,
     and ``lune_order``) and ``bounds`` ({(sample kind, path): bound},
-    :func:`lunarviz.methods.accuracy.trace_choice`). Monte Carlo: the rays, where a tolerance
+    :func:`lunarviz.methods.accuracy.trace_choice`). ``mapped_part``: a mapped Earth's expected
+    part of the task's rows' bounds (:func:`expected_mapped_part`), which sets the earthshine's
+    lunar-side tolerance (:func:`mapped_lunar_tolerance`). Monte Carlo: the rays, where a tolerance
     is given and the rays are not. No model: a user's Moon mesh, a mapped or physical Earth
     (bounds empty; an explicit tolerance is refused for a user's Moon mesh). ``theta`` [deg]:
     the task's θ, where a model was measured phase by phase (the mapped lune rule's)."""
@@ -82,13 +88,14 @@ def trace_plan(scene, theta: float | None = None) -> dict:
         if asked_level:  # a mesh level asked for without a tolerance: the default source orders too
             fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
             fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
-    # the Earth's rule about the zero-phase point (or a mapped Earth's facets) takes half the
-    # earthshine's tolerance, the lunar side the other half; the moonshine keeps the whole
+    # the Earth's rule about the zero-phase point takes half the earthshine's tolerance, the lunar
+    # side the other half; beside a mapped Earth's facets the lunar side takes what their expected
+    # part leaves; the moonshine keeps the whole
     mapped_earth = traced_earth_mapped(scene)
     pole = earth_pole_at_zero_phase(scene) and not mapped_earth
     rtol = scene.rtol_or_default
-    choice = accuracy.trace_choice(rtol, fixed, scene.mapped_moon(), theta,
-                                   earthshine_rtol=rtol / 2 if pole or mapped_earth else rtol)
+    earthshine_rtol = rtol / 2 if pole else mapped_lunar_tolerance(rtol, mapped_part) if mapped_earth else rtol
+    choice = accuracy.trace_choice(rtol, fixed, scene.mapped_moon(), theta, earthshine_rtol=earthshine_rtol)
     settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
                 if k not in fixed and choice.get(k) is not None}
     # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
@@ -119,6 +126,49 @@ def _mapped_earth(scene, settings: dict) -> None:
     (``settings["earth_level"]``). Its error depends on each row's own albedos and light
     (:func:`mapped_earth_row_bound`), so the plan's earthshine bounds stay the lunar side's."""
     settings["earth_level"] = scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
+
+
+#: A mapped Earth's expected part of a row's bound (:func:`expected_mapped_part`) is taken this
+#: many times over before the lunar side takes the rest of the tolerance: the expectation weights
+#: each component's light toward the Moon's centre as a Lambert Earth lit by a point Sun does, the
+#: row by the lunar BRDF across the disc and the Moon's face. Their ratio (row over expected) was
+#: 1.000-1.008 over a Big Bear lunation in V and orbit dates, 1.02 for land and ocean without
+#: clouds in B (docs: accuracy, "A mapped Earth"; tests/test_observer_dates.py)
+MAPPED_PART_MARGIN = 1.03
+
+
+def mapped_lunar_tolerance(rtol: float, part: float | None) -> float:
+    """The earthshine's lunar-side tolerance beside a mapped Earth whose expected part of the rows'
+    bounds is ``part`` (:func:`expected_mapped_part`): what :data:`MAPPED_PART_MARGIN` times
+    ``part`` leaves of ``rtol``. Where that is a quarter of ``rtol`` or less (the map's part takes
+    nearly all: its rows exceed the tolerance at any lunar order worth its cost), or ``part`` is
+    unknown (no error model for the map), half, as beside the Earth's rule about the zero-phase
+    point."""
+    left = rtol - MAPPED_PART_MARGIN * part if part is not None and math.isfinite(part) else 0.0
+    return left if left > rtol / 4 else rtol / 2
+
+
+def expected_mapped_part(scene, sc, albedos: dict, averages=(None,)) -> float | None:
+    """A mapped Earth's expected part of the bounds of a task's rows (relative, the largest over
+    its outputs): :func:`lunarviz.methods.accuracy.mapped_earth_error` at the Earth's level for the
+    run's BRDFs, each component's light taken as its weight toward the Moon's centre on a Lambert
+    Earth lit by a point Sun (:func:`lunarviz.surfaces.earth_spectra.weights_toward`; ``sc``: the
+    task's :class:`~lunarviz.geometry.scene_geometry.SceneGeometry`). ``albedos``: each component's
+    albedo, one value or per node (a spectral run's, with ``averages`` mapping node values to each
+    output's). ``None`` where the error model does not cover the map or θ, or no light reaches
+    the Moon."""
+    level = scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
+    hapke = any(accuracy.peaks_at_zero_phase(b) for b in scene.brdf_models().values())
+    eps = accuracy.mapped_earth_epsilon(level, scene.earth_model(), hapke, sc.theta_deg)
+    if eps is None or set(albedos) - set(eps):
+        return None
+    w = weights_toward(inputs.surfaces(scene), sc, sc.moon)  # (C,): the components' shares of the light
+    if not w.sum() > 0:
+        return None
+    nodes = np.broadcast_shapes(*(np.shape(a) for a in albedos.values()))
+    unit = np.ones(nodes)
+    light = sum(wc * np.asarray(albedos[c], dtype=float) for wc, c in zip(w, albedos)) * unit
+    return max(accuracy.mapped_earth_error(eps, albedos, unit, float((avg or np.sum)(light)), avg) for avg in averages)
 
 
 def mapped_earth_row_bound(scene, plan: dict, paths: dict, brdf, albedos: dict, unit, earthshine: float,

@@ -120,18 +120,21 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     a0 = settings.earth_albedo
     rows = []
-    plan = settings.trace_plan(sc.theta_deg)  # once per task: the settings and the bounds both come from it
+    grey = None
+    if settings.traced_earth_mapped():  # a mapped Earth's components and their grey albedos
+        earth = settings.earth_model()
+        grey = {c: grey_albedos(earth)[c] for c in components(earth)}
+    # once per task: the settings and the bounds both come from it (beside a mapped Earth, its
+    # part expected on this date sets the earthshine's lunar-side tolerance)
+    plan = settings.trace_plan(sc.theta_deg, None if grey is None else settings.expected_mapped_part(sc, grey))
     ts_set = settings.trace_settings(threads, plan)
     ts = TraceScene(sc, ts_set)
     ms = trace_path(ts, "moonshine", brdfs)
     es = trace_path(ts, "earthshine", brdfs)
     bound = accuracy.traced_bound(plan["bounds"], ts, ms, es, settings.unmodelled_reason())
     paths = accuracy.traced_path_bounds(plan["bounds"], ts)[0] \
-        if settings.traced_earth_mapped() and ts_set.estimator == "deterministic" and math.isfinite(bound[0]) else {}
-    mapped = bool(paths)
-    if mapped:  # the mapped Earth's part of the earthshine's bound, row by row (its own albedos and light)
-        earth = settings.earth_model()
-        grey = {c: grey_albedos(earth)[c] for c in components(earth)}
+        if grey is not None and ts_set.estimator == "deterministic" and math.isfinite(bound[0]) else {}
+    mapped = bool(paths)  # (then the mapped Earth's part of the earthshine's bound, row by row)
     rules = {b: r for b in ("sun", "earth") if (r := ts.sampling.mapped_rule_used(b)) is not None}
     point = analytic_irradiance(sc, brdfs, cal_settings, rules=rules)
     if ts_set.estimator == "deterministic" and ts_set.earth_mesh is None:
