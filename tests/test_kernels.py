@@ -451,6 +451,37 @@ def test_mapped_earth_cut_sums_kernel_matches_numpy(monkeypatch):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12 * b.max())
 
 
+def test_mapped_earth_cut_points_see_every_element_above_their_horizon(monkeypatch):
+    """At lunar points whose horizon cuts the Earth the mapped Earth expands the cells wholly above
+    the horizon about the Moon's centre and sums the crossed cells' elements one by one. The
+    independent route: every element above the point's horizon and facing it summed by brute
+    force here, L1A·cos_y/r²; each point's light over all cells agrees to 1e-6 (the expansion's
+    remainder is ~(R_M/D)³ ≈ 1e-7 of a cell's light), compiled and numpy, and some of the points
+    have cells on both sides of their horizon (the classification is exercised)."""
+    from lunarviz.geometry.scene_geometry import SceneGeometry, unit
+    from lunarviz.methods.tracer import earth_kernels
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
+    sc = SceneGeometry(60.0)
+    to_earth = unit(sc.earth - sc.moon)
+    rng = np.random.default_rng(9)
+    n = unit(np.cross(to_earth, rng.normal(size=(30, 3))) + rng.uniform(-0.02, 0.02, (30, 1)) * to_earth)
+    x = sc.moon + sc.radii["moon"] * n
+    o = np.tile(to_earth, (30, 1))
+    for compiled in (True, False):
+        monkeypatch.setattr(earth_kernels, "_NUMBA", compiled and earth_kernels.available())
+        ts = TraceScene(sc, TraceSettings(moon_level=2, earth_level=4, earth_surface="landocean", clouds="zonal"))
+        got = ts.mapped_earth.transport(x, n, o, np.ones(30), np.ones(30)).e_beam_unit.sum(axis=1)
+        el = ts.mapped_earth.earth_elements()
+        v = x[:, None, :] - el["y"][None, :, :]
+        r2 = np.einsum("bkj,bkj->bk", v, v)
+        seen = (np.einsum("bkj,kj->bk", v, el["m"]) > 0) & (np.einsum("bkj,bj->bk", v, n) < 0)
+        ref = np.sum(np.where(seen, el["L1A"] * np.einsum("bkj,kj->bk", v, el["m"]) / r2**1.5, 0.0), axis=1)
+        assert ref.max() > 0 and ((ref > 0) & (ref < ref.max() * 0.5)).any()  # (partly seen Earths)
+        np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-12 * ref.max())
+        h = np.einsum("bj,bcj->bc", n, el["centre"][None] - x[:, None])
+        assert ((h > el["radius"]).any(1) & (np.abs(h) <= el["radius"]).any(1)).sum() >= 10
+
+
 def test_jittered_facet_points_kernel_matches_numpy(monkeypatch):
     """The map averages' jittered points per facet (maps.facet_points), compiled, against the numpy
     path: the same points to rounding (1e-15 of the radius; the sums' order differs), and a date's

@@ -106,6 +106,7 @@ class MappedEarthTransport:
         cell_of = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(y)])) if len(starts) else \
             np.zeros(0, int)
         d = y - centre[cell_of]
+        radius = np.maximum.reduceat(np.linalg.norm(d, axis=1), starts) if len(starts) else np.zeros(0)
         spread = _cell_spread(d, wt, wsum, starts, e1[0], e2[0])
         band, (g0, grad, hess) = _expansion_terms(m, v, r, max(rm, self.bodies.moon.bound))
         band_el = np.flatnonzero(band)  # (sorted by cell, as all are)
@@ -123,7 +124,8 @@ class MappedEarthTransport:
         # map's edge across a cell puts its light off the cell's centre)
         tilts = {name: _point_tilts(d, wt * share, starts, spread) for name, share in zip(names, per_unit)}
         yr = y - sc.moon
-        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, spread=spread, tilts=tilts,
+        self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, radius=radius, spread=spread,
+                              tilts=tilts,
                               wsum=wsum, taylor=taylor, comp=comp, band=band_el, cell=cell_of, weights=weights,
                               rel=(yr, np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)))
         return self._earth_el
@@ -152,7 +154,53 @@ class MappedEarthTransport:
                 out[p][c0:c0 + chunk, cell[runs]] = np.add.reduceat(f * wp, runs, axis=1)
         return out
 
-    def transport(self, x, n, o, mu, geom, chunk: int = 32) -> Transport:
+    def _expanded_sums(self, x, el) -> np.ndarray:
+        """(P, B, C): the lights (the unit, the map, a spectral run's components: the order of
+        the transport's outputs) of every cell at lunar points x that see all of it but the
+        elements along the limb: each cell's second-order expansion about the Moon's centre
+        (:func:`_expansion_terms`) and the limb's band summed exactly (:meth:`_band_sums`)."""
+        dx = x - self.bodies.scene.moon
+        dxx = 0.5 * (dx[:, :, None] * dx[:, None, :]).reshape(-1, 9)  # (the Hessian's term as one product)
+        band = self._band_sums(x, el)
+        out = np.empty_like(band)
+        for p, name in enumerate(el["taylor"]):
+            s0, s1, s2 = el["taylor"][name]
+            v = s0[None, :] + dx @ s1.T + dxx @ s2.reshape(-1, 9).T + band[p]
+            # the unit and the map are lights: clipped at 0 where the expansion dips below it. A
+            # spectral run's components are not clipped one by one (a component's value may dip
+            # where their albedo-weighted sum, the map, does not: clipping each would break the
+            # sum), only where the unit's light is gone
+            out[p] = np.clip(v, 0.0, None) if not isinstance(name, tuple) else np.where(out[0] > 0, v, 0.0)
+        return out
+
+    def _cut_sums(self, x, n, el, chunk: int = 32) -> np.ndarray:
+        """(P, B, C): the cells' lights at lunar points x (normals n) whose horizon cuts the Earth:
+        in a cell wholly above a point's horizon (its elements' bounding sphere) the expansion of
+        :meth:`_expanded_sums`, in one wholly below nothing, in one the horizon crosses every
+        element above it summed one by one (compiled: those cells' alone; numpy: every cell's,
+        those cells' kept)."""
+        centre, radius = el["centre"], el["radius"]
+        height = np.einsum("bj,bcj->bc", n, centre[None, :, :] - x[:, None, :])  # n·(centre - x)
+        reach = radius[None, :] * (1.0 + 1e-6)  # (a cell within rounding of a horizon: crossed)
+        above, crossed = height > reach, np.abs(height) <= reach
+        out = np.where(above[None], self._expanded_sums(x, el), 0.0)
+        yr, my, yy = el["rel"]
+        if earth_kernels.available():  # one compiled pass over the crossed cells' elements
+            return out + earth_kernels.cell_sums(x - self.bodies.scene.moon, n, el["m"], yr, my, yy, el["weights"],
+                                                 el["starts"], crossed)
+        y, m, st, w = el["y"], el["m"], el["starts"], el["weights"]
+        for c0 in range(0, len(x), chunk):
+            xs, ns = x[c0:c0 + chunk], n[c0:c0 + chunk]
+            v = xs[:, None, :] - y[None, :, :]  # Earth element → lunar point
+            r2 = np.einsum("bkj,bkj->bk", v, v)
+            cos_y = np.clip(np.einsum("bkj,kj->bk", v, m) / np.sqrt(r2), 0.0, None)
+            up = np.einsum("bkj,bj->bk", v, ns) < 0.0  # the element above x's horizon
+            f = np.where(up, cos_y / r2, 0.0)
+            for p in range(len(w)):
+                out[p, c0:c0 + chunk] += np.where(crossed[c0:c0 + chunk], np.add.reduceat(f * w[p], st, axis=1), 0.0)
+        return out
+
+    def transport(self, x, n, o, mu, geom) -> Transport:
         """Earthshine :class:`Transport` at lunar points x from an Earth with an albedo map.
 
         The earthlight of every Earth facet reaching x is summed exactly per facet,
@@ -169,63 +217,28 @@ class MappedEarthTransport:
         direction a cell (its centre) erred by 8.2e-5 under Hapke's opposition surge, whose
         curvature across the disc the cells do not resolve, and by more where a map's edge puts a
         component's light off the cell's centre (docs: accuracy, "A mapped Earth").
-        Lunar points whose horizon does not cut the Earth (nearly all) take each cell's sum from
-        its second-order expansion about the Moon's centre (error ~(R_M/D)³ ≈ 1e-7) but for the
+        Lunar points whose horizon does not cut the Earth take each cell's sum from its
+        second-order expansion about the Moon's centre (error ~(R_M/D)³ ≈ 1e-7) but for the
         elements near the Earth's limb, which some of them see and others not (summed one by
-        one); the others sum every element one by one.
+        one); the others take the same in the cells wholly above their horizon and sum the
+        elements one by one in the cells their horizon crosses (:meth:`_cut_sums`).
         Traced with Embree: the Moon's
         shadow on each facet, a non-convex Earth hiding facets, a non-convex Moon shadowing
         each beam. Neglected: the Sun's extent lighting the Earth (as for the uniform Earth).
         """
         el = self.earth_elements()
         B, C = len(x), len(el["starts"])
-        e_map, e_unit = np.zeros((B, C)), np.zeros((B, C))
         comp = el["comp"]
         n_parts = 0 if comp is None else comp.shape[1]
-        e_parts = np.zeros((n_parts, B, C))
-        outs = [("unit", e_unit), ("map", e_map)] + [(("part", c), e_parts[c]) for c in range(n_parts)]
+        lights = np.zeros((2 + n_parts, B, C))  # the unit's, the map's, each component's
         # the points whose horizon cuts the Earth
         cut = np.einsum("ij,ij->i", n, self.bodies.scene.earth - x) < self.bodies.earth.bound * (1 + 1e-6)
         if C:
-            y, m, L1A, a, st = el["y"], el["m"], el["L1A"], el["a"], el["starts"]
-            # points whose horizon does not cut the Earth see every element: the cell sums are
-            # smooth in x there and their second-order expansion about the Moon's centre serves
-            far = np.flatnonzero(~cut)
-            dx = x[far] - self.bodies.scene.moon
-            dxx = 0.5 * (dx[:, :, None] * dx[:, None, :]).reshape(-1, 9)  # (the Hessian's term as one product)
-            unit_far = None
-            band = self._band_sums(x[far], el)
-            for (name, out), band_p in zip(outs, band):
-                s0, s1, s2 = el["taylor"][name]
-                v = s0[None, :] + dx @ s1.T + dxx @ s2.reshape(-1, 9).T + band_p
-                # the unit and the map are lights: clipped at 0 where the expansion dips
-                # below it. A spectral run's components are not clipped one by one (a component's
-                # value may dip where their albedo-weighted sum, the map, does not: clipping each
-                # would break the sum), only where the unit's light is gone
-                out[far] = np.clip(v, 0.0, None) if not isinstance(name, tuple) else np.where(unit_far > 0, v, 0.0)
-                if name == "unit":
-                    unit_far = out[far]
-            rows = np.flatnonzero(cut)
-            if len(rows) and earth_kernels.available():  # one compiled pass over (points × elements)
-                yr, my, yy = el["rel"]
-                sums = earth_kernels.element_sums(x[rows] - self.bodies.scene.moon, m, yr, my, yy, el["weights"],
-                                                  el["cell"], C, nx=n[rows])
-                for (_, out), sums_p in zip(outs, sums):
-                    out[rows] = sums_p
-                rows = rows[:0]
-            for c0 in range(0, len(rows), chunk):
-                sel = rows[c0:c0 + chunk]
-                xs, ns = x[sel], n[sel]
-                v = xs[:, None, :] - y[None, :, :]  # Earth element → lunar point
-                r2 = np.einsum("bkj,bkj->bk", v, v)
-                r = np.sqrt(r2)
-                cos_y = np.clip(np.einsum("bkj,kj->bk", v, m) / r, 0.0, None)
-                up = np.einsum("bkj,bj->bk", v, ns) < 0.0  # the element above x's horizon
-                f = np.where(up, L1A * cos_y / r2, 0.0)
-                e_unit[sel] = np.add.reduceat(f, st, axis=1)
-                e_map[sel] = np.add.reduceat(f * a, st, axis=1)
-                for c in range(n_parts):
-                    e_parts[c, sel] = np.add.reduceat(f * comp[:, c], st, axis=1)
+            far, rows = np.flatnonzero(~cut), np.flatnonzero(cut)
+            lights[:, far] = self._expanded_sums(x[far], el)
+            if len(rows):
+                lights[:, rows] = self._cut_sums(x[rows], n[rows], el)
+        e_unit, e_map, e_parts = lights[0], lights[1], lights[2:]
         dirs, e_map, e_unit, e_parts = _four_point_beams(el, x, cut, e_map, e_unit, e_parts)
         C = 4 * C
         mu0 = np.einsum("bkj,bj->bk", dirs, n)
