@@ -191,10 +191,10 @@ def facet_weight_fields(surface, body, frame: np.ndarray, only) -> tuple[np.ndar
     return m["value"][only], m["grad"][only]
 
 
-def weights_toward(surfaces, scene, target: np.ndarray) -> np.ndarray:
+def weights_toward(surfaces, scene, target: np.ndarray, rows: int | None = None) -> np.ndarray:
     """(C,) component weights as a Lambert Earth lit by a point Sun weights them toward a distant
-    ``target`` (:meth:`Surfaces.earth_albedo_toward`'s rule, per component)."""
-    return np.atleast_1d(surfaces.earth_albedo_toward(scene, target,
+    ``target`` (:meth:`Surfaces.earth_albedo_toward`'s rule, per component; ``rows``: its grid's)."""
+    return np.atleast_1d(surfaces.earth_albedo_toward(scene, target, rows=rows,
                                                       values=lambda d: weights_at(surfaces.earth, d)))
 
 

@@ -40,16 +40,17 @@ class Surfaces:
     def earth_albedo_toward(self, scene, target: np.ndarray, rows: int | None = None, values=None):
         """The Earth's albedo as a Lambert Earth lit by a point Sun weights it toward a distant
         ``target`` (the Moon's centre): ``∫A μ_s μ_t dA / ∫μ_s μ_t dA`` over the sphere, on a
-        grid of cells at least as fine as the surface's maps (the map's value per cell).
-        ``values``: a function of map-frame directions (n, 3) giving (n,) or (n, C) values to
-        weight instead of the albedo (:mod:`lunarviz.surfaces.earth_spectra`'s components)."""
+        grid of cells at least as fine as the surface's maps (the map's value per cell; ``rows``:
+        that many rows of latitude instead). ``values``: a function of map-frame directions (n, 3)
+        giving (n,) or (n, C) values to weight instead of the albedo
+        (:mod:`lunarviz.surfaces.earth_spectra`'s components)."""
         if self.earth.uniform and values is None:
             return float(self.earth.earth_albedo)
         if self.earth.physical:
             raise AssertionError("a physical Earth: use lunarviz.surfaces.physical_earth.albedo_toward")  # a caller bug
         values = values or self.earth.albedo_at
         clear = self.earth.clear_map()
-        n = max(360, min(1800, 0 if clear is None else clear.shape[0]))
+        n = rows if rows is not None else max(360, min(1800, 0 if clear is None else clear.shape[0]))
         lat = np.radians(90.0 - (np.arange(n) + 0.5) * 180.0 / n)
         lon = np.radians(-180.0 + (np.arange(2 * n) + 0.5) * 180.0 / n)
         frame = map_frame(scene, "earth", self.earth_rotation_deg)

@@ -126,7 +126,8 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
         grey = {c: grey_albedos(earth)[c] for c in components(earth)}
     # once per task: the settings and the bounds both come from it (beside a mapped Earth, its
     # part expected on this date sets the earthshine's lunar-side tolerance)
-    plan = settings.trace_plan(sc.theta_deg, None if grey is None else settings.expected_mapped_part(sc, grey))
+    expect = grey is not None and settings.estimator == "deterministic"  # (Monte Carlo's plan takes its rays alone)
+    plan = settings.trace_plan(sc.theta_deg, settings.expected_mapped_part(sc, grey) if expect else None)
     ts_set = settings.trace_settings(threads, plan)
     ts = TraceScene(sc, ts_set)
     ms = trace_path(ts, "moonshine", brdfs)
