@@ -1,4 +1,4 @@
-"""Issue 27's targets, measured end to end through the command line (wall time, this machine).
+"""The speed targets, measured end to end through the command line (wall time, this machine).
 
     python scripts/speed_targets.py [--quick] [--skip-year] [--skip-paper] [--out DIR]
 
@@ -166,7 +166,7 @@ def plot(res: dict, out: Path) -> None:
 
 def report(res: dict, out: Path) -> None:
     cmd = "python scripts/speed_targets.py" + (" --quick" if res["quick"] else "")
-    lines = ["# Speed targets (issue 27)", "", f"`{cmd}`, this 2-core machine, wall times of fresh `lunarviz` "
+    lines = ["# Speed targets", "", f"`{cmd}`, this 2-core machine, wall times of fresh `lunarviz` "
              "processes (imports included).", ""]
     ps = res.get("paper_sweep")
     if ps:
