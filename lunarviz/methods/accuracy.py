@@ -281,19 +281,24 @@ def off_centre_earth_order(limit: float, mapped_moon: bool, cut: bool = False) -
     return min(ok) if ok else max(table["orders"])
 
 
+def off_centre_earth_seconds(order: int, mapped_moon: bool, cut: bool = False) -> float:
+    """The time a date's earthshine took with the zero-phase rule at Earth ``order`` in its
+    measurement (``seconds``: mean over the dates; inf where not measured)."""
+    table = _off_centre_table(cut) or {}
+    return float(table.get("seconds", {}).get("rolo-fit-map" if mapped_moon else "paper", {}).get(str(order), math.inf))
+
+
 def off_centre_earth_rule(limit: float, mapped_moon: bool) -> tuple[int, bool]:
     """``(order, cut)``: of the two zero-phase rules, plain and cut along the kinks, the one
-    whose smallest order meeting ``limit`` took less time in the measurement (its ``seconds``:
-    a date's earthshine, mean over the dates); the more accurate where neither meets it."""
+    whose smallest order meeting ``limit`` took less time in the measurement
+    (:func:`off_centre_earth_seconds`); the more accurate where neither meets it."""
     options = []
     for cut in (False, True):
-        table = _off_centre_table(cut)
-        if table is None:
+        if _off_centre_table(cut) is None:
             continue
         order = off_centre_earth_order(limit, mapped_moon, cut)
         err = off_centre_earth_error(order, mapped_moon, cut)
-        cost = float(table.get("seconds", {}).get("rolo-fit-map" if mapped_moon else "paper", {})
-                     .get(str(order), math.inf))
+        cost = off_centre_earth_seconds(order, mapped_moon, cut)
         options.append((not err <= limit, cost if err <= limit else err, cut, order))
     if not options:
         return max(DEFAULT_EARTH_ORDERS), False

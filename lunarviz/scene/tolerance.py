@@ -88,21 +88,31 @@ def trace_plan(scene, theta: float | None = None, mapped_part: float | None = No
         if asked_level:  # a mesh level asked for without a tolerance: the default source orders too
             fixed.setdefault("sun_order", DEFAULT_ORDERS["sun"])
             fixed.setdefault("earth_order", DEFAULT_ORDERS["earth"])
-    # the Earth's rule about the zero-phase point takes half the earthshine's tolerance, the lunar
-    # side the other half; beside a mapped Earth's facets the lunar side takes what their expected
-    # part leaves; the moonshine keeps the whole
+    # the Earth's rule about the zero-phase point (or a mapped Earth's facets) takes half the
+    # earthshine's tolerance (or the share that costs least), the lunar side the rest; the
+    # moonshine keeps the whole
     mapped_earth = traced_earth_mapped(scene)
     pole = earth_pole_at_zero_phase(scene) and not mapped_earth
     rtol = scene.rtol_or_default
-    earthshine_rtol = rtol / 2 if pole else mapped_lunar_tolerance(rtol, mapped_part) if mapped_earth else rtol
-    choice = accuracy.trace_choice(rtol, fixed, scene.mapped_moon(), theta, earthshine_rtol=earthshine_rtol)
-    settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
-                if k not in fixed and choice.get(k) is not None}
+    choice = accuracy.trace_choice(rtol, fixed, scene.mapped_moon(), theta,
+                                   earthshine_rtol=rtol / 2 if pole or mapped_earth else rtol)
     # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
     # roughness changes form where i = e, a kink inside the lune); otherwise the lune rule where it applies
     # (a mapped Moon's lune rule was measured with rolo-fit-map's rough presets)
     rough = any(getattr(m, "rough", False) for m in scene.brdf_models().values())
-    settings["lune_order"] = None if asked_level or rough and not scene.mapped_moon() else choice.get("lune_order")
+    lune = not (asked_level or rough and not scene.mapped_moon())
+    if pole and not fixed.get("earth_order"):  # the split of the earthshine's tolerance that costs least
+        choice = _cheapest_split(scene, rtol, fixed, theta, lune) or choice
+    if mapped_earth:  # beside a mapped Earth the lunar side takes what its expected part leaves, where
+        # that is more than half, or where half would leave too little for that part
+        rest = mapped_lunar_tolerance(rtol, mapped_part)
+        kind = "lune" if lune and choice.get("lune_order") is not None else "facets"
+        half = choice.get("bounds", {}).get((kind, "earthshine"), math.inf)
+        if rest > rtol / 2 or rest < rtol / 2 and not half + MAPPED_PART_MARGIN * mapped_part <= rtol:
+            choice = accuracy.trace_choice(rtol, fixed, scene.mapped_moon(), theta, earthshine_rtol=rest)
+    settings = {k: choice.get(k) for k in ("moon_level", "sun_order", "earth_order")
+                if k not in fixed and choice.get(k) is not None}
+    settings["lune_order"] = choice.get("lune_order") if lune else None
     if settings["lune_order"] is not None and choice.get("lune_source_orders") is not None:
         settings["lune_source_orders"] = choice["lune_source_orders"]
     bounds = choice.get("bounds", {}) if scene.modelled() else {}
@@ -145,7 +155,9 @@ def mapped_lunar_tolerance(rtol: float, part: float | None) -> float:
     of 64-96: the rows exceed the tolerance by what the map's part takes beyond four fifths).
     Half, as beside the Earth's rule about the zero-phase point, where ``part`` is unknown (no
     error model for the map) or takes the whole tolerance (the rows exceed it at any lunar
-    order: none is spent on them)."""
+    order: none is spent on them). :func:`trace_plan` takes it where it is more than half, and
+    where it is less only if half's choice would not leave room for the map's part (its orders are
+    discrete: half's often meets less than half)."""
     if part is None or not math.isfinite(part) or MAPPED_PART_MARGIN * part >= rtol:
         return rtol / 2
     return max(rtol - MAPPED_PART_MARGIN * part, rtol / 5)
@@ -210,6 +222,38 @@ def earth_pole_at_zero_phase(scene) -> bool:
     opposition surge or roughness (:func:`lunarviz.methods.accuracy.peaks_at_zero_phase`), whose
     peak and kink lie there. A Lambert-only run keeps the sub-point pole (smooth there)."""
     return detector_off_centre(scene) and any(accuracy.peaks_at_zero_phase(b) for b in scene.brdf_models().values())
+
+
+#: The lunar side's shares of the earthshine's tolerance that :func:`_cheapest_split` weighs
+#: against the Earth's rule about the zero-phase point (which takes what the lunar side leaves)
+EARTHSHINE_SPLITS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
+
+
+def _cheapest_split(scene, rtol: float, fixed: dict, theta, lune: bool) -> dict | None:
+    """The tracer's choice (:func:`lunarviz.methods.accuracy.trace_choice`) at the lunar side's
+    share of the earthshine's tolerance (:data:`EARTHSHINE_SPLITS`) whose earthshine costs least
+    of those that meet the tolerance with the Earth's rule about the zero-phase point at the order
+    the rest asks for (:func:`_zero_phase_earth`). The cost: the lunar samples (the lune rule's
+    earthshine order squared, or 4^level for the facets) times the Earth rule's measured time at
+    its order (:func:`lunarviz.methods.accuracy.off_centre_earth_seconds`). Both rules' orders are
+    discrete, so half and half often leaves one of them far inside its share: at a 550 km orbit's
+    dates, a lunar side at 0.6 took lune order 16 beside Earth order 10 where half took 20 beside
+    10. Of equal costs, the share nearest half (the settings and bounds half gives). ``None`` where
+    no share meets the tolerance (half then runs, the most accurate)."""
+    mapped = scene.mapped_moon()
+    best = None
+    for share in EARTHSHINE_SPLITS:
+        choice = accuracy.trace_choice(rtol, fixed, mapped, theta, earthshine_rtol=share * rtol)
+        kind = "lune" if lune and choice.get("lune_order") is not None else "facets"
+        lunar = choice.get("bounds", {}).get((kind, "earthshine"), math.nan)
+        order, cut = accuracy.off_centre_earth_rule((rtol - lunar) / accuracy.SAFETY, mapped)
+        if not lunar + accuracy.SAFETY * accuracy.off_centre_earth_error(order, mapped, cut) <= rtol:
+            continue
+        samples = choice["lune_order"][1] ** 2 if kind == "lune" else 4.0 ** choice["moon_level"]
+        key = (samples * accuracy.off_centre_earth_seconds(order, mapped, cut), abs(share - 0.5))  # (ties: half)
+        if best is None or key < best[0]:
+            best = (key, choice)
+    return None if best is None else best[1]
 
 
 def _zero_phase_earth(scene, settings: dict, fixed: dict, bounds: dict) -> None:
