@@ -226,9 +226,14 @@ print("VIEWER-OK")
 
 def test_viewer_opens_changes_phase_and_closes(xvfb):
     # VTK chooses its window system once per process (EGL when there is no display), so the
-    # viewer runs in a fresh process that starts with DISPLAY pointing at the virtual screen
-    r = subprocess.run(["python", "-c", VIEWER_DRIVER], capture_output=True, text=True, timeout=300,
-                       env={**os.environ, "DISPLAY": xvfb})
+    # viewer runs in a fresh process that starts with DISPLAY pointing at the virtual screen.
+    # Under a loaded test run VTK once failed to connect to a ready Xvfb ("bad X server
+    # connection", the viewer never built): that alone is tried once more
+    for _ in range(2):
+        r = subprocess.run(["python", "-c", VIEWER_DRIVER], capture_output=True, text=True, timeout=300,
+                           env={**os.environ, "DISPLAY": xvfb})
+        if r.returncode == 0 or "bad X server connection" not in r.stderr:
+            break
     assert r.returncode == 0, r.stderr[-2000:]
     assert "VIEWER-OK" in r.stdout
 
