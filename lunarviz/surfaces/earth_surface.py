@@ -41,6 +41,16 @@ def land_fraction_map() -> np.ndarray:
     return _land_fraction()
 
 
+@memoize(maxsize=4)
+def _landocean_map(land_albedo: float, ocean_albedo: float) -> np.ndarray:
+    """The land-ocean clear-sky albedo map (read-only, built once per pair of albedos: a map read
+    chunk by chunk asked for it again each time, 0.03 s each)."""
+    f = land_fraction_map()
+    out = land_albedo * f + ocean_albedo * (1.0 - f)
+    out.setflags(write=False)
+    return out
+
+
 @memoize(maxsize=1)
 def _land_fraction() -> np.ndarray:
     cache = Path(os.environ.get("LUNARVIZ_CACHE", Path.home() / ".cache" / "lunarviz"))
@@ -136,8 +146,7 @@ class EarthSurface:
         if self.earth_surface == "uniform":
             return None
         if self.earth_surface == "landocean":
-            f = land_fraction_map()
-            return self.land_albedo * f + self.ocean_albedo * (1.0 - f)
+            return _landocean_map(float(self.land_albedo), float(self.ocean_albedo))
         return _earth_map(file_key(self.earth_surface), "Earth surface map")
 
     def cloud_map(self):
