@@ -421,27 +421,39 @@ def test_source_sphere_beams_kernel_matches_numpy(monkeypatch):
             assert np.all(np.abs(got[1] - ref[1]) <= 1e-15 * ref[1].max(axis=1, keepdims=True))
 
 
+def _cut_points(seed: int, count: int, tilt: float):
+    """Lunar points (x, normals n, directions o toward the Earth) of the paper's scene at θ = 60°
+    whose horizons cut the Earth: normals within ``tilt`` (about 1.5°) of the plane normal to the
+    Earth's direction."""
+    from lunarviz.geometry.scene_geometry import SceneGeometry, unit
+    sc = SceneGeometry(60.0)
+    to_earth = unit(sc.earth - sc.moon)
+    rng = np.random.default_rng(seed)
+    n = unit(np.cross(to_earth, rng.normal(size=(count, 3))) + rng.uniform(-tilt, tilt, (count, 1)) * to_earth)
+    return sc.moon + sc.radii["moon"] * n, n, np.tile(to_earth, (count, 1))
+
+
+def _cut_point_earth():
+    """A fresh mapped Earth (level 4, land-ocean with zonal clouds) of :func:`_cut_points`' scene."""
+    from lunarviz.geometry.scene_geometry import SceneGeometry
+    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
+    ts = TraceScene(SceneGeometry(60.0), TraceSettings(moon_level=2, earth_level=4, earth_surface="landocean",
+                                                       clouds="zonal"))
+    return ts.mapped_earth
+
+
 def test_mapped_earth_cut_sums_kernel_matches_numpy(monkeypatch):
     """The mapped Earth's exact per-element sums at lunar points whose horizon cuts the Earth,
     compiled (earth_kernels.element_sums with horizons) against the numpy path: the same beams to rounding (1e-10:
     the order of the sums differs; an element within rounding of a point's horizon could flip,
     which random points do not meet)."""
-    from lunarviz.geometry.scene_geometry import SceneGeometry, unit
     from lunarviz.methods.tracer import earth_kernels
-    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
     if not earth_kernels.available():
         pytest.skip("numba not installed: the numpy path is the only one")
-    sc = SceneGeometry(60.0)
-    to_earth = unit(sc.earth - sc.moon)
-    rng = np.random.default_rng(8)
-    # normals within 1.5° of the plane normal to the Earth's direction: their horizons cut the Earth
-    n = unit(np.cross(to_earth, rng.normal(size=(40, 3))) + rng.uniform(-0.025, 0.025, (40, 1)) * to_earth)
-    x = sc.moon + sc.radii["moon"] * n
-    o = np.tile(to_earth, (40, 1))
+    x, n, o = _cut_points(seed=8, count=40, tilt=0.025)
 
     def beams():
-        ts = TraceScene(sc, TraceSettings(moon_level=2, earth_level=4, earth_surface="landocean", clouds="zonal"))
-        tr = ts.mapped_earth.transport(x, n, o, np.ones(40), np.ones(40))
+        tr = _cut_point_earth().transport(x, n, o, np.ones(40), np.ones(40))
         return tr.e_beam, tr.e_beam_unit
     fast = beams()
     monkeypatch.setattr(earth_kernels, "_NUMBA", False)
@@ -459,20 +471,13 @@ def test_mapped_earth_cut_points_see_every_element_above_their_horizon(monkeypat
     own error, as at points that see the whole Earth: 4e-7 at this θ = 60°, up to 2-3e-6 at a
     thin crescent, θ = 10°), compiled and numpy, and some of the points have cells on both sides
     of their horizon (the classification is exercised)."""
-    from lunarviz.geometry.scene_geometry import SceneGeometry, unit
     from lunarviz.methods.tracer import earth_kernels
-    from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings
-    sc = SceneGeometry(60.0)
-    to_earth = unit(sc.earth - sc.moon)
-    rng = np.random.default_rng(9)
-    n = unit(np.cross(to_earth, rng.normal(size=(30, 3))) + rng.uniform(-0.02, 0.02, (30, 1)) * to_earth)
-    x = sc.moon + sc.radii["moon"] * n
-    o = np.tile(to_earth, (30, 1))
+    x, n, o = _cut_points(seed=9, count=30, tilt=0.02)
     for compiled in (True, False):
         monkeypatch.setattr(earth_kernels, "_NUMBA", compiled and earth_kernels.available())
-        ts = TraceScene(sc, TraceSettings(moon_level=2, earth_level=4, earth_surface="landocean", clouds="zonal"))
-        got = ts.mapped_earth.transport(x, n, o, np.ones(30), np.ones(30)).e_beam_unit.sum(axis=1)
-        el = ts.mapped_earth.earth_elements()
+        earth = _cut_point_earth()
+        got = earth.transport(x, n, o, np.ones(30), np.ones(30)).e_beam_unit.sum(axis=1)
+        el = earth.earth_elements()
         v = x[:, None, :] - el["y"][None, :, :]
         r2 = np.einsum("bkj,bkj->bk", v, v)
         seen = (np.einsum("bkj,kj->bk", v, el["m"]) > 0) & (np.einsum("bkj,bj->bk", v, n) < 0)

@@ -139,9 +139,9 @@ def _albedo_factors(tr, sb: SpectralBRDF):
 def _weighted(weight, sums, per_sample: bool):
     """A factor's share of :func:`shade`'s output: its ``sums`` (from geom times ``weight``) as
     they are, or each sample's radiances (``per_sample``) times its weight (a scalar or (N,))."""
-    if not per_sample or np.ndim(weight) == 0:
-        return sums if np.ndim(weight) else weight * sums
-    return np.asarray(weight)[:, None, None] * sums
+    if np.ndim(weight) == 0:
+        return weight * sums
+    return np.asarray(weight)[:, None, None] * sums if per_sample else sums
 
 
 def shade(tr, sb: SpectralBRDF, parts: np.ndarray, per_sample: bool = False) -> np.ndarray:

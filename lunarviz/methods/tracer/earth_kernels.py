@@ -29,16 +29,20 @@ def _add_element(b, e, x0, x1, x2, xx, n0, n1, n2, nxx, horizon, m, yr, my, yy, 
         out[p, b, c] += f * w[p, e]
 
 
+def _point_terms(xr, nx, b):
+    """Lunar point b's coordinates, |x|², its normal and n·x (:func:`_add_element`'s)."""
+    x0, x1, x2 = xr[b, 0], xr[b, 1], xr[b, 2]
+    n0, n1, n2 = nx[b, 0], nx[b, 1], nx[b, 2]
+    return x0, x1, x2, x0 * x0 + x1 * x1 + x2 * x2, n0, n1, n2, n0 * x0 + n1 * x1 + n2 * x2
+
+
 def _element_sums(xr, nx, horizon, m, yr, my, yy, w, cell, out):
     """``out[p, b, cell[e]] += w[p, e] · max(0, m_e·(x_b - y_e)) / |x_b - y_e|³`` over the
     elements e, for lunar points x_b (xr, relative to the Moon's centre, as yr; ``my`` = m·yr,
     ``yy`` = |yr|²); with ``horizon``, only the elements above x_b's horizon (normal ``nx[b]``:
     n·(x_b - y_e) < 0) count."""
     for b in range(xr.shape[0]):
-        x0, x1, x2 = xr[b, 0], xr[b, 1], xr[b, 2]
-        n0, n1, n2 = nx[b, 0], nx[b, 1], nx[b, 2]
-        xx = x0 * x0 + x1 * x1 + x2 * x2
-        nxx = n0 * x0 + n1 * x1 + n2 * x2
+        x0, x1, x2, xx, n0, n1, n2, nxx = _point_terms(xr, nx, b)
         for e in range(m.shape[0]):
             _add_element(b, e, x0, x1, x2, xx, n0, n1, n2, nxx, horizon, m, yr, my, yy, w, cell[e], out)
 
@@ -47,10 +51,7 @@ def _cell_sums(xr, nx, m, yr, my, yy, w, lo, hi, todo, out):
     """:func:`_element_sums` with horizons over the elements of the cells marked for each point
     alone (``todo[b, c]``; cell c's elements are ``lo[c]:hi[c]``, sorted by cell)."""
     for b in range(xr.shape[0]):
-        x0, x1, x2 = xr[b, 0], xr[b, 1], xr[b, 2]
-        n0, n1, n2 = nx[b, 0], nx[b, 1], nx[b, 2]
-        xx = x0 * x0 + x1 * x1 + x2 * x2
-        nxx = n0 * x0 + n1 * x1 + n2 * x2
+        x0, x1, x2, xx, n0, n1, n2, nxx = _point_terms(xr, nx, b)
         for c in range(todo.shape[1]):
             if todo[b, c]:
                 for e in range(lo[c], hi[c]):
@@ -84,6 +85,7 @@ def cell_sums(xr, nx, m, yr, my, yy, w, starts, todo) -> np.ndarray:
 _NUMBA = compiled.available()
 if _NUMBA:
     try:
+        _point_terms = compiled.jit(_point_terms, nogil=True, inline="always")
         _add_element = compiled.jit(_add_element, nogil=True, inline="always")
         _element_sums = compiled.jit(_element_sums, nogil=True)
         _cell_sums = compiled.jit(_cell_sums, nogil=True)

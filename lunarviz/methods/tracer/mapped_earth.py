@@ -125,9 +125,8 @@ class MappedEarthTransport:
         tilts = {name: _point_tilts(d, wt * share, starts, spread) for name, share in zip(names, per_unit)}
         yr = y - sc.moon
         self._earth_el = dict(y=y, m=m, L1A=L1A, a=a, starts=starts, centre=centre, radius=radius, spread=spread,
-                              tilts=tilts,
-                              wsum=wsum, taylor=taylor, comp=comp, band=band_el, cell=cell_of, weights=weights,
-                              rel=(yr, np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)))
+                              tilts=tilts, wsum=wsum, taylor=taylor, comp=comp, band=band_el, cell=cell_of,
+                              weights=weights, rel=(yr, np.einsum("ij,ij->i", m, yr), np.einsum("ij,ij->i", yr, yr)))
         return self._earth_el
 
     def _band_sums(self, x, el, chunk: int = 256) -> np.ndarray:
