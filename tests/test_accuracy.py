@@ -143,6 +143,24 @@ def test_a_tasks_orders_come_from_its_own_phase():
     assert cheaper > 20  # (most phases need less than the worst phase's orders)
 
 
+def test_a_remembered_choice_is_the_one_computed_at_every_phase():
+    """``trace_choice`` remembers its answers by what the models read of θ (``_phase_key``): at
+    every θ on a 0.37° grid, shuffled so each key is first met at some other θ, the remembered
+    choice is the one ``choose_trace`` computes afresh (the mapped lune rule's windows move its
+    orders with θ; the other models ignore it), and a caller's change to it is not remembered."""
+    rng = np.random.default_rng(7)
+    cases = [(rtol, mapped, th, share) for rtol in (1e-4, 1e-5) for mapped in (False, True)
+             for th in np.arange(0.0, 360.0, 0.37) for share in (0.5, 0.3)]
+    seen_orders = set()
+    for k in rng.permutation(len(cases)):
+        rtol, mapped, th, share = cases[k]
+        got = accuracy.trace_choice(rtol, {}, mapped, th, earthshine_rtol=share * rtol)
+        assert repr(got) == repr(accuracy.choose_trace(rtol, {}, mapped, th, earthshine_rtol=share * rtol))
+        seen_orders.add(got["lune_order"])
+        got["bounds"].clear()
+    assert len(seen_orders) > 3  # θ does move the mapped rule's orders: the key must tell them apart
+
+
 @pytest.mark.parametrize("spectral", [False, True])
 def test_surge_earthshine_off_the_earths_centre_carries_a_bound_it_meets(spectral):
     """From a 550 km orbit the detector is ~1° off the Earth's centre seen from the Moon: the

@@ -28,6 +28,7 @@ What the models cover, and what rows report where they do not:
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 from dataclasses import replace
@@ -35,7 +36,7 @@ from dataclasses import replace
 import numpy as np
 
 import lunarviz.constants as C
-from lunarviz.caches import memoize
+from lunarviz.caches import BoundedCache, memoize
 from lunarviz.errors import LunarvizError
 from lunarviz.options import BY_NAME, model_earth
 from lunarviz.resources import DATA_DIR
@@ -121,7 +122,47 @@ def _for(fixed: dict, path: str) -> dict:
     return {k: v for k, v in fixed.items() if k != other}
 
 
+#: :func:`trace_choice`'s answers by their inputs (θ by what the models see of it: :func:`_phase_key`):
+#: a dated sweep plans every date, with the same few inputs
+_CHOICES = BoundedCache(4096)
+
+
+def _phase_key(theta: float | None):
+    """What :func:`row_error` reads of θ, for every phase grid of the mapped lune rule's rows:
+    whether θ lies inside the grid and which of its phases lie within :data:`PHASE_WINDOW_DEG`
+    (two θ of one key give every row the same error, bit for bit)."""
+    if theta is None:
+        return None
+    th = float(theta) % 360.0
+    th = min(th, 360.0 - th)
+    out = []
+    for grid in _phase_grids():
+        phases = np.asarray(grid, dtype=float)
+        out.append((bool(phases.min() <= th <= phases.max()), tuple(np.abs(phases - th) <= PHASE_WINDOW_DEG)))
+    return tuple(out)
+
+
+@memoize(maxsize=1)
+def _phase_grids() -> tuple:
+    """The distinct ``phases_deg`` of the error models' rows measured phase by phase."""
+    rows = [r for table in error_models().get("raytrace_lune_mapped", {}).values() for r in table]
+    return tuple(sorted({tuple(r["phases_deg"]) for r in rows if "errors_by_phase" in r}))
+
+
 def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | None = None,
+                 earthshine_rtol: float | None = None) -> dict:
+    """:func:`choose_trace` (same arguments), remembered by its inputs (θ by :func:`_phase_key`,
+    and only for a mapped Moon, whose models alone read it); a fresh copy each call."""
+    key = (rtol, tuple(sorted(fixed.items())), bool(mapped_moon), _phase_key(theta) if mapped_moon else None,
+           earthshine_rtol)
+    choice = _CHOICES.get(key)
+    if choice is None:
+        choice = choose_trace(rtol, fixed, mapped_moon, theta, earthshine_rtol)
+        _CHOICES[key] = choice
+    return copy.deepcopy(choice)
+
+
+def choose_trace(rtol: float, fixed: dict, mapped_moon: bool, theta: float | None = None,
                  earthshine_rtol: float | None = None) -> dict:
     """Settings for the deterministic tracer at ``rtol`` (the earthshine's at ``earthshine_rtol``
     where given: the part of its tolerance left to the lunar side): ``lune_order`` (the Sun's path, the
