@@ -5,7 +5,7 @@ below the bound its row reports, and every bound within the tolerance?
                                             [--out DIR]
 
 Dates that the error models were not built from (:mod:`scripts.off_centre_earth_model` takes
-2026 hours from 05:00 on Jan 3 in steps of 547 h, and site nights every 9 days from Jan 5): a
+2026 hours from 05:00 on Jan 3 in steps of 61 h, and site nights every 9 days from Jan 5): a
 550 km orbit every 700 hours from 2026-01-08T11:00 and Big Bear (``site:34.26,-116.92,2067``)
 and Mauna Kea (``site:19.82,-155.47,4205``) nights every 11 days from 2026-01-10 at 04:00
 and 09:00 UTC. Each row of ``lunarviz sweep --method raytrace --rtol R`` (Lambert, SHG, DHG;

@@ -10,6 +10,9 @@ locates ~10⁵ map points per path and date and sums them into each block's weig
 * :func:`cap_nodes`: :func:`lunarviz.geometry.sphere_quadrature.cap_rule`'s nodes and weights,
   each written once in the numpy path's arithmetic order (it builds five temporaries of the
   output's size: ~10⁶ nodes for a date's Earth beams);
+* :func:`ring_intervals`: :func:`lunarviz.geometry.sphere_quadrature.cap_rule`'s φ-intervals of
+  every ring (each ring cut at every cap's boundary, its inside intervals first), one ring at a
+  time in the numpy path's arithmetic (it builds a dozen (B, R, k) temporaries and sorts them);
 * :func:`sphere_beams`: a source sphere's rule, its zero-weight nodes moved last, as the beams
   seen from each point (:func:`lunarviz.methods.sources.source_beams`' directions and solid
   angles), in one pass (the numpy path sorts, gathers and builds six temporaries of that size);
@@ -176,6 +179,67 @@ def cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside, fx, fw) -> tuple[np.
     return nodes, w
 
 
+def _ring_intervals(st, ct, t_u, phi_u, cr, split, p_lo, p_hi, inside, counts):
+    """Every ring's φ-intervals (see ``sphere_quadrature._ring_intervals``): its breakpoints at
+    every cap's boundary, sorted, and whether each interval's midpoint lies in every constraint
+    cap; the inside intervals first (in φ order), then the others; ``counts`` the inside ones."""
+    two_pi = 2.0 * np.pi
+    B, R = st.shape
+    k = t_u.shape[1]
+    n = 2 * k + 1
+    pb = np.empty(2 * k + 2)
+    lo, hi, ins = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
+    for b in range(B):
+        for r in range(R):
+            pb[0], pb[2 * k + 1] = 0.0, two_pi
+            for j in range(k):
+                den = st[b, r] * np.sin(t_u[b, j])
+                num = cr[b, r, j] - ct[b, r] * np.cos(t_u[b, j])
+                if abs(den) > 1e-300:
+                    q = num / den
+                else:
+                    q = -np.inf if num < 0 else np.inf
+                hw = np.arccos(min(1.0, max(-1.0, q)))
+                partial = -1.0 < q < 1.0
+                pb[1 + j] = (phi_u[b, j] - hw) % two_pi if partial else 0.0
+                pb[1 + k + j] = (phi_u[b, j] + hw) % two_pi if partial else 0.0
+            pb.sort()
+            for i in range(n):
+                lo[i], hi[i] = pb[i], pb[i + 1]
+                pm = 0.5 * (lo[i] + hi[i])
+                ok = hi[i] > lo[i]
+                for j in range(k):
+                    if not ok:
+                        break
+                    dot = ct[b, r] * np.cos(t_u[b, j]) + st[b, r] * np.sin(t_u[b, j]) * np.cos(pm - phi_u[b, j])
+                    ok = dot > cr[b, r, j] or split[b, j]
+                ins[i] = ok
+            c = 0
+            for first in (True, False):
+                for i in range(n):
+                    if ins[i] == first:
+                        p_lo[b, r, c], p_hi[b, r, c], inside[b, r, c] = lo[i], hi[i], ins[i]
+                        c += 1
+            counts[b, r] = int(ins.sum())
+
+
+def ring_intervals(st, ct, t_u, phi_u, cr, split_only):
+    """``sphere_quadrature._ring_intervals`` (arguments as there; thresholds ``cr`` (B, k) or
+    (B, R, k)) compiled: ``(p_lo, p_hi, inside)`` (B, R, I), I the most inside intervals of a ring
+    (at least 1)."""
+    B, R = st.shape
+    k = t_u.shape[1]
+    f = np.ascontiguousarray
+    cr3 = f(np.broadcast_to(cr if np.ndim(cr) == 3 else np.asarray(cr)[:, None, :], (B, R, k)), dtype=np.float64)
+    n = 2 * k + 1
+    p_lo, p_hi, inside = np.empty((B, R, n)), np.empty((B, R, n)), np.empty((B, R, n), dtype=np.bool_)
+    counts = np.empty((B, R), dtype=np.int64)
+    _ring_intervals(f(st, dtype=np.float64), f(ct, dtype=np.float64), f(t_u, dtype=np.float64),
+                    f(phi_u, dtype=np.float64), cr3, f(split_only, dtype=np.bool_), p_lo, p_hi, inside, counts)
+    keep = max(int(counts.max(initial=0)), 1)
+    return p_lo[:, :, :keep], p_hi[:, :, :keep], inside[:, :, :keep]
+
+
 def _sphere_beams(m, w, x, c, R, om, omega):
     B, M = w.shape
     K = omega.shape[1]
@@ -239,5 +303,6 @@ if _NUMBA:
         _block_design = compiled.jit(_block_design, nogil=True)
         _cap_nodes = compiled.jit(_cap_nodes, nogil=True)
         _sphere_beams = compiled.jit(_sphere_beams, nogil=True)
+        _ring_intervals = compiled.jit(_ring_intervals, nogil=True)
     except Exception:  # noqa: BLE001 (a numba that cannot compile: the numpy path)
         _NUMBA = False

@@ -413,6 +413,8 @@ def _ring_intervals(st, ct, t_u, phi_u, caps_c, split_only):
     B, R = st.shape
     k = caps_c.shape[-1]
     cr = caps_c if caps_c.ndim == 3 else caps_c[:, None, :]  # thresholds per ring (B, R, k) or per rule
+    if quadrature_kernels.available() and (k > 1 or split_only.any()):  # the same arithmetic, ring by ring
+        return quadrature_kernels.ring_intervals(st, ct, t_u, phi_u, cr, split_only)
     # φ breakpoints on every ring for every cap
     stu, ctu = np.sin(t_u)[:, None, :], np.cos(t_u)[:, None, :]
     den = st[:, :, None] * stu
