@@ -10,7 +10,7 @@ B = Path(__file__).resolve().parent.parent / "benchmarks"
 
 
 def throughput_section() -> list:
-    """Issue 13's targets from benchmarks/throughput/throughput.json (python scripts/throughput.py)
+    """The targets from benchmarks/throughput/throughput.json (python scripts/throughput.py)
     and benchmarks/dask_overhead.json (python scripts/dask_overhead.py)."""
     f = B / "throughput" / "throughput.json"
     if not f.exists():

@@ -1,4 +1,4 @@
-"""The physical Earth (issue: the Earth as it reflects): its reflectance against independent codes,
+"""The physical Earth: its reflectance against independent codes,
 its phase function and what the Lambert assumption does to the inferred albedo, and the colour of
 the earthshine.
 

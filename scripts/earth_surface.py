@@ -1,4 +1,4 @@
-"""What an earthshine measurement sees of a real Earth (issue 11).
+"""What an earthshine measurement sees of a real Earth.
 
     python scripts/earth_surface.py [--out benchmarks/earth_surface] [--quick]
 

@@ -1,4 +1,4 @@
-"""Earthshine-side contrast with and without scattered light (issue 12), kept in benchmarks/images/.
+"""Earthshine-side contrast with and without scattered light, kept in benchmarks/images/.
 
     python scripts/image_contrast.py
 

@@ -6,7 +6,7 @@ The model (``scripts/mapped_lune_models.py``) was measured on the paper's scene:
 at the Earth's centre, the map's frame at zero libration. A dated sweep from an orbit turns the
 map under the lune by the libration (up to ~7°) and moves the detector by the orbit's parallax,
 and each date takes the orders its own θ needs (``accuracy.trace_choice``). Here N dates of 2026
-seen from the issue's 550 km orbit (hourly dates spread over the year; those whose Moon is hidden,
+seen from a 550 km orbit (hourly dates spread over the year; those whose Moon is hidden,
 or whose θ is outside the model's phases, skipped) are traced at the orders and bounds their
 rows report (``--rtol 1e-4``, rolo-fit-map, lambert, shg and dhg) and again with the model's
 reference (lune order 128, finer source and cut-cell rules, ``mapped_lune_models.REFERENCE``):

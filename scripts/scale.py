@@ -1,4 +1,4 @@
-"""Run time and peak memory against the Moon's facet count (issue 13, item 3: measured, not met).
+"""Run time and peak memory against the Moon's facet count.
 
     python scripts/scale.py [--levels 5,6,7,8] [--out benchmarks/scale]
 

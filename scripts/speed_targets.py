@@ -80,7 +80,7 @@ def paper_sweep(out: Path, quick: bool) -> dict:
 
 
 def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days: int = 365, every: int = 1) -> dict:
-    """Hourly dates of ``days`` days of 2026 from the issue's orbit; with ``every`` > 1 only every
+    """Hourly dates of ``days`` days of 2026 from the benchmark orbit; with ``every`` > 1 only every
     ``every``-th of those days (all its hours: a sample spread over the Moon's phases and the
     seasons, where the first days alone sit at one phase)."""
     from lunarviz.caches import release_caches
@@ -205,7 +205,7 @@ def report(res: dict, out: Path) -> None:
         lines += ["## The main job", "", f"`lunarviz paper --out DIR{' --quick' if p['quick'] else ''}`: "
                   f"{p['wall_s']:.0f} s wall ({steps}).", ""]
     lines += ["## The peer, for comparison", "",
-              "Measured when the issue was filed, on this machine (not rerun here: the peer is not a dependency): "
+              "Measured once on this machine (not rerun here: the peer is not a dependency): "
               "Mitsuba 3 (Eradiate's build, the same Hapke BSDF, agreeing with lunarviz to 5e-6) needed 10-40× "
               "lunarviz's time for moonshine at 1e-4 and 100-460× at 1e-5, and reached 0.55 % on earthshine after "
               "5 minutes.", ""]
@@ -231,7 +231,7 @@ def main(argv=None) -> int:
         res.update({k: v for k, v in json.loads((out / "results.json").read_text()).items() if k != "quick"})
     if not a.skip_sweep:
         res["paper_sweep"] = paper_sweep(out, a.quick)
-    if not a.skip_year:  # the issue's command (a mapped, rough Moon); the same year with the paper's DHG
+    if not a.skip_year:  # the benchmark command (a mapped, rough Moon); the same year with the paper's DHG
         key = "year_mapped_moon" if a.mapped_every == 1 else "year_mapped_moon_sample"  # (both kept)
         res[key] = year_of_dates(out, a.quick, "rolo-fit-map", days=a.mapped_days, every=a.mapped_every)
         if not a.skip_paper_year:

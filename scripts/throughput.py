@@ -2,7 +2,7 @@
 
     python scripts/throughput.py [--out benchmarks/throughput] [--quick]
 
-Issue 13, item 1. Rays are counted the same way on both sides: the rays *submitted to Embree*
+Rays are counted the same way on both sides: the rays *submitted to Embree*
 (every float32 batch :meth:`EmbreeBody.run_rays` sends, recorded). The end-to-end time is one
 deterministic trace of both paths (three BRDFs), one thread; the raw time replays the recorded
 batches through ``embreex`` alone (``scene.run``), one thread, best of three. Then
@@ -259,7 +259,7 @@ def _reference(theta: float) -> dict:
 
 
 def paper_sweep(out: Path, quick: bool) -> dict:
-    """The issue's paper sweep from the command line (wall time, numba on and off in the same
+    """The paper sweep from the command line (wall time, numba on and off in the same
     run) and its largest error against the exact reference (order 32, 12) at θ = 5-175°."""
     import os
     import subprocess
@@ -288,7 +288,7 @@ def paper_sweep(out: Path, quick: bool) -> dict:
 
 
 def montecarlo_phase(target: float = 0.002, quick: bool = False) -> dict:
-    """Issue 13's Monte Carlo target: the seconds one phase (θ = 90°, no occlusion, both paths,
+    """The Monte Carlo target: the seconds one phase (θ = 90°, no occlusion, both paths,
     three BRDFs, one run each, default threads) takes at the paper's 0.2 % standard deviation per
     path. N per path from a pilot run (σ ∝ N^-1/2), then the best of three timed runs at that N
     with fresh seeds; the σ reported is the pooled within-run estimate of the last one."""

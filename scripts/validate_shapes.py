@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Issue 9's bars on non-spherical Moons, end to end, against independent references.
+"""The bars on non-spherical Moons, end to end, against independent references.
 
 The references were written apart from the tracer (scripts/validation/, numpy and raw embreex
 only, plus lunarviz's BRDF formulas):

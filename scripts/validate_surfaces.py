@@ -1,4 +1,4 @@
-"""Surfaces (issue 11) against independent references; writes benchmarks/validation_surfaces.json.
+"""Surfaces against independent references; writes benchmarks/validation_surfaces.json.
 
     python scripts/validate_surfaces.py [--out benchmarks/validation_surfaces.json]
 

@@ -265,7 +265,7 @@ def eclipse_moonshine(surface, model, sun, moon, det=None):
 
 
 # ----------------------------------------------------------------------------------------------
-# maps (issue 11): a Moon and an Earth whose albedo varies with longitude, integrated in each
+# maps: a Moon and an Earth whose albedo varies with longitude, integrated in each
 # body's own latitude/longitude so that the albedo's edges (meridians) are integration limits
 # ----------------------------------------------------------------------------------------------
 def gauss_legendre(lo, hi, n):

@@ -1,7 +1,7 @@
 """Independent real-sky geometry for the tests: NAIF's CSPICE (spiceypy) and astropy/ERFA.
 
 Shares nothing with lunarviz or skyfield except the kernel *files* (the same DE421 and lunar
-PCK, as the issue asks: "an independent computation from the same DE421 ephemeris"):
+PCK, "an independent computation from the same DE421 ephemeris"):
 
 * positions: ``spkpos(target, et, "J2000", "NONE", "EARTH")`` — geometric, geocentric; SPICE's
   J2000 frame is the ICRF for the DE4xx ephemerides;

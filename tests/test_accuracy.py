@@ -79,8 +79,8 @@ def test_a_tighter_tolerance_is_never_worse(independent_reference, traced_rows):
 
 
 def test_no_bound_outside_what_the_models_hold():
-    """Rows report a bound only where the models were measured: θ within 5-175° (the reviewer
-    found 179° moonshine 5e-5 off under a 5e-6 bound), the paper's presets without overrides
+    """Rows report a bound only where the models were measured: θ within 5-175° (at
+    179° the moonshine erred by 5e-5 under a 5e-6 bound), the paper's presets without overrides
     (roughness: a kink where i = e; those runs keep the facets), no eclipse either way."""
     from lunarviz.methods.tracer.estimators import TraceScene
     s = ResolvedScene(method="raytrace", brdfs=("dhg",), phases_deg=(179.0, 90.0), rtol=1e-5, occlusion=False)

@@ -35,7 +35,7 @@ def test_bond_of_linear_apparent_albedo():
 def test_analytic_sweep_recovers_bond_albedo():
     # Consistency check, not physics: the lunar terms are calibrated with the same transport
     # that made the fluxes, so any fluxes give back the input 0.3 (an algebraic identity up to
-    # the Bond quadrature). Issue 2 bar: 0.3000 ± 0.0003 for the Lambert, SHG and DHG Moons.
+    # the Bond quadrature). Bar: 0.3000 ± 0.0003 for the Lambert, SHG and DHG Moons.
     res = run_sweep(ResolvedScene())
     for b in ("lambert", "shg", "dhg"):
         assert res["bond_albedo"][b]["analytic"] == pytest.approx(0.3, abs=3e-4)

@@ -40,7 +40,7 @@ def brute_force(scene, brdf, path, n_lat=700):
 
 
 #: The brute-force midpoint rule with kinks at the terminator and limb errs by ~1e-5 at
-#: n_lat = 700 (checked by doubling); the issue's bar for the method is 2e-4.
+#: n_lat = 700 (checked by doubling); the required bar for the method is 2e-4.
 BRUTE_REL = 1e-4
 
 
@@ -54,7 +54,7 @@ def test_analytic_matches_independent_quadrature(theta, paper_brdfs):
 
 
 def test_default_order_is_converged(paper_brdfs):
-    # order 24 against order 64: the default must be converged to 1e-4 (issue 2); it is ~1e-6
+    # order 24 against order 64: the default must be converged to 1e-4; it is ~1e-6
     for theta in (5.0, 60.0, 120.0, 175.0):
         sc = SceneGeometry(theta)
         a = analytic_irradiance(sc, paper_brdfs)

@@ -1,4 +1,4 @@
-"""The Python API, NetCDF tables, and the command-line gaps of issue 14.
+"""The Python API, NetCDF tables, and the command-line gaps.
 
 Expected values come from the command line itself (the API must give the same numbers: the
 CLI is a thin layer over it, and this checks the layering, not the physics, which the other
@@ -180,7 +180,7 @@ def test_views_and_viewer_do_not_import_each_other():
     assert r.stdout.strip() == "False", r.stderr
 
 
-# ---- the API checks what the command line checks (review of issue 14) ---------------------------
+# ---- the API checks what the command line checks -----------------------------------------
 _S = dict(phases=30.0, moon_level=2)
 
 

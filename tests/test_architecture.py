@@ -254,7 +254,7 @@ def test_every_data_file_ships_in_the_wheel():
 
 
 def test_an_analytic_sweep_imports_no_heavy_package(tmp_path):
-    # issue 27's start-up item: a one-phase analytic sweep from the command line loads neither
+    # start-up: a one-phase analytic sweep from the command line loads neither
     # the viewers (PyVista, trame), nor the table and sky packages (xarray, astropy), nor the
     # tracer's meshes (trimesh, Embree): the modules are listed after the command has run
     import subprocess

@@ -1,4 +1,4 @@
-"""Smoke runs of the benchmark scripts (issue 13) at --quick size, so they cannot rot between
+"""Smoke runs of the benchmark scripts at --quick size, so they cannot rot between
 full runs. The figures themselves are benchmarks, kept in benchmarks/ (never asserted here as
 times); these tests check that each script runs end to end and writes what the benchmarks
 README is generated from, with values in their physical ranges."""
@@ -54,7 +54,7 @@ def test_bench_spectral_quick(tmp_path):
 
 def test_validate_spectral_quick(tmp_path):
     # ROLO against the spectral Moon on two of the twenty dates (the full run is kept in
-    # benchmarks/spectral/rolo_spectral.md); the issue's 5 % bar applies to every row
+    # benchmarks/spectral/rolo_spectral.md); the required 5 % bar applies to every row
     import pytest
     pytest.importorskip("rimopy")
     p = subprocess.run([sys.executable, str(ROOT / "scripts" / "validate_spectral.py"), "--quick", "--out",

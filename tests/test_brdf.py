@@ -54,7 +54,7 @@ def textbook_hapke(i, e, psi, w, h, B0, phase, hfun):
 ANGLES = [(75, 0, 0), (75, 40, 0), (75, 60, 180), (30, 45, 90), (10, 70, 135), (60, 60, 10), (85, 20, 180)]
 #: Tolerance against the textbook form: both are float64 with no approximation beyond the
 #: quadrature in the exact H (quad to 1e-13), and the textbook form's arccos(cos g) costs
-#: ~1e-10 relative away from g = 0, so 1e-9 is far inside the issue's 1e-6 bar.
+#: ~1e-10 relative away from g = 0, so 1e-9 is far inside the required 1e-6 bar.
 TEXTBOOK_REL = 1e-9
 
 
@@ -167,7 +167,7 @@ def test_unknown_names_rejected():
         B.make_brdf("dhg", params={"xi": 0.1})
 
 
-# ---- finiteness over the whole valid parameter space (NOTES.md numerics; issue 5 stress) -----
+# ---- finiteness over the whole valid parameter space (NOTES.md numerics; stress) -----
 unit_interval = st.floats(0.0, 1.0)
 angles = st.sampled_from([0.0, 1e-12, 0.3, 1.0, np.pi / 2 - 1e-12, np.pi / 2])
 

@@ -259,7 +259,7 @@ def _uniform_physical_reflectance(m, s, t):
 def test_physical_earth_trace_matches_an_independent_quadrature():
     # the traced physical Earth (per facet: R toward the Moon's centre at the facet's centre) against
     # tests/independent.py's lat/lon double quadrature with R per pair of lunar point and Earth node,
-    # at θ = 90°: 1e-3 (the bar). The quadrature's own convergence is checked by a coarser rule
+    # at θ = 90°: 1e-3 (the required bar). The quadrature's own convergence is checked by a coarser rule
     from lunarviz.photometry.brdf import make_brdf
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.sweeps import run_phase
@@ -336,7 +336,7 @@ def test_ocean_under_rayleigh_matches_monte_carlo(wavelength, sza):
     # Carlo with local estimates (a method of its own) over the same bare ocean (checked against
     # the coxmunk package above). 800 000 photons: the estimate's 1σ is ≤ 0.3 % near nadir and up
     # to ~1.5 % at 70° view zenith (three seeds); measured difference ≤ 1.7 %. Bars: 5 % at every
-    # geometry (the bar outside the glint lobe), 1 % on the mean over the geometries
+    # geometry (the required bar outside the glint lobe), 1 % on the mean over the geometries
     from rt_reference import monte_carlo_toa, sample_rayleigh_cos
 
     from lunarviz.earth_optics.ocean import ocean_reflectance

@@ -1,4 +1,4 @@
-"""The examples run (issue 14): both scripts and the notebook, at smoke size, headless.
+"""The examples run: both scripts and the notebook, at smoke size, headless.
 
 ``LUNARVIZ_SMOKE=1`` shrinks each example (fewer levels, phases, times); the notebook is
 executed by nbclient in a fresh kernel with its default trame 3D backend, as a user would.

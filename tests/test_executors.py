@@ -1,4 +1,4 @@
-"""Executors (issue 13, item 5): a Dask LocalCluster of two workers gives the local rows."""
+"""Executors: a Dask LocalCluster of two workers gives the local rows."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Synthetic images (issue 12): consistency with the transport, geometry, files, optics.
+"""Synthetic images: consistency with the transport, geometry, files, optics.
 
 Expected values: the sweep's ray-traced irradiance (the image must integrate to it: the same
 physics sampled per pixel), the lit fraction of a sphere's disc (1 + cos α)/2 (closed form),
@@ -24,7 +24,7 @@ from lunarviz.workflows.tasks import image as synthesize
 @pytest.mark.slow
 @pytest.mark.parametrize("theta", [30.0, 90.0, 150.0])
 def test_image_integrates_to_the_sweep(theta):
-    # bar 2e-3 (issue 12) at 256 px with the default 4 × 4 supersampling; measured ≤ 4e-4
+    # bar 2e-3 at 256 px with the default 4 × 4 supersampling; measured ≤ 4e-4
     # (moonshine: the limb's sub-pixel sampling; earthshine: linear interpolation between the
     # vertices where the transport is evaluated)
     s = ResolvedScene(brdfs=("lambert", "dhg"), method="raytrace", phases_deg=(theta,))

@@ -34,7 +34,7 @@ from lunarviz.workflows.measurement import observation_calibration, plan, simula
 SMALL = replace(load_instrument("salex"), width=128, height=128, pixel_size_um=52.0, supersample=1)
 #: an exposure that leaves SMALL's brightest pixel (behind its mask) below the full well at 120°
 SMALL_EXPOSURE_S = 0.002
-#: the issue's bar for a noise-free measurement against the sweep's p*
+#: the required bar for a noise-free measurement against the sweep's p*
 NOISELESS_TOLERANCE = 1e-3
 
 
@@ -67,7 +67,7 @@ def test_presets_load_and_state_their_sources():
                                            ({"quantum_efficiency": [[500, 0.5], [600, 0.5]]}, "quantum_efficiency"),
                                            ({"bright_side_nd": 0}, "bright_side_nd"),
                                            ({"bias_adu": 70000}, "bias_adu"),
-                                           # found by a reviewer: each crashed later with a traceback
+                                           # each crashed later with a traceback
                                            ({"quantum_efficiency": [[300, 0.0], [900, 0.0]]}, "quantum_efficiency"),
                                            ({"dark_current_e_per_s": 1e300}, "dark_current_e_per_s"),
                                            ({"aperture_m": 1000}, "aperture_m"),
@@ -125,7 +125,7 @@ def test_saturation_clips_at_the_full_well():
 
 
 def test_noiseless_measurement_recovers_the_sweeps_p_star(small_observation):
-    # the bar (1e-3); measured 1.4e-6 at 120° (uniform Earth: the patch and the disk
+    # the required bar (1e-3); measured 1.4e-6 at 120° (uniform Earth: the patch and the disk
     # see the same Earth). The sweep is a different code path: disk-integrated transport
     settings, obs, cal = small_observation
     row = measure(obs.expected_counts, 1, cal)
@@ -140,7 +140,7 @@ def test_noiseless_measurement_recovers_the_sweeps_p_star(small_observation):
 def test_noiseless_measurement_of_a_cloudy_land_ocean_earth():
     # a non-uniform, coloured Earth: the pipeline's calibration Earth (uniform, grey) differs from
     # the scene's, so this tests the inversion itself. Against the sweep in the instrument's
-    # photon band (S·T·QE·λ, what counts weigh): measured 1.0e-4 at 120° (the bar 1e-3).
+    # photon band (S·T·QE·λ, what counts weigh): measured 1.0e-4 at 120° (the required bar 1e-3).
     # The sweep in the band S alone (`lunarviz sweep --band V`) differs by 1.1e-3 from both: the
     # Earth's p*(λ) varies across V, and the two responses weigh it differently
     settings = Scene([120.0], brdfs="dhg", earth_surface="landocean", clouds="zonal", moon_level=3,
@@ -172,7 +172,7 @@ def test_stated_sigma_covers_the_truth_over_seeds():
 
 
 def test_plan_reaches_its_snr_in_simulated_frames(small_observation):
-    # the bar: frames at the planned exposure reach the SNR within 10 %; the SNR of the
+    # the required bar: frames at the planned exposure reach the SNR within 10 %; the SNR of the
     # earthlit patch's mean is counted over 300 frames (its own scatter is 4 %)
     settings, _, cal = small_observation
     p = plan(settings, 120.0, SMALL, 30.0)
@@ -307,7 +307,7 @@ def test_bad_measurement_inputs_are_one_line(tmp_path, args, named):
 
 
 def test_a_full_well_below_the_read_noise_margin_plans_nothing(small_observation):
-    # a reviewer's case: a 30 e- well under 10 e- read noise has no safe exposure at all
+    # a 30 e- well under 10 e- read noise has no safe exposure at all
     settings, _, _ = small_observation
     tiny = replace(SMALL, full_well_e=30.0, read_noise_e=10.0, bias_adu=100.0)
     p = plan(settings, 120.0, tiny, 100.0)

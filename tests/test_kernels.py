@@ -206,7 +206,7 @@ def test_sweep_rows_equal_with_and_without_numba():
 
 def test_unwritable_numba_cache_does_not_stop_lunarviz():
     """A read-only install (numba: "cannot cache function ...: no locator available") compiles
-    without the on-disk cache instead of failing (review of issue 13)."""
+    without the on-disk cache instead of failing."""
     code = ("import numba\n"
             "orig = numba.njit\n"
             "def njit(*a, **kw):\n"

@@ -269,8 +269,8 @@ def test_thin_blocks_take_fewer_nodes_for_the_same_integral(scene, body, limit, 
     """Blocks under 3° one way and the penumbra band's blocks, each under 1 % of the region,
     take a quarter of the order (THIN_WIDTH): the synthetic map under a disc-lit
     Lommel-Seeliger law, order 16, against the same rule at full order everywhere. Measured
-    1.5e-9 (θ = 30°), 2.8e-10 (170°), 2.1e-8 (175°; with 5 % shares it was 1.9e-6 there, found
-    by review), 2.7e-8 and 1.5e-8 (the Sun's and the Earth's paths seen from a 550 km orbit,
+    1.5e-9 (θ = 30°), 2.8e-10 (170°), 2.1e-8 (175°; with 5 % shares it was 1.9e-6 there), 2.7e-8 and
+    1.5e-8 (the Sun's and the Earth's paths seen from a 550 km orbit,
     θ = 126°), 0 (the paper's Earth path: no block that thin and small); limits ~4x or 1e-8.
     At least a third fewer nodes away from crescents (at 170-175° the band's blocks are over 1 %:
     18 % fewer)."""
@@ -440,7 +440,7 @@ def test_no_block_edge_crosses_a_whole_panel(scene, body, monkeypatch):
 def test_a_map_of_round_off_contrast_takes_one_albedo_node():
     """A map whose values differ by round-off (1e-15: Chebyshev nodes would round onto each
     other, and the Lagrange weights were NaN) takes one node, its middle; the weights are those
-    of a constant map (found by review)."""
+    of a constant map."""
     sc = SceneGeometry(60.0)
     flat = np.ones((180, 360))
     near = flat + 1e-15 * np.random.default_rng(0).random(flat.shape)

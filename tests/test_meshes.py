@@ -372,7 +372,7 @@ def test_earth_and_sun_meshes_are_traced(tmp_path, lam_dhg):
 
 def test_out_of_range_face_index_is_one_line_error(tmp_path):
     """A PLY whose face names vertex 9 of 4 (trimesh reads it without complaint) is refused
-    with one line naming the index, not an IndexError traceback (review of issue 13)."""
+    with one line naming the index, not an IndexError traceback."""
     path = tmp_path / "bad.ply"
     lines = ["ply", "format ascii 1.0", "element vertex 4", "property float x", "property float y",
              "property float z", "element face 4", "property list uchar int vertex_indices", "end_header",

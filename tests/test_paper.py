@@ -1,4 +1,4 @@
-"""`lunarviz paper --quick` end to end (issue 6 bars) and the mesh study."""
+"""`lunarviz paper --quick` end to end and the mesh study."""
 
 import json
 
@@ -12,7 +12,7 @@ def test_paper_quick_meets_targets(tmp_path):
     out = tmp_path / "paper"
     assert main(["paper", "--quick", "--out", str(out), "--quiet"]) == 0
     r = json.loads((out / "results.json").read_text())
-    # Table 5: within 0.003 of the input 0.3 for both methods and all BRDFs (issue 6 item 3)
+    # Table 5: within 0.003 of the input 0.3 for both methods and all BRDFs
     for b in ("lambert", "shg", "dhg"):
         for m in ("analytic", "raytrace"):
             assert r["table5"][b][m] == pytest.approx(0.3, abs=3e-3)

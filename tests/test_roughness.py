@@ -1,4 +1,4 @@
-"""Hapke's macroscopic roughness (1984) and coherent backscatter (2002): issue 15.
+"""Hapke's macroscopic roughness (1984) and coherent backscatter (2002).
 
 The reference is written here, apart from lunarviz/photometry/roughness.py: scalar ``math`` code typed
 from Hapke (1984) Icarus 59, 41, Eqs. 46-51 (= Hapke 2012, Eqs. 12.45-12.55) and Hapke (2002)
@@ -58,7 +58,7 @@ GRID = [(i, e, g, t) for i, e, g, t in itertools.product(
 
 
 def test_shadowing_matches_hapke_1984():
-    # bar 1e-9 (issue 15); both sides are float64 closed forms, so they agree to ~1e-13 except
+    # bar 1e-9; both sides are float64 closed forms, so they agree to ~1e-13 except
     # where ψ comes from a near-cancelling cosine law in the reference (≲ 1e-11 on this grid)
     worst = 0.0
     for i, e, g, t in GRID:
@@ -202,11 +202,11 @@ def test_fit_refuses_ill_posed_requests(tmp_path):
 
 
 def test_rolo_fit_map_preset_within_5_percent_at_real_dates():
-    """Issue 15's bar, met with the preset fitted on a Moon carrying the synthetic albedo map
+    """The bar, met with the preset fitted on a Moon carrying the synthetic albedo map
     (scripts/fit_rolo.py): lunarviz's moonshine at real dates (DE421 geometry with libration;
     the fit used zero libration, so none of these is in it) within 5 % of ROLO's irradiance
     (rimopy, independent of lunarviz), analytic and ray traced. Measured ≤ 2.7 % (kept in
-    benchmarks/rolo_fit/summary.md); the tolerance is the issue's."""
+    benchmarks/rolo_fit/summary.md); the tolerance is the bar's."""
     pytest.importorskip("rimopy")
     from lunarviz.scene import ResolvedScene
     from lunarviz.workflows.fit import rolo_irradiance

@@ -1,4 +1,4 @@
-"""The real sky (issue 10): dates, ephemerides, libration, observers, eclipses.
+"""The real sky: dates, ephemerides, libration, observers, eclipses.
 
 Every expected value comes from outside lunarviz and skyfield:
 
@@ -44,7 +44,7 @@ FLUX_TIMES = ("2026-06-03T00:00Z", "2026-06-11T00:00Z", "2028-09-14T06:00Z", "20
 def test_geometry_matches_spice(iso):
     # Both sides are geometric geocentric positions from the same kernels, so they agree to
     # numerical noise: the only modelled difference is TDB - TT (≤ 1.7 ms, the Moon moves
-    # ≤ 2 m). Tolerances are well inside the issue's bars (0.02°, 5 km, 0.1°) and far outside
+    # ≤ 2 m). Tolerances are well inside the required bars (0.02°, 5 km, 0.1°) and far outside
     # round-off: 1e-5° in angles (0.04″), 10 m in distances.
     g = ref.geometry(iso)
     _, f = sky_scene(iso)
@@ -69,7 +69,7 @@ def test_irradiance_matches_independent_quadrature(iso):
     # 2.5e-5 of n = 160 at these dates; Earth order 12) uses a point Sun: the extended Sun
     # changes moonshine by O(ρ²) ≈ 2e-5
     # (ρ = 0.27°) away from opposition. lunarviz's reference and ray tracer (extended Sun,
-    # extended Earth) must agree within the issue's 5e-4; measured ≤ 5e-5 here.
+    # extended Earth) must agree within the required 5e-4; measured ≤ 5e-5 here.
     g = ref.geometry(iso)
     models = {k: make_brdf(k) for k in ("lambert", "dhg")}
     surf = ind.ellipsoid_surface(C.R_MOON_M, C.R_MOON_M, C.R_MOON_M, n=112)
@@ -112,7 +112,7 @@ SITE_TIMES = ("2026-06-05T04:00:00Z", "2027-07-18T15:45:00Z", "2028-03-11T04:00:
 @pytest.mark.parametrize("iso", SITE_TIMES)
 def test_site_altitude_matches_astropy(iso):
     # astropy (ERFA, IAU 2006/2000A, its own UT1-UTC) gives the site's vertical; SPICE the
-    # Moon. Differences: UT1 predictions (≤ 0.003°) and polar motion (≤ 0.5″). Issue bar 0.05°.
+    # Moon. Differences: UT1 predictions (≤ 0.003°) and polar motion (≤ 0.5″). Bar 0.05°.
     p, up = ref.site_gcrs(iso, 34.26, -116.92, 2067.0)
     g = ref.geometry(iso)
     _, f = sky_scene(iso, parse_observer(SITE))
@@ -155,7 +155,7 @@ TLE_TIMES = ("2027-01-01T00:40:00Z", "2027-01-01T01:00:00Z", "2027-01-03T12:00:0
 @pytest.mark.parametrize("iso", TLE_TIMES)
 def test_tle_position_matches_sgp4(iso):
     # sgp4's own TEME output turned into GCRS by astropy; skyfield's EarthSatellite does the
-    # same with its own TEME rotation. Bar 1 km (the issue's); measured < 1 mm.
+    # same with its own TEME rotation. Bar 1 km; measured < 1 mm.
     with open(TLE) as fh:
         lines = fh.read().splitlines()
     want = ref.tle_gcrs(iso, lines[1], lines[2])

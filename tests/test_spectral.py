@@ -29,12 +29,12 @@ def trapezoid(y, x) -> float:
 
 #: a spectral run with constant spectral quantities repeats the grey run's arithmetic in another
 #: order (sums over wavelengths nodes, the compiled spectral kernel): agreement to rounding, with
-#: the issue's bar 1e-9 as the tolerance (measured ≤ 2e-14)
+#: the required bar 1e-9 as the tolerance (measured ≤ 2e-14)
 CONSERVATION = 1e-9
 
 
 def test_solar_spectrum_holds_595_w_in_the_papers_band():
-    # the issue's bar: within 2 % of 595 W m-2 (Wehrli 1985) over 400-750 nm at 1 au; measured
+    # the required bar: within 2 % of 595 W m-2 (Wehrli 1985) over 400-750 nm at 1 au; measured
     # 602.85 (TSIS-1 HSRS v2, Coddington et al. 2023: 1.3 % above Wehrli in the visible)
     sun = solar_spectrum()
     assert sun.integral(400.0, 750.0) == pytest.approx(595.0, rel=0.02)
@@ -46,7 +46,7 @@ def test_solar_spectrum_holds_595_w_in_the_papers_band():
     table = np.loadtxt(Path(rimopy.__file__).parent / "data" / "wehrli_asc.csv", delimiter=",", skiprows=1)
     x = np.arange(400.0, 750.0 + 1e-9, 0.05)
     # its rows are bin means 1-5 nm apart: read as a linear curve they give 597.6, as the trapezoid
-    # over its own rows 595.4; either is within 1 % of the issue's 595
+    # over its own rows 595.4; either is within 1 % of the required 595
     wehrli = float(np.sum(np.interp(x, table[:, 0], table[:, 1])) * 0.05)
     assert wehrli == pytest.approx(595.0, rel=0.01)
     assert sun.integral(400.0, 750.0) / wehrli == pytest.approx(1.0, abs=0.02)
@@ -89,7 +89,7 @@ def test_band_weights_integrate_the_sun_through_the_response():
     ("raytrace", {"estimator": "montecarlo", "rays": 3000, "runs": 2}),
 ])
 def test_constant_spectrum_run_equals_the_grey_run(method, extra):
-    """The issue's conservation bar: the paper's Sun spread flat over 400-750 nm (--solar-spectrum
+    """The conservation bar: the paper's Sun spread flat over 400-750 nm (--solar-spectrum
     grey), the Earth's classes grey (--earth-spectra grey) and a Moon whose parameters do not
     change with λ: the 400-750 nm band is the grey run, value for value (rolo-fit-map's Moon is
     held at its grey parameters by --param overrides, without its map, whose contrast is
@@ -142,11 +142,11 @@ def test_a_wavelength_row_is_the_grey_run_at_that_wavelengths_parameters(method,
 
 
 def test_spectral_moon_within_5_percent_of_rolo_at_real_dates():
-    """The issue's bar (a subset; scripts/validate_spectral.py runs ten dates, two observers and
+    """The required bar (a subset; scripts/validate_spectral.py runs ten dates, two observers and
     both methods, kept in benchmarks/spectral/rolo_spectral.md): the disk reflectance
     π E/(Ω E_sun(λ)) of each spectral row, from its own solar irradiance, within 5 % of ROLO
     (rimopy, independent of lunarviz) at 440-1000 nm. The dates are not in the fit (zero
-    libration); the tolerance is the issue's (measured ≤ 2.6 % over the script's 20 dates)."""
+    libration); the tolerance is the bar (measured ≤ 2.6 % over the script's 20 dates)."""
     pytest.importorskip("rimopy")
     from lunarviz.workflows.fit import AU_M as AU
     from lunarviz.workflows.fit import rolo_reflectance
@@ -375,7 +375,7 @@ def test_a_lune_rules_map_values_shade_as_their_samples_spelt_out(monkeypatch):
 
 
 def test_mapped_earth_conservation_at_small_theta():
-    """The reviewer's case: near full Moon the first-order Earth cells dip below zero for some
+    """Near full Moon the first-order Earth cells dip below zero for some
     components; they are not clipped one by one (their albedo-weighted sum is the grey map),
     so the conservation bar holds there too (it failed at 2.4e-7 with per-component clipping)."""
     kw = dict(phases_deg=(10.0,), method="raytrace", brdfs=("dhg",), earth_surface="landocean")
@@ -384,7 +384,7 @@ def test_mapped_earth_conservation_at_small_theta():
     assert s["earthshine_W_m2"] == pytest.approx(g["earthshine_W_m2"], rel=CONSERVATION)
 
 
-def test_labels_and_inputs_the_review_found():
+def test_labels_and_inputs_keep_their_own_keys_and_checks():
     # wavelengths that differ past the 6th digit keep their own keys (they collided as {:g})
     r = run_sweep(ResolvedScene(phases_deg=(60.0,), brdfs=("dhg",), wavelengths="550.0001,550.0002"))
     assert set(r["bond_albedo"]["dhg"]["analytic"]) == {"550.0001", "550.0002"}

@@ -1,4 +1,4 @@
-"""Numerical stress tests (issue 5): extremes, limits, bounded memory, no NaN or inf."""
+"""Numerical stress tests: extremes, limits, bounded memory, no NaN or inf."""
 
 import tracemalloc
 

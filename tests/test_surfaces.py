@@ -1,4 +1,4 @@
-"""Surfaces (issue 11): lunar albedo maps, a land/ocean/cloud Earth, and what earthshine sees.
+"""Surfaces: lunar albedo maps, a land/ocean/cloud Earth, and what earthshine sees.
 
 Independent references: ``tests/independent.py::mapped_irradiance``, a numpy double quadrature
 in each body's own latitude and longitude (the maps' edges are meridians, so they are integration

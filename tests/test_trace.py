@@ -10,8 +10,8 @@ from lunarviz.methods.reference import ReferenceSettings, reference_irradiance
 from lunarviz.methods.tracer.embree_bodies import EmbreeBody
 from lunarviz.methods.tracer.estimators import TraceScene, TraceSettings, trace_path
 
-#: Issue 3 bar against the exact quadrature at default settings; we measure ≤ 1.2e-4
-#: (benchmarks/results) and hold the test to 0.1 % (issue 5's accuracy target).
+#: Bar against the exact quadrature at default settings; we measure ≤ 1.2e-4
+#: (benchmarks/results) and hold the test to 0.1 % (the accuracy target).
 TRACE_REL = 1e-3
 
 
@@ -41,7 +41,7 @@ def test_converges_with_mesh_level(paper_brdfs):
 
 @pytest.mark.parametrize("theta", [30.0, 90.0])
 def test_refinement_never_hurts(theta, paper_brdfs):
-    # Issue 9: the adaptive refinement used to add an error floor (4e-5 to 1e-4 at level 5,
+    # the adaptive refinement used to add an error floor (4e-5 to 1e-4 at level 5,
     # against 4e-7 to 2e-5 without it) because the one-point rule's O(h²) bias was cancelled by
     # the terminator's. With the degree-2 rule refining never makes the error larger; the
     # margin 2e-7 is the reference's own accuracy (ReferenceSettings(32, 12) vs (48, 16)).
@@ -218,7 +218,7 @@ def test_lean_mesh_checks_agree_with_trimesh(block, monkeypatch):
             assert consistent == ref.is_winding_consistent, name
         assert body_count(ff, len(vv)) == ref.body_count, name
     # two spheres touching at one vertex: one part for trimesh (joined through vertices), two
-    # closed surfaces for us (joined through edges), so a pinched Moon is refused (review)
+    # closed surfaces for us (joined through edges), so a pinched Moon is refused
     k = int(np.argmax(v[:, 0]))
     w = v + [2.0, 0.0, 0.0]  # a copy whose -x pole sits on the first sphere's +x pole v[k]
     j = int(np.argmin(w[:, 0]))
@@ -238,7 +238,7 @@ def test_lean_mesh_checks_agree_with_trimesh(block, monkeypatch):
     assert meshes._refutes_convexity(np.asarray(dented), np.asarray(f))
     for vv, ff in ((v, f), (box.vertices, box.faces), (unit_icosphere(4).vertices, unit_icosphere(4).faces)):
         assert not meshes._refutes_convexity(np.asarray(vv, dtype=float), np.asarray(ff))
-    # review: a fine convex cylinder stored in float32 and turned (sliver caps: rounding puts
+    # a fine convex cylinder stored in float32 and turned (sliver caps: rounding puts
     # vertices 4.7e-5 × its size above a sliver's plane) is not refuted, and stays convex as
     # trimesh says; a lat-lon sphere's pole (1024 faces at the lowest vertex) is tested on at
     # most 32 of them (the memory of the test stays (block, 32))

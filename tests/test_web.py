@@ -1,4 +1,4 @@
-"""`lunarviz view --web` for real: a server, a headless Chromium, screenshots (issue 14).
+"""`lunarviz view --web` for real: a server, a headless Chromium, screenshots.
 
 The test starts the command line's server on a free port of 127.0.0.1, loads the page in
 headless Chromium (Debian's ``chromium``, installed by ``scripts/install.sh test``), and
