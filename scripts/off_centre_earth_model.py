@@ -125,7 +125,8 @@ def held_out(a, argv) -> int:
     from lunarviz.methods import accuracy
     t0 = time.perf_counter()
     picks = dates(a.every_hours, a.nights, start=dt.datetime(2026, 1, 1, 7), first_night=dt.date(2026, 1, 7),
-                  hours=("05", "10"))
+                  hours=("05", "10")) if not a.dates else [(OBSERVERS[0], d.strip()) for d in a.dates.split(",")]
+    name = "off_centre_earth_held_out_dates" if a.dates else "off_centre_earth_held_out"
     with ProcessPoolExecutor(a.workers) as ex:
         results = [r for r in ex.map(measure, [(obs, t, moon) for obs, t in picks for moon in MOONS]) if r is not None]
     lines = ["# The Earth's beam rules about the zero-phase point, on held-out dates", "",
@@ -148,8 +149,8 @@ def held_out(a, argv) -> int:
         lines.append("")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "off_centre_earth_held_out.json").write_text(json.dumps({"dates": results}, indent=1) + "\n")
-    (out / "off_centre_earth_held_out.md").write_text("\n".join(lines) + "\n")
+    (out / f"{name}.json").write_text(json.dumps({"dates": results}, indent=1) + "\n")
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0
 
@@ -166,6 +167,9 @@ def main(argv=None) -> int:
     ap.add_argument("--held-out", action="store_true",
                     help="measure dates the model was not built from (orbit hours from Jan 1 07:00, site nights "
                          "from Jan 7 at 05:00 and 10:00 UTC) against the stored table: off_centre_earth_held_out.md")
+    ap.add_argument("--dates", default=None,
+                    help="with --held-out: these orbit dates (UTC, comma-separated) instead, reported in "
+                         "off_centre_earth_held_out_dates.md")
     a = ap.parse_args(argv)
     if a.held_out:
         return held_out(a, argv)

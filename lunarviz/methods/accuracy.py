@@ -150,20 +150,23 @@ def _phase_grids() -> tuple:
 
 
 def trace_choice(rtol: float, fixed: dict, mapped_moon: bool, theta: float | None = None,
-                 earthshine_rtol: float | None = None) -> dict:
+                 earthshine_rtol: float | None = None, earthshine_by_phase: bool = True) -> dict:
     """:func:`choose_trace` (same arguments), remembered by its inputs (θ by :func:`_phase_key`,
-    and only for a mapped Moon, whose models alone read it); a fresh copy each call."""
-    key = (rtol, tuple(sorted(fixed.items())), bool(mapped_moon), _phase_key(theta) if mapped_moon else None,
-           earthshine_rtol)
+    and only for a mapped Moon, whose models alone read it); a fresh copy each call. The answers are
+    those of the packaged models (:func:`error_models`): :func:`lunarviz.caches.release_caches`
+    forgets them with the models."""
+    key = (rtol, tuple(sorted((k, type(v), v) for k, v in fixed.items())), bool(mapped_moon),
+           _phase_key(theta) if mapped_moon else None, earthshine_rtol,
+           bool(earthshine_by_phase))  # (a value's type: the answer carries it)
     choice = _CHOICES.get(key)
     if choice is None:
-        choice = choose_trace(rtol, fixed, mapped_moon, theta, earthshine_rtol)
+        choice = choose_trace(rtol, fixed, mapped_moon, theta, earthshine_rtol, earthshine_by_phase)
         _CHOICES[key] = choice
     return copy.deepcopy(choice)
 
 
 def choose_trace(rtol: float, fixed: dict, mapped_moon: bool, theta: float | None = None,
-                 earthshine_rtol: float | None = None) -> dict:
+                 earthshine_rtol: float | None = None, earthshine_by_phase: bool = True) -> dict:
     """Settings for the deterministic tracer at ``rtol`` (the earthshine's at ``earthshine_rtol``
     where given: the part of its tolerance left to the lunar side): ``lune_order`` (the Sun's path, the
     Earth's), ``moon_level``, ``sun_order``, ``earth_order`` (with a lunar map, those of the
@@ -171,7 +174,10 @@ def choose_trace(rtol: float, fixed: dict, mapped_moon: bool, theta: float | Non
     least those of a looser tolerance, :data:`NEST`), and per path and sample kind the bound each
     meets (``bounds``: {("lune"|"facets", path): bound}). ``theta`` [deg]: the scene's θ, where the
     mapped lune rule's model was measured phase by phase (:func:`row_error`): the orders that
-    phase needs, and its bounds."""
+    phase needs, and its bounds; with ``earthshine_by_phase`` False the earthshine's lune rule takes
+    the model's largest error over every phase instead (a surging BRDF seen off the Earth's centre:
+    the phase-by-phase model was measured from it, and near full Moon its low orders erred there by
+    up to 3.8x what their phases' rows hold: docs, accuracy)."""
     m = error_models()
     bounds = {}
     rtols = {"moonshine": rtol, "earthshine": rtol if earthshine_rtol is None else earthshine_rtol}
@@ -189,12 +195,13 @@ def choose_trace(rtol: float, fixed: dict, mapped_moon: bool, theta: float | Non
                "sun_order": fixed.get("sun_order", row["moonshine"].get("sun_order")),
                "earth_order": fixed.get("earth_order", row["earthshine"].get("earth_order")), "bounds": bounds}
         if "moon_level" not in fixed and "raytrace_lune_mapped" in m:  # the mapped lune rule
-            lune = {p: _best(m["raytrace_lune_mapped"][p], rtols[p] / SAFETY, _for(fixed, p), theta) or
-                    _most_accurate(m["raytrace_lune_mapped"][p], _for(fixed, p), theta) for p in SOURCE_ORDER}
+            th = {"moonshine": theta, "earthshine": theta if earthshine_by_phase else None}
+            lune = {p: _best(m["raytrace_lune_mapped"][p], rtols[p] / SAFETY, _for(fixed, p), th[p]) or
+                    _most_accurate(m["raytrace_lune_mapped"][p], _for(fixed, p), th[p]) for p in SOURCE_ORDER}
             if all(lune.values()):
                 out["lune_order"] = (lune["moonshine"]["lune_order"], lune["earthshine"]["lune_order"])
                 for p, r in lune.items():
-                    bounds[("lune", p)] = SAFETY * row_error(r, theta)
+                    bounds[("lune", p)] = SAFETY * row_error(r, th[p])
                 # each sample kind its own source orders (the lune rule's beams, the facets'), as measured
                 out["lune_source_orders"] = tuple(fixed.get(SOURCE_ORDER[p], lune[p][SOURCE_ORDER[p]])
                                                   for p in ("moonshine", "earthshine"))

@@ -94,8 +94,11 @@ def trace_plan(scene, theta: float | None = None, mapped_part: float | None = No
     mapped_earth = traced_earth_mapped(scene)
     pole = earth_pole_at_zero_phase(scene) and not mapped_earth
     rtol = scene.rtol_or_default
+    # (beside the zero-phase rule the earthshine's lune rule takes its model's worst phase:
+    # accuracy.choose_trace's earthshine_by_phase)
     choice = accuracy.trace_choice(rtol, fixed, scene.mapped_moon(), theta,
-                                   earthshine_rtol=rtol / 2 if pole or mapped_earth else rtol)
+                                   earthshine_rtol=rtol / 2 if pole or mapped_earth else rtol,
+                                   earthshine_by_phase=not pole)
     # an explicit mesh level asks for the facets (mesh studies), and so does a rough BRDF (Hapke's
     # roughness changes form where i = e, a kink inside the lune); otherwise the lune rule where it applies
     # (a mapped Moon's lune rule was measured with rolo-fit-map's rough presets)
@@ -243,7 +246,8 @@ def _cheapest_split(scene, rtol: float, fixed: dict, theta, lune: bool) -> dict 
     mapped = scene.mapped_moon()
     best = None
     for share in EARTHSHINE_SPLITS:
-        choice = accuracy.trace_choice(rtol, fixed, mapped, theta, earthshine_rtol=share * rtol)
+        choice = accuracy.trace_choice(rtol, fixed, mapped, theta, earthshine_rtol=share * rtol,
+                                       earthshine_by_phase=False)  # (only beside the zero-phase rule)
         kind = "lune" if lune and choice.get("lune_order") is not None else "facets"
         lunar = choice.get("bounds", {}).get((kind, "earthshine"), math.nan)
         order, cut = accuracy.off_centre_earth_rule((rtol - lunar) / accuracy.SAFETY, mapped)
