@@ -40,6 +40,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 #: the two rules about the zero-phase point (their ``earth_pole``) and the Earth orders measured
 VARIANTS = {"plain": ("detector", (5, 6, 7, 8, 10, 14, 20)), "cut": ("detector-cut", (4, 5, 6, 7, 8, 10))}
+#: each variant's table in lunarviz/data/error_models.json
+TABLE_KEYS = {"plain": "earth_rule_off_centre", "cut": "earth_rule_off_centre_cut"}
 #: the reference: the rule cut along the kinks, at this order
 REFERENCE_ORDER = 24
 BRDFS = ("lambert", "shg", "dhg")
@@ -135,8 +137,7 @@ def held_out(a, argv) -> int:
              f"error over them and the BRDFs, and its ratio to the stored table's (rows report "
              f"{accuracy.SAFETY:g} times the table's).", ""]
     for variant, (pole, orders) in VARIANTS.items():
-        key = "earth_rule_off_centre_cut" if variant == "cut" else "earth_rule_off_centre"
-        stored = accuracy.error_models()[key]["max_rel_error"]
+        stored = accuracy.error_models()[TABLE_KEYS[variant]]["max_rel_error"]
         lines += [f"## {variant}", "", "| lunar model | " + " | ".join(f"order {o}" for o in orders) + " |",
                   "|---|" + "---|" * len(orders)]
         for moon in MOONS:
@@ -220,7 +221,7 @@ def main(argv=None) -> int:
     if a.write:
         path = ROOT / "lunarviz" / "data" / "error_models.json"
         m = json.loads(path.read_text())
-        for v, key in (("plain", "earth_rule_off_centre"), ("cut", "earth_rule_off_centre_cut")):
+        for v, key in TABLE_KEYS.items():
             m[key] = {"earth_pole": VARIANTS[v][0], "orders": list(VARIANTS[v][1]),
                       "reference": report["reference"], "max_rel_error": tabs[v][0], "seconds": tabs[v][1],
                       "source": "scripts/off_centre_earth_model.py (benchmarks/error_models/off_centre_earth.md)"}
