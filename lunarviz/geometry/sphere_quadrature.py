@@ -96,7 +96,9 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
 
     Returns
     -------
-    nodes : (B, M, 3) unit vectors; weights : (B, M) solid angle [sr] (0 outside the region).
+    nodes : (B, M, 3) unit vectors; weights : (B, M) solid angle [sr]: without ``structured``, each
+        row's nodes ring by ring, only the rings' φ-intervals inside the region, then zero-weight
+        padding to the longest row (:func:`_inside_intervals`); structured, 0 outside the region.
     With ``thin``, also the orders ``(t_orders (B, S), phi_orders (B, S, I))`` actually used.
     """
     axis = np.asarray(axis, dtype=float)
@@ -134,6 +136,8 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     fx, fw = gauss_legendre(n_phi)
     if thin is not None:
         fx, fw = _padded_gauss(n_phi, np.repeat(phi_orders, n_t, axis=1))  # (B, R, I, n_phi)
+    elif not structured:  # only the intervals inside the region: the same nodes, ~3x fewer to write
+        st, ct, wt, p_lo, p_hi, inside = _inside_intervals(st, ct, wt, p_lo, p_hi, inside)
     if quadrature_kernels.available():  # the same arithmetic, each node written once
         nodes, w = quadrature_kernels.cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside, fx, fw)
     else:
@@ -150,6 +154,27 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     if structured:
         return nodes, w
     return nodes.reshape(B, -1, 3), w.reshape(B, -1)
+
+
+def _inside_intervals(st, ct, wt, p_lo, p_hi, inside):
+    """The rings' φ-intervals inside the region, each row's in ring order (as a ring lists them:
+    inside ones first), as rings of one interval each: ``(st, ct, wt)`` (B, P) and ``(p_lo, p_hi,
+    inside)`` (B, P, 1), P the most a row has (at least 1); a row's spare slots are empty
+    intervals of zero weight about the axis (t = 0). :func:`cap_rule`'s nodes of positive weight
+    are then the same, in the same order, and the padding between rings is gone."""
+    B, R, n_iv = p_lo.shape
+    rows, flat = np.nonzero(inside.reshape(B, -1))
+    counts = np.bincount(rows, minlength=B)
+    P = max(int(counts.max(initial=0)), 1)
+    slot = np.arange(len(rows)) - np.repeat(np.cumsum(counts) - counts, counts)
+    ring = flat // n_iv
+    out = [np.zeros((B, P)), np.ones((B, P)), np.zeros((B, P))]
+    for a, src in zip(out, (st, ct, wt)):
+        a[rows, slot] = src[rows, ring]
+    lo, hi, ins = np.zeros((B, P, 1)), np.zeros((B, P, 1)), np.zeros((B, P, 1), dtype=bool)
+    lo[rows, slot, 0], hi[rows, slot, 0], ins[rows, slot, 0] = p_lo[rows, ring, flat % n_iv], \
+        p_hi[rows, ring, flat % n_iv], True
+    return (*out, lo, hi, ins)
 
 
 def _cap_dot(st, ct, t_u, phi_u, phi, j: int):
