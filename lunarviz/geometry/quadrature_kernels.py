@@ -189,12 +189,15 @@ def _ring_intervals(st, ct, t_u, phi_u, cr, split, p_lo, p_hi, inside, counts):
     n = 2 * k + 1
     pb = np.empty(2 * k + 2)
     lo, hi, ins = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
+    stu, ctu = np.empty(k), np.empty(k)
     for b in range(B):
+        for j in range(k):  # (a row's caps: the same values as at every ring)
+            stu[j], ctu[j] = np.sin(t_u[b, j]), np.cos(t_u[b, j])
         for r in range(R):
             pb[0], pb[2 * k + 1] = 0.0, two_pi
             for j in range(k):
-                den = st[b, r] * np.sin(t_u[b, j])
-                num = cr[b, r, j] - ct[b, r] * np.cos(t_u[b, j])
+                den = st[b, r] * stu[j]
+                num = cr[b, r, j] - ct[b, r] * ctu[j]
                 if abs(den) > 1e-300:
                     q = num / den
                 else:
@@ -211,7 +214,7 @@ def _ring_intervals(st, ct, t_u, phi_u, cr, split, p_lo, p_hi, inside, counts):
                 for j in range(k):
                     if not ok:
                         break
-                    dot = ct[b, r] * np.cos(t_u[b, j]) + st[b, r] * np.sin(t_u[b, j]) * np.cos(pm - phi_u[b, j])
+                    dot = ct[b, r] * ctu[j] + st[b, r] * stu[j] * np.cos(pm - phi_u[b, j])
                     ok = dot > cr[b, r, j] or split[b, j]
                 ins[i] = ok
             c = 0
