@@ -78,15 +78,16 @@ def measure(args) -> dict | None:
     base = s.trace_settings(1, s.trace_plan(sc.theta_deg))
     brdfs = s.brdf_models()
 
-    def trace(order, pole):
+    def trace(order, pole, horizon_order=None):
         pair = None if base.lune_source_orders is None else (base.lune_source_orders[0], order)
-        st = replace(base, earth_pole=pole, earth_order=order, lune_source_orders=pair)
+        st = replace(base, earth_pole=pole, earth_order=order, lune_source_orders=pair,
+                     earth_horizon_order=horizon_order)
         ts = TraceScene(sc, st)
         t = time.perf_counter()
         r = trace_path(ts, "earthshine", brdfs)
         return r.mean, ts, time.perf_counter() - t
     t = time.perf_counter()
-    ref, ts, _ = trace(REFERENCE_ORDER, "detector-cut")
+    ref, ts, _ = trace(REFERENCE_ORDER, "detector-cut", REFERENCE_ORDER)
     lune = ts.sampling.lune_rule_applies("earth")
     unbounded = ts.sampling.eclipse_possible() or ts.sampling.moon_shadow_on_earth_possible() or \
         (not lune and ts.sampling.edges_found("earth"))

@@ -79,7 +79,8 @@ def reference(s, label: str, moon: str, spectral: bool, lune_order: int) -> dict
     sc = s.geometry(label)
     plan = s.trace_plan(sc.theta_deg)
     hi = {"settings": {**plan["settings"], "lune_order": (lune_order, lune_order), "sun_order": 12, "earth_order": 10,
-                       "lune_source_orders": (12, 10), "earth_pole": "detector-cut"}, "bounds": {}}
+                       "lune_source_orders": (12, 10), "earth_pole": "detector-cut", "earth_horizon_order": 10},
+            "bounds": {}}
     real = ResolvedScene.trace_plan
     ResolvedScene.trace_plan = lambda self, *args, **kwargs: hi  # (whatever the plan is asked)
     try:

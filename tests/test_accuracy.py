@@ -190,7 +190,8 @@ def test_surge_earthshine_off_the_earths_centre_carries_a_bound_it_meets(spectra
     assert all(0 < r["rtol"] <= 1e-4 and r["no_bound_reason"] == "" for r in rows)
     if not spectral:
         hi = {"settings": {**plan["settings"], "lune_order": (32, 32), "sun_order": 16, "earth_order": 10,
-                           "lune_source_orders": (16, 10), "earth_pole": "detector-cut"}, "bounds": {}}
+                           "lune_source_orders": (16, 10), "earth_pole": "detector-cut", "earth_horizon_order": 10},
+            "bounds": {}}
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
         ref = trace_path(TraceScene(sc, dated.trace_settings(1, hi)), "earthshine", dated.brdf_models()).mean
         for r in rows:
@@ -347,7 +348,8 @@ def test_near_full_moon_from_orbit_the_earthshine_lune_rule_meets_its_bound():
     assert plan["settings"]["lune_order"][1] >= 16
     row = run_phase(s, lab, threads=1)[0]
     hi = {"settings": {**plan["settings"], "lune_order": (32, 32), "earth_order": 10, "lune_source_orders": (2, 10),
-                       "earth_pole": "detector-cut"}, "bounds": {}}
+                       "earth_pole": "detector-cut", "earth_horizon_order": 10},
+            "bounds": {}}
     ref = trace_path(TraceScene(sc, s.trace_settings(1, hi)), "earthshine", s.brdf_models()).mean["dhg"]
     assert abs(row["earthshine_W_m2"] / ref - 1) <= row["rtol"] <= 1e-4
 

@@ -275,6 +275,8 @@ def test_settings_validation():
         TraceSettings(rays=-1)
     with pytest.raises(ValueError, match="estimator 'x'"):
         TraceSettings(estimator="x")
+    with pytest.raises(ValueError, match="earth_horizon_order=1 "):
+        TraceSettings(earth_horizon_order=1)
 
 
 def test_montecarlo_sigma_over_many_seeds(paper_brdfs):

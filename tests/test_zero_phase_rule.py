@@ -182,3 +182,41 @@ def test_a_tolerance_takes_the_cheaper_rule_that_meets_it(monkeypatch):
     assert accuracy.off_centre_earth_rule(1e-9, False) == (7, True)    # none: the more accurate
     monkeypatch.setattr(accuracy, "error_models", lambda: {})
     assert accuracy.off_centre_earth_rule(1e-4, False) == (max(accuracy.DEFAULT_EARTH_ORDERS), False)
+
+
+def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_refines_with_the_order():
+    """Samples whose horizon cuts the Earth (the earthlight's penumbra band: 0.3 of the Earth's
+    angular radius below the plane through the Moon's centre facing the Earth, at 2026-05-10T00:00Z
+    from orbit, θ = 91°) take the zero-phase rule at :func:`horizon_cut_earth_order` of the row's
+    order: the same beams as asking for that order there. Their earthlight (Σ L μ0 dΩ, traced)
+    against the rule at order 24 errs by 3.0e-3, 4.7e-4 and 4.5e-7 at orders 8, 14 and 20
+    (measured; 6, 7 and 10 there; a third of the one before is allowed): refining the Earth's
+    order refines these samples too. At order 14 the full order would err by 7e-11 with 4x
+    the beams: the band holds at most 3.4e-4 of a Hapke row's earthshine (five orbit dates), so
+    the row moves by ~1e-7 (its bound is ~5e-5, from the error model measured with this rule)."""
+    from lunarviz.methods.tracer.settings import HORIZON_CUT_LEAST_ORDER, horizon_cut_earth_order
+    s = ResolvedScene(method="raytrace", brdfs=("dhg",), observer=ORBIT, times=("2026-05-10T00:00:00Z",))
+    sc = s.geometry(s.times[0])
+    st = replace(s.trace_settings(1, s.trace_plan(sc.theta_deg)), earth_pole="detector")
+    to_e = unit(sc.earth - sc.moon)
+    e1 = unit(np.cross(to_e, [0.3, 0.5, 0.8]))
+    ang = np.linspace(0, 2 * np.pi, 9)[:-1, None]
+    rho = sc.radii["earth"] / np.linalg.norm(sc.earth - sc.moon)
+    n = unit(np.sin(0.3 * rho) * to_e + np.cos(0.3 * rho) * (np.cos(ang) * e1 + np.sin(ang) * np.cross(to_e, e1)))
+    x = sc.moon + sc.radii["moon"] * n
+    assert sources.horizon_cuts_source(sc, x, n, "earth").all()
+    o, ones = unit(sc.det - x), np.ones(len(x))
+
+    def earthlight(order, asked=None):
+        tr = TraceScene(sc, replace(st, earth_horizon_order=asked)).deterministic.beam_transport(
+            x, n, o, ones, ones, "earth", order)
+        return (tr.e_beam * tr.mu0).sum(axis=1), np.count_nonzero(tr.e_beam)
+
+    ref = earthlight(24, 24)[0]
+    assert [horizon_cut_earth_order(k) for k in (4, 8, 14, 20, 24)] == [4, HORIZON_CUT_LEAST_ORDER, 7, 10, 12]
+    coarse, beams = earthlight(14)
+    same, same_beams = earthlight(14, 7)
+    np.testing.assert_array_equal(coarse, same)
+    assert beams == same_beams < earthlight(14, 14)[1] / 3
+    errs = [np.max(np.abs(earthlight(k)[0] / ref - 1)) for k in (8, 14, 20)]
+    assert all(a > 3 * b for a, b in zip(errs, errs[1:])) and errs[-1] < 1e-6

@@ -58,6 +58,12 @@ LIMB_SUB = 4
 POLE_RULE_NODES = 1 << 17
 #: the poles the Earth's beam rules may take (:attr:`TraceSettings.earth_pole`)
 EARTH_POLES = ("centre", "detector", "detector-cut")
+#: the least Earth order :func:`horizon_cut_earth_order` gives the samples whose horizon cuts the
+#: Earth: at orders 4, 6 and 8 one such sample's earthlight errs by up to 2e-2, 3e-3 and 5e-5 (an
+#: orbit date's band; tests/test_zero_phase_rule.py), of which a row gets the band's share of
+#: its earthshine: at most 3.4e-4 (Hapke) and 1.1e-5 (Lambert) on five orbit dates (the band's
+#: beams weighed out): a row errs from the band by at most ~7e-6, ~1e-6 and ~2e-8 at those orders
+HORIZON_CUT_LEAST_ORDER = 6
 #: a quick look's settings (an explorer's first picture): the fewest beams to each source, the
 #: Earth's rule about each sample's sub-point, no refinement at edges
 QUICK_TRACE = {"earth_order": 2, "sun_order": 2, "earth_pole": "centre", "refine": False}
@@ -107,6 +113,14 @@ class TraceSettings:
     #: ``detector-cut`` (that pole, and the rule also cut along the roughness's kinks through it:
     #: :func:`~lunarviz.methods.sources.roughness_kink_cuts`)
     earth_pole: str = "centre"
+    #: the Gauss order of the Earth's rule about the zero-phase point (``earth_pole`` not
+    #: ``centre``) at the lunar samples whose horizon cuts the Earth: the band of the earthlight's
+    #: penumbra, where μ0 ≤ sin ρ_E ≈ 0.017 and which holds at most a few 1e-4 of the earthshine
+    #: (:data:`HORIZON_CUT_LEAST_ORDER`), so that a coarser rule there errs by as little as the
+    #: full one elsewhere (the error models are measured with it:
+    #: scripts/off_centre_earth_model.py); ``None``:
+    #: :func:`horizon_cut_earth_order` of the row's Earth order
+    earth_horizon_order: int | None = None
 
     def moon_map(self):
         """The parsed lunar albedo map, or ``None``."""
@@ -143,10 +157,24 @@ class TraceSettings:
             raise LunarvizError(f"refine={self.refine!r} must be True or False")
         self.surface()
         self.moon_map()
+        if self.earth_horizon_order is not None and not (
+                isinstance(self.earth_horizon_order, (int, np.integer)) and 2 <= self.earth_horizon_order <= 128):
+            raise LunarvizError(f"earth_horizon_order={self.earth_horizon_order!r} must be an integer in [2, 128] "
+                                "or None")
         if self.earth_pole not in EARTH_POLES:
             raise LunarvizError(f"earth_pole {self.earth_pole!r} is not one of {', '.join(EARTH_POLES)}")
         if self.mapped_earth not in ("facets", "beams"):
             raise LunarvizError(f"mapped_earth {self.mapped_earth!r} is not one of facets, beams")
+
+
+def horizon_cut_earth_order(order: int, asked: int | None = None) -> int:
+    """The Earth order of the zero-phase rule at lunar samples whose horizon cuts the Earth
+    (:attr:`TraceSettings.earth_horizon_order`): ``asked`` where given, else half the row's
+    ``order`` rounded up, at least :data:`HORIZON_CUT_LEAST_ORDER` and at most ``order``, so that
+    it grows with ``order`` (refining the Earth's rule refines these samples too)."""
+    if asked is not None:
+        return int(asked)
+    return min(int(order), max(HORIZON_CUT_LEAST_ORDER, -(-int(order) // 2)))
 
 
 def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None = None):

@@ -25,6 +25,7 @@ from lunarviz.methods.tracer.settings import (
     MESH_SOURCE_ORDER,
     NORMAL_OFFSET,
     PENUMBRA_ORDER,
+    horizon_cut_earth_order,
 )
 from lunarviz.methods.tracer.traced_bodies import TracedBodies
 
@@ -59,14 +60,16 @@ class SourceRules:
         cut = horizon_cuts_source(sc, x, n, body)
         # the Earth's rule about each row's zero-phase point (numpy's product rule: the visible cap,
         # the lit cap and, where it cuts the Earth, x's horizon as its caps)
-        pole_kind = self.bodies.settings.earth_pole if body == "earth" else "centre"
+        s = self.bodies.settings
+        pole_kind = s.earth_pole if body == "earth" else "centre"
         pole = zero_phase_points(sc, x) if pole_kind != "centre" else None
         parts = []
         for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
             if rows.size == 0:
                 continue
-            if pole is not None:
-                parts.append((rows, *source_sphere_beams(sc, x[rows], n[rows], body, order, horizon=with_horizon,
+            if pole is not None:  # (rows whose horizon cuts the Earth: a coarser rule, horizon_cut_earth_order)
+                o_p = horizon_cut_earth_order(order, s.earth_horizon_order) if with_horizon else order
+                parts.append((rows, *source_sphere_beams(sc, x[rows], n[rows], body, o_p, horizon=with_horizon,
                                                          pole=pole[rows], roughness_cuts=pole_kind == "detector-cut")))
                 continue
             if body == "sun" and not with_horizon:
