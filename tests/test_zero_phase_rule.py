@@ -188,7 +188,8 @@ def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_ref
     """Samples whose horizon cuts the Earth (the earthlight's penumbra band: 0.3 of the Earth's
     angular radius below the plane through the Moon's centre facing the Earth, at 2026-05-10T00:00Z
     from orbit, θ = 91°) take the zero-phase rule at :func:`horizon_cut_earth_order` of the row's
-    order: the same beams as asking for that order there. Their earthlight (Σ L μ0 dΩ, traced)
+    order where they are summed into a row (the same beams as asking for that order there), and
+    the full order where each is shaded for itself (per-facet arrays, images). Their earthlight (Σ L μ0 dΩ, traced)
     against the rule at order 24 errs by 3.0e-3, 4.7e-4 and 4.5e-7 at orders 8, 14 and 20
     (measured; 6, 7 and 10 there; a third of the one before is allowed): refining the Earth's
     order refines these samples too. At order 14 the full order would err by 7e-11 with 4x
@@ -207,12 +208,15 @@ def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_ref
     assert sources.horizon_cuts_source(sc, x, n, "earth").all()
     o, ones = unit(sc.det - x), np.ones(len(x))
 
-    def earthlight(order, asked=None):
-        tr = TraceScene(sc, replace(st, earth_horizon_order=asked)).deterministic.beam_transport(
-            x, n, o, ones, ones, "earth", order)
+    def earthlight(order, asked=None, summed=True):
+        ts = TraceScene(sc, replace(st, earth_horizon_order=asked))
+        ts.sampling.summed = summed  # (as trace_path sets it for a row's sum)
+        tr = ts.deterministic.beam_transport(x, n, o, ones, ones, "earth", order)
         return (tr.e_beam * tr.mu0).sum(axis=1), np.count_nonzero(tr.e_beam)
 
     ref = earthlight(24, 24)[0]
+    # per-facet arrays and images shade each sample for itself: the full order
+    np.testing.assert_array_equal(earthlight(14, summed=False)[0], earthlight(14, 14)[0])
     assert [horizon_cut_earth_order(k) for k in (4, 8, 14, 20, 24)] == [4, HORIZON_CUT_LEAST_ORDER, 7, 10, 12]
     coarse, beams = earthlight(14)
     same, same_beams = earthlight(14, 7)

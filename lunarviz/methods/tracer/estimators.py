@@ -114,6 +114,7 @@ def trace_path(ts: TraceScene, path: str, brdfs: dict, keep_facets: bool = False
     s = ts.settings
     body = PATHS[path]
     ts.sampling.per_facet = keep_facets  # per-facet arrays need facet samples (never the lune rule's)
+    ts.sampling.summed = not keep_facets
     ts.sampling.rough_brdf = any(getattr(b, "rough", False) for b in brdfs.values())
     ts.sampling.albedo_scale = 0.0 if spectral is not None else _albedo_scale(ts, brdfs)
     t0 = time.perf_counter()

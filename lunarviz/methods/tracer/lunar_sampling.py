@@ -41,6 +41,12 @@ class LunarSampling:
         #: per-facet arrays are being accumulated (:func:`~lunarviz.methods.tracer.estimators.trace_path`'s
         #: ``keep_facets``): lunar samples then come from the facets, never the lune rule
         self.per_facet = False
+        #: the samples' light is only summed into rows (set by
+        #: :func:`~lunarviz.methods.tracer.estimators.trace_path` without ``keep_facets``): samples
+        #: whose horizon cuts the Earth may then take a coarser Earth rule
+        #: (:func:`~lunarviz.methods.tracer.settings.horizon_cut_earth_order`); per-facet arrays and
+        #: images (which shade each point for itself) keep the full order
+        self.summed = False
         #: a BRDF being shaded has Hapke's roughness (its kink at i = e: the mapped lune rule cuts
         #: there); set by :func:`~lunarviz.methods.tracer.estimators.trace_path`
         self.rough_brdf = False

@@ -59,10 +59,13 @@ POLE_RULE_NODES = 1 << 17
 #: the poles the Earth's beam rules may take (:attr:`TraceSettings.earth_pole`)
 EARTH_POLES = ("centre", "detector", "detector-cut")
 #: the least Earth order :func:`horizon_cut_earth_order` gives the samples whose horizon cuts the
-#: Earth: at orders 4, 6 and 8 one such sample's earthlight errs by up to 2e-2, 3e-3 and 5e-5 (an
-#: orbit date's band; tests/test_zero_phase_rule.py), of which a row gets the band's share of
-#: its earthshine: at most 3.4e-4 (Hapke) and 1.1e-5 (Lambert) on five orbit dates (the band's
-#: beams weighed out): a row errs from the band by at most ~7e-6, ~1e-6 and ~2e-8 at those orders
+#: Earth. The plain rule's error in one such sample's earthlight, over 16 azimuths and 7 depths
+#: across an orbit date's band (2026-05-10T00:00Z, the paper's Moon): 3.5e-2, 4.1e-3, 6.7e-4,
+#: 8.0e-5 and 1.1e-6 at orders 4, 6, 7, 8 and 10. A row takes it times the band's share of its
+#: earthshine: at most 3.4e-4 (Hapke) and 1.1e-5 (Lambert) from a 550 km orbit and from sites,
+#: up to 9.8e-4 for a detector 25,000 km from the Moon (the band's beams weighed out); rows at
+#: the orders ``--rtol 1e-4`` takes moved by at most 1.0e-7 (the paper's Moon, 88 orbit dates)
+#: and 6.7e-7 (rolo-fit-map, 35), and the error models are measured with this rule
 HORIZON_CUT_LEAST_ORDER = 6
 #: a quick look's settings (an explorer's first picture): the fewest beams to each source, the
 #: Earth's rule about each sample's sub-point, no refinement at edges
@@ -114,7 +117,8 @@ class TraceSettings:
     #: :func:`~lunarviz.methods.sources.roughness_kink_cuts`)
     earth_pole: str = "centre"
     #: the Gauss order of the Earth's rule about the zero-phase point (``earth_pole`` not
-    #: ``centre``) at the lunar samples whose horizon cuts the Earth: the band of the earthlight's
+    #: ``centre``) at the lunar samples whose horizon cuts the Earth, where they are summed into
+    #: rows (per-facet arrays and images keep ``earth_order``): the band of the earthlight's
     #: penumbra, where μ0 ≤ sin ρ_E ≈ 0.017 and which holds at most a few 1e-4 of the earthshine
     #: (:data:`HORIZON_CUT_LEAST_ORDER`), so that a coarser rule there errs by as little as the
     #: full one elsewhere (the error models are measured with it:
