@@ -187,7 +187,7 @@ def test_a_tolerance_takes_the_cheaper_rule_that_meets_it(monkeypatch):
 def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_refines_with_the_order():
     """Samples whose horizon cuts the Earth (the earthlight's penumbra band: 0.3 of the Earth's
     angular radius below the plane through the Moon's centre facing the Earth, at 2026-05-10T00:00Z
-    from orbit, θ = 91°) take the zero-phase rule at :func:`horizon_cut_earth_order` of the row's
+    from orbit, θ = 91°) take the zero-phase rule at :func:`horizon_band_order` of the row's
     order where they are summed into a row (the same beams as asking for that order there), and
     the full order where each is shaded for itself (per-facet arrays, images). Their earthlight (Σ L μ0 dΩ, traced)
     against the rule at order 24 errs by 3.0e-3, 4.7e-4 and 4.5e-7 at orders 8, 14 and 20
@@ -195,7 +195,7 @@ def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_ref
     order refines these samples too. At order 14 the full order would err by 7e-11 with 4x
     the beams: the band holds at most 3.4e-4 of a Hapke row's earthshine (five orbit dates), so
     the row moves by ~1e-7 (its bound is ~5e-5, from the error model measured with this rule)."""
-    from lunarviz.methods.tracer.settings import HORIZON_CUT_LEAST_ORDER, horizon_cut_earth_order
+    from lunarviz.methods.tracer.settings import HORIZON_CUT_LEAST_ORDER, horizon_band_order
     s = ResolvedScene(method="raytrace", brdfs=("dhg",), observer=ORBIT, times=("2026-05-10T00:00:00Z",))
     sc = s.geometry(s.times[0])
     st = replace(s.trace_settings(1, s.trace_plan(sc.theta_deg)), earth_pole="detector")
@@ -217,7 +217,7 @@ def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_ref
     ref = earthlight(24, 24)[0]
     # per-facet arrays and images shade each sample for itself: the full order
     np.testing.assert_array_equal(earthlight(14, summed=False)[0], earthlight(14, 14)[0])
-    assert [horizon_cut_earth_order(k) for k in (4, 8, 14, 20, 24)] == [4, HORIZON_CUT_LEAST_ORDER, 7, 10, 12]
+    assert [horizon_band_order(k) for k in (4, 8, 14, 20, 24)] == [4, HORIZON_CUT_LEAST_ORDER, 7, 10, 12]
     coarse, beams = earthlight(14)
     same, same_beams = earthlight(14, 7)
     np.testing.assert_array_equal(coarse, same)

@@ -44,7 +44,7 @@ class LunarSampling:
         #: the samples' light is only summed into rows (set by
         #: :func:`~lunarviz.methods.tracer.estimators.trace_path` without ``keep_facets``): samples
         #: whose horizon cuts the Earth may then take a coarser Earth rule
-        #: (:func:`~lunarviz.methods.tracer.settings.horizon_cut_earth_order`); per-facet arrays and
+        #: (:func:`~lunarviz.methods.tracer.settings.horizon_band_order`); per-facet arrays and
         #: images (which shade each point for itself) keep the full order
         self.summed = False
         #: a BRDF being shaded has Hapke's roughness (its kink at i = e: the mapped lune rule cuts

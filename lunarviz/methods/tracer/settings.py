@@ -58,7 +58,7 @@ LIMB_SUB = 4
 POLE_RULE_NODES = 1 << 17
 #: the poles the Earth's beam rules may take (:attr:`TraceSettings.earth_pole`)
 EARTH_POLES = ("centre", "detector", "detector-cut")
-#: the least Earth order :func:`horizon_cut_earth_order` gives the samples whose horizon cuts the
+#: the least Earth order :func:`horizon_band_order` gives the samples whose horizon cuts the
 #: Earth. The plain rule's error in one such sample's earthlight, over 16 azimuths and 7 depths
 #: across an orbit date's band (2026-05-10T00:00Z, the paper's Moon): 3.5e-2, 4.1e-3, 6.7e-4,
 #: 8.0e-5 and 1.1e-6 at orders 4, 6, 7, 8 and 10. A row takes it times the band's share of its
@@ -123,7 +123,7 @@ class TraceSettings:
     #: (:data:`HORIZON_CUT_LEAST_ORDER`), so that a coarser rule there errs by as little as the
     #: full one elsewhere (the error models are measured with it:
     #: scripts/off_centre_earth_model.py); ``None``:
-    #: :func:`horizon_cut_earth_order` of the row's Earth order
+    #: :func:`horizon_band_order` of the row's Earth order
     earth_horizon_order: int | None = None
 
     def moon_map(self):
@@ -171,7 +171,7 @@ class TraceSettings:
             raise LunarvizError(f"mapped_earth {self.mapped_earth!r} is not one of facets, beams")
 
 
-def horizon_cut_earth_order(order: int, asked: int | None = None) -> int:
+def horizon_band_order(order: int, asked: int | None = None) -> int:
     """The Earth order of the zero-phase rule at lunar samples whose horizon cuts the Earth
     (:attr:`TraceSettings.earth_horizon_order`): ``asked`` where given, else half the row's
     ``order`` rounded up, at least :data:`HORIZON_CUT_LEAST_ORDER` and at most ``order``, so that

@@ -25,7 +25,7 @@ from lunarviz.methods.tracer.settings import (
     MESH_SOURCE_ORDER,
     NORMAL_OFFSET,
     PENUMBRA_ORDER,
-    horizon_cut_earth_order,
+    horizon_band_order,
 )
 from lunarviz.methods.tracer.traced_bodies import TracedBodies
 
@@ -67,9 +67,9 @@ class SourceRules:
         for rows, with_horizon in ((np.flatnonzero(~cut), False), (np.flatnonzero(cut), True)):
             if rows.size == 0:
                 continue
-            if pole is not None:  # (summed samples whose horizon cuts the Earth: horizon_cut_earth_order)
+            if pole is not None:  # (summed samples whose horizon cuts the Earth: horizon_band_order)
                 coarse = with_horizon and self.sampling.summed
-                o_p = horizon_cut_earth_order(order, s.earth_horizon_order) if coarse else order
+                o_p = horizon_band_order(order, s.earth_horizon_order) if coarse else order
                 parts.append((rows, *source_sphere_beams(sc, x[rows], n[rows], body, o_p, horizon=with_horizon,
                                                          pole=pole[rows], roughness_cuts=pole_kind == "detector-cut")))
                 continue
