@@ -167,13 +167,12 @@ def _inside_intervals(st, ct, wt, p_lo, p_hi, inside):
     counts = np.bincount(rows, minlength=B)
     P = max(int(counts.max(initial=0)), 1)
     slot = np.arange(len(rows)) - np.repeat(np.cumsum(counts) - counts, counts)
-    ring = flat // n_iv
+    ring, itv = np.divmod(flat, n_iv)
     out = [np.zeros((B, P)), np.ones((B, P)), np.zeros((B, P))]
     for a, src in zip(out, (st, ct, wt)):
         a[rows, slot] = src[rows, ring]
     lo, hi, ins = np.zeros((B, P, 1)), np.zeros((B, P, 1)), np.zeros((B, P, 1), dtype=bool)
-    lo[rows, slot, 0], hi[rows, slot, 0], ins[rows, slot, 0] = p_lo[rows, ring, flat % n_iv], \
-        p_hi[rows, ring, flat % n_iv], True
+    lo[rows, slot, 0], hi[rows, slot, 0], ins[rows, slot, 0] = p_lo[rows, ring, itv], p_hi[rows, ring, itv], True
     return (*out, lo, hi, ins)
 
 

@@ -119,7 +119,7 @@ class TraceSettings:
     #: the Gauss order of the Earth's rule about the zero-phase point (``earth_pole`` not
     #: ``centre``) at the lunar samples whose horizon cuts the Earth, where they are summed into
     #: rows (per-facet arrays and images keep ``earth_order``): the band of the earthlight's
-    #: penumbra, where μ0 ≤ sin ρ_E ≈ 0.017 and which holds at most a few 1e-4 of the earthshine
+    #: penumbra, where μ0 ≤ sin ρ_E ≈ 0.017 and which holds at most ~1e-3 of the earthshine
     #: (:data:`HORIZON_CUT_LEAST_ORDER`), so that a coarser rule there errs by as little as the
     #: full one elsewhere (the error models are measured with it:
     #: scripts/off_centre_earth_model.py); ``None``:
@@ -174,8 +174,9 @@ class TraceSettings:
 def horizon_band_order(order: int, asked: int | None = None) -> int:
     """The Earth order of the zero-phase rule at lunar samples whose horizon cuts the Earth
     (:attr:`TraceSettings.earth_horizon_order`): ``asked`` where given, else half the row's
-    ``order`` rounded up, at least :data:`HORIZON_CUT_LEAST_ORDER` and at most ``order``, so that
-    it grows with ``order`` (refining the Earth's rule refines these samples too)."""
+    ``order`` rounded up, at least :data:`HORIZON_CUT_LEAST_ORDER` and at most ``order``: it never
+    falls as ``order`` grows (6 from order 6 to 12, half beyond), so refining the Earth's rule
+    never coarsens these samples, though between orders 7 and 12 it leaves them as they are."""
     if asked is not None:
         return int(asked)
     return min(int(order), max(HORIZON_CUT_LEAST_ORDER, -(-int(order) // 2)))
