@@ -24,10 +24,13 @@ detector): the error is the Earth's part alone (the lunar side has its own model
 20-160° of the paper's scene (the Earth turned 0°, 90°, 180° and 270°), four nights from Big Bear and four from
 Paranal, every 37th hour of 15 days from a 550 km orbit; dates whose Moon is hidden, whose Earth the
 Moon's shadow may touch, or outside θ = 5-175° are left out. Rows at θ = 20-160° take those
-dates' table; rows at 10-20° a table that adds θ = 10° of the paper's scene (the Earth turned four
-ways: a thinner crescent errs more), rows at 160-170° one that adds θ = 170° (each side its own
-dates: θ = 10° would loosen the 160-170° rows up to 7.7-fold). ``--tables-from FILE`` rebuilds
-the tables from an earlier run's stored dates (``mapped_earth.json``) without measuring again. A finer level is never
+dates' table; rows at 15-20° a table that adds θ = 15° of the paper's scene (the Earth turned
+eight ways: a held-out θ = 17.5° with the Earth turned 45° erred 1.2-1.5 times a table of four),
+rows at 10-15° one that adds 15° and 10° (a thinner crescent errs more: a row at 17° is not held
+to the error at 10°), rows at 160-170° one that adds θ = 170° (each side its own dates: θ =
+10° would loosen the 160-170° rows up to 7.7-fold). ``--tables-from FILE`` rebuilds the tables from
+an earlier run's stored dates (``mapped_earth.json``), measuring only the paper's scene at a θ that
+run lacks. A finer level is never
 allowed more error than a coarser one (each table is made non-increasing). ``--write`` stores the table in
 ``lunarviz/data/error_models.json`` (key ``mapped_earth``); the report goes to
 ``benchmarks/error_models/mapped_earth.md`` and ``.json``.
@@ -50,19 +53,23 @@ LEVELS = (4, 5, 6, 7)
 #: the packaged maps: (earth_surface, clouds)
 MAPS = (("landocean", "zonal"), ("landocean", "none"), ("uniform", "zonal"))
 OUTER_ORDER = 6
-#: the θ [deg] of the core table's dates (every site and orbit date lies within); a band's table
-#: beyond each end adds the paper's scene at :data:`BEYOND` on that side (the Earth a thinner
-#: crescent at 10°, nearer full at 170°: each side's own dates, so neither loosens the other)
+#: the θ [deg] of the core table's dates (every site and orbit date lies within); beyond each end,
+#: bands whose tables add the paper's scene at :data:`BEYOND`'s θ on that side, nearest first: a
+#: band [15°, 20°] adds θ = 15°, a band [10°, 15°] adds 15° and 10° (a thinner crescent errs more,
+#: so a row at 17° is not held to the error at 10°), and [160°, 170°] adds 170° (each side its own
+#: dates, so neither loosens the other)
 CORE = (20.0, 160.0)
-BEYOND = (10.0, 170.0)
+BEYOND = ((15.0, 10.0), (170.0,))
 GROUP = 2  # map cells a reference cell, each way
 
 
 def cases(quick: bool) -> list[tuple[str, str | float, float]]:
     """(observer, task key, Earth rotation [deg]) of the model: θ of the paper's scene, site nights,
     orbit hours."""
-    out = [("geocentre", th, rot) for th in ((30.0, 120.0) if quick else (20.0, 60.0, 100.0, 140.0, 160.0) + BEYOND)
+    out = [("geocentre", th, rot) for th in ((30.0, 120.0) if quick else (20.0, 60.0, 100.0, 140.0, 160.0, 10.0, 170.0))
            for rot in ((0.0,) if quick else (0.0, 90.0, 180.0, 270.0))]
+    if not quick:  # the band nearest the core's thin end: the Earth turned eight ways (its coasts)
+        out += [("geocentre", 15.0, rot) for rot in np.arange(0.0, 360.0, 45.0)]
     nights = 2 if quick else 4
     for obs in ("site:34.26,-116.92,2067", "site:-24.63,-70.40,2635"):
         for k in range(nights):
@@ -205,27 +212,51 @@ def model_arguments(description: str, write: bool = True) -> argparse.ArgumentPa
     return ap
 
 
+def band_tables(got: list, core: list) -> list:
+    """The tables of rows beyond the core dates' θ (:data:`BEYOND`): ``[{"theta_range_deg",
+    "epsilon"}]``, each band taking the core's dates and the paper's scene from the core's edge out
+    to the band's far end."""
+    bands = []
+    for side, edges in zip((-1, 1), BEYOND):
+        near = CORE[0] if side < 0 else CORE[1]
+        for edge in edges:
+            beyond = [r for r in got if (edge <= round(r["theta_deg"], 1) < CORE[0] if side < 0
+                                         else CORE[1] < round(r["theta_deg"], 1) <= edge)]
+            if beyond:
+                bands.append({"theta_range_deg": sorted([edge, near]), "epsilon": model_table(core + beyond)})
+            near = edge
+    return bands
+
+
+def measured_cases(a) -> tuple[list, float]:
+    """The cases' results and the seconds they took: measured, or (``--tables-from``) an earlier
+    run's stored cases, with the paper's scene at any θ of :func:`cases` it lacks measured now (the
+    dates it lacks, it left out: their Moon hidden or the Moon's shadow possibly on the Earth)."""
+    todo = cases(a.quick)
+    got, wall = [], 0.0
+    if a.tables_from:
+        stored = json.loads(Path(a.tables_from).read_text())
+        got = [dict(r, levels={int(k): v for k, v in r["levels"].items()}) for r in stored["cases"]]
+        wall = stored["wall_s"]
+        have = {(r["observer"], r["key"], r["earth_rotation_deg"]) for r in got}
+        todo = [c for c in todo if c[0] == "geocentre" and c not in have]
+    t0 = time.perf_counter()
+    if todo:
+        with ProcessPoolExecutor(a.workers) as ex:
+            got += [r for r in ex.map(one_case, todo) if r is not None]
+    return got, wall + time.perf_counter() - t0
+
+
 def main(argv=None) -> int:
     ap = model_arguments(__doc__.splitlines()[0])
     a = ap.parse_args(argv)
-    t0 = time.perf_counter()
-    if a.tables_from:  # the stored dates of an earlier run, their tables rebuilt
-        stored = json.loads(Path(a.tables_from).read_text())
-        got = [dict(r, levels={int(k): v for k, v in r["levels"].items()}) for r in stored["cases"]]
-    else:
-        with ProcessPoolExecutor(a.workers) as ex:
-            got = [r for r in ex.map(one_case, cases(a.quick)) if r is not None]
+    got, wall = measured_cases(a)
     core = [r for r in got if CORE[0] <= r["theta_deg"] <= CORE[1]]
     table = model_table(core)
-    bands = []  # each side's dates beyond the core's θ, with the core's
-    for beyond in ([r for r in got if r["theta_deg"] < CORE[0]], [r for r in got if r["theta_deg"] > CORE[1]]):
-        if beyond:
-            th = [r["theta_deg"] for r in beyond]
-            span = [round(min(th), 1), CORE[0]] if th[0] < CORE[0] else [CORE[1], round(max(th), 1)]
-            bands.append({"theta_range_deg": span, "epsilon": model_table(core + beyond)})
+    bands = band_tables(got, core)
     seconds = [float(np.mean([r["levels"][lv]["transport_s"] for r in got])) for lv in LEVELS]
     res = {"cases": got, "table": table, "bands": bands, "seconds": seconds,
-           "wall_s": stored["wall_s"] if a.tables_from else time.perf_counter() - t0,
+           "wall_s": wall,
            "command": "python scripts/mapped_earth_model.py" + (" --quick" if a.quick else "")
            + (f" --tables-from {a.tables_from}" if a.tables_from else "")}
     out = Path(a.out)

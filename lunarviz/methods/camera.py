@@ -164,15 +164,17 @@ def _lagrange(nodes: np.ndarray, values: list, x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _vertex_transports(ts):
-    """The Moon's vertices as Earth transports toward the detector: ``(slice, Transport)`` chunks.
+def _vertex_transports(ts, which: np.ndarray):
+    """The Moon's vertices ``which`` (indices) as Earth transports toward the detector:
+    ``(indices, Transport)`` chunks.
 
     The transport's own earthlight (the Earth's beams, its lit part, the Moon's and the
     Earth's shadows) evaluated at the vertices, on the exact sphere for the packaged icospheres
     (else at the vertex with its crease-limited normal). μ toward the detector is clipped at 0
     so that vertices just behind the limb carry the grazing value: whether a pixel sees the
     Moon is decided by its own ray. Linear interpolation of these point values between
-    vertices is second-order accurate."""
+    vertices is second-order accurate. Each vertex's value depends on that vertex alone, so the
+    camera asks only for the corners of the facets its rays meet (:func:`_facets_seen`)."""
     M = ts.moon
     v = M.vertices
     if M.mode(ts.settings.shading) == "exact":
@@ -187,12 +189,28 @@ def _vertex_transports(ts):
         nrm = acc / np.linalg.norm(acc, axis=1, keepdims=True)
     order = ts.settings.earth_order
     det = ts.scene.det
-    for a in range(0, len(v), CHUNK // 8):
-        sl = slice(a, a + CHUNK // 8)
+    for a in range(0, len(which), CHUNK // 8):
+        sl = which[a:a + CHUNK // 8]
         xs, ns = x[sl], nrm[sl]
         o = unit(det - xs)
         mu = np.clip(np.einsum("ij,ij->i", ns, o), 0.0, 1.0)
         yield sl, ts.deterministic.beam_transport(xs, ns, o, mu, np.ones(len(mu)), "earth", order)
+
+
+def _facets_seen(ts, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """The facets of the Moon's mesh that the camera's rays ``dirs`` meet (indices, sorted): the
+    earthshine is needed only at their corners (the far side and the Moon outside the field of
+    view take none). A superset of what the image shades: the sight-line test against the Earth
+    and the relief comes later."""
+    M = ts.moon
+    exact = M.mode(ts.settings.shading) == "exact"
+    seen = np.zeros(len(M.faces), dtype=bool)
+    for a in range(0, len(dirs), CHUNK):
+        d = dirs[a:a + CHUNK]
+        o = np.broadcast_to(origin, d.shape)
+        hits = M.sphere_hits(o, d) if exact else M.intersect(o, d)
+        seen[hits.prim[hits.prim >= 0]] = True
+    return np.flatnonzero(seen)
 
 
 def _barycentric(tri, p):
@@ -271,7 +289,8 @@ def synthesize(geometry: SceneGeometry, fields: dict, trace: TraceSettings, brdf
     pix_omega = np.zeros(H * W)
     np.add.at(pix_omega, rr * W + cc, omega * cosd)
     params = shading.factors
-    vfield = shading.earth_vertex_fields(_vertex_transports(ts), len(M.vertices))
+    corners = np.unique(M.faces[_facets_seen(ts, sc.det, dirs)])
+    vfield = shading.earth_vertex_fields(_vertex_transports(ts, corners), len(M.vertices))
     order = trace.sun_order
     n_disc = n_lit = 0
     origin = sc.det

@@ -85,6 +85,7 @@ class ResolvedScene:
     traced_earth_mapped = tolerance.traced_earth_mapped
     mapped_earth_row_bound = tolerance.mapped_earth_row_bound
     expected_mapped_part = tolerance.expected_mapped_part
+    expected_mapped_level = tolerance.expected_mapped_level
 
     @property
     def earth_uniform(self) -> bool:

@@ -56,12 +56,15 @@ def reference_earth_pole(scene) -> str:
 
 
 
-def trace_plan(scene, theta: float | None = None, mapped_part: float | None = None) -> dict:
+def trace_plan(scene, theta: float | None = None, mapped_part: float | None = None,
+               mapped_level: int | None = None) -> dict:
     """What the tolerance chooses for the ray tracer: ``settings`` (the options left unset,
     and ``lune_order``) and ``bounds`` ({(sample kind, path): bound},
     :func:`lunarviz.methods.accuracy.trace_choice`). ``mapped_part``: a mapped Earth's expected
     part of the task's rows' bounds (:func:`expected_mapped_part`), which sets the earthshine's
-    lunar-side tolerance (:func:`mapped_lunar_tolerance`). Monte Carlo: the rays, where a tolerance
+    lunar-side tolerance (:func:`mapped_lunar_tolerance`), at the mapped Earth's level
+    ``mapped_level`` (:func:`expected_mapped_level`; the asked or default level without one).
+    Monte Carlo: the rays, where a tolerance
     is given and the rays are not. No model: a user's Moon mesh, a mapped or physical Earth
     (bounds empty; an explicit tolerance is refused for a user's Moon mesh). ``theta`` [deg]:
     the task's θ, where a model was measured phase by phase (the mapped lune rule's)."""
@@ -122,7 +125,7 @@ def trace_plan(scene, theta: float | None = None, mapped_part: float | None = No
     if pole:  # the Earth's rule about the zero-phase point, its order and bound
         _zero_phase_earth(scene, settings, fixed, bounds)
     elif mapped_earth and bounds:  # the mapped Earth's facets: their level (their bound is each row's)
-        _mapped_earth(scene, settings)
+        _mapped_earth(scene, settings, mapped_level)
     return {"settings": settings, "bounds": bounds}
 
 
@@ -134,11 +137,26 @@ def traced_earth_mapped(scene) -> bool:
     return scene.mapped_earth == "facets" and scene.earth_model().varies(in_colour=scene.spectral_request() is not None)
 
 
-def _mapped_earth(scene, settings: dict) -> None:
-    """A mapped Earth's facets: the level asked for, else the default, which the plan states
-    (``settings["earth_level"]``). Its error depends on each row's own albedos and light
-    (:func:`mapped_earth_row_bound`), so the plan's earthshine bounds stay the lunar side's."""
-    settings["earth_level"] = scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
+def _mapped_earth(scene, settings: dict, level: int | None = None) -> None:
+    """A mapped Earth's facets: ``level`` (the task's, :func:`expected_mapped_level`), else the
+    level asked for or the default, which the plan states (``settings["earth_level"]``). Its
+    error depends on each row's own albedos and light (:func:`mapped_earth_row_bound`), so the
+    plan's earthshine bounds stay the lunar side's."""
+    settings["earth_level"] = level if level is not None else _asked_earth_level(scene)
+
+
+def _asked_earth_level(scene) -> int:
+    return scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
+
+
+#: The least share of the earthshine's tolerance its lunar side takes beside a mapped Earth
+#: (:func:`mapped_lunar_tolerance`): a thinner one costs lune orders of 64-96
+LEAST_LUNAR_SHARE = 0.2
+
+#: The mapped Earth's finest level that a task takes where the default leaves its lunar side less
+#: than :data:`LEAST_LUNAR_SHARE` (:func:`expected_mapped_level`; its error model's finest, 4x
+#: the default's transport time)
+FINEST_MAPPED_LEVEL = 7
 
 
 #: A mapped Earth's expected part of a row's bound (:func:`expected_mapped_part`) is taken this
@@ -163,7 +181,7 @@ def mapped_lunar_tolerance(rtol: float, part: float | None) -> float:
     discrete: half's often meets less than half)."""
     if part is None or not math.isfinite(part) or MAPPED_PART_MARGIN * part >= rtol:
         return rtol / 2
-    return max(rtol - MAPPED_PART_MARGIN * part, rtol / 5)
+    return max(rtol - MAPPED_PART_MARGIN * part, LEAST_LUNAR_SHARE * rtol)
 
 
 #: The grid of :func:`expected_mapped_part`'s weights toward the Moon: rows of latitude (0.5° cells;
@@ -172,16 +190,37 @@ def mapped_lunar_tolerance(rtol: float, part: float | None) -> float:
 EXPECTED_PART_ROWS = 360
 
 
-def expected_mapped_part(scene, sc, albedos: dict, averages=(None,)) -> float | None:
+def expected_mapped_level(scene, sc, albedos: dict, averages=(None,)) -> tuple[int, float | None]:
+    """A task's mapped Earth level and its expected part of the rows' bounds
+    (:func:`expected_mapped_part`): the level asked for (``--earth-level``); else the coarsest
+    from the default up to :data:`FINEST_MAPPED_LEVEL` whose part leaves the earthshine's lunar
+    side at least :data:`LEAST_LUNAR_SHARE` of the tolerance, so that the rows can meet it (a
+    thin crescent's map errs most: at θ = 17° from Big Bear level 6 left the rows 1.1e-4 at
+    1e-4). The default where none does (the rows exceed the tolerance at any level, as a clear
+    sky's map does at 1e-4: no finer level is paid for them) or no model covers the map."""
+    level = _asked_earth_level(scene)
+    part = expected_mapped_part(scene, sc, albedos, averages, level)
+    limit = (1.0 - LEAST_LUNAR_SHARE) * scene.rtol_or_default
+    if scene.earth_level is not None or part is None or MAPPED_PART_MARGIN * part <= limit:
+        return level, part
+    for finer in range(level + 1, FINEST_MAPPED_LEVEL + 1):
+        got = expected_mapped_part(scene, sc, albedos, averages, finer)
+        if got is not None and MAPPED_PART_MARGIN * got <= limit:
+            return finer, got
+    return level, part
+
+
+def expected_mapped_part(scene, sc, albedos: dict, averages=(None,), level: int | None = None) -> float | None:
     """A mapped Earth's expected part of the bounds of a task's rows (relative, the largest over
     its outputs and its BRDFs' groups): :func:`lunarviz.methods.accuracy.mapped_earth_error` at
-    the Earth's level, each component's light taken as its weight toward the Moon's centre on a
+    the Earth's ``level`` (the asked or default one without it), each component's light taken as
+    its weight toward the Moon's centre on a
     Lambert Earth lit by a point Sun (:func:`lunarviz.surfaces.earth_spectra.weights_toward`;
     ``sc``: the task's :class:`~lunarviz.geometry.scene_geometry.SceneGeometry`). ``albedos``:
     each component's albedo, one value or per node (a spectral run's, with ``averages`` mapping
     node values to each output's). ``None`` where the error model does not cover the map or θ
     for every BRDF of the run, or no light reaches the Moon."""
-    level = scene.earth_level if scene.earth_level is not None else DEFAULT_LEVELS["earth"]
+    level = _asked_earth_level(scene) if level is None else level
     groups = {accuracy.peaks_at_zero_phase(b) for b in scene.brdf_models().values()}  # (Hapke or Lambert tables)
     tables = [accuracy.mapped_earth_epsilon(level, scene.earth_model(), hapke, sc.theta_deg) for hapke in groups]
     if any(eps is None or set(albedos) - set(eps) for eps in tables):

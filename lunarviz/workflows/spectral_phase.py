@@ -83,10 +83,10 @@ def _task_rows(settings, sc, base: dict, threads) -> list[dict]:
         from lunarviz.methods.tracer.estimators import TraceScene, trace_path
         # once per task: the settings and the bounds both come from it (beside a mapped Earth, its
         # part expected on this date, output by output, sets the earthshine's lunar-side tolerance)
-        part = settings.expected_mapped_part(sc, dict(zip(names, albedo)), [
+        level, part = settings.expected_mapped_level(sc, dict(zip(names, albedo)), [
             lambda v, o=o: req.averages(v)[o] for o in range(len(req.labels))]) \
-            if mapped and settings.traced_earth_mapped() else None
-        plan = settings.trace_plan(sc.theta_deg, part)
+            if mapped and settings.traced_earth_mapped() else (None, None)
+        plan = settings.trace_plan(sc.theta_deg, part, level)
         ts_set = settings.trace_settings(threads, plan)
         ts = TraceScene(sc, ts_set)
         ts.surfaces.earth_parts = names if mapped else None

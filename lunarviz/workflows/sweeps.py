@@ -127,7 +127,8 @@ def _traced_rows(settings: ResolvedScene, sc, base: dict, brdfs: dict, cal_setti
     # once per task: the settings and the bounds both come from it (beside a mapped Earth, its
     # part expected on this date sets the earthshine's lunar-side tolerance)
     expect = grey is not None and settings.estimator == "deterministic"  # (Monte Carlo's plan takes its rays alone)
-    plan = settings.trace_plan(sc.theta_deg, settings.expected_mapped_part(sc, grey) if expect else None)
+    level, part = settings.expected_mapped_level(sc, grey) if expect else (None, None)
+    plan = settings.trace_plan(sc.theta_deg, part, level)
     ts_set = settings.trace_settings(threads, plan)
     ts = TraceScene(sc, ts_set)
     ms = trace_path(ts, "moonshine", brdfs)
