@@ -21,16 +21,15 @@ Earth of albedo 1 against the exact Lambert-sphere rule on each date (≤ 1.4e-6
 8.2e-6 at θ = 10°), is added to every component's. Both sides take the same lunar points (the
 reference's outer rule at order 6 over the lunar sphere the Earth lights, seen from the date's
 detector): the error is the Earth's part alone (the lunar side has its own models). Dates: θ =
-20-160° of the paper's scene (the Earth turned 0°, 90°, 180° and 270°), four nights from Big Bear and four from
+20-160° of the paper's scene (the Earth turned every 45°, every 22.5° at 20°), four nights from Big Bear and four from
 Paranal, every 37th hour of 15 days from a 550 km orbit; dates whose Moon is hidden, whose Earth the
 Moon's shadow may touch, or outside θ = 5-175° are left out. Rows at θ = 20-160° take those
-dates' table; rows at 15-20° a table that adds θ = 15° of the paper's scene (the Earth turned
-eight ways: a held-out θ = 17.5° with the Earth turned 45° erred 1.2-1.5 times a table of four),
-rows at 10-15° one that adds 15° and 10° (a thinner crescent errs more: a row at 17° is not held
-to the error at 10°), rows at 160-170° one that adds θ = 170° (each side its own dates: θ =
+dates' table; rows at 15-20° a table that adds θ = 15° of the paper's scene, rows at 10-15° one
+that adds 15° and 10° (a thinner crescent errs more: a row at 17° is not held to the error at
+10°), rows at 160-170° one that adds θ = 170° (each side its own dates: θ =
 10° would loosen the 160-170° rows up to 7.7-fold). ``--tables-from FILE`` rebuilds the tables from
-an earlier run's stored dates (``mapped_earth.json``), measuring only the paper's scene at a θ that
-run lacks. A finer level is never
+an earlier run's stored dates (``mapped_earth.json``), measuring only the paper's scene at a θ or an
+Earth turn that run lacks. A finer level is never
 allowed more error than a coarser one (each table is made non-increasing). ``--write`` stores the table in
 ``lunarviz/data/error_models.json`` (key ``mapped_earth``); the report goes to
 ``benchmarks/error_models/mapped_earth.md`` and ``.json``.
@@ -60,16 +59,21 @@ OUTER_ORDER = 6
 #: dates, so neither loosens the other)
 CORE = (20.0, 160.0)
 BEYOND = ((15.0, 10.0), (170.0,))
+#: the steps [deg] of the paper's scene's Earth turns at θ ≤ 20° and beyond: an error peak as
+#: narrow as ±10° of turn (a coast along the disc's cells; 20x smaller 7.5° either side of it)
+#: slipped between turns 90° apart (θ = 20°, turned 67.5°: 2.6x the core table of four turns)
+ROTATION_STEP_DEG = (22.5, 45.0)
 GROUP = 2  # map cells a reference cell, each way
 
 
 def cases(quick: bool) -> list[tuple[str, str | float, float]]:
     """(observer, task key, Earth rotation [deg]) of the model: θ of the paper's scene, site nights,
     orbit hours."""
-    out = [("geocentre", th, rot) for th in ((30.0, 120.0) if quick else (20.0, 60.0, 100.0, 140.0, 160.0, 10.0, 170.0))
-           for rot in ((0.0,) if quick else (0.0, 90.0, 180.0, 270.0))]
-    if not quick:  # the band nearest the core's thin end: the Earth turned eight ways (its coasts)
-        out += [("geocentre", 15.0, rot) for rot in np.arange(0.0, 360.0, 45.0)]
+    if quick:
+        out = [("geocentre", th, 0.0) for th in (30.0, 120.0)]
+    else:  # the Earth turned every 22.5° at thin crescents, 45° elsewhere (its coasts under the disc's cells)
+        out = [("geocentre", th, rot) for th in (20.0, 60.0, 100.0, 140.0, 160.0, 15.0, 10.0, 170.0)
+               for rot in np.arange(0.0, 360.0, ROTATION_STEP_DEG[0] if th <= CORE[0] else ROTATION_STEP_DEG[1])]
     nights = 2 if quick else 4
     for obs in ("site:34.26,-116.92,2067", "site:-24.63,-70.40,2635"):
         for k in range(nights):
@@ -217,13 +221,18 @@ def band_tables(got: list, core: list) -> list:
     "epsilon"}]``, each band taking the core's dates and the paper's scene from the core's edge out
     to the band's far end."""
     bands = []
+    eps = 1e-6  # [deg] (θ of the paper's scene, computed: 15° may come back a hair under)
     for side, edges in zip((-1, 1), BEYOND):
         near = CORE[0] if side < 0 else CORE[1]
-        for edge in edges:
-            beyond = [r for r in got if (edge <= round(r["theta_deg"], 1) < CORE[0] if side < 0
-                                         else CORE[1] < round(r["theta_deg"], 1) <= edge)]
+        for i, edge in enumerate(edges):
+            last = i == len(edges) - 1  # (the farthest band takes every case beyond the core on its side)
+            beyond = [r for r in got if (r["theta_deg"] < CORE[0] and (last or r["theta_deg"] >= edge - eps)
+                                         if side < 0 else
+                                         r["theta_deg"] > CORE[1] and (last or r["theta_deg"] <= edge + eps))]
             if beyond:
-                bands.append({"theta_range_deg": sorted([edge, near]), "epsilon": model_table(core + beyond)})
+                th = [r["theta_deg"] for r in beyond]
+                far = min(edge, round(min(th), 1)) if side < 0 else max(edge, round(max(th), 1))
+                bands.append({"theta_range_deg": sorted([far, near]), "epsilon": model_table(core + beyond)})
             near = edge
     return bands
 

@@ -153,9 +153,9 @@ def _asked_earth_level(scene) -> int:
 #: (:func:`mapped_lunar_tolerance`): a thinner one costs lune orders of 64-96
 LEAST_LUNAR_SHARE = 0.2
 
-#: The mapped Earth's finest level that a task takes where the default leaves its lunar side less
-#: than :data:`LEAST_LUNAR_SHARE` (:func:`expected_mapped_level`; its error model's finest, 4x
-#: the default's transport time)
+#: The mapped Earth's finest level that a task takes where the default would not meet the
+#: tolerance (:func:`expected_mapped_level`; its error model's finest, 4x the default's
+#: transport time)
 FINEST_MAPPED_LEVEL = 7
 
 
@@ -193,21 +193,30 @@ EXPECTED_PART_ROWS = 360
 def expected_mapped_level(scene, sc, albedos: dict, averages=(None,)) -> tuple[int, float | None]:
     """A task's mapped Earth level and its expected part of the rows' bounds
     (:func:`expected_mapped_part`): the level asked for (``--earth-level``); else the coarsest
-    from the default up to :data:`FINEST_MAPPED_LEVEL` whose part leaves the earthshine's lunar
-    side at least :data:`LEAST_LUNAR_SHARE` of the tolerance, so that the rows can meet it (a
-    thin crescent's map errs most: at θ = 17° from Big Bear level 6 left the rows 1.1e-4 at
-    1e-4). The default where none does (the rows exceed the tolerance at any level, as a clear
-    sky's map does at 1e-4: no finer level is paid for them) or no model covers the map."""
+    from the default up to :data:`FINEST_MAPPED_LEVEL` with which the task is expected to meet the
+    tolerance (:func:`_expected_to_meet`: a thin crescent's map errs most, and from Big Bear at
+    θ = 17° in V level 6 left the row 1.36e-4 at 1e-4, level 7 9.3e-5). The default where none
+    is (the rows exceed the tolerance at any level: no finer level is paid for them) or no model
+    covers the map."""
     level = _asked_earth_level(scene)
     part = expected_mapped_part(scene, sc, albedos, averages, level)
-    limit = (1.0 - LEAST_LUNAR_SHARE) * scene.rtol_or_default
-    if scene.earth_level is not None or part is None or MAPPED_PART_MARGIN * part <= limit:
+    if scene.earth_level is not None or part is None or _expected_to_meet(scene, sc.theta_deg, part):
         return level, part
     for finer in range(level + 1, FINEST_MAPPED_LEVEL + 1):
         got = expected_mapped_part(scene, sc, albedos, averages, finer)
-        if got is not None and MAPPED_PART_MARGIN * got <= limit:
+        if got is not None and _expected_to_meet(scene, sc.theta_deg, got):
             return finer, got
     return level, part
+
+
+def _expected_to_meet(scene, theta: float, part: float) -> bool:
+    """Whether a task beside a mapped Earth expected to take ``part`` of its rows' bounds meets the
+    tolerance: its plan's lunar-side earthshine bound (:func:`trace_plan` with that part) plus
+    :data:`MAPPED_PART_MARGIN` times the part."""
+    plan = trace_plan(scene, theta, part)
+    kind = "lune" if plan["settings"].get("lune_order") is not None else "facets"
+    lunar = plan["bounds"].get((kind, "earthshine"))
+    return lunar is not None and lunar + MAPPED_PART_MARGIN * part <= scene.rtol_or_default
 
 
 def expected_mapped_part(scene, sc, albedos: dict, averages=(None,), level: int | None = None) -> float | None:
