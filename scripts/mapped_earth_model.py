@@ -2,6 +2,7 @@
 map's own cells.
 
     python scripts/mapped_earth_model.py [--write] [--quick] [--workers N] [--out DIR]
+    python scripts/mapped_earth_model.py --held-out     (cases never in the tables, against them)
 
 The tracer sums a mapped Lambert Earth per facet of its mesh and gathers the facets into cells of
 the Earth's disc seen from the Moon (:mod:`lunarviz.methods.tracer.mapped_earth`). This script
@@ -173,6 +174,70 @@ def one_case(case) -> dict | None:
     return out
 
 
+#: held-out cases (never in the tables): the paper's scene at θ and Earth turns between the
+#: model's (the thin crescents' narrow peaks of turn), and nights from Big Bear
+HELD_OUT = [("geocentre", th, rot) for th, rot in ((17.0, 67.5), (17.5, 78.75), (12.5, 56.25), (25.0, 67.5),
+                                                  (16.0, 11.25), (18.5, 146.25), (40.0, 112.5), (11.0, 191.25),
+                                                  (10.25, 33.75), (10.5, 33.75), (10.5, 11.25), (14.9, 67.5),
+                                                  (20.0, 33.75), (30.0, 67.5), (60.0, 22.5), (165.0, 67.5))] \
+    + [("site:34.26,-116.92,2067", key, 0.0) for key in ("2026-03-02T03:00:00Z", "2026-01-04T03:00:00Z")]
+
+
+def held_out_ratios(got: list, models: dict) -> list:
+    """Each held-out case's largest error over its table, per level: ``[{"observer", "key",
+    "earth_rotation_deg", "theta_deg", "levels": {level: [ratio, "map component BRDF"]}}]``. A
+    component with no error of its own is left out (its ratio would be the reference's own error
+    over the table)."""
+    out = []
+    for r in got:
+        table = next((t["epsilon"] for t in [models] + models["bands"]
+                      if t["theta_range_deg"][0] <= r["theta_deg"] <= t["theta_range_deg"][1]), None)
+        if table is None:
+            continue
+        worst = {}
+        for i, lv in enumerate(LEVELS):
+            for m, comps in r["levels"][lv]["errors_vs_albedo_1"].items():
+                for c, by_brdf in comps.items():
+                    for b, v in by_brdf.items():
+                        eps = table["lambert" if b == "lambert" else "hapke"][m][c][i]
+                        ratio = (v + r["reference_self_error"][b]) / eps if v > 0 else 0.0
+                        if ratio > worst.get(lv, [0.0])[0]:
+                            worst[lv] = [ratio, f"{m} {c} {b}"]
+        out.append({k: r[k] for k in ("observer", "key", "earth_rotation_deg", "theta_deg")} | {"levels": worst})
+    return out
+
+
+def held_out(a) -> int:
+    """``--held-out``: :data:`HELD_OUT` against the stored tables (``mapped_earth_held_out.md``)."""
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(a.workers) as ex:
+        got = [r for r in ex.map(one_case, HELD_OUT) if r is not None]
+    models = json.loads((ROOT / "lunarviz" / "data" / "error_models.json").read_text())["mapped_earth"]
+    rows = held_out_ratios(got, models)
+    res = {"rows": rows, "wall_s": time.perf_counter() - t0,
+           "command": "python scripts/mapped_earth_model.py --held-out"}
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "mapped_earth_held_out.json").write_text(json.dumps(res, indent=1) + "\n")
+    lines = ["# The mapped Earth's error model, held out", "",
+             f"`{res['command']}` ({len(rows)} cases, {res['wall_s']:.0f} s): cases never in the tables (the "
+             "paper's scene at θ and Earth turns between the model's; Big Bear nights), each component's error "
+             "against the map's own cells (the reference's own error added) over the table its θ takes, the largest "
+             "per level. Rows report twice the table.", "",
+             "| observer | date or θ | Earth turn [deg] | θ [deg] | "
+             + " | ".join(f"level {lv}" for lv in LEVELS) + " |",
+             "|---|---|---|---|" + "---|" * len(LEVELS)]
+    for r in rows:
+        lines.append(f"| {r['observer']} | {r['key']} | {r['earth_rotation_deg']:g} | {r['theta_deg']:.1f} | "
+                     + " | ".join(f"{r['levels'][lv][0]:.2f} ({r['levels'][lv][1]})" if lv in r["levels"] else "-"
+                                  for lv in LEVELS) + " |")
+    worst = {lv: max((r["levels"][lv][0] for r in rows if lv in r["levels"]), default=0.0) for lv in LEVELS}
+    lines += ["", "Largest: " + ", ".join(f"level {lv} {w:.2f}" for lv, w in worst.items())]
+    (out / "mapped_earth_held_out.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
 def model_table(got: list) -> dict:
     """{"lambert" | "hapke": {map: {component: [ε at each level]}}}: the largest over dates and the
     group's BRDFs (Lambert; the Hapke BRDFs, whose opposition surge the disc's cells resolve least)
@@ -258,7 +323,11 @@ def measured_cases(a) -> tuple[list, float]:
 
 def main(argv=None) -> int:
     ap = model_arguments(__doc__.splitlines()[0])
+    ap.add_argument("--held-out", action="store_true",
+                    help="check cases never in the tables against them (mapped_earth_held_out.md)")
     a = ap.parse_args(argv)
+    if a.held_out:
+        return held_out(a)
     got, wall = measured_cases(a)
     core = [r for r in got if CORE[0] <= r["theta_deg"] <= CORE[1]]
     table = model_table(core)

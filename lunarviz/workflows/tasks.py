@@ -65,7 +65,7 @@ def view_data(scene, key, brdf: str, quick: bool | str = False) -> ViewData:
         "point_source_earthshine_W_m2": pt.earthshine_W_m2,
         "rays": fr.totals["rays"],
         "earth_visible_lit_albedo": fr.totals.get("earth_visible_lit_albedo", float("nan")),
-        "error_note": "deterministic: within the tolerance against the exact reference (docs: accuracy)"
+        "error_note": "deterministic, at the tolerance's settings: a sweep's rtol gives the bound (docs: accuracy)"
         if fr.info["estimator"] == "deterministic" else "Monte Carlo: see std in sweep",
     }
     return ViewData(fr, sample_ray_paths(sc, scene.trace_settings(), n=10), numbers)
