@@ -184,14 +184,15 @@ HELD_OUT = [("geocentre", th, rot) for th, rot in ((17.0, 67.5), (17.5, 78.75), 
 
 
 def held_out_ratios(got: list, models: dict) -> list:
-    """Each held-out case's largest error over its table, per level: ``[{"observer", "key",
+    """Each held-out case's largest error over the table its θ takes
+    (:func:`lunarviz.methods.accuracy.mapped_earth_tables`), per level: ``[{"observer", "key",
     "earth_rotation_deg", "theta_deg", "levels": {level: [ratio, "map component BRDF"]}}]``. A
     component with no error of its own is left out (its ratio would be the reference's own error
     over the table)."""
+    from lunarviz.methods.accuracy import mapped_earth_tables
     out = []
     for r in got:
-        table = next((t["epsilon"] for t in [models] + models["bands"]
-                      if t["theta_range_deg"][0] <= r["theta_deg"] <= t["theta_range_deg"][1]), None)
+        table = mapped_earth_tables(r["theta_deg"], models)
         if table is None:
             continue
         worst = {}

@@ -355,6 +355,7 @@ def test_a_thin_crescents_mapped_earth_takes_the_finer_level_its_tolerance_needs
     tests nothing); the task takes level 7, whose row meets 1e-4 (9.3e-5). Asked for, a level is
     kept."""
     import lunarviz.methods.tracer.estimators as estimators
+    from lunarviz.methods import accuracy
     from lunarviz.scene import resolved, tolerance
     levels, facets = [], []
     plan = tolerance.trace_plan
@@ -379,10 +380,5 @@ def test_a_thin_crescents_mapped_earth_takes_the_finer_level_its_tolerance_needs
     assert 16.5 < row["theta_deg"] < 17.5 and levels == [7, 6] and facets == [20 * 4**7, 20 * 4**6]
     assert row["rtol"] <= 1e-4 < asked["rtol"]
     assert row["earthshine_W_m2"] == pytest.approx(asked["earthshine_W_m2"], rel=asked["rtol"])
-    # below the level the tolerance needs, the rule steps up; never past the model's finest
-    assert tolerance.FINEST_MAPPED_LEVEL == max(accuracy_levels())
-
-
-def accuracy_levels() -> list:
-    from lunarviz.methods.accuracy import error_models
-    return error_models()["mapped_earth"]["levels"]
+    # the rule steps up to the error model's finest level, never past it
+    assert tolerance.FINEST_MAPPED_LEVEL == max(accuracy.error_models()["mapped_earth"]["levels"])

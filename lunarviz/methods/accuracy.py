@@ -373,9 +373,7 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool, theta_deg: float) -> 
     table = error_models().get("mapped_earth")
     if table is None or surface.physical or level not in table["levels"]:
         return None
-    # the core dates' table, or beyond their θ the band's (those dates and the paper's scene there)
-    eps = next((t["epsilon"] for t in [table] + table.get("bands", [])
-                if t["theta_range_deg"][0] <= theta_deg <= t["theta_range_deg"][1]), None)
+    eps = mapped_earth_tables(theta_deg, table)
     if eps is None:
         return None
     maps = eps["hapke" if hapke else "lambert"]
@@ -384,6 +382,14 @@ def mapped_earth_epsilon(level: int, surface, hapke: bool, theta_deg: float) -> 
         return None
     i = table["levels"].index(level)
     return {c: float(e[i]) for c, e in maps[key].items()}
+
+
+def mapped_earth_tables(theta_deg: float, model: dict) -> dict | None:
+    """The ε tables of a mapped Earth's error ``model`` (``mapped_earth`` in the models) that rows
+    at θ [deg] take: the core dates' within their θ, beyond it a band's (those dates and the
+    paper's scene there), the first whose range holds θ; ``None`` outside every range."""
+    return next((t["epsilon"] for t in [model] + model.get("bands", [])
+                 if t["theta_range_deg"][0] <= theta_deg <= t["theta_range_deg"][1]), None)
 
 
 def mapped_earth_unmeasured(theta_deg: float) -> str:

@@ -58,16 +58,16 @@ def reference_earth_pole(scene) -> str:
 
 def trace_plan(scene, theta: float | None = None, mapped_part: float | None = None,
                mapped_level: int | None = None) -> dict:
-    """What the tolerance chooses for the ray tracer: ``settings`` (the options left unset,
-    and ``lune_order``) and ``bounds`` ({(sample kind, path): bound},
+    """What the tolerance chooses for the ray tracer: ``settings`` (the options left unset, and
+    ``lune_order``) and ``bounds`` ({(sample kind, path): bound},
     :func:`lunarviz.methods.accuracy.trace_choice`). ``mapped_part``: a mapped Earth's expected
     part of the task's rows' bounds (:func:`expected_mapped_part`), which sets the earthshine's
     lunar-side tolerance (:func:`mapped_lunar_tolerance`), at the mapped Earth's level
     ``mapped_level`` (:func:`expected_mapped_level`; the asked or default level without one).
-    Monte Carlo: the rays, where a tolerance
-    is given and the rays are not. No model: a user's Moon mesh, a mapped or physical Earth
-    (bounds empty; an explicit tolerance is refused for a user's Moon mesh). ``theta`` [deg]:
-    the task's θ, where a model was measured phase by phase (the mapped lune rule's)."""
+    Monte Carlo: the rays, where a tolerance is given and the rays are not. No model: a user's
+    Moon mesh, a mapped or physical Earth (bounds empty; an explicit tolerance is refused for a
+    user's Moon mesh). ``theta`` [deg]: the task's θ, where a model was measured phase by phase
+    (the mapped lune rule's)."""
     none = {"settings": {}, "bounds": {}}
     if scene.method != "raytrace":
         return none
@@ -220,15 +220,15 @@ def _expected_to_meet(scene, theta: float, part: float) -> bool:
 
 
 def expected_mapped_part(scene, sc, albedos: dict, averages=(None,), level: int | None = None) -> float | None:
-    """A mapped Earth's expected part of the bounds of a task's rows (relative, the largest over
-    its outputs and its BRDFs' groups): :func:`lunarviz.methods.accuracy.mapped_earth_error` at
-    the Earth's ``level`` (the asked or default one without it), each component's light taken as
-    its weight toward the Moon's centre on a
-    Lambert Earth lit by a point Sun (:func:`lunarviz.surfaces.earth_spectra.weights_toward`;
-    ``sc``: the task's :class:`~lunarviz.geometry.scene_geometry.SceneGeometry`). ``albedos``:
-    each component's albedo, one value or per node (a spectral run's, with ``averages`` mapping
-    node values to each output's). ``None`` where the error model does not cover the map or θ
-    for every BRDF of the run, or no light reaches the Moon."""
+    """A mapped Earth's expected part of the bounds of a task's rows (relative, the largest over its
+    outputs and its BRDFs' groups): :func:`lunarviz.methods.accuracy.mapped_earth_error` at the
+    Earth's ``level`` (the asked or default one without it), each component's light taken as its
+    weight toward the Moon's centre on a Lambert Earth lit by a point Sun
+    (:func:`lunarviz.surfaces.earth_spectra.weights_toward`; ``sc``: the task's
+    :class:`~lunarviz.geometry.scene_geometry.SceneGeometry`). ``albedos``: each component's
+    albedo, one value or per node (a spectral run's, with ``averages`` mapping node values to
+    each output's). ``None`` where the error model does not cover the map or θ for every BRDF of
+    the run, or no light reaches the Moon."""
     level = _asked_earth_level(scene) if level is None else level
     groups = {accuracy.peaks_at_zero_phase(b) for b in scene.brdf_models().values()}  # (Hapke or Lambert tables)
     tables = [accuracy.mapped_earth_epsilon(level, scene.earth_model(), hapke, sc.theta_deg) for hapke in groups]
