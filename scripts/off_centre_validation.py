@@ -66,6 +66,78 @@ def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
                                         observers=OBSERVERS)
 
 
+#: the orbit of the view-cut dates, its epoch fixed (so a date's place on it does not depend on the run)
+CUT_ORBIT = "orbit:550,97.6,0,0,2026-01-01T00:00Z"
+#: hidden shares of the Moon's disc the view-cut dates aim at (the Earth's limb or a horizon across it)
+CUT_SHARES = (0.1, 0.5, 0.9)
+
+
+def _hidden_share(obs: str, when: dt.datetime) -> float:
+    """The share of the Moon's disc hidden from ``obs`` at ``when``: behind a site's horizon (the disc's
+    segment below the plane) or the Earth's disc (two caps' overlap on the sky, closed form)."""
+    import numpy as np
+
+    from lunarviz.geometry.scene_geometry import angle_between
+    from lunarviz.scene import ResolvedScene
+    label = when.strftime("%Y-%m-%dT%H:%M:%SZ")
+    sc = ResolvedScene(method="raytrace", observer=obs, times=(label,)).geometry(label)
+    v = sc.moon - sc.det
+    rho = float(np.arcsin(sc.radii["moon"] / np.linalg.norm(v)))
+    if sc.horizon_normal is not None:  # the disc's share below the plane (a flat segment: small disc)
+        h = -float(np.dot(v, sc.horizon_normal)) / np.linalg.norm(v) / np.sin(rho)
+        h = min(1.0, max(-1.0, h))
+        return float((np.arccos(-h) - (-h) * np.sqrt(1 - h * h)) / np.pi)
+    w = sc.earth - sc.det
+    alpha = float(np.arcsin(sc.radii["earth"] / np.linalg.norm(w)))
+    g = float(angle_between(v, w))
+    if g >= rho + alpha:
+        return 0.0
+    if g <= alpha - rho:
+        return 1.0
+    c1, c2, cg, s1, s2, sg = np.cos(rho), np.cos(alpha), np.cos(g), np.sin(rho), np.sin(alpha), np.sin(g)
+    lens = 2 * (np.pi - np.arccos((cg - c1 * c2) / (s1 * s2)) - c1 * np.arccos((c2 - cg * c1) / (sg * s1))
+                - c2 * np.arccos((c1 - cg * c2) / (sg * s2)))
+    return float(lens / (2 * np.pi * (1 - c1)))
+
+
+def view_cut_dates(count: int) -> list[tuple[str, str]]:
+    """Dates with the Earth's limb (:data:`CUT_ORBIT`) or a site's horizon across the Moon's disc,
+    hiding :data:`CUT_SHARES` of it: from ``count`` starts (every 613 h from 2026-01-04T02:00 for the
+    orbit, every 17 days from 2026-01-06 for each site) the first minute the share changes, then the
+    second where it passes each aim (bisection on whole seconds)."""
+    out = []
+    orbit = [dt.datetime(2026, 1, 4, 2) + dt.timedelta(hours=613 * k) for k in range(count)]
+    nights = [dt.datetime(2026, 1, 6) + dt.timedelta(days=17 * k) for k in range(count)]
+    # (observer, starts, minutes scanned, step [min]): an orbit's limb crosses the Moon within its period
+    scans = [(CUT_ORBIT, orbit, 100, 1), *[(site, nights, 1440, 2) for site in OBSERVERS[1:]]]
+    for obs, starts, span, step in scans:
+        for t0 in starts:
+            prev = _hidden_share(obs, t0)
+            for m in range(step, span, step):
+                t1 = t0 + dt.timedelta(minutes=m)
+                cur = _hidden_share(obs, t1)
+                if cur != prev:
+                    break
+                prev = cur
+            else:
+                continue
+            for aim in CUT_SHARES:  # bisect the minute for the second the share passes the aim
+                lo, hi = t1 - dt.timedelta(minutes=step), t1
+                rising = cur > prev
+                if not (min(prev, cur) < aim < max(prev, cur)):
+                    lo, hi = t1 - dt.timedelta(minutes=step), t1 + dt.timedelta(minutes=step)
+                for _ in range(12):
+                    mid = lo + (hi - lo) / 2
+                    if (_hidden_share(obs, mid) < aim) == rising:
+                        lo = mid
+                    else:
+                        hi = mid
+                when = lo.replace(microsecond=0)
+                if 0.0 < _hidden_share(obs, when) < 1.0:
+                    out.append((obs, when.strftime("%Y-%m-%dT%H:%M:%SZ")))
+    return out
+
+
 def reference(s, label: str, moon: str, spectral: bool, lune_order: int) -> dict:
     """{(brdf, path): value} of the high-order reference for one date: the exact reference at
     48/12 (the paper's Moon, grey), else the tracer at high orders (its plan replaced: lune rule
@@ -140,9 +212,13 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-order", type=int, default=None,
                     help="the reference's lune order (default: 64 at --rtol 1e-4 and above, else 128)")
     ap.add_argument("--spectral-every", type=int, default=4, help="the 550 nm rows on one computed date in this many")
+    ap.add_argument("--view-cut", type=int, default=None, metavar="N",
+                    help="instead: dates with the Earth's limb or a horizon across the Moon's disc, from N starts "
+                         "per observer (view_cut_dates); writes off_centre_validation_view_cut_RTOL.*")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
     a = ap.parse_args(argv)
-    live = [d for d in dates(a.every_hours, a.nights) if computed(*d)]
+    chosen = view_cut_dates(a.view_cut) if a.view_cut else dates(a.every_hours, a.nights)
+    live = [d for d in chosen if computed(*d)]
     lights = [(False, True) if i % a.spectral_every == 0 else (False,) for i in range(len(live))]
     order = a.reference_order or reference_lune_order(a.rtol)
     jobs = [(obs, t, moon, spec, a.rtol, order) for (obs, t), specs in zip(live, lights)
@@ -153,7 +229,7 @@ def main(argv=None) -> int:
     checked = [r for r in rows if "error" in r]
     unbounded = [r for r in rows if "error" not in r]
     worst = max(checked, key=lambda r: r["ratio"]) if checked else None
-    tag = f"{a.rtol:g}"
+    tag = ("view_cut_" if a.view_cut else "") + f"{a.rtol:g}"
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     cmd = "python scripts/off_centre_validation.py " + " ".join(argv or sys.argv[1:])

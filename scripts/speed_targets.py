@@ -1,6 +1,7 @@
 """The speed targets, measured end to end through the command line (wall time, this machine).
 
-    python scripts/speed_targets.py [--quick] [--skip-year] [--skip-paper] [--out DIR]
+    python scripts/speed_targets.py [--quick] [--skip-year] [--skip-paper] [--skip-sweep]
+                                    [--skip-mapped-year] [--skip-paper-year] [--out DIR]
 
 1. The paper sweep at ``--rtol 1e-5`` (37 phases × 3 BRDFs × both paths, no occlusion): wall
    time of ``lunarviz sweep`` (best and median of 3, a fresh process each: imports included), and
@@ -218,6 +219,7 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-year", action="store_true")
     ap.add_argument("--skip-paper", action="store_true")
     ap.add_argument("--skip-paper-year", action="store_true", help="keep the year with the paper's DHG as it is")
+    ap.add_argument("--skip-mapped-year", action="store_true", help="keep the mapped Moon's dates as they are")
     ap.add_argument("--mapped-days", type=int, default=365, help="days of the mapped Moon's hourly dates")
     ap.add_argument("--mapped-every", type=int, default=1,
                     help="the mapped Moon's dates on one day in this many (all its hours; default every day)")
@@ -233,7 +235,8 @@ def main(argv=None) -> int:
         res["paper_sweep"] = paper_sweep(out, a.quick)
     if not a.skip_year:  # the benchmark command (a mapped, rough Moon); the same year with the paper's DHG
         key = "year_mapped_moon" if a.mapped_every == 1 else "year_mapped_moon_sample"  # (both kept)
-        res[key] = year_of_dates(out, a.quick, "rolo-fit-map", days=a.mapped_days, every=a.mapped_every)
+        if not a.skip_mapped_year:
+            res[key] = year_of_dates(out, a.quick, "rolo-fit-map", days=a.mapped_days, every=a.mapped_every)
         if not a.skip_paper_year:
             res["year"] = year_of_dates(out, a.quick, "paper", days=365)
     if not a.skip_paper:

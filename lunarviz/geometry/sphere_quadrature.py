@@ -60,7 +60,8 @@ def _gauss_legendre(n: int):
 
 def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int = 16,
              n_phi: int = 16, phi_zero=None, crossings: bool = False,
-             structured: bool = False, kink=None, thin=None, graded: bool = False):
+             structured: bool = False, kink=None, thin=None, graded: bool = False, ring_cap=None,
+             near_pole: bool = False):
     """Nodes and solid-angle weights over ``{n·axis ≥ cos_max} ∩ caps``, for a batch.
 
     Parameters
@@ -89,6 +90,13 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
         (:func:`_thin_orders`), take ``order`` Gauss points that way instead of ``n_t``/``n_phi``;
         their unused slots have zero weight.
 
+    ring_cap : ``(u, c_of_t)`` or None (B = 1 only): one more constraint ``n·u > c_of_t(t)``, its
+        threshold a function of the ring's t: no circle on the sphere, but on each ring about
+        ``axis`` a circle's points (the Earth's limb seen from a detector near it, on the lunar
+        sphere about that detector); tangents and crossings found numerically (:func:`_ring_cap_cuts`).
+    near_pole : also cut at 2, 4, 8, ... times each tangent ring's radius t* < t_max/8 (B = 1):
+        a boundary passing t* from the pole leaves the ring integral a singularity at t = 0, t*
+        before its segment, where Gauss-Legendre converges ~ (1 + √(t*/L))^-2n.
     graded : also grade the t-segments toward a tangent ring just outside them
         (:func:`_cap_rings`): where a crossing ring lies next to a tangent one (a thin crescent's
         horns seen about a pole off its centre). Without it, the rule is the one
@@ -104,15 +112,7 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     axis = np.asarray(axis, dtype=float)
     B = axis.shape[0]
     cos_max = np.broadcast_to(np.asarray(cos_max, dtype=float), (B,))
-    if caps_u is None:
-        caps_u = np.zeros((B, 0, 3))
-        caps_c = np.zeros((B, 0))
-    caps_u = np.asarray(caps_u, dtype=float)
-    caps_c = np.asarray(caps_c, dtype=float)
-    k = caps_u.shape[1]
-    if split_only is None:
-        split_only = np.zeros((B, k), dtype=bool)
-    split_only = np.broadcast_to(np.asarray(split_only, dtype=bool), (B, k))
+    caps_u, caps_c, split_only, k = _rule_caps(B, caps_u, caps_c, split_only, ring_cap, thin)
     e1, e2 = polar_basis(axis, phi_zero)
     t_max = np.arccos(np.clip(cos_max, -1.0, 1.0))
     # cap geometry in the polar frame
@@ -123,16 +123,20 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     phi_u = np.arctan2(u2, u1)
     caps_c, split_only, t_u, phi_u, extra, tangent = _cuts(axis, caps_u, caps_c, split_only, t_u, phi_u, t_max,
                                                            crossings, kink)
+    ring = None if ring_cap is None else (k, ring_cap[1])
+    if ring is not None:
+        extra, tangent = _ring_cap_cuts(ring, caps_c, t_u, phi_u, t_max, extra, tangent)
+    extra, tangent = _near_pole_cuts(t_u, caps_c, t_max, extra, tangent) if near_pole else (extra, tangent)
     t_orders = None
     if thin is not None:  # the blocks at full order first: their widths and shares of the region
         t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent, graded=graded)
-        p_lo, p_hi, inside = _ring_intervals(np.sin(t), np.cos(t), t_u, phi_u, _ring_thresholds(caps_c, kink, t),
+        p_lo, p_hi, inside = _ring_intervals(np.sin(t), np.cos(t), t_u, phi_u, _ring_thresholds(caps_c, kink, t, ring),
                                              split_only)
         t_orders, phi_orders = _thin_orders(t_u, caps_c, t_max, extra, tangent, t, wt, phi_u, split_only, kink,
                                             p_lo, p_hi, inside, n_t, n_phi, thin)
     t, wt = _cap_rings(t_u, caps_c, t_max, n_t, extra, tangent, t_orders, graded=graded)
     st, ct = np.sin(t), np.cos(t)
-    p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t), split_only)
+    p_lo, p_hi, inside = _ring_intervals(st, ct, t_u, phi_u, _ring_thresholds(caps_c, kink, t, ring), split_only)
     fx, fw = gauss_legendre(n_phi)
     if thin is not None:
         fx, fw = _padded_gauss(n_phi, np.repeat(phi_orders, n_t, axis=1))  # (B, R, I, n_phi)
@@ -154,6 +158,28 @@ def cap_rule(axis, cos_max, caps_u=None, caps_c=None, split_only=None, n_t: int 
     if structured:
         return nodes, w
     return nodes.reshape(B, -1, 3), w.reshape(B, -1)
+
+
+def _rule_caps(B: int, caps_u, caps_c, split_only, ring_cap, thin):
+    """:func:`cap_rule`'s caps as arrays ``(caps_u (B, k'), caps_c, split_only, k)``: none given,
+    none; the ring cap appended as one more column (static threshold 2, so the closed forms skip
+    it; its index ``k``, the number of caps given)."""
+    if caps_u is None:
+        caps_u = np.zeros((B, 0, 3))
+        caps_c = np.zeros((B, 0))
+    caps_u = np.asarray(caps_u, dtype=float)
+    caps_c = np.asarray(caps_c, dtype=float)
+    k = caps_u.shape[1]
+    if split_only is None:
+        split_only = np.zeros((B, k), dtype=bool)
+    split_only = np.broadcast_to(np.asarray(split_only, dtype=bool), (B, k))
+    if ring_cap is not None:
+        if B != 1 or thin is not None:
+            raise ValueError("a ring cap takes one rule (B = 1), without thin blocks")
+        caps_u = np.concatenate([caps_u, np.asarray(ring_cap[0], dtype=float).reshape(1, 1, 3)], axis=1)
+        caps_c = np.concatenate([caps_c, [[2.0]]], axis=1)
+        split_only = np.concatenate([split_only, [[False]]], axis=1)
+    return caps_u, caps_c, split_only, k
 
 
 def _inside_intervals(st, ct, wt, p_lo, p_hi, inside):
@@ -249,14 +275,9 @@ def _with_kink(kink, caps_c, split_only, t_u, phi_u, t_max):
     fns += [(lambda t, c=c: kink_threshold(t, a_s, a_d) - c, False) for c in same]  # crossings
     roots, flags = [], []
     for f, tangent in fns:
-        v = f(grid)
-        for i in np.flatnonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0):
-            lo, hi = grid[i], grid[i + 1]
-            for _ in range(60):  # bisection to rounding
-                mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if np.sign(f(mid)) == np.sign(f(lo)) else (lo, mid)
-            roots.append(0.5 * (lo + hi))
-            flags.append(tangent)
+        found = _sign_roots(f, grid)
+        roots += found
+        flags += [tangent] * len(found)
     return (np.concatenate([caps_c, [[2.0]]], axis=1), np.concatenate([split_only, [[True]]], axis=1),
             np.concatenate([t_u, t_u[:, :1]], axis=1), np.concatenate([phi_u, phi_u[:, :1]], axis=1),
             np.array([roots]).reshape(1, -1), np.array([flags], bool).reshape(1, -1))
@@ -274,12 +295,83 @@ def _cuts(axis, caps_u, caps_c, split_only, t_u, phi_u, t_max, crossings: bool, 
     return caps_c, split_only, t_u, phi_u, extra, tangent
 
 
-def _ring_thresholds(caps_c, kink, t):
-    """Thresholds per ring (B, R, k): the caps' own, and the kink curve's at each ring's t."""
+def _ring_thresholds(caps_c, kink, t, ring=None):
+    """Thresholds per ring (B, R, k): the caps' own, the kink curve's at each ring's t, and the
+    ring cap's (``ring``: its column and its threshold's function of t)."""
     c = np.broadcast_to(caps_c[:, None, :], (t.shape[0], t.shape[1], caps_c.shape[1])).copy()
     if kink is not None:
         c[:, :, -1] = kink_threshold(t, *kink)
+    if ring is not None:
+        c[:, :, ring[0]] = ring[1](t)
     return c
+
+
+def _sign_roots(f, grid) -> list:
+    """The roots of ``f`` between the points of ``grid`` where its sign changes (NaN: no
+    change), each bisected to rounding."""
+    v = f(grid)
+    roots = []
+    for i in np.flatnonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0):
+        lo, hi = grid[i], grid[i + 1]
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if np.sign(f(mid)) == np.sign(f(lo)) else (lo, mid)
+        roots.append(0.5 * (lo + hi))
+    return roots
+
+
+def _near_pole_cuts(t_u, caps_c, t_max, extra, tangent):
+    """``extra``, ``tangent`` (B = 1) with the geometric cuts of :func:`cap_rule`'s ``near_pole``:
+    2^k t* (k ≥ 1) below t_max/2 for each tangent radius t* < t_max/8, the caps' (closed form) and
+    those among ``extra`` flagged tangent (a ring cap's or a kink's, found numerically)."""
+    radii = list(_tangent_radii(t_u, caps_c, t_max)[0])
+    if extra is not None and tangent is not None:
+        radii += [float(r) for r, f in zip(extra[0], tangent[0]) if f and np.isfinite(r)]
+    top = float(t_max[0])
+    cuts = [r * 2.0**k for r in radii if np.isfinite(r) and 0.0 < r < top / 8
+            for k in range(1, 64) if r * 2.0**k < top / 2]
+    if not cuts:
+        return extra, tangent
+    new_t, new_f = np.array([cuts]), np.zeros((1, len(cuts)), bool)
+    if extra is None:
+        return new_t, None
+    old_f = np.zeros(extra.shape, bool) if tangent is None else tangent
+    return np.concatenate([extra, new_t], axis=1), np.concatenate([old_f, new_f], axis=1)
+
+
+def _ring_cap_cuts(ring, caps_c, t_u, phi_u, t_max, extra, tangent):
+    """The t-cuts a ring cap (column ``ring[0]``, threshold ``ring[1](t)``) adds to ``extra`` and
+    ``tangent`` (B = 1): its tangent rings (where its threshold reaches cos(t ∓ t_u), the ring's
+    extremes of n·u) and the rings through its crossings with every other cap's boundary (where
+    that cap's n·u_m - c_m changes sign at the ring cap's breakpoints φ_u ± arccos q)."""
+    j, fn = ring
+    tu, pu = float(t_u[0, j]), float(phi_u[0, j])
+    grid = np.linspace(0.0, float(t_max[0]), 2049)[1:-1]
+    roots = _sign_roots(lambda t: fn(t) - np.cos(t - tu), grid) + _sign_roots(lambda t: fn(t) - np.cos(t + tu), grid)
+    flags = [True] * len(roots)
+    for m in range(caps_c.shape[1]):
+        c_m = float(caps_c[0, m])
+        if m == j or not -1.0 < c_m < 1.0:
+            continue
+        tm, pm = float(t_u[0, m]), float(phi_u[0, m])
+        for sgn in (1.0, -1.0):
+            def g(t, sgn=sgn, tm=tm, pm=pm, c_m=c_m):
+                st, ct = np.sin(t), np.cos(t)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    q = (fn(t) - ct * np.cos(tu)) / (st * np.sin(tu))
+                phi = pu + sgn * np.arccos(np.clip(q, -1.0, 1.0))
+                val = st * np.sin(tm) * np.cos(phi - pm) + ct * np.cos(tm) - c_m
+                return np.where(np.abs(q) < 1.0, val, np.nan)  # (no breakpoint on that ring: no crossing)
+            found = _sign_roots(g, grid)
+            roots += found
+            flags += [False] * len(found)
+    if not roots:
+        return extra, tangent
+    new_t, new_f = np.array([roots]), np.array([flags], bool)
+    if extra is None:
+        return new_t, new_f
+    old_f = np.zeros(extra.shape, bool) if tangent is None else tangent
+    return np.concatenate([extra, new_t], axis=1), np.concatenate([old_f, new_f], axis=1)
 
 
 def _boundary_crossings(axis, caps_u, caps_c) -> np.ndarray:

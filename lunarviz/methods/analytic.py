@@ -57,12 +57,15 @@ class AnalyticSettings:
 
 
 def lunar_surface_rule(scene: SceneGeometry, source: np.ndarray, source_radius: float = 0.0,
-                       order: int = 24):
+                       order: int = 24, view_cut: bool = True):
     """Points, normals and areas [m²] on the lunar sphere: seen by the detector, lit by a source.
 
     For ``source_radius = 0`` the region is cut at ``n·(S - M) > R_M`` (lit by a point); for an
     extended source the rule extends to ``R_M - ρ`` and is split at ``R_M + ρ`` (the edges of
-    the band where the source is partly below the horizon).
+    the band where the source is partly below the horizon). Where the detector's view of the
+    Moon is cut (a site's horizon plane, or the Earth's limb seen from outside the Earth), the
+    rule is cut there too (:func:`hidden_view_cut`; unless ``view_cut`` is False): every node is
+    in sight of the detector.
     """
     M, R = scene.moon, scene.radii["moon"]
     to_det = scene.det - M
@@ -78,9 +81,53 @@ def lunar_surface_rule(scene: SceneGeometry, source: np.ndarray, source_radius: 
         split = np.array([[False, True]])
     else:
         caps_u, caps_c, split = np.array([[u]]), np.array([[R / d_src]]), None
-    nodes, w = cap_rule(unit(to_det)[None, :], [R / d_det], caps_u, caps_c, split, order, order)
+    static, ring = hidden_view_cut(scene) if view_cut else (None, None)
+    if static is not None:
+        caps_u = np.concatenate([caps_u, static[0].reshape(1, 1, 3)], axis=1)
+        caps_c = np.concatenate([caps_c, [[static[1]]]], axis=1)
+        split = None if split is None else np.concatenate([split, [[False]]], axis=1)
+    # (a horizon's cap crosses the source's: the rule is cut at the rings through the crossings)
+    nodes, w = cap_rule(unit(to_det)[None, :], [R / d_det], caps_u, caps_c, split, order, order,
+                        crossings=static is not None, ring_cap=ring, near_pole=ring is not None or static is not None)
     n, w = compact(nodes[0], w[0])
     return M + R * n, n, w * R * R
+
+
+def hidden_view_cut(scene: SceneGeometry):
+    """The cut of the lunar sphere where the detector's sight lines end: ``(static, ring)``.
+
+    A site sees what lies above its horizon plane: ``(x - D)·h > 0`` with x = M + R_M n is the
+    cap ``n·h > (D - M)·h / R_M`` (``static``: ``(h, c)``). From outside the Earth, x is hidden
+    where the sight line enters the Earth's model sphere, ``(x - D)·ê > |x - D| cos α`` (ê toward
+    the Earth's centre, sin α = R_E/|E - D|): no circle on the lunar sphere, but on each ring at
+    polar angle t about the sub-detector point |x - D|² = d² - 2 R_M d cos t + R_M² is fixed, so
+    the visible part of the ring is ``n·(-ê) > -(|x - D| cos α + (D - M)·ê)/R_M``: a cap whose
+    threshold depends on t (``ring``: ``(-ê, c(t))``, :func:`~lunarviz.geometry.sphere_quadrature.cap_rule`'s
+    ``ring_cap``). Either is ``None`` where it does not cut the Moon's disc: the detector at or
+    in the Earth, the Earth's disc a margin of 1e-3 away from the Moon's, or covering it whole
+    (the sight-line tests then hide every point, as they hide every point of a Moon set)."""
+    M, R = scene.moon, scene.radii["moon"]
+    to_det = scene.det - M
+    d = float(np.linalg.norm(to_det))
+    if scene.horizon_normal is not None:
+        h = unit(np.asarray(scene.horizon_normal, dtype=float))
+        c = float(np.dot(to_det, h)) / R
+        return ((h, c) if -1.0 < c < 1.0 else None), None
+    if scene.detector_inside("earth"):
+        return None, None
+    w = scene.earth - scene.det
+    dw, Re = float(np.linalg.norm(w)), scene.radii["earth"]
+    rho, alpha = np.arcsin(min(1.0, R / d)), np.arcsin(min(1.0, Re / dw))
+    gap = angle_between(M - scene.det, w)
+    if gap > (rho + alpha) * (1.0 + 1e-3) or gap < alpha - rho:
+        return None, None
+    e = w / dw
+    cos_a = np.sqrt(max(0.0, 1.0 - (Re / dw) ** 2))
+    de = float(np.dot(to_det, e))
+
+    def threshold(t):
+        return -(np.sqrt(d * d - 2.0 * R * d * np.cos(t) + R * R) * cos_a + de) / R
+    return None, (-e, threshold)
 
 
 def paper_grid(scene: SceneGeometry, step_deg: float = 1.0):

@@ -36,6 +36,7 @@ class DeterministicTransport:
         self.sampling = sampling
         self.sources = sources
         self.mapped_earth = mapped_earth
+        self._full_sun = None  # (the Earth's sunlit fractions, all 1?): checked once per array
 
 
     # ---- transports --------------------------------------------------------------------------
@@ -149,6 +150,19 @@ class DeterministicTransport:
                          mu=mu, geom=geom, e_beam_free=beams(Lb_free),
                          e_beam_unit=None if lu is None else beams(lu))
 
+    def _facets_unneeded(self, earth_albedo, sun_visibility) -> bool:
+        """Whether a source's beams may be traced against its coarse hit scene
+        (:meth:`~lunarviz.methods.tracer.embree_bodies.EmbreeBody.hit_scene`): their facets feed
+        nothing — the light is only summed into rows (no per-facet hit counts kept), and the Earth
+        has one albedo and every facet the whole Sun (``sun_visibility`` all 1, checked once)."""
+        if not self.sampling.summed or earth_albedo is not None:
+            return False
+        if sun_visibility is None:
+            return True
+        if self._full_sun is None or self._full_sun[0] is not sun_visibility:
+            self._full_sun = (sun_visibility, bool(np.all(sun_visibility == 1.0)))
+        return self._full_sun[1]
+
     def _fused_beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
         """:meth:`beam_transport` toward an exact-sphere source, compiled: one pass
         from the rule to Embree's rays (:func:`lunarviz.methods.tracer.ray_kernels.cap_beam_rays` for the Earth's
@@ -161,8 +175,15 @@ class DeterministicTransport:
         K = ray_kernels
         sc, s = self.bodies.scene, self.bodies.settings
         src = self.bodies.sun if body == "sun" else self.bodies.earth
-        outer = src.outer_scene()  # (built once per body; sets its bounding radius)
-        off, Rb = NORMAL_OFFSET * self.bodies.moon.radius, src.outer_bound * (1.0 + ENTRY_MARGIN)
+        fa = self.surfaces.earth_facet_albedo() if body == "earth" else None
+        vis = self.sources.sun_visibility_of_earth() if body == "earth" else None
+        coarse = self._facets_unneeded(fa, vis)
+        if coarse:  # whether and where each beam meets the sphere is all that counts
+            outer, bound, n_faces = src.hit_scene()
+        else:
+            outer, n_faces = src.outer_scene(), src.n_faces  # (built once per body; sets its bounding radius)
+            bound = src.outer_bound
+        off, Rb = NORMAL_OFFSET * self.bodies.moon.radius, bound * (1.0 + ENTRY_MARGIN)
         c, R, _ = self.bodies.source(body)
         if body == "earth" and s.earth_pole == "centre" and not horizon_cuts_source(sc, x, n, body).any():
             cs = sc.sun - c  # the rule's one cap: the Earth's sunlit hemisphere (as in source_nodes)
@@ -173,15 +194,15 @@ class DeterministicTransport:
         self.bodies.count(len(rays.bi))
         prim = src.run_rays(rays.o32, rays.d32, "INTERSECT", scene=outer) if len(rays.idx) else np.empty(0, np.int64)
         if body == "sun":
-            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
+            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, n_faces,
                                                  sun_radiance=self.sources.sun_surface_radiance())
         else:
-            fa = self.surfaces.earth_facet_albedo()
             alb = np.array([self.surfaces.earth_albedo_value()]) if fa is None else fa
-            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, src.n_faces,
-                                                 earth=(sc.sun, sc.phi, self.sources.sun_visibility_of_earth(), alb))
-        with self.bodies.lock:
-            self.bodies.source_hits[body] += counts
+            t, L, L_unit, counts = K.source_hits(rays, prim, src.radius, src.centre, n_faces,
+                                                 earth=(sc.sun, sc.phi, None if coarse else vis, alb))
+        if not coarse:
+            with self.bodies.lock:
+                self.bodies.source_hits[body] += counts
         L_free = L.copy()
         if body == "sun" and s.occlusion:  # the Earth between the Moon and the Sun
             live = L > 0

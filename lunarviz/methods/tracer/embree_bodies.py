@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
+import trimesh
 
 from lunarviz.caches import BoundedCache, mesh_digest
 from lunarviz.geometry.subdivision import sub_barycentric
@@ -32,6 +33,9 @@ from lunarviz.methods.tracer.ray_kernels import occluder_rays, ray_batch32, ray_
 EMBREE_DTYPE = np.float32
 #: Ray origins start this far (× body radius) outside the bounding sphere.
 ENTRY_MARGIN = 1e-3
+#: the icosphere level of :meth:`EmbreeBody.hit_scene` (1280 facets: Embree ~2x faster per ray
+#: than on the packaged level-6 sphere's 81,920, measured on 250,000 rays toward the Earth)
+HIT_SCENE_LEVEL = 3
 #: Batch size of one Embree call (bounds memory for any ray count).
 BATCH = 1 << 18
 
@@ -249,6 +253,26 @@ class EmbreeBody:
             geo["outer"], geo["outer_bound"] = outer, self.bound * k
         self.outer_bound = geo["outer_bound"]
         return geo["outer"]
+
+    def hit_scene(self):
+        """``(scene, bound)``: an icosphere of level :data:`HIT_SCENE_LEVEL` circumscribing this
+        body's exact sphere (every facet plane at distance ≥ R), for rays whose facet is not
+        needed, only whether and where they meet the sphere (a uniform source summed into rows):
+        every ray that meets the sphere meets it, and the hit is refined onto the exact sphere as
+        with :meth:`outer_scene`, whose 20·4⁶ facets Embree takes ~2x longer to search. Exact
+        spheres only (a mesh's own facets are its shape). Built once per radius."""
+        if not self.is_sphere:
+            raise ValueError("a coarse hit scene stands for an exact sphere only")
+        geo = self.geometry
+        if geo.get("hit_scene") is None:
+            ico = trimesh.creation.icosphere(subdivisions=HIT_SCENE_LEVEL, radius=1.0)
+            plane = float(np.einsum("ij,ij->i", ico.face_normals, ico.vertices[ico.faces[:, 0]]).min())
+            k = self.radius / plane * (1.0 + 1e-9)
+            scene = rtcore_scene.EmbreeScene()
+            TriangleMesh(scene=scene, vertices=(ico.vertices * k).astype(EMBREE_DTYPE),
+                         indices=ico.faces.astype(np.int32))
+            geo["hit_scene"] = (scene, float(np.linalg.norm(ico.vertices, axis=1).max()) * k, len(ico.faces))
+        return geo["hit_scene"]
 
     def sphere_hits(self, origins, dirs, refine_from=None) -> Hits:
         """First hits on the exact sphere this mesh tessellates.
