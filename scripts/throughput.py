@@ -169,8 +169,12 @@ def save_npz(path: Path, ts, batches):
     names = {id(ts.moon._scene): "moon", id(ts.earth._scene): "earth", id(ts.sun._scene): "sun"}
     for body in (ts.moon, ts.earth, ts.sun):
         geo = body.geometry
+        label = 'moon' if body is ts.moon else 'earth' if body is ts.earth else 'sun'
         if geo.get("outer") is not None:
-            names[id(geo["outer"])] = f"{'moon' if body is ts.moon else 'earth' if body is ts.earth else 'sun'}_outer"
+            names[id(geo["outer"])] = f"{label}_outer"
+        if geo.get("hit_scene") is not None:  # the coarse hit scene of a uniform source (EmbreeBody.hit_scene)
+            names[id(geo["hit_scene"][0])] = f"{label}_hit"
+            arrays[f"{label}_hit_vertices"], arrays[f"{label}_hit_faces"] = geo["hit_mesh"]
     meshes = {"moon": ts.moon, "earth": ts.earth, "sun": ts.sun}
     for n, b in meshes.items():
         arrays[f"{n}_vertices"] = b.vertices.astype(np.float32)
@@ -197,11 +201,12 @@ def replay_npz(path) -> tuple[int, float]:
     z = np.load(path)
     scenes = {}
     for n in ("moon", "earth", "sun"):
-        for suffix in ("", "_outer"):
+        for suffix in ("", "_outer", "_hit"):
             key = f"{n}{suffix}_vertices"
             if key in z:
                 sc = rtcore_scene.EmbreeScene()
-                TriangleMesh(scene=sc, vertices=z[key], indices=z[f"{n}_faces"])
+                faces = z[f"{n}_hit_faces" if suffix == "_hit" else f"{n}_faces"]
+                TriangleMesh(scene=sc, vertices=z[key], indices=faces)
                 scenes[n + suffix] = sc
     n_rays, t = 0, 0.0
     for i in range(int(z["n_batches"])):

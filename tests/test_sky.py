@@ -505,3 +505,17 @@ def test_a_moon_partly_hidden_takes_the_cut_lune_rule_and_its_bound():
             assert 1.6 < whole / row["moonshine_W_m2"] < 2.2
         else:
             assert not row["rtol"] == row["rtol"] and "limb" in row["no_bound_reason"]
+
+
+def test_a_sliver_the_facets_sight_lines_miss_has_no_bound():
+    """The Earth's limb across 0.12 % of the Moon's disc (2026-01-04T02:34:00.4Z from the orbit):
+    the level-6 Earth's facets lie up to ~0.2 km inside its sphere, so no sight line from the lunar
+    facets meets them and the lune rule is taken whole, while the exact reference's sphere hides the
+    sliver (the DHG moonshine erred by 1.5e-3 against it, 16x the lune rule's bound). The row says
+    it has no bound; the half-hidden date beside it keeps its bound."""
+    for label, bounded in (("2026-01-04T02:34:00.4Z", False), ("2026-01-04T02:34:12Z", True)):
+        s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="paper", rtol=1e-4, times=(label,),
+                          observer="orbit:550,97.6,0,0,2026-01-01T00:00Z")
+        row = run_phase(s, label, threads=1)[0]
+        assert (0 < row["rtol"] <= 1e-4) is bounded
+        assert ("grazes" in row["no_bound_reason"]) is not bounded

@@ -346,7 +346,10 @@ def _ring_cap_cuts(ring, caps_c, t_u, phi_u, t_max, extra, tangent):
     that cap's n·u_m - c_m changes sign at the ring cap's breakpoints φ_u ± arccos q)."""
     j, fn = ring
     tu, pu = float(t_u[0, j]), float(phi_u[0, j])
-    grid = np.linspace(0.0, float(t_max[0]), 2049)[1:-1]
+    top = float(t_max[0])
+    # (a uniform grid, and a geometric one below its first step: a boundary passing nearer the pole
+    # than t_max/2048 is tangent there, and near_pole's cuts need that radius)
+    grid = np.unique(np.concatenate([np.geomspace(top * 1e-12, top / 2048, 64), np.linspace(0.0, top, 2049)[1:-1]]))
     roots = _sign_roots(lambda t: fn(t) - np.cos(t - tu), grid) + _sign_roots(lambda t: fn(t) - np.cos(t + tu), grid)
     flags = [True] * len(roots)
     for m in range(caps_c.shape[1]):

@@ -99,13 +99,13 @@ def hidden_view_cut(scene: SceneGeometry):
     A site sees what lies above its horizon plane: ``(x - D)·h > 0`` with x = M + R_M n is the
     cap ``n·h > (D - M)·h / R_M`` (``static``: ``(h, c)``). From outside the Earth, x is hidden
     where the sight line enters the Earth's model sphere, ``(x - D)·ê > |x - D| cos α`` (ê toward
-    the Earth's centre, sin α = R_E/|E - D|): no circle on the lunar sphere, but on each ring at
-    polar angle t about the sub-detector point |x - D|² = d² - 2 R_M d cos t + R_M² is fixed, so
-    the visible part of the ring is ``n·(-ê) > -(|x - D| cos α + (D - M)·ê)/R_M``: a cap whose
+    the Earth's centre, ``sin α = R_E / |E - D|``): no circle on the lunar sphere, but on each ring
+    at polar angle t about the sub-detector point ``|x - D|² = d² - 2 R_M d cos t + R_M²`` is fixed,
+    so the visible part of the ring is ``n·(-ê) > -(|x - D| cos α + (D - M)·ê) / R_M``: a cap whose
     threshold depends on t (``ring``: ``(-ê, c(t))``, :func:`~lunarviz.geometry.sphere_quadrature.cap_rule`'s
     ``ring_cap``). Either is ``None`` where it does not cut the Moon's disc: the detector at or
-    in the Earth, the Earth's disc a margin of 1e-3 away from the Moon's, or covering it whole
-    (the sight-line tests then hide every point, as they hide every point of a Moon set)."""
+    in the Earth, the Earth's disc clear of the Moon's, or covering it whole (the sight-line tests
+    then hide every point, as they hide every point of a Moon set)."""
     M, R = scene.moon, scene.radii["moon"]
     to_det = scene.det - M
     d = float(np.linalg.norm(to_det))
@@ -119,7 +119,7 @@ def hidden_view_cut(scene: SceneGeometry):
     dw, Re = float(np.linalg.norm(w)), scene.radii["earth"]
     rho, alpha = np.arcsin(min(1.0, R / d)), np.arcsin(min(1.0, Re / dw))
     gap = angle_between(M - scene.det, w)
-    if gap > (rho + alpha) * (1.0 + 1e-3) or gap < alpha - rho:
+    if gap >= rho + alpha or gap <= alpha - rho:
         return None, None
     e = w / dw
     cos_a = np.sqrt(max(0.0, 1.0 - (Re / dw) ** 2))

@@ -177,9 +177,10 @@ class DeterministicTransport:
         src = self.bodies.sun if body == "sun" else self.bodies.earth
         fa = self.surfaces.earth_facet_albedo() if body == "earth" else None
         vis = self.sources.sun_visibility_of_earth() if body == "earth" else None
-        coarse = self._facets_unneeded(fa, vis)
+        hit = src.hit_scene() if self._facets_unneeded(fa, vis) else None
+        coarse = hit is not None
         if coarse:  # whether and where each beam meets the sphere is all that counts
-            outer, bound, n_faces = src.hit_scene()
+            outer, bound, n_faces = hit
         else:
             outer, n_faces = src.outer_scene(), src.n_faces  # (built once per body; sets its bounding radius)
             bound = src.outer_bound

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
-import trimesh
 
+from lunarviz.bodies.sphere_mesh import unit_sphere_arrays
 from lunarviz.caches import BoundedCache, mesh_digest
 from lunarviz.geometry.subdivision import sub_barycentric
 from lunarviz.methods.tracer.ray_kernels import occluder_rays, ray_batch32, ray_starts, sphere_refine
@@ -260,18 +260,17 @@ class EmbreeBody:
         needed, only whether and where they meet the sphere (a uniform source summed into rows):
         every ray that meets the sphere meets it, and the hit is refined onto the exact sphere as
         with :meth:`outer_scene`, whose 20·4⁶ facets Embree takes ~2x longer to search. Exact
-        spheres only (a mesh's own facets are its shape). Built once per radius."""
+        spheres only (a mesh's own facets are its shape). Built once per radius from the packaged
+        unit icosphere of that level; ``None`` where it is not packaged intact (then
+        :meth:`outer_scene`)."""
         if not self.is_sphere:
             raise ValueError("a coarse hit scene stands for an exact sphere only")
         geo = self.geometry
-        if geo.get("hit_scene") is None:
-            ico = trimesh.creation.icosphere(subdivisions=HIT_SCENE_LEVEL, radius=1.0)
-            plane = float(np.einsum("ij,ij->i", ico.face_normals, ico.vertices[ico.faces[:, 0]]).min())
-            k = self.radius / plane * (1.0 + 1e-9)
-            scene = rtcore_scene.EmbreeScene()
-            TriangleMesh(scene=scene, vertices=(ico.vertices * k).astype(EMBREE_DTYPE),
-                         indices=ico.faces.astype(np.int32))
-            geo["hit_scene"] = (scene, float(np.linalg.norm(ico.vertices, axis=1).max()) * k, len(ico.faces))
+        if "hit_scene" not in geo:
+            unit = unit_sphere_arrays("moon", HIT_SCENE_LEVEL)  # (a unit icosphere: any body's will do)
+            built = None if unit is None else _circumscribing_scene(*unit, self.radius)
+            geo["hit_scene"] = None if built is None else built[:3]
+            geo["hit_mesh"] = None if built is None else built[3:]  # (its float32 vertices and faces: a replay's)
         return geo["hit_scene"]
 
     def sphere_hits(self, origins, dirs, refine_from=None) -> Hits:
@@ -415,6 +414,21 @@ class EmbreeBody:
 #: level 6 holds ~100 MB with its Embree scenes (16 entries would hold 3 GB in a dated sweep)
 GEOMETRY_CACHE_SIZE = 6
 _GEOMETRY_CACHE = BoundedCache(GEOMETRY_CACHE_SIZE)
+
+
+def _circumscribing_scene(vertices: np.ndarray, faces: np.ndarray, radius: float) -> tuple:
+    """``(scene, bound, facets, vertices32, faces32)``: the unit polyhedron ``vertices``, ``faces``
+    scaled so that every facet plane lies at ≥ ``radius`` from the centre (it then holds the sphere
+    of that radius): its Embree scene, its bounding radius, its number of facets and the arrays
+    Embree was given."""
+    tri = vertices[faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    k = radius / float(np.abs(np.einsum("ij,ij->i", normals, tri[:, 0])).min()) * (1.0 + 1e-9)
+    v32, f32 = (vertices * k).astype(EMBREE_DTYPE), np.asarray(faces, np.int32)
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene=scene, vertices=v32, indices=f32)
+    return scene, float(np.linalg.norm(vertices, axis=1).max()) * k, len(faces), v32, f32
 
 
 def _body_geometry(mesh, scale: float, rotation: np.ndarray | None = None) -> dict:

@@ -247,6 +247,16 @@ class LunarSampling:
         """Whether :meth:`candidates` found a cast-shadow or hidden-view edge across the Moon."""
         return body in self._edge_cache and bool(self._edge_cache[body].size)
 
+    def view_edge_missed(self, body: str) -> bool:
+        """Whether the lune rule was taken whole although the exact spheres put the view's edge
+        across the Moon's disc (:func:`~lunarviz.methods.analytic.hidden_view_cut`): the facets'
+        sight lines found no edge, as where the Earth's limb cuts a sliver thinner than its mesh's
+        sag (the level-6 facets lie up to ~0.2 km inside the sphere: seen from a 550 km orbit, 1.6 %
+        of the Moon's radius). Such a row has no bound."""
+        from lunarviz.methods.analytic import hidden_view_cut
+        return self._view_cut_alone(self._moon_map_contrast()) and not self.edges_found(body) \
+            and hidden_view_cut(self.bodies.scene) != (None, None)
+
     def moon_shadow_on_earth_possible(self) -> bool:
         """With occlusion, whether the Moon's shadow may fall on the Earth (a solar eclipse, the
         earthshine's source partly dark): seen from the Earth's centre, the Moon's and the Sun's
