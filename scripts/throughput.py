@@ -225,15 +225,16 @@ def measure(name: str, out: Path, quick: bool) -> dict:
     trace_once(scene, settings)  # warm-up: mesh loading, Embree builds, caches
     ts, batches = record(scene, settings)
     n = sum(len(b[3]) for b in batches)
-    raw = min(replay(batches) for _ in range(3))
-    e2e = min(trace_once(scene, settings)[1] for _ in range(3))
+    repeats = 1 if quick else 3  # (best of three; a smoke run once)
+    raw = min(replay(batches) for _ in range(repeats))
+    e2e = min(trace_once(scene, settings)[1] for _ in range(repeats))
     # both cores: chunks traced on two threads (TraceScene.deterministic.transport), against
     # raw Embree on one thread and on two
     from dataclasses import replace as _replace
     settings2 = _replace(settings, threads=2)
     trace_once(scene, settings2)
-    e2e2 = min(trace_once(scene, settings2)[1] for _ in range(3))
-    raw2 = min(replay_threads(batches) for _ in range(3))
+    e2e2 = min(trace_once(scene, settings2)[1] for _ in range(repeats))
+    raw2 = min(replay_threads(batches) for _ in range(repeats))
     timer = StageTimer()
     instrument(timer)
     try:

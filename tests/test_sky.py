@@ -487,6 +487,7 @@ def test_a_moon_partly_hidden_takes_the_cut_lune_rule_and_its_bound():
     cut) still takes the facets and says why it has no bound. Embree finds the limb: with the
     Earth's queries answered 'miss', no edge is found, the rule is the whole lune and the moonshine
     grows by the hidden ~48 % (the sight lines, also Embree's, hide nothing then)."""
+    from lunarviz.methods import accuracy
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     label = "2026-01-04T02:34:12Z"
     for moon, lune in (("paper", True), ("rolo-fit-map", False)):
@@ -495,6 +496,9 @@ def test_a_moon_partly_hidden_takes_the_cut_lune_rule_and_its_bound():
         sc, _ = s.task(label)
         ts = TraceScene(sc, s.trace_settings(1, s.trace_plan(sc.theta_deg)))
         assert ts.sampling.lune_rule_applies("sun") is lune and ts.sampling.lune_rule_applies("earth") is lune
+        if not lune:  # (its row on the facets: ~9 s; the reason is traced_path_bounds')
+            assert "limb" in accuracy.traced_path_bounds({("facets", "moonshine"): 1.0}, ts)[1]
+            continue
         row = run_phase(s, label, threads=1)[0]
         assert row["moonshine_W_m2"] > 0 and row["earthshine_W_m2"] > 0
         if lune:
@@ -503,8 +507,6 @@ def test_a_moon_partly_hidden_takes_the_cut_lune_rule_and_its_bound():
             blind.earth.run_rays = lambda o32, d32, query, dists=None, scene=None: np.full(len(o32), -1, np.int32)
             whole = trace_path(blind, "moonshine", s.brdf_models()).mean["dhg"]
             assert 1.6 < whole / row["moonshine_W_m2"] < 2.2
-        else:
-            assert not row["rtol"] == row["rtol"] and "limb" in row["no_bound_reason"]
 
 
 def test_a_sliver_the_facets_sight_lines_miss_has_no_bound():
