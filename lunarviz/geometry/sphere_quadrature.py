@@ -330,13 +330,7 @@ def _near_pole_cuts(t_u, caps_c, t_max, extra, tangent):
     top = float(t_max[0])
     cuts = [r * 2.0**k for r in radii if np.isfinite(r) and 0.0 < r < top / 8
             for k in range(1, 64) if r * 2.0**k < top / 2]
-    if not cuts:
-        return extra, tangent
-    new_t, new_f = np.array([cuts]), np.zeros((1, len(cuts)), bool)
-    if extra is None:
-        return new_t, None
-    old_f = np.zeros(extra.shape, bool) if tangent is None else tangent
-    return np.concatenate([extra, new_t], axis=1), np.concatenate([old_f, new_f], axis=1)
+    return _appended_cuts(extra, tangent, cuts, [False] * len(cuts))
 
 
 def _ring_cap_cuts(ring, caps_c, t_u, phi_u, t_max, extra, tangent):
@@ -368,9 +362,15 @@ def _ring_cap_cuts(ring, caps_c, t_u, phi_u, t_max, extra, tangent):
             found = _sign_roots(g, grid)
             roots += found
             flags += [False] * len(found)
-    if not roots:
+    return _appended_cuts(extra, tangent, roots, flags)
+
+
+def _appended_cuts(extra, tangent, cuts: list, flags: list):
+    """``extra`` (1, m) and ``tangent`` with the t-cuts ``cuts`` and their tangent ``flags`` appended
+    (:func:`t_segments`' inputs; none: unchanged)."""
+    if not cuts:
         return extra, tangent
-    new_t, new_f = np.array([roots]), np.array([flags], bool)
+    new_t, new_f = np.array([cuts], dtype=float), np.array([flags], bool)
     if extra is None:
         return new_t, new_f
     old_f = np.zeros(extra.shape, bool) if tangent is None else tangent

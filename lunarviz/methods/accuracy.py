@@ -507,9 +507,9 @@ def traced_path_bounds(bounds: dict, ts, why: str = "") -> tuple[dict, str]:
         return {}, why or "no error model holds for this row's settings"
     got = {}
     for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
-        if ts.sampling.lune_rule_applies(body) and ts.sampling.view_edge_missed(body):
-            return {}, "the Earth's limb or a horizon grazes the Moon closer than the facets' sight lines find"
         if ts.sampling.lune_rule_applies(body):
+            if ts.sampling.view_edge_missed(body):
+                return {}, "the Earth's limb or a horizon grazes the Moon closer than the facets' sight lines find"
             got[path] = bounds.get(("lune", path), math.nan)
         elif ts.sampling.edges_found(body):  # a horizon, an Earth limb or a cast shadow across the Moon: not measured
             return {}, "a horizon, the Earth's limb or a cast shadow across the Moon: not in the error models"

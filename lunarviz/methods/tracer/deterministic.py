@@ -36,7 +36,6 @@ class DeterministicTransport:
         self.sampling = sampling
         self.sources = sources
         self.mapped_earth = mapped_earth
-        self._full_sun = None  # (the Earth's sunlit fractions, all 1?): checked once per array
 
 
     # ---- transports --------------------------------------------------------------------------
@@ -154,14 +153,10 @@ class DeterministicTransport:
         """Whether a source's beams may be traced against its coarse hit scene
         (:meth:`~lunarviz.methods.tracer.embree_bodies.EmbreeBody.hit_scene`): their facets feed
         nothing — the light is only summed into rows (no per-facet hit counts kept), and the Earth
-        has one albedo and every facet the whole Sun (``sun_visibility`` all 1, checked once)."""
+        has one albedo and every facet the whole Sun (``sun_visibility`` all 1)."""
         if not self.sampling.summed or earth_albedo is not None:
             return False
-        if sun_visibility is None:
-            return True
-        if self._full_sun is None or self._full_sun[0] is not sun_visibility:
-            self._full_sun = (sun_visibility, bool(np.all(sun_visibility == 1.0)))
-        return self._full_sun[1]
+        return sun_visibility is None or bool(np.all(sun_visibility == 1.0))
 
     def _fused_beam_transport(self, x, n, o, mu, geom, body: str, order: int) -> Transport:
         """:meth:`beam_transport` toward an exact-sphere source, compiled: one pass

@@ -11,7 +11,7 @@ import numpy as np
 from lunarviz.geometry.mapped_lune import mapped_lune_rule
 from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.geometry.subdivision import sub_barycentric
-from lunarviz.methods.analytic import lunar_surface_rule
+from lunarviz.methods.analytic import hidden_view_cut, lunar_surface_rule
 from lunarviz.methods.tracer import settings as tuning
 from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
 from lunarviz.methods.tracer.settings import (
@@ -253,7 +253,6 @@ class LunarSampling:
         sight lines found no edge, as where the Earth's limb cuts a sliver thinner than its mesh's
         sag (the level-6 facets lie up to ~0.2 km inside the sphere: seen from a 550 km orbit, 1.6 %
         of the Moon's radius). Such a row has no bound."""
-        from lunarviz.methods.analytic import hidden_view_cut
         return self._view_cut_alone(self._moon_map_contrast()) and not self.edges_found(body) \
             and hidden_view_cut(self.bodies.scene) != (None, None)
 
@@ -329,7 +328,7 @@ class LunarSampling:
         # then confirm every node; with no edge found, the rule is the whole lune), at VIEW_CUT_ORDER_FACTOR
         # times the order (the lune model was measured uncut: a horizon across a half Moon erred 8.3e-5
         # at the moonshine's order 10, 5.5e-6 at 16, 5.1e-7 at 24, against the exact reference)
-        cut = self._edge_cache.get(body, np.empty(0)).size > 0
+        cut = self.edges_found(body)
         order = self.bodies.settings.lune_order[0 if body == "sun" else 1]
         x, n, dA = lunar_surface_rule(sc, c, R, order * VIEW_CUT_ORDER_FACTOR if cut else order, view_cut=cut)
         fa = self.surfaces.moon_facet_albedo(spread=True)  # a uniform map (no contrast): its one value everywhere
