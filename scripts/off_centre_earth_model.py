@@ -39,7 +39,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the two rules about the zero-phase point (their ``earth_pole``) and the Earth orders measured
-VARIANTS = {"plain": ("detector", (5, 6, 7, 8, 10, 14, 20)), "cut": ("detector-cut", (4, 5, 6, 7, 8, 10))}
+VARIANTS = {"plain": ("detector", (5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 20)), "cut": ("detector-cut", (4, 5, 6, 7, 8, 10))}
 #: each variant's table in lunarviz/data/error_models.json
 TABLE_KEYS = {"plain": "earth_rule_off_centre", "cut": "earth_rule_off_centre_cut"}
 #: the reference: the rule cut along the kinks, at this order

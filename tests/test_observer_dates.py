@@ -191,13 +191,15 @@ def test_a_dates_mapped_earth_fits_only_the_facets_it_needs(monkeypatch):
     those from the whole-mesh fields, grey and spectral (on a level-4 Earth: the selection is the
     same code at any level)."""
     import lunarviz.methods.tracer.facet_surfaces as fs
+    import lunarviz.surfaces.earth_spectra as es
     from lunarviz.caches import release_caches
     only = fs.facet_weight_fields
     calls = []
 
     def from_whole_mesh(surface, body, frame, faces):
         calls.append(len(faces))
-        body.geometry.pop("surface_fields", None)  # (none of the date's own fields kept)
+        body.geometry.pop("surface_fields", None)  # (none of the date's own fields kept ...
+        es.TURNED_FIELDS.clear()  # ... nor an earlier fit of the turned Earth's)
         value, grad = only(surface, body, frame, np.arange(body.n_faces))
         return value[faces], grad[faces]
     for extra in ({}, {"bands": "V"}):
@@ -212,6 +214,33 @@ def test_a_dates_mapped_earth_fits_only_the_facets_it_needs(monkeypatch):
         for a, b in zip(got, ref):
             assert a["earthshine_W_m2"] == b["earthshine_W_m2"] and a["moonshine_W_m2"] == b["moonshine_W_m2"]
     assert calls and 0 < min(calls) < 5120 / 2  # (the date needs under half the mesh's facets)
+
+
+def test_a_mapped_earths_fields_serve_every_later_date_and_change_no_row(monkeypatch):
+    """On dates the mapped Earth turns with the Earth, so a facet's fields (its part of the map)
+    are fitted once per process: the next night fits only the facets the first did not need, and
+    its rows are bit for bit those of the night run alone (each facet's fields are its own
+    points'), so a sweep's rows do not depend on which worker ran which date before."""
+    import lunarviz.surfaces.earth_spectra as es
+    from lunarviz.caches import release_caches
+    fit = es.facet_linear_fit
+    fitted = []
+
+    def counted(*args, only=None, **kw):
+        fitted.append(len(only))
+        return fit(*args, only=only, **kw)
+    monkeypatch.setattr(es, "facet_linear_fit", counted)
+    s = ResolvedScene(method="raytrace", brdfs=("lambert",), times=("2026-02-22T03:00:00Z", "2026-02-23T03:00:00Z"),
+                      observer="site:34.26,-116.92,2067", earth_surface="landocean", clouds="zonal",
+                      moon_model="paper", earth_level=4)
+    release_caches()
+    first = [sweeps.run_phase(s, t, threads=1)[0] for t in s.times]
+    n_first = list(fitted)
+    release_caches()
+    fitted.clear()
+    alone = sweeps.run_phase(s, s.times[1], threads=1)[0]
+    assert alone["earthshine_W_m2"] == first[1]["earthshine_W_m2"] and alone["rtol"] == first[1]["rtol"]
+    assert len(n_first) == 2 and 0 < n_first[1] < fitted[0] / 2  # (the second night: mostly facets fitted before)
 
 
 def _earthshine_at(sc, x, n, m, w, brdf):

@@ -350,6 +350,20 @@ def test_images_read_as_linear_values(tmp_path):
         read_map(tmp_path / "i32.tif")
 
 
+@pytest.mark.parametrize("rows", [[], [0], [3, 4, 5, 9], [1, 7, 8, 19]])
+def test_a_blocks_asked_rows_are_its_whole_draws_rows(rows):
+    """The jittered points of the facets a date asks for are drawn by skipping the others' draws
+    (maps._random_rows): the same numbers as drawing the whole block and taking the rows, and the
+    generator left where that draw leaves it (the next block's draws unchanged), a block asked
+    nothing included (passed without drawing)."""
+    from lunarviz.surfaces.maps import _random_rows
+    whole, skipped = np.random.default_rng(7), np.random.default_rng(7)
+    want = whole.random((20, 6))[rows]
+    got = _random_rows(skipped, 20, 6, np.asarray(rows, dtype=np.int64))
+    assert got.shape == (len(rows), 6) and np.array_equal(got, want)
+    assert np.array_equal(skipped.random(5), whole.random(5))
+
+
 def test_facet_fields_keep_a_linear_map_and_the_compiled_fits_agree():
     """A linear function of position is its own least-squares fit over each facet: value at the
     centroid and gradient in the facet's plane to rounding (1e-12). The compiled fits of the

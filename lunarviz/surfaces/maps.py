@@ -203,10 +203,13 @@ def _random_rows(rng: np.random.Generator, F: int, S: int, rows: np.ndarray) -> 
     increasing indices in [0, F); else the whole draw. The same numbers either way."""
     bg = rng.bit_generator
     skip = isinstance(bg, (np.random.PCG64, np.random.PCG64DXSM)) and not bg.state["has_uint32"] \
-        and rows.dtype.kind in "iu" and rows.ndim == 1 and len(rows) > 0 and rows[0] >= 0 and rows[-1] < F \
+        and rows.dtype.kind in "iu" and rows.ndim == 1 and (len(rows) == 0 or rows[0] >= 0 and rows[-1] < F) \
         and bool(np.all(np.diff(rows) > 0))
     if not skip:
         return rng.random((F, S))[rows]
+    if len(rows) == 0:  # (a block of facets none of which is asked for: passed, not drawn)
+        bg.advance(F * S)
+        return np.empty((0, S))
     out = np.empty((len(rows), S))
     first = np.flatnonzero(np.r_[True, np.diff(rows) != 1])  # runs of consecutive rows
     pos = 0

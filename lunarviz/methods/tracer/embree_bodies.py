@@ -410,8 +410,9 @@ class EmbreeBody:
 
 #: body geometries kept (the least recently used dropped first): a θ sweep needs three entries
 #: (one per body), a dated sweep turns the Moon at every time and never reuses it (the packaged
-#: Earth keeps one orientation; the Sun and the Earth stay, used at every date); each Earth at
-#: level 6 holds ~100 MB with its Embree scenes (16 entries would hold 3 GB in a dated sweep)
+#: Earth keeps one orientation unless a map turns it too; the Sun, used at every date, stays);
+#: each Earth at level 6 holds ~100 MB with its Embree scenes (16 entries would hold 3 GB in a
+#: dated sweep)
 GEOMETRY_CACHE_SIZE = 6
 _GEOMETRY_CACHE = BoundedCache(GEOMETRY_CACHE_SIZE)
 
@@ -445,7 +446,7 @@ def _body_geometry(mesh, scale: float, rotation: np.ndarray | None = None) -> di
     hit = _GEOMETRY_CACHE.get(key)
     if hit is not None:
         return hit
-    vertices = np.asarray(mesh.vertices, dtype=float) * scale
+    vertices = body_vertices = np.asarray(mesh.vertices, dtype=float) * scale
     if rotation is not None:
         vertices = vertices @ rotation.T
     faces = np.asarray(mesh.faces, dtype=np.int64)
@@ -461,8 +462,9 @@ def _body_geometry(mesh, scale: float, rotation: np.ndarray | None = None) -> di
     rad = np.linalg.norm(vertices, axis=1)
     sphere_radius = float(tag["radius"]) * scale if tag and tag.get("shape") == "sphere" else None
     convex = bool(tag is not None or _is_convex(mesh))
-    geo = {"mesh": mesh, "vertices": vertices, "faces": faces, "bound": float(rad.max()),
-           "areas": areas, "normals": normals, "centroids_local": centroids,
+    # (``body_vertices``: the mesh's own axes, unturned, where its facets' map fields are fitted)
+    geo = {"mesh": mesh, "vertices": vertices, "body_vertices": body_vertices, "faces": faces,
+           "bound": float(rad.max()), "areas": areas, "normals": normals, "centroids_local": centroids,
            "convex": convex, "mean_radius": float(rad.mean()),
            "sphere_radius": sphere_radius, "scene": None, "outer": None, "corner_normals": None}
     _GEOMETRY_CACHE[key] = geo

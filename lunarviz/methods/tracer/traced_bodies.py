@@ -38,10 +38,13 @@ class TracedBodies:
                                scene.moon, th, k, scene.rotation("moon"))
         earth_mesh = body_mesh_m("earth", s.earth_level, s.earth_mesh, s.mesh_units, nominal["earth"])
         # the packaged Earth is an exact sphere: turning its tessellation with the date changes
-        # nothing it computes (maps are read through their frame at each facet's own position),
-        # so it keeps one orientation and one Embree scene for every date
+        # nothing it computes but where its facets lie on a map, so a uniform Earth keeps one
+        # orientation and one Embree scene for every date; a mapped one turns with the Earth on
+        # dates, so that each facet covers the same part of the map at every date and its map
+        # values are computed once per process (earth_spectra.facet_weight_fields)
         packaged = bool(earth_mesh.metadata.get("lunarviz_analytic"))
-        self.earth = EmbreeBody(earth_mesh, scene.earth, th, k, None if packaged else scene.rotation("earth"))
+        turned = not packaged or scene.general and not s.surface().uniform
+        self.earth = EmbreeBody(earth_mesh, scene.earth, th, k, scene.rotation("earth") if turned else None)
         self.sun = EmbreeBody(body_mesh_m("sun", s.sun_level, s.sun_mesh, s.mesh_units, nominal["sun"]),
                               scene.sun, th, k)
         # ``shading`` is for the Moon and for user meshes; the packaged Sun and Earth spheres
