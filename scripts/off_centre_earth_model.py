@@ -17,7 +17,8 @@ allowed more error than a smaller one (the table is made non-increasing: refinem
 a bound).
 
 Dates: every ``--dates``-th of 2026's hours from a 550 km sun-synchronous orbit
-(``orbit:550,97.6,0,0``), and nights from Big Bear (``site:34.26,-116.92,2067``) and Paranal
+(``orbit:550,97.6,0,0,2026-01-01T00:00Z``: its epoch fixed, so the detector moves along the orbit),
+and nights from Big Bear (``site:34.26,-116.92,2067``) and Paranal
 (``site:-24.63,-70.40,2635``) at 03:00 and 08:00 UTC; dates whose Moon is hidden, eclipsed,
 or whose θ lies outside 5-175° are left out. ``--write`` stores the table in
 ``lunarviz/data/error_models.json`` (keys ``earth_rule_off_centre`` and ``earth_rule_off_centre_cut``);
@@ -39,14 +40,19 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the two rules about the zero-phase point (their ``earth_pole``) and the Earth orders measured
-VARIANTS = {"plain": ("detector", (5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 20)), "cut": ("detector-cut", (4, 5, 6, 7, 8, 10))}
+VARIANTS = {"plain": ("detector", (5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 20)),
+            "cut": ("detector-cut", (4, 5, 6, 7, 8, 10))}
 #: each variant's table in lunarviz/data/error_models.json
 TABLE_KEYS = {"plain": "earth_rule_off_centre", "cut": "earth_rule_off_centre_cut"}
 #: the reference: the rule cut along the kinks, at this order
 REFERENCE_ORDER = 24
 BRDFS = ("lambert", "shg", "dhg")
 MOONS = ("paper", "rolo-fit-map")
-OBSERVERS = ("orbit:550,97.6,0,0", "site:34.26,-116.92,2067", "site:-24.63,-70.40,2635")
+#: the orbit's epoch is fixed (not each date's own, the default of a date run alone), so that the
+#: detector moves along its orbit from date to date: with each date its own epoch every date put it
+#: at the same point of its orbit, and the model missed the places where the zero-phase point
+#: lies on the Earth's lit limb seen from the Moon (1.7x the table there at order 11)
+OBSERVERS = ("orbit:550,97.6,0,0,2026-01-01T00:00Z", "site:34.26,-116.92,2067", "site:-24.63,-70.40,2635")
 
 
 def dates(every_hours: int, nights: int, start=dt.datetime(2026, 1, 3, 5), first_night=dt.date(2026, 1, 5),

@@ -25,6 +25,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -125,7 +126,8 @@ def year_of_dates(out: Path, quick: bool, moon_model: str = "rolo-fit-map", days
             "seconds_per_date": wall / len(rows), "moon_centre_occulted": hidden,
             "one_by_one_checked": len(pick), "max_rel_difference_one_by_one": worst,
             "bounds": [min(known), max(known)] if known else None, "dates_exact_zeros": zeros,
-            "dates_without_bound": len(rows) - len(known) - zeros}
+            "dates_without_bound": len(rows) - len(known) - zeros,
+            "no_bound_reasons": dict(Counter(r["no_bound_reason"] for r in rows if r.get("no_bound_reason")))}
 
 
 def paper_run(out: Path, quick: bool) -> dict:
@@ -165,6 +167,14 @@ def plot(res: dict, out: Path) -> None:
     plt.close(fig)
 
 
+def _reasons(year: dict) -> str:
+    """The rows' reasons for carrying no bound, with their counts (older results: the usual two)."""
+    got = year.get("no_bound_reasons")
+    if not got:
+        return "θ outside the measured 5-175° or an eclipse possible"
+    return "; ".join(f"{why}: {n}" for why, n in sorted(got.items(), key=lambda kv: -kv[1]))
+
+
 def report(res: dict, out: Path) -> None:
     cmd = "python scripts/speed_targets.py" + (" --quick" if res["quick"] else "")
     lines = ["# Speed targets", "", f"`{cmd}`, this 2-core machine, wall times of fresh `lunarviz` "
@@ -192,7 +202,7 @@ def report(res: dict, out: Path) -> None:
                   f"{8760 * y['seconds_per_date'] / 60:.0f} min for 8,760; the Moon's centre hidden by the Earth at "
                   f"{y['moon_centre_occulted']} dates). "
                   + (f"Rows' bounds {y['bounds'][0]:.1e}-{y['bounds'][1]:.1e} (none at {y['dates_without_bound']} "
-                     "dates: θ outside the measured 5-175° or an eclipse possible). " if y["bounds"] else
+                     f"dates: {_reasons(y)}). " if y["bounds"] else
                      f"Rows carry no bound ({y['dates_without_bound']} dates; 0 at the "
                      f"{y.get('dates_exact_zeros', 0)} whose hidden Moon gives exact zeros): DHG's earthshine seen off "
                      "the Earth's centre has no model (accuracy.earth_source_modelled; "

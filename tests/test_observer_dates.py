@@ -243,6 +243,29 @@ def test_a_mapped_earths_fields_serve_every_later_date_and_change_no_row(monkeyp
     assert len(n_first) == 2 and 0 < n_first[1] < fitted[0] / 2  # (the second night: mostly facets fitted before)
 
 
+def test_an_earth_map_rewritten_in_the_process_is_read_again_at_the_next_date(tmp_path):
+    """The turned Earth's fields are kept for the process: a map file rewritten between two dates
+    (an explorer or a notebook editing its map) must not leave the second date the first map's
+    fields. The second date's row equals the row of a process that only ever saw the new map
+    (before the key held the files' content keys it was 21 % off: the old map's fields)."""
+    import time
+
+    from lunarviz.caches import release_caches
+    path = tmp_path / "map.npy"
+    lat = np.linspace(-89.5, 89.5, 180)[:, None] * np.ones((1, 360))
+    times = ("2026-02-27T03:00:00Z", "2026-02-28T03:00:00Z")
+    np.save(path, 0.1 + 0.3 * (lat > 0))
+    s = ResolvedScene(method="raytrace", brdfs=("lambert",), times=times, observer="site:34.26,-116.92,2067",
+                      earth_surface=str(path), moon_model="paper", earth_level=4)
+    release_caches()
+    sweeps.run_phase(s, times[0], threads=1)
+    time.sleep(0.01)  # (a new modification time, whatever the file system's resolution)
+    np.save(path, 0.1 + 0.5 * (lat > 0))
+    after = sweeps.run_phase(s, times[1], threads=1)[0]["earthshine_W_m2"]
+    release_caches()
+    assert after == sweeps.run_phase(s, times[1], threads=1)[0]["earthshine_W_m2"]
+
+
 def _earthshine_at(sc, x, n, m, w, brdf):
     """Σ L_E f μ0 dΩ at lunar point x (normal n) toward the detector over sphere nodes m, w
     (unit vectors from the Earth's centre, their area weights on the unit sphere): written here

@@ -118,7 +118,7 @@ def facet_weights(surface, body, frame: np.ndarray, only=None) -> np.ndarray:
     points as :meth:`EarthSurface.facet_albedo`, so their grey sum is its albedo); ``only``:
     those facets' alone (sorted indices), as the whole mesh's give them, not kept."""
     memo = body.geometry.setdefault("surface_components", {})
-    key = (surface, np.asarray(frame, dtype=float).tobytes())
+    key = (surface, surface.map_keys(), np.asarray(frame, dtype=float).tobytes())
     if only is not None and key in memo:
         return memo[key][only]
     if only is not None or key not in memo:
@@ -177,14 +177,14 @@ def facet_weight_fields(surface, body, frame: np.ndarray, only) -> tuple[np.ndar
     turned = body.rotation is not None and np.array_equal(frame, body.rotation)
     if turned:
         geo = body.geometry
-        key = (surface, mesh_digest(geo["mesh"]), float(body.radius))
+        key = (surface, surface.map_keys(), mesh_digest(geo["mesh"]), float(body.radius))
         if key not in TURNED_FIELDS:
             TURNED_FIELDS[key] = _fields_memo(surface, geo["body_vertices"], body.faces)
         value, grad = _fields_of(surface, TURNED_FIELDS.get(key), geo["body_vertices"], body.faces, np.eye(3),
                                  only)
         return value, grad @ body.rotation.T
     memo = body.geometry.setdefault("surface_fields", {})
-    key = (surface, np.asarray(frame, dtype=float).tobytes())
+    key = (surface, surface.map_keys(), np.asarray(frame, dtype=float).tobytes())
     if key not in memo:
         if len(memo) > 2:
             memo.clear()

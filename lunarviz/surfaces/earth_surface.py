@@ -142,6 +142,12 @@ class EarthSurface:
         """The wavelength [nm] of a grey run's physical Earth (``earth.wavelength_nm``)."""
         return float(dict(self.earth_params).get("wavelength_nm", EARTH_PARAMETER_DEFAULTS["wavelength_nm"]))
 
+    def map_keys(self) -> tuple:
+        """The content keys (:func:`lunarviz.caches.file_key`) of the map files this surface reads:
+        with it in a cache's key, a map rewritten in the same process is read again."""
+        return tuple(file_key(p) for p, names in ((self.earth_surface, EARTH_SURFACES), (self.clouds, CLOUDS))
+                     if p not in names)
+
     def clear_map(self):
         if self.earth_surface == "uniform":
             return None
@@ -211,7 +217,7 @@ class EarthSurface:
         if self.uniform:
             return np.full(body.n_faces if only is None else len(only), float(self.earth_albedo))
         memo = body.geometry.setdefault("surface_albedo", {})
-        key = (self, np.asarray(frame, dtype=float).tobytes())
+        key = (self, self.map_keys(), np.asarray(frame, dtype=float).tobytes())
         if only is not None:
             return memo[key][only] if key in memo else self._facet_albedo(body, frame, only)
         if key not in memo:
