@@ -16,9 +16,10 @@ date's earthshine trace (what a tolerance weighs to choose between them). A larg
 allowed more error than a smaller one (the table is made non-increasing: refinement never loosens
 a bound).
 
-Dates: every ``--dates``-th of 2026's hours from a 550 km sun-synchronous orbit
-(``orbit:550,97.6,0,0,2026-01-01T00:00Z``: its epoch fixed, so the detector moves along the orbit),
-and nights from Big Bear (``site:34.26,-116.92,2067``) and Paranal
+Dates: every ``--dates``-th of 2026's hours from a 550 km sun-synchronous orbit, at each date's own
+epoch (``orbit:550,97.6,0,0``) and at one for all (``orbit:550,97.6,0,0,2026-01-01T00:00Z``: the
+detector moving along the orbit), the orbit's places where the zero-phase point lies on the
+Earth's lit limb (:func:`limb_observers`), and nights from Big Bear (``site:34.26,-116.92,2067``) and Paranal
 (``site:-24.63,-70.40,2635``) at 03:00 and 08:00 UTC; dates whose Moon is hidden, eclipsed,
 or whose θ lies outside 5-175° are left out. ``--write`` stores the table in
 ``lunarviz/data/error_models.json`` (keys ``earth_rule_off_centre`` and ``earth_rule_off_centre_cut``);
@@ -48,24 +49,72 @@ TABLE_KEYS = {"plain": "earth_rule_off_centre", "cut": "earth_rule_off_centre_cu
 REFERENCE_ORDER = 24
 BRDFS = ("lambert", "shg", "dhg")
 MOONS = ("paper", "rolo-fit-map")
-#: the orbit's epoch is fixed (not each date's own, the default of a date run alone), so that the
-#: detector moves along its orbit from date to date: with each date its own epoch every date put it
-#: at the same point of its orbit, and the model missed the places where the zero-phase point
-#: lies on the Earth's lit limb seen from the Moon (1.7x the table there at order 11)
-OBSERVERS = ("orbit:550,97.6,0,0,2026-01-01T00:00Z", "site:34.26,-116.92,2067", "site:-24.63,-70.40,2635")
+#: the orbit twice: at each date's own epoch (the default of a date run alone: the detector at one
+#: point of its orbit on every date) and at one epoch for all (the detector moving along it); the
+#: first alone missed the places where the zero-phase point lies on the Earth's lit limb (1.7x the
+#: table there at order 11), the second alone the first's worst places for the cut rule (3.6x at
+#: order 6); then the sites
+ORBITS = ("orbit:550,97.6,0,0", "orbit:550,97.6,0,0,2026-01-01T00:00Z")
+OBSERVERS = ORBITS + ("site:34.26,-116.92,2067", "site:-24.63,-70.40,2635")
 
 
 def dates(every_hours: int, nights: int, start=dt.datetime(2026, 1, 3, 5), first_night=dt.date(2026, 1, 5),
           night_step: int = 9, hours=("03", "08"), observers=OBSERVERS) -> list[tuple[str, str]]:
-    """(observer, UTC label) pairs: orbit dates (``observers[0]``) every ``every_hours`` hours of a
-    year from ``start``, and for each site ``nights`` nights every ``night_step`` days from
-    ``first_night`` at ``hours`` UTC (defaults: this model's dates)."""
-    out = [(observers[0], (start + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"))
-           for h in range(0, 8760, every_hours)]
-    for obs in observers[1:]:
+    """(observer, UTC label) pairs: for each orbit (``orbit:`` observers) dates every
+    ``every_hours`` hours of a year from ``start``, and for each site ``nights`` nights every
+    ``night_step`` days from ``first_night`` at ``hours`` UTC (defaults: this model's dates)."""
+    out = []
+    for obs in observers:
+        if obs.startswith("orbit:"):
+            out += [(obs, (start + dt.timedelta(hours=h)).strftime("%Y-%m-%dT%H:%M:00Z"))
+                    for h in range(0, 8760, every_hours)]
+            continue
         for k in range(nights):
             day = first_night + dt.timedelta(days=night_step * k)
             out += [(obs, f"{day.isoformat()}T{hh}:00:00Z") for hh in hours]
+    return out
+
+
+#: the orbit places where the zero-phase point lies on the Earth's lit limb seen from the Moon: the
+#: detector this many Earth radii off the Earth's centre toward the Sun (across the Moon's
+#: direction), where the rule converges slowest; random orbit dates rarely come this close (on
+#: them the table at order 11 was exceeded 1.7x here)
+LIMB_OFFSETS = (0.995, 0.998)
+#: the dates of those places: θ ≈ 20-60° (the worst) over May 2026, and θ ≈ 35° in three other months
+LIMB_DATES = ("2026-05-03T11:00:00Z", "2026-05-04T10:00:00Z", "2026-05-05T08:00:00Z", "2026-05-06T06:00:00Z",
+              "2026-05-07T05:00:00Z", "2026-01-06T00:00:00Z", "2026-07-03T03:00:00Z", "2026-09-29T09:00:00Z")
+
+
+#: held-out places on the lit limb's zero-phase family (other dates and offsets than the model's)
+HELD_OUT_LIMB_DATES = ("2026-02-28T17:00:00Z", "2026-04-05T03:00:00Z", "2026-05-05T20:00:00Z",
+                       "2026-08-25T03:00:00Z", "2026-11-22T01:00:00Z")
+HELD_OUT_LIMB_OFFSETS = (0.993, 0.997, 1.0005)
+
+
+def limb_observers(labels=LIMB_DATES, offsets=LIMB_OFFSETS, alt_km=550.0, inc_deg=97.6) -> list[tuple[str, str]]:
+    """(observer, UTC label) pairs: at each date, a circular orbit of the benchmark's altitude and
+    inclination through the point ``offset`` Earth radii from the Earth's centre, perpendicular to
+    the Moon's direction toward the Sun, on the Moon's side (its node and argument of latitude at
+    that date, the date its epoch)."""
+    import math
+
+    from lunarviz.scene import ResolvedScene
+    from lunarviz.sky.observers import WGS84_A_M
+    inc = math.radians(inc_deg)
+    out = []
+    for label in labels:
+        sc = ResolvedScene(method="raytrace", observer="geocentre", times=(label,)).geometry(label)
+        u_moon = (sc.moon - sc.earth) / np.linalg.norm(sc.moon - sc.earth)
+        toward_sun = (sc.sun - sc.earth) - ((sc.sun - sc.earth) @ u_moon) * u_moon
+        toward_sun /= np.linalg.norm(toward_sun)
+        r = WGS84_A_M + alt_km * 1e3
+        for rho in offsets:
+            b = rho * sc.radii["earth"]
+            p = math.sqrt(r * r - b * b) * u_moon + b * toward_sun
+            arg = math.asin(max(-1.0, min(1.0, p[2] / (r * math.sin(inc)))))
+            node = math.atan2(p[1], p[0]) - math.atan2(math.cos(inc) * math.sin(arg), math.cos(arg))
+            out.append((f"orbit:{alt_km:g},{inc_deg:g},{math.degrees(node):.9f},{math.degrees(arg):.9f},{label}",
+                        label))
     return out
 
 
@@ -134,7 +183,8 @@ def held_out(a, argv) -> int:
     from lunarviz.methods import accuracy
     t0 = time.perf_counter()
     picks = dates(a.every_hours, a.nights, start=dt.datetime(2026, 1, 1, 7), first_night=dt.date(2026, 1, 7),
-                  hours=("05", "10")) if not a.dates else [(OBSERVERS[0], d.strip()) for d in a.dates.split(",")]
+                  hours=("05", "10")) + limb_observers(HELD_OUT_LIMB_DATES, HELD_OUT_LIMB_OFFSETS) \
+        if not a.dates else [(orbit, d.strip()) for d in a.dates.split(",") for orbit in ORBITS]
     name = "off_centre_earth_held_out_dates" if a.dates else "off_centre_earth_held_out"
     with ProcessPoolExecutor(a.workers) as ex:
         results = [r for r in ex.map(measure, [(obs, t, moon) for obs, t in picks for moon in MOONS]) if r is not None]
@@ -171,23 +221,26 @@ def main(argv=None) -> int:
     ap.add_argument("--write", action="store_true", help="store the table in lunarviz/data/error_models.json")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
     ap.add_argument("--from-json", default=None, help="the cases of an earlier run's off_centre_earth.json, not "
-                    "measured again")
+                    "measured again (only the cases it lacks are)")
     ap.add_argument("--held-out", action="store_true",
                     help="measure dates the model was not built from (orbit hours from Jan 1 07:00, site nights "
-                         "from Jan 7 at 05:00 and 10:00 UTC) against the stored table: off_centre_earth_held_out.md")
+                         "from Jan 7 at 05:00 and 10:00 UTC, the lit limb's places at HELD_OUT_LIMB_DATES and "
+                         "_OFFSETS) against the stored table: off_centre_earth_held_out.md")
     ap.add_argument("--dates", default=None,
                     help="with --held-out: these orbit dates (UTC, comma-separated) instead, reported in "
                          "off_centre_earth_held_out_dates.md")
     a = ap.parse_args(argv)
     if a.held_out:
         return held_out(a, argv)
-    jobs = [(obs, t, moon) for obs, t in dates(a.every_hours, a.nights) for moon in MOONS]
+    jobs = [(obs, t, moon) for obs, t in dates(a.every_hours, a.nights) + limb_observers() for moon in MOONS]
     t0 = time.perf_counter()
-    if a.from_json:
-        results = json.loads(Path(a.from_json).read_text())["dates"]
-    else:
+    results = json.loads(Path(a.from_json).read_text())["dates"] if a.from_json else []
+    stored = {(r["observer"], r["time_utc"], r["moon_model"]) for r in results}
+    todo = [j for j in jobs if j not in stored]  # (with --from-json: the cases it lacks, e.g. new places;
+    if todo:  # those left out, e.g. a hidden Moon, are looked at again: a fraction of a second each)
         with ProcessPoolExecutor(a.workers) as ex:
-            results = [r for r in ex.map(measure, jobs) if r is not None]
+            results += [r for r in ex.map(measure, todo) if r is not None]
+    added = len(results) - len(stored)
     tabs = {v: table(results, v) for v in VARIANTS}
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -195,9 +248,9 @@ def main(argv=None) -> int:
     report = {"variants": {v: {"earth_pole": p, "orders": list(o)} for v, (p, o) in VARIANTS.items()},
               "reference": {"earth_pole": "detector-cut", "order": REFERENCE_ORDER},
               "table": {v: t[0] for v, t in tabs.items()}, "seconds": {v: t[1] for v, t in tabs.items()},
-              "dates": results, "wall_seconds": old.get("wall_seconds", time.perf_counter() - t0),
-              "command": old.get("command", "python scripts/off_centre_earth_model.py "
-                                 + " ".join(argv or sys.argv[1:]))}
+              "dates": results, "wall_seconds": old.get("wall_seconds", 0.0) + time.perf_counter() - t0,
+              "command": " && ".join(c for c in (old.get("command"), "python scripts/off_centre_earth_model.py "
+                                                 + " ".join(argv or sys.argv[1:]) if added else None) if c)}
     (out / "off_centre_earth.json").write_text(json.dumps(report, indent=1) + "\n")
     lines = ["# The Earth's beam rules about the zero-phase point, off the Earth's centre", "",
              f"`{report['command']}`: {len(results)} (date, lunar model) cases, earthshine of "
@@ -216,12 +269,15 @@ def main(argv=None) -> int:
         for moon in MOONS:
             lines.append(f"| {moon}, seconds | " + " | ".join(f"{sec[moon][str(o)]:.2f}" for o in orders) + " |")
         lines += ["", "Largest error per observer:", ""]
-        for obs in OBSERVERS:
+        groups = [(f"`{obs}`", lambda r, obs=obs: r["observer"] == obs) for obs in OBSERVERS]
+        groups.append(("the orbit through the Earth's lit limb's zero-phase places (LIMB_OFFSETS)",
+                       lambda r: r["observer"] not in OBSERVERS))
+        for name, member in groups:
             for moon in MOONS:
-                rs = [r[v] for r in results if r["observer"] == obs and r["moon_model"] == moon]
+                rs = [r[v] for r in results if member(r) and r["moon_model"] == moon]
                 if rs:
                     cells = " | ".join(f"{max(max(r['errors'][str(o)].values()) for r in rs):.1e}" for o in orders)
-                    lines.append(f"- `{obs}`, {moon} ({len(rs)} dates): {cells}")
+                    lines.append(f"- {name}, {moon} ({len(rs)} dates): {cells}")
         lines.append("")
     (out / "off_centre_earth.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
