@@ -248,7 +248,8 @@ def main(argv=None) -> int:
     report = {"variants": {v: {"earth_pole": p, "orders": list(o)} for v, (p, o) in VARIANTS.items()},
               "reference": {"earth_pole": "detector-cut", "order": REFERENCE_ORDER},
               "table": {v: t[0] for v, t in tabs.items()}, "seconds": {v: t[1] for v, t in tabs.items()},
-              "dates": results, "wall_seconds": old.get("wall_seconds", 0.0) + time.perf_counter() - t0,
+              "dates": results,
+              "wall_seconds": old.get("wall_seconds", 0.0) + (time.perf_counter() - t0 if added else 0.0),
               "command": " && ".join(c for c in (old.get("command"), "python scripts/off_centre_earth_model.py "
                                                  + " ".join(argv or sys.argv[1:]) if added else None) if c)}
     (out / "off_centre_earth.json").write_text(json.dumps(report, indent=1) + "\n")
