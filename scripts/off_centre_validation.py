@@ -2,7 +2,7 @@
 below the bound its row reports, and every bound within the tolerance?
 
     python scripts/off_centre_validation.py [--rtol 1e-4] [--every-hours H] [--nights N] [--reference-order N]
-                                            [--out DIR]
+                                            [--view-cut N | --lit-limb] [--out DIR]
 
 Dates that the error models were not built from (:mod:`scripts.off_centre_earth_model` takes
 2026 hours from 05:00 on Jan 3 in steps of 61 h, and site nights every 9 days from Jan 5): a
@@ -65,6 +65,14 @@ def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
                                         first_night=dt.date(2026, 1, 10), night_step=11, hours=("04", "09"),
                                         observers=OBSERVERS)
 
+
+#: held-out places where the zero-phase point lies on or beside the Earth's lit limb, where the Earth's
+#: rule about it converges slowest (the error model's LIMB_DATES and its held-out places are other
+#: dates): ``limb_observers`` at these dates (θ ≈ 30-160°) and offsets [Earth radii] (just inside
+#: the limb, and 0.015 and 0.05 beyond it)
+LIT_LIMB_DATES = ("2026-06-19T14:00:00Z", "2026-06-24T16:00:00Z", "2026-06-27T05:00:00Z", "2026-07-04T20:00:00Z",
+                  "2026-10-11T09:00:00Z", "2026-10-14T22:00:00Z")
+LIT_LIMB_OFFSETS = (0.996, 1.015, 1.05)
 
 #: the orbit of the view-cut dates, its epoch fixed (so a date's place on it does not depend on the run)
 CUT_ORBIT = "orbit:550,97.6,0,0,2026-01-01T00:00Z"
@@ -215,9 +223,15 @@ def main(argv=None) -> int:
     ap.add_argument("--view-cut", type=int, default=None, metavar="N",
                     help="instead: dates with the Earth's limb or a horizon across the Moon's disc, from N starts "
                          "per observer (view_cut_dates); writes off_centre_validation_view_cut_RTOL.*")
+    ap.add_argument("--lit-limb", action="store_true",
+                    help="instead: orbit places with the zero-phase point on or beside the Earth's lit limb "
+                         "(LIT_LIMB_DATES, LIT_LIMB_OFFSETS); writes off_centre_validation_lit_limb_RTOL.*")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
     a = ap.parse_args(argv)
-    chosen = view_cut_dates(a.view_cut) if a.view_cut else dates(a.every_hours, a.nights)
+    if a.lit_limb:
+        chosen = off_centre_earth_model.limb_observers(LIT_LIMB_DATES, LIT_LIMB_OFFSETS)
+    else:
+        chosen = view_cut_dates(a.view_cut) if a.view_cut else dates(a.every_hours, a.nights)
     live = [d for d in chosen if computed(*d)]
     lights = [(False, True) if i % a.spectral_every == 0 else (False,) for i in range(len(live))]
     order = a.reference_order or reference_lune_order(a.rtol)
@@ -229,7 +243,7 @@ def main(argv=None) -> int:
     checked = [r for r in rows if "error" in r]
     unbounded = [r for r in rows if "error" not in r]
     worst = max(checked, key=lambda r: r["ratio"]) if checked else None
-    tag = ("view_cut_" if a.view_cut else "") + f"{a.rtol:g}"
+    tag = ("view_cut_" if a.view_cut else "lit_limb_" if a.lit_limb else "") + f"{a.rtol:g}"
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     cmd = "python scripts/off_centre_validation.py " + " ".join(argv or sys.argv[1:])

@@ -446,9 +446,15 @@ def _body_geometry(mesh, scale: float, rotation: np.ndarray | None = None) -> di
     hit = _GEOMETRY_CACHE.get(key)
     if hit is not None:
         return hit
+    if rotation is not None:  # a turn moves the facets, not their sizes: the unturned geometry, turned
+        base = _body_geometry(mesh, scale)  # (its scenes and other lazy keys are built afresh for the turn)
+        geo = {k: base[k] for k in ("mesh", "body_vertices", "faces", "bound", "areas", "convex", "mean_radius",
+                                    "sphere_radius")}
+        geo.update({k: base[k] @ rotation.T for k in ("vertices", "normals", "centroids_local")},
+                   scene=None, outer=None, corner_normals=None)
+        _GEOMETRY_CACHE[key] = geo
+        return geo
     vertices = body_vertices = np.asarray(mesh.vertices, dtype=float) * scale
-    if rotation is not None:
-        vertices = vertices @ rotation.T
     faces = np.asarray(mesh.faces, dtype=np.int64)
     F = len(faces)
     areas, normals, centroids = np.empty(F), np.empty((F, 3)), np.empty((F, 3))
