@@ -119,9 +119,10 @@ def limb_observers(labels=LIMB_DATES, offsets=LIMB_OFFSETS, alt_km=550.0, inc_de
 
 
 def measure(args) -> dict | None:
-    """Errors (and seconds) of one (observer, date, lunar model) at each Earth order of each
-    variant of the rule, or None (left out)."""
-    obs, label, moon = args
+    """Errors (and seconds) of one (observer, date, lunar model[, variants]) at each Earth order
+    of each variant of the rule (those named, else every one), or None (left out)."""
+    obs, label, moon = args[:3]
+    variants = args[3] if len(args) > 3 else tuple(VARIANTS)
     from lunarviz.methods import accuracy
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     from lunarviz.scene import ResolvedScene
@@ -151,7 +152,7 @@ def measure(args) -> dict | None:
     if not all(v > 0 for v in ref.values()):
         return None
     out = {"observer": obs, "time_utc": label, "moon_model": moon, "theta_deg": sc.theta_deg, "lune_rule": bool(lune)}
-    for variant, (pole, orders) in VARIANTS.items():
+    for variant, (pole, orders) in ((v, VARIANTS[v]) for v in variants):
         errs, secs = {}, {}
         for o in orders:
             got, _, dt_ = trace(o, pole)
@@ -176,6 +177,22 @@ def table(results: list[dict], variant: str) -> tuple[dict, dict]:
     return err, sec
 
 
+def remeasure(results: list[dict], variant: str, workers: int) -> None:
+    """Measure ``variant`` of the rule again on every case of ``results`` (in place: each keeps
+    the other variants' errors), after a change to that rule."""
+    with ProcessPoolExecutor(workers) as ex:
+        again = list(ex.map(measure, [(r["observer"], r["time_utc"], r["moon_model"], (variant,)) for r in results]))
+    kept = []
+    for r, new in zip(results, again):
+        if new is not None:  # (a case now left out goes: its variant's errors would be stale)
+            r[variant] = new[variant]
+            r["seconds"] = r.get("seconds", 0.0) + new["seconds"]
+            kept.append(r)
+    if len(kept) < len(results):
+        print(f"{len(results) - len(kept)} cases now left out (a hidden Moon, an eclipse, θ outside 5-175°): dropped")
+    results[:] = kept
+
+
 def held_out(a, argv) -> int:
     """Each rule's error at each order on dates the model was not built from, against the table
     stored in ``lunarviz/data/error_models.json`` (the bound a row takes is SAFETY times it): the
@@ -186,11 +203,22 @@ def held_out(a, argv) -> int:
                   hours=("05", "10")) + limb_observers(HELD_OUT_LIMB_DATES, HELD_OUT_LIMB_OFFSETS) \
         if not a.dates else [(orbit, d.strip()) for d in a.dates.split(",") for orbit in ORBITS]
     name = "off_centre_earth_held_out_dates" if a.dates else "off_centre_earth_held_out"
-    with ProcessPoolExecutor(a.workers) as ex:
-        results = [r for r in ex.map(measure, [(obs, t, moon) for obs, t in picks for moon in MOONS]) if r is not None]
+    old = {}
+    if a.from_json:  # an earlier held-out run's cases (with --remeasure, one variant measured again)
+        old = json.loads(Path(a.from_json).read_text())
+        results = old["dates"]
+        if a.remeasure:
+            remeasure(results, a.remeasure, a.workers)
+    else:
+        with ProcessPoolExecutor(a.workers) as ex:
+            results = [r for r in ex.map(measure, [(obs, t, moon) for obs, t in picks for moon in MOONS])
+                       if r is not None]
+    this = "python scripts/off_centre_earth_model.py " + " ".join(argv or sys.argv[1:])
+    command = " && ".join(c for c in (old.get("command"), this) if c)  # (a rerun's after the run it starts from)
+    wall = old.get("wall_seconds", 0.0) + time.perf_counter() - t0
     lines = ["# The Earth's beam rules about the zero-phase point, on held-out dates", "",
-             f"`python scripts/off_centre_earth_model.py {' '.join(argv or sys.argv[1:])}`: {len(results)} (date, "
-             f"lunar model) cases the model was not built from ({time.perf_counter() - t0:.0f} s); the largest "
+             f"`{command}`: {len(results)} (date, "
+             f"lunar model) cases the model was not built from ({wall:.0f} s); the largest "
              f"error over them and the BRDFs, and its ratio to the stored table's (rows report "
              f"{accuracy.SAFETY:g} times the table's).", ""]
     for variant, (pole, orders) in VARIANTS.items():
@@ -207,7 +235,8 @@ def held_out(a, argv) -> int:
         lines.append("")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"{name}.json").write_text(json.dumps({"dates": results}, indent=1) + "\n")
+    (out / f"{name}.json").write_text(json.dumps({"dates": results, "command": command, "wall_seconds": wall},
+                                                 indent=1) + "\n")
     (out / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0
@@ -221,7 +250,10 @@ def main(argv=None) -> int:
     ap.add_argument("--write", action="store_true", help="store the table in lunarviz/data/error_models.json")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))
     ap.add_argument("--from-json", default=None, help="the cases of an earlier run's off_centre_earth.json, not "
-                    "measured again (only the cases it lacks are)")
+                    "measured again (only the cases it lacks are); with --held-out, of an earlier held-out run")
+    ap.add_argument("--remeasure", default=None, choices=tuple(VARIANTS),
+                    help="with --from-json: measure this variant of the rule again on every stored case (the "
+                         "others' errors kept), after a change to it (with --held-out: the held-out cases)")
     ap.add_argument("--held-out", action="store_true",
                     help="measure dates the model was not built from (orbit hours from Jan 1 07:00, site nights "
                          "from Jan 7 at 05:00 and 10:00 UTC, the lit limb's places at HELD_OUT_LIMB_DATES and "
@@ -230,6 +262,8 @@ def main(argv=None) -> int:
                     help="with --held-out: these orbit dates (UTC, comma-separated) instead, reported in "
                          "off_centre_earth_held_out_dates.md")
     a = ap.parse_args(argv)
+    if a.remeasure and not a.from_json:
+        ap.error("--remeasure takes the cases of --from-json")
     if a.held_out:
         return held_out(a, argv)
     jobs = [(obs, t, moon) for obs, t in dates(a.every_hours, a.nights) + limb_observers() for moon in MOONS]
@@ -240,11 +274,13 @@ def main(argv=None) -> int:
     if todo:  # those left out, e.g. a hidden Moon, are looked at again: a fraction of a second each)
         with ProcessPoolExecutor(a.workers) as ex:
             results += [r for r in ex.map(measure, todo) if r is not None]
-    added = len(results) - len(stored)
+    if a.remeasure:
+        remeasure(results, a.remeasure, a.workers)
+    added = len(results) - len(stored) + (len(results) if a.remeasure else 0)
     tabs = {v: table(results, v) for v in VARIANTS}
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    old = json.loads((Path(a.out) / "off_centre_earth.json").read_text()) if a.from_json else {}
+    old = json.loads(Path(a.from_json).read_text()) if a.from_json else {}
     report = {"variants": {v: {"earth_pole": p, "orders": list(o)} for v, (p, o) in VARIANTS.items()},
               "reference": {"earth_pole": "detector-cut", "order": REFERENCE_ORDER},
               "table": {v: t[0] for v, t in tabs.items()}, "seconds": {v: t[1] for v, t in tabs.items()},

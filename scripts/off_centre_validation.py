@@ -68,7 +68,7 @@ def dates(every_hours: int, nights: int) -> list[tuple[str, str]]:
 
 #: held-out places where the zero-phase point lies on or beside the Earth's lit limb, where the Earth's
 #: rule about it converges slowest (the error model's LIMB_DATES and its held-out places are other
-#: dates): ``limb_observers`` at these dates (θ ≈ 30-160°) and offsets [Earth radii] (just inside
+#: dates): ``limb_observers`` at these dates (θ ≈ 31-170°) and offsets [Earth radii] (just inside
 #: the limb, and 0.015 and 0.05 beyond it)
 LIT_LIMB_DATES = ("2026-06-19T14:00:00Z", "2026-06-24T16:00:00Z", "2026-06-27T05:00:00Z", "2026-07-04T20:00:00Z",
                   "2026-10-11T09:00:00Z", "2026-10-14T22:00:00Z")
@@ -220,10 +220,11 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-order", type=int, default=None,
                     help="the reference's lune order (default: 64 at --rtol 1e-4 and above, else 128)")
     ap.add_argument("--spectral-every", type=int, default=4, help="the 550 nm rows on one computed date in this many")
-    ap.add_argument("--view-cut", type=int, default=None, metavar="N",
+    places = ap.add_mutually_exclusive_group()
+    places.add_argument("--view-cut", type=int, default=None, metavar="N",
                     help="instead: dates with the Earth's limb or a horizon across the Moon's disc, from N starts "
                          "per observer (view_cut_dates); writes off_centre_validation_view_cut_RTOL.*")
-    ap.add_argument("--lit-limb", action="store_true",
+    places.add_argument("--lit-limb", action="store_true",
                     help="instead: orbit places with the zero-phase point on or beside the Earth's lit limb "
                          "(LIT_LIMB_DATES, LIT_LIMB_OFFSETS); writes off_centre_validation_lit_limb_RTOL.*")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "error_models"))

@@ -410,7 +410,8 @@ class EmbreeBody:
 
 #: body geometries kept (the least recently used dropped first): a θ sweep needs three entries
 #: (one per body), a dated sweep turns the Moon at every time and never reuses it (the packaged
-#: Earth keeps one orientation unless a map turns it too; the Sun, used at every date, stays);
+#: Earth keeps one orientation unless a map turns it too; the Sun, used at every date, stays; a
+#: turned body's unturned entry, from which each turn is made, is read at every date and stays);
 #: each Earth at level 6 holds ~100 MB with its Embree scenes (16 entries would hold 3 GB in a
 #: dated sweep)
 GEOMETRY_CACHE_SIZE = 6
