@@ -249,14 +249,15 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     cmd = "python scripts/off_centre_validation.py " + " ".join(argv or sys.argv[1:])
     (out / f"off_centre_validation_{tag}.json").write_text(json.dumps({"command": cmd, "rows": rows}, indent=1) + "\n")
-    lines = [f"# Rows off the Earth's centre against high-order references (rtol {tag})", "",
+    places = " (views cut by a limb or a horizon)" if a.view_cut else " (the lit limb's places)" if a.lit_limb else ""
+    lines = [f"# Rows off the Earth's centre against high-order references{places} (rtol {a.rtol:g})", "",
              f"`{cmd}` ({time.perf_counter() - t0:.0f} s): {len(checked)} values checked, "
              f"{len(unbounded)} rows without a bound; the tracer's reference at lune order {order}.", ""]
     if worst is not None:
         lines += [f"- largest error / bound: {worst['ratio']:.2f} ({worst['observer']}, {worst['time_utc']}, "
                   f"{worst['moon_model']}, {'550 nm' if worst['spectral'] else 'grey'}, {worst['brdf']} "
                   f"{worst['path']}: error {worst['error']:.1e}, bound {worst['bound']:.1e})",
-                  f"- largest bound: {max(r['bound'] for r in checked):.1e} (the tolerance: {tag})",
+                  f"- largest bound: {max(r['bound'] for r in checked):.1e} (the tolerance: {a.rtol:g})",
                   f"- errors above their bound: {sum(r['ratio'] > 1 for r in checked)}", ""]
         lines += ["| observer | lunar model | light | BRDF | largest error | largest bound | largest ratio |",
                   "|---|---|---|---|---|---|---|"]

@@ -337,7 +337,7 @@ def test_near_full_moon_from_orbit_the_earthshine_lune_rule_meets_its_bound():
     same trace at lune order 64 (scripts/off_centre_validation.py, bound 7.5e-5); orders 16, 20 and
     32 erred by 4.2e-6, 4.3e-6 and 1.7e-7. Beside the Earth's rule about the zero-phase point the
     earthshine's lune rule now takes its model's worst phase: the row is within its bound of the
-    same trace at lune order 32 (Earth order 10 of the rule cut along the kinks, ≤ 3.0e-7 in its
+    same trace at lune order 32 (Earth order 10 of the rule cut along the kinks, ≤ 2.5e-7 in its
     model)."""
     from lunarviz.methods.tracer.estimators import TraceScene, trace_path
     lab = "2026-12-24T11:00:00Z"

@@ -59,9 +59,10 @@ POLE_RULE_NODES = 1 << 17
 #: the poles the Earth's beam rules may take (:attr:`TraceSettings.earth_pole`)
 EARTH_POLES = ("centre", "detector", "detector-cut")
 #: the least Earth order :func:`horizon_band_order` gives the samples whose horizon cuts the
-#: Earth. The plain rule's error in one such sample's earthlight, over 16 azimuths and 7 depths
-#: across an orbit date's band (2026-05-10T00:00Z, the paper's Moon): 3.5e-2, 4.1e-3, 6.7e-4,
-#: 8.0e-5 and 1.1e-6 at orders 4, 6, 7, 8 and 10. A row takes it times the band's share of its
+#: Earth, on the plain rule (the rule cut along the kinks keeps its own order). The plain rule's
+#: error in one such sample's earthlight, over 16 azimuths and 7 depths across an orbit date's
+#: band (2026-05-10T00:00Z, the paper's Moon): 3.5e-2, 4.1e-3, 6.7e-4, 8.0e-5 and 1.1e-6 at
+#: orders 4, 6, 7, 8 and 10. A row takes it times the band's share of its
 #: earthshine: at most 3.4e-4 (Hapke) and 1.1e-5 (Lambert) from a 550 km orbit and from sites,
 #: up to 9.8e-4 for a detector 25,000 km from the Moon (the band's beams weighed out); rows at
 #: the orders ``--rtol 1e-4`` takes moved by at most 1.0e-7 (the paper's Moon, 88 orbit dates)
@@ -179,8 +180,8 @@ def horizon_band_order(order: int, asked: int | None = None, cut: bool = False) 
     the Earth's rule never coarsens these samples, though between orders 7 and 12 it leaves them as
     they are; for the rule ``cut`` along the kinks, ``order`` itself. The cut rule is taken for
     tolerances finer than the plain rule's orders meet, and a band at order 6 left its rows
-    ~1e-6 off (2026-05-18T13:00Z from a 550 km orbit, the paper's Moon: 9.9e-7 at cut orders 6,
-    8 and 10 alike, against 3.3e-8 at 8 and 6.0e-10 at 10 with the band at the rule's order)."""
+    ~1e-6 off (2026-05-18T13:00Z from a 550 km orbit, the paper's Moon: 1.0e-6, 9.9e-7 and 9.9e-7
+    at cut orders 7, 8 and 10, against 1.8e-7, 3.3e-8 and 6.1e-10 with the band at the rule's order)."""
     if asked is not None:
         return int(asked)
     if cut:
