@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
@@ -173,7 +174,7 @@ def main(argv=None) -> int:
         "mapped_finest_level": map_levels[-1],
         **tables, "analytic": analytic, "reference": reference, "montecarlo_sigma_one_ray": mc,
     }
-    out = Path(a.out) if a.out else (Path("/tmp/lunarviz_error_models_quick") if a.quick
+    out = Path(a.out) if a.out else (Path(tempfile.mkdtemp(prefix="lunarviz_error_models_quick_")) if a.quick
                                       else ROOT / "benchmarks" / "error_models")
     out.mkdir(parents=True, exist_ok=True)
     text = json.dumps(model, indent=1)

@@ -3,7 +3,7 @@
 packages it imports, optionally against another checkout of lunarviz (``--against DIR``: its
 source folder on PYTHONPATH), alternating the two in one run so that machine noise hits both.
 
-``python scripts/startup.py --against /tmp/base --out benchmarks/startup.json``
+``python scripts/startup.py --against DIR --out benchmarks/startup.json``
 """
 
 from __future__ import annotations

@@ -480,7 +480,7 @@ if __name__ == "__main__":
             for b, dd in d.items():
                 print(f"sphere: lunarviz/ours-1 th={th} {b}: " + ", ".join(f"{q[:4]} {v['rel_diff']:+.2e}" for q, v in dd.items()))
     except FileNotFoundError:
-        print("no /tmp/ref/sphere_ref.json; skipped lunarviz comparison")
+        print(f"no {OUT}/sphere_ref.json; skipped lunarviz comparison")
 
     out = {"ellipsoid": results["ellipsoid"], "cube": results["cube"], "sphere_check": sphere_check,
            "convergence": conv, "extended_vs_point_sun": point,
