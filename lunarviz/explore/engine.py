@@ -113,10 +113,14 @@ class Engine:
     def _repaint(self, state: ExploreState) -> bool:
         """Make ``state``'s frames again (its curves now complete), unless a newer state was asked
         for meanwhile (True: done, or no longer wanted) or work is in flight (False: the caller
-        tries again): decided under the lock, so it never supersedes a newer request."""
+        tries again): decided under the lock, so it never supersedes a newer request. A state asked
+        for again as a new but equal object (the browser's page re-sends its state) is the same
+        state: compared by what its frames show (``cache_key``), not by identity, else a frame made
+        before its last curve came would stay on show."""
         with self._lock:
-            if self._shown is not state:
+            if self._shown is None or self._shown.cache_key() != state.cache_key():
                 return True
+            state = self._shown
             if self._wanted is None and not self._busy:
                 self._wanted = state
                 self._generation += 1
