@@ -270,13 +270,15 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     results = json.loads(Path(a.from_json).read_text())["dates"] if a.from_json else []
     stored = {(r["observer"], r["time_utc"], r["moon_model"]) for r in results}
-    todo = [j for j in jobs if j not in stored]  # (with --from-json: the cases it lacks, e.g. new places;
-    if todo:  # those left out, e.g. a hidden Moon, are looked at again: a fraction of a second each)
-        with ProcessPoolExecutor(a.workers) as ex:
-            results += [r for r in ex.map(measure, todo) if r is not None]
-    if a.remeasure:
+    if a.remeasure:  # the stored cases (those it lacks are measured whole below)
         remeasure(results, a.remeasure, a.workers)
-    added = len(results) - len(stored) + (len(results) if a.remeasure else 0)
+    todo = [j for j in jobs if j not in stored]  # (with --from-json: the cases it lacks, e.g. new places;
+    new = []  # those left out, e.g. a hidden Moon, are looked at again: a fraction of a second each)
+    if todo:
+        with ProcessPoolExecutor(a.workers) as ex:
+            new = [r for r in ex.map(measure, todo) if r is not None]
+    results += new
+    measured = bool(new or a.remeasure)  # (this run measured something: its command and time count)
     tabs = {v: table(results, v) for v in VARIANTS}
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -285,9 +287,9 @@ def main(argv=None) -> int:
               "reference": {"earth_pole": "detector-cut", "order": REFERENCE_ORDER},
               "table": {v: t[0] for v, t in tabs.items()}, "seconds": {v: t[1] for v, t in tabs.items()},
               "dates": results,
-              "wall_seconds": old.get("wall_seconds", 0.0) + (time.perf_counter() - t0 if added else 0.0),
+              "wall_seconds": old.get("wall_seconds", 0.0) + (time.perf_counter() - t0 if measured else 0.0),
               "command": " && ".join(c for c in (old.get("command"), "python scripts/off_centre_earth_model.py "
-                                                 + " ".join(argv or sys.argv[1:]) if added else None) if c)}
+                                                 + " ".join(argv or sys.argv[1:]) if measured else None) if c)}
     (out / "off_centre_earth.json").write_text(json.dumps(report, indent=1) + "\n")
     lines = ["# The Earth's beam rules about the zero-phase point, off the Earth's centre", "",
              f"`{report['command']}`: {len(results)} (date, lunar model) cases, earthshine of "
