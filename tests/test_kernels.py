@@ -363,11 +363,12 @@ def test_rough_kernel_shades_each_samples_own_albedo_as_numpy(name, kw):
 @pytest.mark.parametrize("thin", [False, True])
 def test_cap_rule_nodes_kernel_matches_numpy(thin, monkeypatch):
     """cap_rule's nodes and weights written by the compiled kernel against its numpy expression:
-    the same arithmetic in the same order, the rings' φ-intervals too (compiled where a ring has
-    two caps or a cut); bar 1e-15 on the nodes and, on the weights, 1e-15 relative or 1e-15 of the
-    largest: numba's arccos, sin and cos may differ from numpy's by an ulp, which moves an interval's
-    end by an ulp of 2π (measured: 5e-14 relative on a narrow interval's weight, 4e-18 absolute).
-    Two caps, one a split-only cut, crossings; and one axis with the thin blocks' padded orders."""
+    the same arithmetic in the same order, the rings (their t and weights) and their φ-intervals too
+    (compiled where a ring has two caps or a cut); bar 1e-15 on the nodes and, on the weights,
+    1e-15 relative or 1e-15 of the largest: numba's arccos, sin and cos may differ from numpy's by
+    an ulp, which moves an interval's end by an ulp of 2π (measured: 5e-14 relative on a narrow
+    interval's weight, 4e-18 absolute). Two caps, one a split-only cut, crossings; and one axis
+    with the thin blocks' padded orders."""
     from lunarviz.geometry import quadrature_kernels
     from lunarviz.geometry.sphere_quadrature import cap_rule
     if not quadrature_kernels.available():

@@ -12,7 +12,11 @@ locates ~10⁵ map points per path and date and sums them into each block's weig
   output's size: ~10⁶ nodes for a date's Earth beams);
 * :func:`ring_intervals`: :func:`lunarviz.geometry.sphere_quadrature.cap_rule`'s φ-intervals of
   every ring (each ring cut at every cap's boundary, its inside intervals first), one ring at a
-  time in the numpy path's arithmetic (it builds a dozen (B, R, k) temporaries and sorts them);
+  time in the numpy path's arithmetic (it builds a dozen (B, R, k) temporaries and sorts them),
+  a cap that misses a ring decided once for it;
+* :func:`cap_rings`: :func:`lunarviz.geometry.sphere_quadrature.cap_rule`'s rings and their weights
+  from its t-segments (the end maps at tangent rings, the graded anchors), node by node in the
+  numpy path's arithmetic (a dozen (B, S, n) temporaries there);
 * :func:`sphere_beams`: a source sphere's rule, its zero-weight nodes moved last, as the beams
   seen from each point (:func:`lunarviz.methods.sources.source_beams`' directions and solid
   angles), in one pass (the numpy path sorts, gathers and builds six temporaries of that size);
@@ -182,7 +186,10 @@ def cap_nodes(axis, e1, e2, st, ct, wt, p_lo, p_hi, inside, fx, fw) -> tuple[np.
 def _ring_intervals(st, ct, t_u, phi_u, cr, split, p_lo, p_hi, inside, counts):
     """Every ring's φ-intervals (see ``sphere_quadrature._ring_intervals``): its breakpoints at
     every cap's boundary, sorted, and whether each interval's midpoint lies in every constraint
-    cap; the inside intervals first (in φ order), then the others; ``counts`` the inside ones."""
+    cap; the inside intervals first (in φ order), then the others; ``counts`` the inside ones.
+    A cap whose boundary misses the ring (``|q| ≥ 1``) holds all of it or none, decided once for
+    the ring from q (the numpy path's midpoint test gives the same, to rounding), and the few
+    breakpoints are sorted by insertion: ~2.5x faster than a midpoint test per cap and interval."""
     two_pi = 2.0 * np.pi
     B, R = st.shape
     k = t_u.shape[1]
@@ -190,6 +197,7 @@ def _ring_intervals(st, ct, t_u, phi_u, cr, split, p_lo, p_hi, inside, counts):
     pb = np.empty(2 * k + 2)
     lo, hi, ins = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
     stu, ctu = np.empty(k), np.empty(k)
+    state = np.empty(k, dtype=np.int64)  # 0: the cap cuts the ring (midpoint test); 1: holds it all; -1: none
     for b in range(B):
         for j in range(k):  # (a row's caps: the same values as at every ring)
             stu[j], ctu[j] = np.sin(t_u[b, j]), np.cos(t_u[b, j])
@@ -202,20 +210,37 @@ def _ring_intervals(st, ct, t_u, phi_u, cr, split, p_lo, p_hi, inside, counts):
                     q = num / den
                 else:
                     q = -np.inf if num < 0 else np.inf
-                hw = np.arccos(min(1.0, max(-1.0, q)))
-                partial = -1.0 < q < 1.0
-                pb[1 + j] = (phi_u[b, j] - hw) % two_pi if partial else 0.0
-                pb[1 + k + j] = (phi_u[b, j] + hw) % two_pi if partial else 0.0
-            pb.sort()
+                if -1.0 < q < 1.0:
+                    hw = np.arccos(q)
+                    pb[1 + j] = (phi_u[b, j] - hw) % two_pi
+                    pb[1 + k + j] = (phi_u[b, j] + hw) % two_pi
+                    state[j] = 0
+                else:
+                    pb[1 + j] = 0.0
+                    pb[1 + k + j] = 0.0
+                    state[j] = 1 if q <= -1.0 else -1
+            for a in range(1, 2 * k + 2):
+                v = pb[a]
+                c = a - 1
+                while c >= 0 and pb[c] > v:
+                    pb[c + 1] = pb[c]
+                    c -= 1
+                pb[c + 1] = v
             for i in range(n):
                 lo[i], hi[i] = pb[i], pb[i + 1]
-                pm = 0.5 * (lo[i] + hi[i])
                 ok = hi[i] > lo[i]
-                for j in range(k):
-                    if not ok:
-                        break
-                    dot = ct[b, r] * ctu[j] + st[b, r] * stu[j] * np.cos(pm - phi_u[b, j])
-                    ok = dot > cr[b, r, j] or split[b, j]
+                if ok:
+                    pm = 0.5 * (lo[i] + hi[i])
+                    for j in range(k):
+                        if split[b, j] or state[j] == 1:
+                            continue
+                        if state[j] < 0:
+                            ok = False
+                            break
+                        dot = ct[b, r] * ctu[j] + st[b, r] * stu[j] * np.cos(pm - phi_u[b, j])
+                        if not dot > cr[b, r, j]:
+                            ok = False
+                            break
                 ins[i] = ok
             c = 0
             for first in (True, False):
@@ -279,6 +304,51 @@ def sphere_beams(m, w, x, c, R: float) -> tuple[np.ndarray, np.ndarray]:
     return om, omega
 
 
+def _cap_rings(t_lo, t_hi, s_lo, s_hi, below, above, u, gw, t, wt):
+    B, S, n = u.shape
+    for b in range(B):
+        for s in range(S):
+            lo, hi = t_lo[b, s], t_hi[b, s]
+            tl, th = s_lo[b, s], s_hi[b, s]
+            for i in range(n):
+                x = u[b, s, i]
+                if tl and th:
+                    f, jac = x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x)
+                elif tl:
+                    f, jac = x * x, 2.0 * x
+                elif th:
+                    f, jac = 1.0 - (1.0 - x) * (1.0 - x), 2.0 * (1.0 - x)
+                else:
+                    f, jac = x, 1.0
+                tt = lo + (hi - lo) * f
+                dt = (hi - lo) * jac
+                for a, sign in ((below[b, s], 1.0), (above[b, s], -1.0)):
+                    if np.isfinite(a):
+                        s0 = np.sqrt(np.abs(lo - a))
+                        s1 = np.sqrt(np.abs(hi - a))
+                        sv = s0 + (s1 - s0) * x
+                        tt = a + sign * sv * sv
+                        dt = 2.0 * sv * np.abs(s1 - s0)
+                t[b, s, i] = tt
+                wt[b, s, i] = dt * gw[b, s, i] * np.sin(tt)
+
+
+def cap_rings(t_lo, t_hi, s_lo, s_hi, below, above, u, gw) -> tuple[np.ndarray, np.ndarray]:
+    """``sphere_quadrature._cap_rings``' rings t (B, S, n) and weights ``dt·w·sin t`` from its
+    t-segments (``t_lo``, ``t_hi``, tangent ends ``s_lo``, ``s_hi``, graded anchors ``below``,
+    ``above`` (B, S); NaN: none) and the Gauss variables ``u`` and weights ``gw`` on [0, 1] ((n,),
+    or (B, S, n) for padded orders): the numpy path's arithmetic, node by node."""
+    f = np.ascontiguousarray
+    B, S = t_lo.shape
+    n = np.shape(u)[-1]
+    u3 = f(np.broadcast_to(np.asarray(u, dtype=np.float64), (B, S, n)))
+    g3 = f(np.broadcast_to(np.asarray(gw, dtype=np.float64), (B, S, n)))
+    t, wt = np.empty((B, S, n)), np.empty((B, S, n))
+    _cap_rings(f(t_lo, dtype=np.float64), f(t_hi, dtype=np.float64), f(s_lo, dtype=np.bool_), f(s_hi, dtype=np.bool_),
+               f(below, dtype=np.float64), f(above, dtype=np.float64), u3, g3, t, wt)
+    return t, wt
+
+
 def barycentric_weights(nodes: np.ndarray) -> np.ndarray:
     """``1/Π_{j≠i}(x_i - x_j)``: the barycentric weights of Lagrange interpolation on ``nodes``."""
     diff = nodes[:, None] - nodes[None, :]
@@ -307,5 +377,6 @@ if _NUMBA:
         _cap_nodes = compiled.jit(_cap_nodes, nogil=True)
         _sphere_beams = compiled.jit(_sphere_beams, nogil=True)
         _ring_intervals = compiled.jit(_ring_intervals, nogil=True)
+        _cap_rings = compiled.jit(_cap_rings, nogil=True)
     except Exception:  # noqa: BLE001 (a numba that cannot compile: the numpy path)
         _NUMBA = False

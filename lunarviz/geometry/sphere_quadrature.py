@@ -494,12 +494,17 @@ def _cap_rings(t_u, caps_c, t_max, n_t: int, extra=None, tangent=None, orders=No
         t_lo, t_hi, s_lo, s_hi, below, above = _graded_segments(t_u, caps_c, t_max, extra, tangent)
     else:
         t_lo, t_hi, s_lo, s_hi = t_segments(t_u, caps_c, t_max, extra, tangent)
+    u, gw = gauss_legendre(n_t) if orders is None else _padded_gauss(n_t, orders)
+    if quadrature_kernels.available():  # the same arithmetic, node by node
+        none = np.full(t_lo.shape, np.nan)
+        t, wt = quadrature_kernels.cap_rings(t_lo, t_hi, s_lo, s_hi, below if graded else none,
+                                             above if graded else none, u, gw)
+        return t.reshape(B, -1), wt.reshape(B, -1)
     s_lo, s_hi = s_lo[:, :, None], s_hi[:, :, None]
     # Next to a tangent ring t* the φ-half-width of a ring behaves like √|t - t*|, so the ring
     # integral has a square-root singularity there; the substitution t - t* ∝ u² at such ends
     # (smoothstep 3u² - 2u³ when both ends are tangent) makes it analytic in u. Ends that are
     # not tangent keep plain Gauss-Legendre (exact for polynomials of degree 2n - 1).
-    u, gw = gauss_legendre(n_t) if orders is None else _padded_gauss(n_t, orders)
     f_both, j_both = u * u * (3.0 - 2.0 * u), 6.0 * u * (1.0 - u)
     f_lo, j_lo = u * u, 2.0 * u
     f_hi, j_hi = 1.0 - (1.0 - u) ** 2, 2.0 * (1.0 - u)
