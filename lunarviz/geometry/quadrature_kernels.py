@@ -349,6 +349,33 @@ def cap_rings(t_lo, t_hi, s_lo, s_hi, below, above, u, gw) -> tuple[np.ndarray, 
     return t, wt
 
 
+def _inside_intervals(st, ct, wt, p_lo, p_hi, inside, st2, ct2, wt2, lo2, hi2, ins2):
+    B, R, n_iv = p_lo.shape
+    for b in range(B):
+        j = 0
+        for r in range(R):
+            for i in range(n_iv):
+                if inside[b, r, i]:
+                    st2[b, j], ct2[b, j], wt2[b, j] = st[b, r], ct[b, r], wt[b, r]
+                    lo2[b, j, 0], hi2[b, j, 0], ins2[b, j, 0] = p_lo[b, r, i], p_hi[b, r, i], True
+                    j += 1
+
+
+def inside_intervals(st, ct, wt, p_lo, p_hi, inside):
+    """``sphere_quadrature._inside_intervals``: the rings' inside φ-intervals, each row's in ring
+    order, as rings of one interval each (B, P), P the most a row has (at least 1); the spare slots
+    empty intervals of zero weight about the axis (t = 0). Copies only: the same numbers."""
+    B = st.shape[0]
+    P = max(int(inside.reshape(B, -1).sum(axis=1).max(initial=0)), 1)
+    st2, ct2, wt2 = np.zeros((B, P)), np.ones((B, P)), np.zeros((B, P))
+    lo2, hi2, ins2 = np.zeros((B, P, 1)), np.zeros((B, P, 1)), np.zeros((B, P, 1), dtype=np.bool_)
+    f = np.ascontiguousarray
+    _inside_intervals(f(st, dtype=np.float64), f(ct, dtype=np.float64), f(wt, dtype=np.float64),
+                      f(p_lo, dtype=np.float64), f(p_hi, dtype=np.float64), f(inside, dtype=np.bool_),
+                      st2, ct2, wt2, lo2, hi2, ins2)
+    return st2, ct2, wt2, lo2, hi2, ins2
+
+
 def barycentric_weights(nodes: np.ndarray) -> np.ndarray:
     """``1/Π_{j≠i}(x_i - x_j)``: the barycentric weights of Lagrange interpolation on ``nodes``."""
     diff = nodes[:, None] - nodes[None, :]
@@ -378,5 +405,6 @@ if _NUMBA:
         _sphere_beams = compiled.jit(_sphere_beams, nogil=True)
         _ring_intervals = compiled.jit(_ring_intervals, nogil=True)
         _cap_rings = compiled.jit(_cap_rings, nogil=True)
+        _inside_intervals = compiled.jit(_inside_intervals, nogil=True)
     except Exception:  # noqa: BLE001 (a numba that cannot compile: the numpy path)
         _NUMBA = False

@@ -188,6 +188,8 @@ def _inside_intervals(st, ct, wt, p_lo, p_hi, inside):
     inside)`` (B, P, 1), P the most a row has (at least 1); a row's spare slots are empty
     intervals of zero weight about the axis (t = 0). :func:`cap_rule`'s nodes of positive weight
     are then the same, in the same order, and the padding between rings is gone."""
+    if quadrature_kernels.available():  # (the same copies, ring by ring)
+        return quadrature_kernels.inside_intervals(st, ct, wt, p_lo, p_hi, inside)
     B, R, n_iv = p_lo.shape
     rows, flat = np.nonzero(inside.reshape(B, -1))
     counts = np.bincount(rows, minlength=B)
