@@ -60,14 +60,16 @@ POLE_RULE_NODES = 1 << 17
 EARTH_POLES = ("centre", "detector", "detector-cut")
 #: the least Earth order :func:`horizon_band_order` gives the samples whose horizon cuts the
 #: Earth, on the plain rule (the rule cut along the kinks keeps its own order). The plain rule's
-#: error in one such sample's earthlight, over 16 azimuths and 7 depths across an orbit date's
-#: band (2026-05-10T00:00Z, the paper's Moon): 3.5e-2, 4.1e-3, 6.7e-4, 8.0e-5 and 1.1e-6 at
-#: orders 4, 6, 7, 8 and 10. A row takes it times the band's share of its
-#: earthshine: at most 3.4e-4 (Hapke) and 1.1e-5 (Lambert) from a 550 km orbit and from sites,
-#: up to 9.8e-4 for a detector 25,000 km from the Moon (the band's beams weighed out); rows at
-#: the orders ``--rtol 1e-4`` takes moved by at most 1.0e-7 (the paper's Moon, 88 orbit dates)
-#: and 6.7e-7 (rolo-fit-map, 35), and the error models are measured with this rule
-HORIZON_CUT_LEAST_ORDER = 6
+#: error in one such sample's earthlight (eight samples across an orbit date's band,
+#: 2026-05-10T00:00Z, the paper's Moon; tests/test_zero_phase_rule.py): 2.0e-2, 1.2e-2, 3.0e-3,
+#: 4.7e-4, 4.9e-5 and 4.5e-7 at orders 4, 5, 6, 7, 8 and 10. A row takes it times the band's share of
+#: its earthshine: at most 3.4e-4 (Hapke) and 1.1e-5 (Lambert) from a 550 km orbit and from sites,
+#: up to 9.8e-4 for a detector 25,000 km from the Moon (the band's beams weighed out; ~2e-5 of
+#: such a row at order 4, outside the orbits and sites the error models hold). At order 4
+#: rather than 6, rows at the orders ``--rtol 1e-4`` takes moved by at most 9.1e-6 (the paper's
+#: DHG Moon, 166 hourly orbit dates) and an orbit date's earthshine traces ~15 % faster; the error
+#: models are measured with this rule
+HORIZON_CUT_LEAST_ORDER = 4
 #: a quick look's settings (an explorer's first picture): the fewest beams to each source, the
 #: Earth's rule about each sample's sub-point, no refinement at edges
 QUICK_TRACE = {"earth_order": 2, "sun_order": 2, "earth_pole": "centre", "refine": False}
@@ -175,9 +177,9 @@ class TraceSettings:
 def horizon_band_order(order: int, asked: int | None = None, cut: bool = False) -> int:
     """The Earth order of the zero-phase rule at lunar samples whose horizon cuts the Earth
     (:attr:`TraceSettings.earth_horizon_order`): ``asked`` where given; else, for the plain rule,
-    half the row's ``order`` rounded up, at least :data:`HORIZON_CUT_LEAST_ORDER` and at most
-    ``order``: it never falls as ``order`` grows (6 from order 6 to 12, half beyond), so refining
-    the Earth's rule never coarsens these samples, though between orders 7 and 12 it leaves them as
+    a third of the row's ``order`` rounded up, at least :data:`HORIZON_CUT_LEAST_ORDER` and at most
+    ``order``: it never falls as ``order`` grows (4 from order 4 to 12, a third beyond), so refining
+    the Earth's rule never coarsens these samples, though between orders 5 and 12 it leaves them as
     they are; for the rule ``cut`` along the kinks, ``order`` itself. The cut rule is taken for
     tolerances finer than the plain rule's orders meet, and a band at order 6 left its rows
     ~1e-6 off (2026-05-18T13:00Z from a 550 km orbit, the paper's Moon: 1.0e-6, 9.9e-7 and 9.9e-7
@@ -186,7 +188,7 @@ def horizon_band_order(order: int, asked: int | None = None, cut: bool = False) 
         return int(asked)
     if cut:
         return int(order)
-    return min(int(order), max(HORIZON_CUT_LEAST_ORDER, -(-int(order) // 2)))
+    return min(int(order), max(HORIZON_CUT_LEAST_ORDER, -(-int(order) // 3)))
 
 
 def body_mesh_m(body: str, level, path, units: str = "m", radius: float | None = None):
