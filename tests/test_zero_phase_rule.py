@@ -219,8 +219,9 @@ def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_ref
     (measured; band orders 4, 7 and 10; a third of the one before is allowed): refining the
     Earth's order refines these samples too. At order 14 the band takes order 5 with under a
     third of the full order's beams: the band holds at most 3.4e-4 of a Hapke row's earthshine
-    from an orbit or a site, so the row moves by up to ~1e-5 (measured: 9.1e-6 over 166 orbit
-    dates at order 12), inside its bound (~7e-5, from the error model measured with this rule)."""
+    from an orbit or a site, so the row moves by up to ~2e-5 (measured: 1.8e-5 over the year's
+    hourly orbit dates at order 12), inside its bound (~1e-4, from the error model measured with
+    this rule)."""
     from lunarviz.methods.tracer.settings import HORIZON_CUT_LEAST_ORDER, horizon_band_order
     earthlight = _horizon_band_earthlight("detector")
     ref = earthlight(24, 24)[0]

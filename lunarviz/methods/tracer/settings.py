@@ -66,9 +66,9 @@ EARTH_POLES = ("centre", "detector", "detector-cut")
 #: its earthshine: at most 3.4e-4 (Hapke) and 1.1e-5 (Lambert) from a 550 km orbit and from sites,
 #: up to 9.8e-4 for a detector 25,000 km from the Moon (the band's beams weighed out; ~2e-5 of
 #: such a row at order 4, outside the orbits and sites the error models hold). At order 4
-#: rather than 6, rows at the orders ``--rtol 1e-4`` takes moved by at most 9.1e-6 (the paper's
-#: DHG Moon, 166 hourly orbit dates) and an orbit date's earthshine traces ~15 % faster; the error
-#: models are measured with this rule
+#: rather than 6, rows at the orders ``--rtol 1e-4`` takes moved by at most 1.8e-5 (median 5e-8;
+#: the paper's DHG Moon, the year's 8,760 hourly orbit dates) and an orbit date's earthshine traces
+#: ~15 % faster; the error models are measured with this rule
 HORIZON_CUT_LEAST_ORDER = 4
 #: a quick look's settings (an explorer's first picture): the fewest beams to each source, the
 #: Earth's rule about each sample's sub-point, no refinement at edges
