@@ -509,6 +509,25 @@ def test_a_moon_partly_hidden_takes_the_cut_lune_rule_and_its_bound():
             assert 1.6 < whole / row["moonshine_W_m2"] < 2.2
 
 
+def test_a_moon_the_earths_sphere_covers_but_its_facets_do_not_has_no_bound():
+    """Seconds after the Moon sets behind the Earth's exact sphere from the orbit (2026-10-28T16:00:03Z,
+    θ = 34°: the Earth's disc covers the Moon's by 0.5 % of its diameter) the date is still computed
+    (the skip test shrinks the Earth by 1 %, more than its packaged facets' sag), and sight lines
+    pass the facets, up to ~0.2 % inside the sphere, to a sliver of Moon: its rows held only that
+    sliver's light, ~100 % off the exact zero, yet reported 9.8e-5 (its rows at --rtol 1e-4 and 1e-6
+    differed by 60 % in moonshine). They now say they have no bound; a second before, with 3.4 % of
+    the Moon's diameter in sight, the row keeps its bound (which it met: 7.4e-5 against the same
+    row at --rtol 1e-6)."""
+    from lunarviz.methods.accuracy import EARTH_COVERS_MOON_REASON
+    for label, bounded in (("2026-10-28T16:00:03Z", False), ("2026-10-28T16:00:02Z", True)):
+        s = ResolvedScene(method="raytrace", brdfs=("dhg",), moon_model="paper", rtol=1e-4, times=(label,),
+                          observer="orbit:550,97.6,0,0,2026-01-01T00:00Z")
+        row = run_phase(s, label, threads=1)[0]
+        assert row["skip_reason"] == "" and row["moonshine_W_m2"] > 0
+        assert (0 < row["rtol"] <= 1e-4) is bounded
+        assert (row["no_bound_reason"] == EARTH_COVERS_MOON_REASON) is not bounded
+
+
 def test_a_sliver_the_facets_sight_lines_miss_has_no_bound():
     """The Earth's limb across 0.12 % of the Moon's disc (2026-01-04T02:34:00.4Z from the orbit):
     the level-6 Earth's facets lie up to ~0.2 km inside its sphere, so no sight line from the lunar

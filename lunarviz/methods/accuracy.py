@@ -447,6 +447,10 @@ def row_bound(bound: float, scene, method: str, estimator: str | None, brdf, why
     return bound, ""
 
 
+#: why a row whose Moon the Earth's exact sphere covers whole has no bound (the packaged Earth's
+#: facets, inside the sphere, leave a sliver in sight:
+#: :meth:`~lunarviz.methods.tracer.lunar_sampling.LunarSampling.earth_covers_moon`)
+EARTH_COVERS_MOON_REASON = "the Earth's sphere covers the whole Moon; only its facets' sag leaves a sliver in sight"
 #: why a Hapke row's earthshine seen off the Earth's centre has no bound (:func:`earth_source_modelled`)
 OFF_CENTRE_REASON = ("earthshine of a BRDF with an opposition surge or roughness seen off the Earth's centre: "
                      "the Earth's beam rules are not measured there")
@@ -505,6 +509,8 @@ def traced_path_bounds(bounds: dict, ts, why: str = "") -> tuple[dict, str]:
     where either path has none."""
     if not bounds:
         return {}, why or "no error model holds for this row's settings"
+    if ts.sampling.earth_covers_moon():
+        return {}, EARTH_COVERS_MOON_REASON
     got = {}
     for path, body in (("moonshine", "sun"), ("earthshine", "earth")):
         if ts.sampling.lune_rule_applies(body):
