@@ -38,6 +38,10 @@ ENTRY_MARGIN = 1e-3
 #: searches it ~2.5x faster per ray than the packaged level-6 sphere's 81,920 and ~1.3x faster
 #: than level 3's 1,280: 167,000 rays toward the Earth, scripts/hit_scene_speed.py)
 HIT_SCENE_LEVEL = 0
+#: how far [× radius] a circumscribing polyhedron's facet planes are pushed out beyond the sphere:
+#: float32 vertices move them by up to ~1e-7 of it (the icosahedron's 0.11 m inside the Earth's
+#: sphere and 1.6 m inside the Sun's at 1e-9), so every plane stays outside after rounding
+CIRCUMSCRIBE_MARGIN = 1e-6
 #: Batch size of one Embree call (bounds memory for any ray count).
 BATCH = 1 << 18
 
@@ -243,12 +247,12 @@ class EmbreeBody:
 
     def outer_scene(self):
         """Embree scene of the mesh scaled to circumscribe its sphere (every facet plane at
-        distance ≥ R from the centre), so every ray that meets the sphere meets this mesh.
+        distance ≥ R from the centre, after float32 rounding: :data:`CIRCUMSCRIBE_MARGIN`), so every ray that meets the sphere meets this mesh.
         Built once per mesh and radius (cached with the body's geometry)."""
         geo = self.geometry
         if geo.get("outer") is None:
             plane_dist = np.einsum("ij,ij->i", self.normals, self.vertices[self.faces[:, 0]])
-            k = self.radius / float(plane_dist.min()) * (1.0 + 1e-9)
+            k = self.radius / float(plane_dist.min()) * (1.0 + CIRCUMSCRIBE_MARGIN)
             outer = rtcore_scene.EmbreeScene()
             TriangleMesh(scene=outer, vertices=(self.vertices * k).astype(EMBREE_DTYPE),
                          indices=self.faces.astype(np.int32))
@@ -439,7 +443,7 @@ def _circumscribing_scene(vertices: np.ndarray, faces: np.ndarray, radius: float
     tri = vertices[faces]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    k = radius / float(np.abs(np.einsum("ij,ij->i", normals, tri[:, 0])).min()) * (1.0 + 1e-9)
+    k = radius / float(np.abs(np.einsum("ij,ij->i", normals, tri[:, 0])).min()) * (1.0 + CIRCUMSCRIBE_MARGIN)
     v32, f32 = (vertices * k).astype(EMBREE_DTYPE), np.asarray(faces, np.int32)
     scene = rtcore_scene.EmbreeScene()
     TriangleMesh(scene=scene, vertices=v32, indices=f32)
