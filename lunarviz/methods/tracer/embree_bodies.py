@@ -247,8 +247,8 @@ class EmbreeBody:
 
     def outer_scene(self):
         """Embree scene of the mesh scaled to circumscribe its sphere (every facet plane at
-        distance ≥ R from the centre, after float32 rounding: :data:`CIRCUMSCRIBE_MARGIN`), so every ray that meets the sphere meets this mesh.
-        Built once per mesh and radius (cached with the body's geometry)."""
+        distance ≥ R from the centre, after float32 rounding: :data:`CIRCUMSCRIBE_MARGIN`), so every
+        ray that meets the sphere meets this mesh. Built once per mesh and radius (cached with the body's geometry)."""
         geo = self.geometry
         if geo.get("outer") is None:
             plane_dist = np.einsum("ij,ij->i", self.normals, self.vertices[self.faces[:, 0]])
