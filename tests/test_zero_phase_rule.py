@@ -236,6 +236,37 @@ def test_lunar_samples_whose_horizon_cuts_the_earth_take_a_coarser_rule_that_ref
     assert all(a > 3 * b for a, b in zip(errs, errs[1:])) and errs[-1] < 1e-6
 
 
+def test_a_moon_partly_hidden_by_the_earths_limb_keeps_the_band_at_half_the_order():
+    """A second before the Moon sets behind the Earth from the orbit at one epoch
+    (2026-10-28T16:00:02Z, θ = 34°, 3.4 % of the Moon's diameter in sight, the lune rule cut where
+    the view ends): what is left in sight lies near the lunar limb, where the band of samples whose
+    horizon cuts the Earth is, so that band carries more of the row. With the band at order 4 the
+    plain rule at order 12 erred by 7.4e-5 against the cut rule at order 24 (SHG), beyond twice its
+    table (3.5e-5: the factor a row's bound takes); with the band at half the order, as a cut view
+    takes it, 4.6e-5 (measured). Bar: twice the table; it sits between the two."""
+    from lunarviz.methods import accuracy
+    from lunarviz.methods.tracer.estimators import trace_path
+    from lunarviz.methods.tracer.settings import horizon_band_order
+    assert [horizon_band_order(k, view_cut=True) for k in (4, 8, 12, 14)] == [4, 6, 6, 7]
+    label = "2026-10-28T16:00:02Z"
+    s = ResolvedScene(method="raytrace", brdfs=("lambert", "shg", "dhg"), moon_model="paper", rtol=1e-4,
+                      observer=ORBIT + ",2026-01-01T00:00Z", times=(label,))
+    sc = s.geometry(label)
+    base = s.trace_settings(1, s.trace_plan(sc.theta_deg))
+    assert base.earth_pole == "detector" and base.earth_order == 12
+
+    def earthshine(order, pole, band=None):
+        pair = None if base.lune_source_orders is None else (base.lune_source_orders[0], order)
+        st = replace(base, earth_pole=pole, earth_order=order, earth_horizon_order=band, lune_source_orders=pair)
+        ts = TraceScene(sc, st)
+        return trace_path(ts, "earthshine", s.brdf_models()).mean, ts
+    ref = earthshine(24, "detector-cut", 24)[0]
+    got, ts = earthshine(12, "detector")
+    assert ts.sampling.edges_found("earth")
+    err = max(abs(got[k] / ref[k] - 1) for k in ref)
+    assert err < accuracy.SAFETY * accuracy.off_centre_earth_error(12, False, False)
+
+
 def test_the_rule_cut_along_the_kinks_keeps_its_full_order_where_the_horizon_cuts_the_earth():
     """The rule cut along the roughness's kinks (taken where a tolerance asks for more than the
     plain rule's orders give) traces the samples whose horizon cuts the Earth at its own order:

@@ -70,6 +70,8 @@ EARTH_POLES = ("centre", "detector", "detector-cut")
 #: the paper's DHG Moon, the year's 8,760 hourly orbit dates) and an orbit date's earthshine traces
 #: ~15 % faster; the error models are measured with this rule
 HORIZON_CUT_LEAST_ORDER = 4
+#: the same where the detector's view of the Moon is cut (:func:`horizon_band_order`)
+VIEW_CUT_BAND_LEAST_ORDER = 6
 #: a quick look's settings (an explorer's first picture): the fewest beams to each source, the
 #: Earth's rule about each sample's sub-point, no refinement at edges
 QUICK_TRACE = {"earth_order": 2, "sun_order": 2, "earth_pole": "centre", "refine": False}
@@ -174,7 +176,7 @@ class TraceSettings:
             raise LunarvizError(f"mapped_earth {self.mapped_earth!r} is not one of facets, beams")
 
 
-def horizon_band_order(order: int, asked: int | None = None, cut: bool = False) -> int:
+def horizon_band_order(order: int, asked: int | None = None, cut: bool = False, view_cut: bool = False) -> int:
     """The Earth order of the zero-phase rule at lunar samples whose horizon cuts the Earth
     (:attr:`TraceSettings.earth_horizon_order`): ``asked`` where given; else, for the plain rule,
     a third of the row's ``order`` rounded up, at least :data:`HORIZON_CUT_LEAST_ORDER` and at most
@@ -183,11 +185,18 @@ def horizon_band_order(order: int, asked: int | None = None, cut: bool = False) 
     they are; for the rule ``cut`` along the kinks, ``order`` itself. The cut rule is taken for
     tolerances finer than the plain rule's orders meet, and a band at order 6 left its rows
     ~1e-6 off (2026-05-18T13:00Z from a 550 km orbit, the paper's Moon: 1.0e-6, 9.9e-7 and 9.9e-7
-    at cut orders 7, 8 and 10, against 1.8e-7, 3.3e-8 and 6.1e-10 with the band at the rule's order)."""
+    at cut orders 7, 8 and 10, against 1.8e-7, 3.3e-8 and 6.1e-10 with the band at the rule's order).
+    Where the detector's view of the Moon is cut (``view_cut``: a Moon partly hidden by the Earth's
+    limb or a horizon, whose visible part may lie mostly near the lunar limb, where the band is), half
+    the order, rounded up, at least 6: a second before the Moon set behind the Earth from a 550 km
+    orbit (2026-10-28T16:00:02Z, 3.4 % of its diameter in sight) the plain rule at order 12 erred by
+    7.4e-5 with the band at order 4 and 4.6e-5 at order 6 (its table: 3.5e-5)."""
     if asked is not None:
         return int(asked)
     if cut:
         return int(order)
+    if view_cut:
+        return min(int(order), max(VIEW_CUT_BAND_LEAST_ORDER, -(-int(order) // 2)))
     return min(int(order), max(HORIZON_CUT_LEAST_ORDER, -(-int(order) // 3)))
 
 

@@ -69,7 +69,8 @@ class SourceRules:
                 continue
             if pole is not None:  # (summed samples whose horizon cuts the Earth: horizon_band_order)
                 coarse = with_horizon and self.sampling.summed
-                o_p = horizon_band_order(order, s.earth_horizon_order, pole_kind == "detector-cut") if coarse else order
+                o_p = horizon_band_order(order, s.earth_horizon_order, pole_kind == "detector-cut",
+                                         view_cut=self.sampling.edges_found("earth")) if coarse else order
                 parts.append((rows, *source_sphere_beams(sc, x[rows], n[rows], body, o_p, horizon=with_horizon,
                                                          pole=pole[rows], roughness_cuts=pole_kind == "detector-cut")))
                 continue
