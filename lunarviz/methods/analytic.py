@@ -130,21 +130,6 @@ def hidden_view_cut(scene: SceneGeometry):
     return None, (-e, threshold)
 
 
-def earth_covers_moon(scene: SceneGeometry) -> bool:
-    """From a detector outside the Earth, whether the Earth's exact sphere covers the Moon's whole
-    disc (no margins: :meth:`~lunarviz.geometry.scene_geometry.SceneGeometry.moon_wholly_hidden`
-    keeps such dates, whose Moon a packaged Earth's facets, up to ~0.2 % inside the sphere, may
-    still show a sliver of)."""
-    if scene.horizon_normal is not None or scene.detector_inside("earth"):
-        return False
-    M, R = scene.moon, scene.radii["moon"]
-    d = float(np.linalg.norm(scene.det - M))
-    w = scene.earth - scene.det
-    dw = float(np.linalg.norm(w))
-    rho, alpha = np.arcsin(min(1.0, R / d)), np.arcsin(min(1.0, scene.radii["earth"] / dw))
-    return bool(dw < d and angle_between(M - scene.det, w) <= alpha - rho)
-
-
 def paper_grid(scene: SceneGeometry, step_deg: float = 1.0):
     """The paper's surface elements, Eq. 4: φ, δ ∈ [-85°, 85°] about the sub-Earth point.
 

@@ -11,7 +11,7 @@ import numpy as np
 from lunarviz.geometry.mapped_lune import mapped_lune_rule
 from lunarviz.geometry.scene_geometry import angle_between, unit
 from lunarviz.geometry.subdivision import sub_barycentric
-from lunarviz.methods.analytic import earth_covers_moon, hidden_view_cut, lunar_surface_rule
+from lunarviz.methods.analytic import hidden_view_cut, lunar_surface_rule
 from lunarviz.methods.tracer import settings as tuning
 from lunarviz.methods.tracer.facet_surfaces import FacetSurfaces
 from lunarviz.methods.tracer.settings import (
@@ -257,12 +257,14 @@ class LunarSampling:
             and hidden_view_cut(self.bodies.scene) != (None, None)
 
     def earth_covers_moon(self) -> bool:
-        """Whether the Earth's exact sphere hides the whole Moon from the detector
-        (:func:`~lunarviz.methods.analytic.earth_covers_moon`) on a date that is computed: the
-        packaged Earth's facets lie inside its sphere, so its sight lines may still pass to a
-        sliver of Moon that the exact scene hides (its rows then hold only that sliver's light,
-        ~100 % off the exact zero). Such a row has no bound."""
-        return earth_covers_moon(self.bodies.scene)
+        """Whether the Earth's exact sphere hides the whole Moon from a detector outside it
+        (:meth:`~lunarviz.geometry.scene_geometry.SceneGeometry.moon_wholly_hidden` without its
+        margins) on a date that is computed (the skip test keeps its margins): the packaged
+        Earth's facets lie inside its sphere, so its sight lines may still pass to a sliver of Moon
+        that the exact scene hides (its rows then hold only that sliver's light, ~100 % off the
+        exact zero). Such a row has no bound."""
+        sc = self.bodies.scene
+        return sc.horizon_normal is None and sc.moon_wholly_hidden(margin=0.0)
 
     def moon_shadow_on_earth_possible(self) -> bool:
         """With occlusion, whether the Moon's shadow may fall on the Earth (a solar eclipse, the
